@@ -1,0 +1,93 @@
+#include "services/bandit/core/config.h"
+
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+
+namespace bitewise::bandit {
+
+const char* LearnerName(Learner learner) {
+  switch (learner) {
+    case Learner::kPostHoc:
+      return "posthoc";
+    case Learner::kContextOnly:
+      return "context_only";
+  }
+  return "unknown";
+}
+
+const char* StrategyName(Strategy strategy) {
+  switch (strategy) {
+    case Strategy::kLinUcb:
+      return "linucb";
+    case Strategy::kGreedy:
+      return "greedy";
+    case Strategy::kEpsilonGreedy:
+      return "epsilon_greedy";
+    case Strategy::kThompson:
+      return "thompson";
+    case Strategy::kUniform:
+      return "uniform";
+  }
+  return "unknown";
+}
+
+std::vector<std::string> DefaultActionNames() {
+  return {"VS0", "VS90", "TV0", "TV90", "TA0", "TA90"};
+}
+
+absl::Status ValidateConfig(const BanditConfig& config) {
+  auto bad = [](auto... parts) {
+    return absl::InvalidArgumentError(absl::StrCat(parts...));
+  };
+  if (config.learner != Learner::kPostHoc &&
+      config.learner != Learner::kContextOnly) {
+    return bad("learner: unknown value ", static_cast<int>(config.learner));
+  }
+  if (static_cast<int>(config.strategy) < 1 ||
+      static_cast<int>(config.strategy) > 5) {
+    return bad("strategy: unknown value ", static_cast<int>(config.strategy));
+  }
+  if (!std::isfinite(config.alpha) || config.alpha < 0) {
+    return bad("alpha: must be finite and >= 0, got ", config.alpha);
+  }
+  if (!std::isfinite(config.lambda_c) || config.lambda_c <= 0) {
+    return bad("lambda_c: must be finite and > 0, got ", config.lambda_c);
+  }
+  if (!std::isfinite(config.lambda_p) || config.lambda_p <= 0) {
+    return bad("lambda_p: must be finite and > 0, got ", config.lambda_p);
+  }
+  if (!std::isfinite(config.epsilon) || config.epsilon < 0 ||
+      config.epsilon > 1) {
+    return bad("epsilon: must be in [0, 1], got ", config.epsilon);
+  }
+  constexpr int kMaxDim = 1 << 16;
+  if (config.context_dim < 1 || config.context_dim > kMaxDim) {
+    return bad("context_dim: must be in [1, ", kMaxDim, "], got ",
+               config.context_dim);
+  }
+  if (config.posthoc_dim < 0 || config.posthoc_dim > 1024) {
+    return bad("posthoc_dim: must be in [0, 1024], got ", config.posthoc_dim);
+  }
+  if (config.learner == Learner::kPostHoc && config.posthoc_dim < 1) {
+    return bad("posthoc_dim: the post hoc learner needs posthoc_dim >= 1");
+  }
+  if (config.num_actions() < 1 || config.num_actions() > 256) {
+    return bad("action_names: need between 1 and 256 actions, got ",
+               config.num_actions());
+  }
+  for (size_t i = 0; i < config.action_names.size(); ++i) {
+    if (config.action_names[i].empty()) {
+      return bad("action_names[", i, "]: must not be empty");
+    }
+    for (size_t j = 0; j < i; ++j) {
+      if (config.action_names[i] == config.action_names[j]) {
+        return bad("action_names[", i, "]: duplicate name \"",
+                   config.action_names[i], "\"");
+      }
+    }
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace bitewise::bandit

@@ -1,0 +1,107 @@
+// EventStore: the durable truth of the BanditService. It keeps each user's
+// configuration and event log (context, action, propensity, loss, post hoc
+// context, meal, times); models are derived from it. Select writes a pending
+// event; Update completes it in one transaction, exactly once.
+//
+// Implementations must be thread-safe. The SQLite store is the embedded
+// default; a PostgreSQL store can implement the same interface later.
+#ifndef BITEWISE_SERVICES_BANDIT_STORE_EVENT_STORE_H_
+#define BITEWISE_SERVICES_BANDIT_STORE_EVENT_STORE_H_
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/time/time.h"
+#include "services/bandit/core/config.h"
+
+namespace bitewise::bandit {
+
+struct UserRecord {
+  std::string user_id;
+  BanditConfig config;
+  absl::Time created_at;
+  // Number of completed events since creation or the last reset.
+  int64_t model_version = 0;
+  int64_t pending_events = 0;
+};
+
+struct EventRecord {
+  int64_t event_id = 0;  // assigned by the store, > 0, unique across users
+  std::string user_id;
+  std::string meal_id;
+  std::string item_label;
+  std::vector<double> context;
+  int action = 0;
+  double propensity = 1.0;
+  absl::Time selected_at;
+  bool completed = false;
+  // Set when completed.
+  double loss = 0.0;
+  std::vector<double> posthoc;
+  double weight = 1.0;        // importance weight applied to this round
+  int64_t model_version = 0;  // user's model_version after this update
+  absl::Time updated_at;
+};
+
+struct Page {
+  int page_size = 100;     // clamped to [1, 1000]
+  std::string page_token;  // empty: from the start
+};
+
+template <typename T>
+struct PageResult {
+  std::vector<T> items;
+  std::string next_page_token;  // empty: no more
+};
+
+class EventStore {
+ public:
+  virtual ~EventStore() = default;
+
+  // ALREADY_EXISTS if the id is taken.
+  virtual absl::Status CreateUser(const UserRecord& user) = 0;
+  // NOT_FOUND if unknown.
+  virtual absl::StatusOr<UserRecord> GetUser(const std::string& user_id) = 0;
+  // Ordered by user_id.
+  virtual absl::StatusOr<PageResult<UserRecord>> ListUsers(
+      const Page& page) = 0;
+  // Deletes the user and all of its events. NOT_FOUND if unknown.
+  virtual absl::Status DeleteUser(const std::string& user_id) = 0;
+  // Deletes all of the user's events and sets model_version to 0; keeps the
+  // configuration. NOT_FOUND if unknown.
+  virtual absl::Status ResetUser(const std::string& user_id) = 0;
+
+  // Durably appends a pending event (event_id, completed and the outcome
+  // fields of `event` are ignored) and returns its new event_id.
+  // NOT_FOUND if the user is unknown.
+  virtual absl::StatusOr<int64_t> AppendPending(const EventRecord& event) = 0;
+
+  // In one transaction: marks the pending event completed with this outcome,
+  // increments the user's model_version and stores it on the event. Returns
+  // the completed event. NOT_FOUND for an unknown event; FAILED_PRECONDITION
+  // if it is already completed (nothing is written).
+  virtual absl::StatusOr<EventRecord> CompleteEvent(
+      int64_t event_id, double loss, const std::vector<double>& posthoc,
+      double weight, absl::Time updated_at) = 0;
+
+  // NOT_FOUND if unknown.
+  virtual absl::StatusOr<EventRecord> GetEvent(int64_t event_id) = 0;
+
+  // A user's events in event_id order, optionally only one meal's.
+  virtual absl::StatusOr<PageResult<EventRecord>> ListEvents(
+      const std::string& user_id, const std::string& meal_id,
+      const Page& page) = 0;
+
+  // Every completed event of the user in model_version order: the log the
+  // model is rebuilt from.
+  virtual absl::StatusOr<std::vector<EventRecord>> CompletedEvents(
+      const std::string& user_id) = 0;
+};
+
+}  // namespace bitewise::bandit
+
+#endif  // BITEWISE_SERVICES_BANDIT_STORE_EVENT_STORE_H_

@@ -1,0 +1,69 @@
+// A dense float64 evaluation of SPEC section 2, written straight from the
+// formulas with explicit inverses. It is the independent reference that the
+// incremental LinUcbModel is checked against; it is slow on purpose.
+#ifndef BITEWISE_TESTS_BANDIT_DENSE_REFERENCE_H_
+#define BITEWISE_TESTS_BANDIT_DENSE_REFERENCE_H_
+
+#include <cmath>
+#include <vector>
+
+#include "Eigen/Dense"
+#include "services/bandit/core/config.h"
+#include "services/bandit/core/linucb.h"
+
+namespace bitewise::bandit::testing {
+
+struct DenseActionModel {
+  Eigen::VectorXd theta;
+  Eigen::VectorXd phi;
+  Eigen::MatrixXd sigma;  // the matrix under the width: A^-1 or 2 N^-1
+};
+
+inline std::vector<DenseActionModel> DenseReference(
+    const BanditConfig& config, const std::vector<Round>& rounds) {
+  using Eigen::MatrixXd;
+  using Eigen::VectorXd;
+  const int d = config.context_dim;
+  const int q = config.posthoc_dim;
+  const int k = config.num_actions();
+  const bool posthoc = config.learner == Learner::kPostHoc;
+  auto vec = [](const std::vector<double>& v) {
+    return Eigen::Map<const VectorXd>(v.data(), v.size());
+  };
+  std::vector<MatrixXd> a(k, config.lambda_c * MatrixXd::Identity(d, d));
+  std::vector<VectorXd> b(k, VectorXd::Zero(d));
+  std::vector<MatrixXd> m(k, config.lambda_p * MatrixXd::Identity(q, q));
+  std::vector<VectorXd> r(k, VectorXd::Zero(q));
+  MatrixXd s_pp = config.lambda_p * MatrixXd::Identity(q, q);
+  MatrixXd s_pc = MatrixXd::Zero(q, d);
+  for (const Round& t : rounds) {
+    const VectorXd c = vec(t.context);
+    a[t.action] += t.weight * c * c.transpose();
+    b[t.action] += t.weight * t.loss * c;
+    if (posthoc) {
+      const VectorXd p = vec(t.posthoc);
+      m[t.action] += t.weight * p * p.transpose();
+      r[t.action] += t.weight * t.loss * p;
+      s_pp += t.weight * p * p.transpose();
+      s_pc += t.weight * p * c.transpose();
+    }
+  }
+  std::vector<DenseActionModel> out(k);
+  const MatrixXd h = s_pp.inverse() * s_pc;
+  for (int i = 0; i < k; ++i) {
+    if (!posthoc) {
+      out[i].sigma = a[i].inverse();
+      out[i].theta = out[i].sigma * b[i];
+      continue;
+    }
+    const MatrixXd n_inv = (a[i] + h.transpose() * m[i] * h).inverse();
+    out[i].theta = n_inv * (b[i] + h.transpose() * r[i]);
+    out[i].phi = h * out[i].theta;
+    out[i].sigma = 2.0 * n_inv;
+  }
+  return out;
+}
+
+}  // namespace bitewise::bandit::testing
+
+#endif  // BITEWISE_TESTS_BANDIT_DENSE_REFERENCE_H_

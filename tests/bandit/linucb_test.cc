@@ -1,0 +1,386 @@
+#include "services/bandit/core/linucb.h"
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "gtest/gtest.h"
+#include "services/bandit/core/policy.h"
+#include "tests/bandit/dense_reference.h"
+
+namespace bitewise::bandit {
+namespace {
+
+using testing::DenseActionModel;
+using testing::DenseReference;
+
+struct Problem {
+  int d;
+  int q;
+  int k;
+  int rounds;
+  Learner learner;
+  bool weighted;
+  int primal_threshold;  // 0: d
+};
+
+std::string Name(const ::testing::TestParamInfo<Problem>& info) {
+  const Problem& p = info.param;
+  return std::string(LearnerName(p.learner)) + "_d" + std::to_string(p.d) +
+         "_q" + std::to_string(p.q) + "_k" + std::to_string(p.k) + "_T" +
+         std::to_string(p.rounds) + (p.weighted ? "_weighted" : "") +
+         (p.primal_threshold ? "_primal" + std::to_string(p.primal_threshold)
+                             : "");
+}
+
+BanditConfig MakeConfig(const Problem& p, std::mt19937_64& rng) {
+  BanditConfig config;
+  config.learner = p.learner;
+  config.context_dim = p.d;
+  config.posthoc_dim = p.q;
+  config.action_names.clear();
+  for (int a = 0; a < p.k; ++a)
+    config.action_names.push_back("a" + std::to_string(a));
+  // Vary the hyperparameters so the test is not tuned to the defaults.
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  config.alpha = 0.05 + u(rng);
+  config.lambda_c = 0.5 + 3.0 * u(rng);
+  config.lambda_p = 0.5 + 2.0 * u(rng);
+  return config;
+}
+
+std::vector<double> RandomVector(int n, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<double> v(n);
+  for (double& x : v) x = u(rng);
+  return v;
+}
+
+// Relative difference with a floor of 1 on the scale, so that values near
+// zero are compared absolutely.
+double RelErr(double got, double want) {
+  return std::abs(got - want) / std::max(1.0, std::abs(want));
+}
+
+double RelErr(const Eigen::VectorXd& got, const Eigen::VectorXd& want) {
+  return (got - want).norm() / std::max(1.0, want.norm());
+}
+
+void ExpectMatchesReference(const LinUcbModel& model,
+                            const std::vector<Round>& rounds,
+                            const std::vector<double>& probe,
+                            const std::string& where) {
+  const BanditConfig& config = model.config();
+  const std::vector<DenseActionModel> ref = DenseReference(config, rounds);
+  const std::vector<ActionEstimate> est = model.Estimate(probe);
+  const Eigen::Map<const Eigen::VectorXd> c(probe.data(), probe.size());
+  for (int a = 0; a < config.num_actions(); ++a) {
+    SCOPED_TRACE(where + " action " + std::to_string(a));
+    const double pred = ref[a].theta.dot(c);
+    const double width = std::sqrt(c.dot(ref[a].sigma * c));
+    const double lcb = pred - config.alpha * width;
+    EXPECT_LT(RelErr(model.Theta(a), ref[a].theta), 1e-8);
+    EXPECT_LT(RelErr(est[a].predicted_loss, pred), 1e-8);
+    EXPECT_LT(RelErr(est[a].width, width), 1e-8);
+    EXPECT_LT(RelErr(est[a].lcb, lcb), 1e-8);
+    if (config.learner == Learner::kPostHoc) {
+      EXPECT_LT(RelErr(model.Phi(a), ref[a].phi), 1e-8);
+    }
+  }
+}
+
+class LinUcbReferenceTest : public ::testing::TestWithParam<Problem> {};
+
+TEST_P(LinUcbReferenceTest, MatchesDenseReferenceThroughout) {
+  const Problem& p = GetParam();
+  std::mt19937_64 rng(1234 + p.d * 7 + p.rounds);
+  const BanditConfig config = MakeConfig(p, rng);
+  absl::StatusOr<LinUcbModel> created =
+      LinUcbModel::Create(config, p.primal_threshold);
+  ASSERT_TRUE(created.ok()) << created.status();
+  LinUcbModel model = std::move(created).value();
+
+  // Losses follow a hidden linear map of the post hoc context, as in the
+  // paper's synthetic experiment, so the post hoc model has signal.
+  const std::vector<double> hidden = RandomVector(p.q * p.k, rng);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Round> rounds;
+  const int checkpoints[] = {0, 1, 2, p.rounds / 3, p.rounds - 1};
+  for (int t = 0; t < p.rounds; ++t) {
+    Round round;
+    round.context = RandomVector(p.d, rng);
+    const std::vector<ActionEstimate> est = model.Estimate(round.context);
+    std::vector<double> lcb;
+    for (const ActionEstimate& e : est) lcb.push_back(e.lcb);
+    // Mix LinUCB choices with random ones so every action gets data.
+    round.action =
+        u(rng) < 0.5 ? ArgMin(lcb) : static_cast<int>(u(rng) * p.k) % p.k;
+    round.posthoc.assign(round.context.begin(), round.context.begin() + p.q);
+    double mean = 0.0;
+    for (int j = 0; j < p.q; ++j)
+      mean += hidden[round.action * p.q + j] * round.posthoc[j];
+    round.loss = u(rng) < mean / p.q ? 1.0 : 0.0;
+    round.weight = p.weighted ? 1.0 + 5.0 * u(rng) : 1.0;
+    ASSERT_TRUE(model.ValidateRound(round).ok());
+    model.Update(round);
+    rounds.push_back(round);
+    for (int check : checkpoints) {
+      if (t == check) {
+        ExpectMatchesReference(model, rounds, RandomVector(p.d, rng),
+                               "after round " + std::to_string(t));
+      }
+    }
+  }
+  // A batch rebuild from the log equals the incremental model, up to the
+  // rounding that the problem's conditioning allows (these random
+  // hyperparameters use lambda_c of a few units, far below the default).
+  absl::StatusOr<LinUcbModel> rebuilt =
+      LinUcbModel::Rebuild(config, rounds, p.primal_threshold);
+  ASSERT_TRUE(rebuilt.ok()) << rebuilt.status();
+  const std::vector<double> probe = RandomVector(p.d, rng);
+  const std::vector<ActionEstimate> a = model.Estimate(probe);
+  const std::vector<ActionEstimate> b = rebuilt->Estimate(probe);
+  for (int i = 0; i < p.k; ++i) {
+    EXPECT_LT(RelErr(b[i].predicted_loss, a[i].predicted_loss), 1e-10);
+    EXPECT_LT(RelErr(b[i].width, a[i].width), 1e-10);
+    EXPECT_LT(RelErr(rebuilt->Theta(i), model.Theta(i)), 1e-10);
+    EXPECT_EQ(rebuilt->Count(i), model.Count(i));
+    EXPECT_EQ(rebuilt->IsPrimal(i), model.IsPrimal(i));
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    RandomProblems, LinUcbReferenceTest,
+    ::testing::Values(Problem{8, 3, 4, 300, Learner::kPostHoc, false, 0},
+                      Problem{8, 3, 4, 300, Learner::kPostHoc, true, 0},
+                      Problem{8, 3, 4, 300, Learner::kContextOnly, false, 0},
+                      Problem{8, 3, 4, 300, Learner::kContextOnly, true, 0},
+                      Problem{32, 4, 6, 200, Learner::kPostHoc, false, 0},
+                      Problem{32, 4, 6, 200, Learner::kPostHoc, true, 0},
+                      Problem{64, 4, 6, 300, Learner::kPostHoc, false, 0},
+                      Problem{64, 4, 6, 300, Learner::kPostHoc, true, 0},
+                      Problem{64, 4, 6, 300, Learner::kContextOnly, false, 0},
+                      Problem{64, 4, 6, 300, Learner::kContextOnly, true, 0},
+                      Problem{64, 10, 10, 200, Learner::kPostHoc, false, 0},
+                      Problem{16, 4, 6, 200, Learner::kPostHoc, false, 5},
+                      Problem{64, 1, 2, 150, Learner::kPostHoc, true, 0},
+                      Problem{64, 4, 6, 300, Learner::kPostHoc, true, 100000}),
+    Name);
+
+// With the default hyperparameters a model rebuilt from its log (what a
+// restart does) equals the live model within 1e-12, in both regimes.
+TEST(LinUcbTest, RebuildEqualsIncrementalWithDefaults) {
+  for (const int d : {16, 256}) {
+    for (const Learner learner : {Learner::kPostHoc, Learner::kContextOnly}) {
+      BanditConfig config;
+      config.learner = learner;
+      config.context_dim = d;
+      absl::StatusOr<LinUcbModel> model = LinUcbModel::Create(config);
+      ASSERT_TRUE(model.ok());
+      std::mt19937_64 rng(d);
+      std::uniform_real_distribution<double> u(0.0, 1.0);
+      std::vector<Round> rounds;
+      for (int t = 0; t < 400; ++t) {
+        Round round;
+        round.context = RandomVector(d, rng);
+        round.action = static_cast<int>(u(rng) * 6) % 6;
+        round.posthoc = RandomVector(4, rng);
+        round.loss = u(rng) < 0.4 ? 1.0 : 0.0;
+        model->Update(round);
+        rounds.push_back(round);
+      }
+      absl::StatusOr<LinUcbModel> rebuilt =
+          LinUcbModel::Rebuild(config, rounds);
+      ASSERT_TRUE(rebuilt.ok());
+      const std::vector<double> probe = RandomVector(d, rng);
+      const std::vector<ActionEstimate> a = model->Estimate(probe);
+      const std::vector<ActionEstimate> b = rebuilt->Estimate(probe);
+      for (int i = 0; i < 6; ++i) {
+        EXPECT_EQ(model->IsPrimal(i), d == 16);
+        EXPECT_LT(RelErr(b[i].predicted_loss, a[i].predicted_loss), 1e-12);
+        EXPECT_LT(RelErr(b[i].width, a[i].width), 1e-12);
+        EXPECT_LT(RelErr(b[i].lcb, a[i].lcb), 1e-12);
+        EXPECT_LT(RelErr(rebuilt->Theta(i), model->Theta(i)), 1e-12);
+        if (learner == Learner::kPostHoc) {
+          EXPECT_LT(RelErr(rebuilt->Phi(i), model->Phi(i)), 1e-12);
+        }
+      }
+    }
+  }
+}
+
+TEST(LinUcbTest, FreshModelPredictsZeroWithPriorWidth) {
+  BanditConfig config;
+  config.context_dim = 5;
+  absl::StatusOr<LinUcbModel> model = LinUcbModel::Create(config);
+  ASSERT_TRUE(model.ok());
+  const std::vector<double> c = {1, 2, 3, 4, 5};
+  for (const ActionEstimate& e : model->Estimate(c)) {
+    EXPECT_DOUBLE_EQ(e.predicted_loss, 0.0);
+    // N = lambda_c I + H^T M H with H = 0, so width = sqrt(2 |c|^2 / 1000).
+    EXPECT_NEAR(e.width, std::sqrt(2.0 * 55.0 / 1000.0), 1e-15);
+  }
+}
+
+TEST(LinUcbTest, DefaultsMatchTheResearchers) {
+  const BanditConfig config;
+  EXPECT_EQ(config.learner, Learner::kPostHoc);
+  EXPECT_EQ(config.strategy, Strategy::kLinUcb);
+  EXPECT_EQ(config.alpha, 0.01);
+  EXPECT_EQ(config.lambda_c, 1000.0);
+  EXPECT_EQ(config.lambda_p, 1.0);
+  EXPECT_EQ(config.epsilon, 0.1);
+  EXPECT_FALSE(config.importance_weighting);
+  EXPECT_EQ(config.num_actions(), 6);
+}
+
+TEST(LinUcbTest, RejectsBadInputNamingTheField) {
+  BanditConfig config;
+  config.context_dim = 3;
+  config.posthoc_dim = 2;
+  absl::StatusOr<LinUcbModel> model = LinUcbModel::Create(config);
+  ASSERT_TRUE(model.ok());
+  absl::Status s = model->ValidateContext({1.0, 2.0});
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(s.message().find("context: expected 3 values, got 2"),
+            std::string::npos)
+      << s;
+  s = model->ValidateContext({1.0, NAN, 2.0});
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(s.message().find("context[1]"), std::string::npos) << s;
+  s = model->ValidateContext({1.0, INFINITY, 2.0});
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  s = model->ValidateOutcome(1.5, {0.0, 1.0});
+  EXPECT_NE(s.message().find("loss"), std::string::npos) << s;
+  s = model->ValidateOutcome(NAN, {0.0, 1.0});
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument);
+  s = model->ValidateOutcome(1.0, {0.0});
+  EXPECT_NE(s.message().find("posthoc: expected 2 values, got 1"),
+            std::string::npos)
+      << s;
+  s = model->ValidateOutcome(1.0, {});
+  EXPECT_EQ(s.code(), absl::StatusCode::kInvalidArgument)
+      << "post hoc learner needs p";
+  EXPECT_TRUE(model->ValidateOutcome(0.0, {0.5, 0.5}).ok());
+
+  config.learner = Learner::kContextOnly;
+  absl::StatusOr<LinUcbModel> context_only = LinUcbModel::Create(config);
+  ASSERT_TRUE(context_only.ok());
+  EXPECT_TRUE(context_only->ValidateOutcome(1.0, {}).ok());
+}
+
+TEST(LinUcbTest, RejectsBadConfig) {
+  BanditConfig config;
+  config.lambda_c = 0;
+  EXPECT_NE(LinUcbModel::Create(config).status().message().find("lambda_c"),
+            std::string::npos);
+  config = BanditConfig();
+  config.action_names = {"a", "a"};
+  EXPECT_NE(LinUcbModel::Create(config).status().message().find("duplicate"),
+            std::string::npos);
+  config = BanditConfig();
+  config.posthoc_dim = 0;
+  EXPECT_FALSE(LinUcbModel::Create(config).ok());
+}
+
+TEST(LinUcbTest, DualMemoryGrowsWithRoundsNotDSquared) {
+  BanditConfig config;
+  config.context_dim = 2048;
+  absl::StatusOr<LinUcbModel> model = LinUcbModel::Create(config);
+  ASSERT_TRUE(model.ok());
+  std::mt19937_64 rng(5);
+  for (int t = 0; t < 60; ++t) {
+    Round round;
+    round.context = RandomVector(2048, rng);
+    round.action = t % 6;
+    round.posthoc = {1, 0, 0, 0};
+    round.loss = t % 2;
+    model->Update(round);
+  }
+  // 60 rounds x 2048 doubles is ~1 MB; one d x d matrix alone is 32 MB.
+  EXPECT_LT(model->MemoryBytes(), 4u << 20);
+  for (int a = 0; a < 6; ++a) EXPECT_FALSE(model->IsPrimal(a));
+}
+
+TEST(PolicyTest, LinUcbTiesGoToTheLowestIndex) {
+  BanditConfig config;
+  std::mt19937_64 rng = SelectRng(1, 0);
+  std::vector<ActionEstimate> est(6, ActionEstimate{0.5, 0.1, 0.4});
+  est[3].lcb = 0.3;
+  est[5].lcb = 0.3;
+  const Choice choice = ChooseAction(config, est, rng);
+  EXPECT_EQ(choice.action, 3);
+  EXPECT_EQ(choice.propensity, 1.0);
+}
+
+TEST(PolicyTest, EpsilonGreedyPropensityAndFrequency) {
+  BanditConfig config;
+  config.strategy = Strategy::kEpsilonGreedy;
+  config.epsilon = 0.3;
+  std::vector<ActionEstimate> est(6, ActionEstimate{0.5, 0.0, 0.5});
+  est[2].predicted_loss = 0.1;
+  int greedy = 0;
+  const int n = 20000;
+  for (int i = 0; i < n; ++i) {
+    std::mt19937_64 rng = SelectRng(7, i);
+    const Choice choice = ChooseAction(config, est, rng);
+    if (choice.action == 2) {
+      ++greedy;
+      EXPECT_DOUBLE_EQ(choice.propensity, 0.7 + 0.05);
+    } else {
+      EXPECT_DOUBLE_EQ(choice.propensity, 0.05);
+    }
+  }
+  EXPECT_NEAR(static_cast<double>(greedy) / n, 0.75, 0.015);
+}
+
+TEST(PolicyTest, ThompsonMeanIsThetaAndDrawsAreReproducible) {
+  BanditConfig config;
+  config.strategy = Strategy::kThompson;
+  config.alpha = 1.0;
+  // Two actions with equal width: the lower mean wins more often, in
+  // proportion to P(N(0.4, 0.2^2) < N(0.5, 0.2^2)) = Phi(0.1/0.2828).
+  config.action_names = {"a", "b"};
+  std::vector<ActionEstimate> est = {{0.5, 0.2, 0.3}, {0.4, 0.2, 0.2}};
+  int b_wins = 0;
+  const int n = 20000;
+  for (int i = 0; i < n; ++i) {
+    std::mt19937_64 rng = SelectRng(11, i);
+    const Choice choice = ChooseAction(config, est, rng);
+    if (choice.action == 1) ++b_wins;
+    std::mt19937_64 again = SelectRng(11, i);
+    EXPECT_EQ(ChooseAction(config, est, again).action, choice.action);
+    if (i < 50) {
+      const double expected = choice.action == 1 ? 0.6382 : 0.3618;
+      EXPECT_NEAR(choice.propensity, expected, 0.04);
+    }
+  }
+  EXPECT_NEAR(static_cast<double>(b_wins) / n, 0.6382, 0.015);
+}
+
+TEST(PolicyTest, UniformIsUniform) {
+  BanditConfig config;
+  config.strategy = Strategy::kUniform;
+  std::vector<ActionEstimate> est(6);
+  std::vector<int> counts(6, 0);
+  for (int i = 0; i < 12000; ++i) {
+    std::mt19937_64 rng = SelectRng(3, i);
+    const Choice choice = ChooseAction(config, est, rng);
+    EXPECT_DOUBLE_EQ(choice.propensity, 1.0 / 6);
+    ++counts[choice.action];
+  }
+  for (int c : counts) EXPECT_NEAR(c, 2000, 150);
+}
+
+TEST(PolicyTest, GreedyIgnoresWidth) {
+  BanditConfig config;
+  config.strategy = Strategy::kGreedy;
+  std::vector<ActionEstimate> est = {{0.2, 0.0, 0.2}, {0.3, 5.0, -4.7}};
+  config.action_names = {"a", "b"};
+  std::mt19937_64 rng = SelectRng(0, 0);
+  EXPECT_EQ(ChooseAction(config, est, rng).action, 0);
+}
+
+}  // namespace
+}  // namespace bitewise::bandit
