@@ -1,0 +1,275 @@
+// bitewise-bandit-demo: simulated bites against a running BanditService.
+//
+// Until the perception, haptic and robot services exist, this client stands
+// in for them with a small simulated plate: eight unseen foods whose visual
+// context is a noisy, food-specific feature vector, whose haptic class is
+// observed by a noisy classifier, and whose success probability per action
+// follows the known optima of SPEC section 1. Every bite goes through the
+// real BanditService (Select, then Update) so that learning persists per
+// user across meals.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/time/time.h"
+#include "bitewise/v1/bandit.grpc.pb.h"
+#include "services/common/channel.h"
+#include "services/common/grpc_status.h"
+
+ABSL_FLAG(std::string, bandit, "127.0.0.1:50051", "BanditService address.");
+ABSL_FLAG(std::string, user, "demo-user", "User whose model learns.");
+ABSL_FLAG(std::string, meal, "meal-1", "Meal id recorded with each event.");
+ABSL_FLAG(int, bites, 40,
+          "Most bite attempts; the meal ends sooner when "
+          "the plate is empty.");
+ABSL_FLAG(uint64_t, seed, 1, "Seed of the simulated plate and outcomes.");
+ABSL_FLAG(int, context_dim, 2048, "Visual context dimension for new users.");
+ABSL_FLAG(std::string, posthoc, "logprob",
+          "Post hoc context sent with each update: logprob or prob.");
+ABSL_FLAG(std::string, learner, "posthoc",
+          "Learner for a new user: posthoc or context_only.");
+ABSL_FLAG(std::string, tls_ca, "", "CA bundle of the server (turns on TLS).");
+ABSL_FLAG(std::string, tls_cert, "", "Client certificate (mutual TLS).");
+ABSL_FLAG(std::string, tls_key, "", "Client key (mutual TLS).");
+ABSL_FLAG(int, deadline_ms, 5000, "Deadline of every call.");
+
+namespace {
+
+namespace v1 = bitewise::v1;
+
+const char* const kHapticNames[] = {"hard", "medium", "soft", "hard-skin"};
+
+struct Food {
+  const char* name;
+  int haptic;  // index into kHapticNames
+  // Success probability per action VS0, VS90, TV0, TV90, TA0, TA90: the
+  // known optima of SPEC section 1 succeed most often.
+  double success[6];
+};
+
+const Food kUnseenFoods[] = {
+    {"carrot", 0, {0.55, 0.90, 0.40, 0.50, 0.10, 0.10}},
+    {"celery", 0, {0.55, 0.85, 0.40, 0.45, 0.10, 0.10}},
+    {"strawberry", 1, {0.90, 0.70, 0.90, 0.70, 0.45, 0.40}},
+    {"cantaloupe", 1, {0.85, 0.70, 0.85, 0.65, 0.50, 0.45}},
+    {"banana", 2, {0.30, 0.30, 0.40, 0.35, 0.90, 0.90}},
+    {"kiwi", 2, {0.35, 0.35, 0.45, 0.40, 0.85, 0.85}},
+    {"cherry_tomato", 3, {0.35, 0.45, 0.60, 0.90, 0.15, 0.15}},
+    {"grape", 3, {0.35, 0.45, 0.60, 0.90, 0.15, 0.15}},
+};
+constexpr int kFoods = 8;
+
+// Visual features: each food has a base appearance; each item adds
+// within-type variation, and the features are non-negative like SPANet's
+// post-ReLU activations.
+class VisualModel {
+ public:
+  VisualModel(int dim, uint64_t seed) : dim_(dim) {
+    std::mt19937_64 rng(seed);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    for (int f = 0; f < kFoods; ++f) {
+      std::vector<double> base(dim);
+      for (double& x : base) x = 0.5 * normal(rng);
+      bases_.push_back(base);
+    }
+  }
+
+  std::vector<double> Observe(int food, std::mt19937_64& rng) const {
+    std::normal_distribution<double> normal(0.0, 0.35);
+    std::vector<double> c(dim_);
+    for (int i = 0; i < dim_; ++i) {
+      c[i] = std::max(0.0, bases_[food][i] + normal(rng));
+    }
+    return c;
+  }
+
+ private:
+  int dim_;
+  std::vector<std::vector<double>> bases_;
+};
+
+// A noisy haptic classifier: softmax of a boosted true class plus noise.
+std::vector<double> HapticProbabilities(int category, std::mt19937_64& rng) {
+  std::normal_distribution<double> normal(0.0, 0.8);
+  std::vector<double> logits(4);
+  for (int k = 0; k < 4; ++k)
+    logits[k] = (k == category ? 3.0 : 0.0) + normal(rng);
+  const double top = *std::max_element(logits.begin(), logits.end());
+  double sum = 0.0;
+  for (double& l : logits) sum += (l = std::exp(l - top));
+  for (double& l : logits) l /= sum;
+  return logits;
+}
+
+template <typename Call>
+grpc::Status WithRetries(Call call) {
+  grpc::Status status;
+  for (int attempt = 0; attempt < 5; ++attempt) {
+    status = call();
+    if (status.error_code() != grpc::StatusCode::UNAVAILABLE) return status;
+    std::this_thread::sleep_for(std::chrono::milliseconds(200 << attempt));
+  }
+  return status;
+}
+
+std::unique_ptr<grpc::ClientContext> Context() {
+  auto context = std::make_unique<grpc::ClientContext>();
+  context->set_deadline(
+      std::chrono::system_clock::now() +
+      std::chrono::milliseconds(absl::GetFlag(FLAGS_deadline_ms)));
+  return context;
+}
+
+int Fail(const char* what, const grpc::Status& status) {
+  std::fprintf(stderr, "bitewise-bandit-demo: %s failed: %s\n", what,
+               bitewise::FromGrpcStatus(status).ToString().c_str());
+  return 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  absl::SetProgramUsageMessage(
+      "Runs simulated bites for one user against a BanditService.");
+  absl::ParseCommandLine(argc, argv);
+  const std::string posthoc_kind = absl::GetFlag(FLAGS_posthoc);
+  if (posthoc_kind != "logprob" && posthoc_kind != "prob") {
+    std::fprintf(stderr, "--posthoc: expected logprob or prob, got %s\n",
+                 posthoc_kind.c_str());
+    return 2;
+  }
+
+  bitewise::ChannelOptions channel_options;
+  channel_options.tls_ca_file = absl::GetFlag(FLAGS_tls_ca);
+  channel_options.tls_cert_file = absl::GetFlag(FLAGS_tls_cert);
+  channel_options.tls_key_file = absl::GetFlag(FLAGS_tls_key);
+  auto channel =
+      bitewise::MakeChannel(absl::GetFlag(FLAGS_bandit), channel_options);
+  if (!channel.ok()) {
+    std::fprintf(stderr, "bitewise-bandit-demo: %s\n",
+                 channel.status().ToString().c_str());
+    return 1;
+  }
+  auto stub = v1::BanditService::NewStub(*channel);
+  const std::string user_id = absl::GetFlag(FLAGS_user);
+  const std::string meal_id = absl::GetFlag(FLAGS_meal);
+
+  // Find or create the user.
+  v1::User user;
+  {
+    v1::GetUserRequest request;
+    request.set_user_id(user_id);
+    grpc::Status status = WithRetries(
+        [&] { return stub->GetUser(Context().get(), request, &user); });
+    if (status.error_code() == grpc::StatusCode::NOT_FOUND) {
+      v1::CreateUserRequest create;
+      create.set_user_id(user_id);
+      create.mutable_config()->set_context_dim(
+          absl::GetFlag(FLAGS_context_dim));
+      create.mutable_config()->set_posthoc_dim(4);
+      create.mutable_config()->set_learner(absl::GetFlag(FLAGS_learner) ==
+                                                   "context_only"
+                                               ? v1::LEARNER_CONTEXT_ONLY
+                                               : v1::LEARNER_POSTHOC);
+      status = WithRetries(
+          [&] { return stub->CreateUser(Context().get(), create, &user); });
+      if (!status.ok()) return Fail("CreateUser", status);
+      std::printf("new user %s (%s learner, d=%u)\n", user_id.c_str(),
+                  v1::Learner_Name(user.config().learner()).c_str(),
+                  user.config().context_dim());
+    } else if (!status.ok()) {
+      return Fail("GetUser", status);
+    } else {
+      std::printf("user %s continues from model version %lld\n",
+                  user_id.c_str(),
+                  static_cast<long long>(user.model_version()));
+    }
+  }
+  const int dim = static_cast<int>(user.config().context_dim());
+  const VisualModel visual(dim, 7);  // appearance is fixed across meals
+  std::mt19937_64 rng(absl::GetFlag(FLAGS_seed) ^
+                      std::hash<std::string>()(meal_id));
+  std::uniform_real_distribution<double> coin(0.0, 1.0);
+
+  std::vector<int> plate(kFoods);
+  for (int f = 0; f < kFoods; ++f) plate[f] = f;
+  std::shuffle(plate.begin(), plate.end(), rng);
+
+  struct Tally {
+    int attempts = 0;
+    int failures = 0;
+  };
+  std::map<std::string, Tally> per_food;
+  int attempts = 0, failures = 0;
+  const int max_bites = absl::GetFlag(FLAGS_bites);
+  std::printf("meal %s: %d items on the plate\n", meal_id.c_str(), kFoods);
+  while (!plate.empty() && attempts < max_bites) {
+    const int food = plate.back();
+    const Food& spec = kUnseenFoods[food];
+    v1::SelectRequest select;
+    select.set_user_id(user_id);
+    select.set_meal_id(meal_id);
+    select.set_item_label(spec.name);
+    const std::vector<double> c = visual.Observe(food, rng);
+    select.mutable_context()->Add(c.begin(), c.end());
+    v1::SelectResponse chosen;
+    grpc::Status status = WithRetries(
+        [&] { return stub->Select(Context().get(), select, &chosen); });
+    if (!status.ok()) return Fail("Select", status);
+
+    const bool success = coin(rng) < spec.success[chosen.action()];
+    const std::vector<double> probs = HapticProbabilities(spec.haptic, rng);
+    const int sensed = static_cast<int>(
+        std::max_element(probs.begin(), probs.end()) - probs.begin());
+    v1::UpdateRequest update;
+    update.set_event_id(chosen.event_id());
+    update.set_loss(success ? 0.0 : 1.0);
+    for (double p : probs) {
+      update.add_posthoc(posthoc_kind == "logprob" ? std::log(p) : p);
+    }
+    v1::UpdateResponse updated;
+    status = WithRetries(
+        [&] { return stub->Update(Context().get(), update, &updated); });
+    if (!status.ok()) return Fail("Update", status);
+
+    ++attempts;
+    Tally& tally = per_food[spec.name];
+    ++tally.attempts;
+    if (!success) {
+      ++failures;
+      ++tally.failures;
+    } else {
+      plate.pop_back();
+    }
+    std::string lcbs;
+    for (const v1::ActionEstimate& e : chosen.estimates()) {
+      absl::StrAppend(&lcbs,
+                      absl::StrFormat(" %s=%+.3f", e.action_name(), e.lcb()));
+    }
+    std::printf("bite %2d  %-14s %-5s lcb[%s ]  %-7s haptic %s %.2f\n",
+                attempts, spec.name, chosen.action_name().c_str(), lcbs.c_str(),
+                success ? "success" : "FAILED", kHapticNames[sensed],
+                probs[sensed]);
+    std::fflush(stdout);
+  }
+
+  std::printf("\nmeal %s summary: %d attempts, %d failures, %zu items left\n",
+              meal_id.c_str(), attempts, failures, plate.size());
+  std::printf("  %-14s %8s %8s\n", "food", "attempts", "failures");
+  for (const auto& [name, tally] : per_food) {
+    std::printf("  %-14s %8d %8d\n", name.c_str(), tally.attempts,
+                tally.failures);
+  }
+  return 0;
+}

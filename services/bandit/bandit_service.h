@@ -1,0 +1,55 @@
+// BanditServiceImpl: the gRPC face of the BanditEngine. Each handler
+// validates the request, calls the engine and converts the result; errors
+// become gRPC statuses through the one mapping in services/common.
+// Thread-safe (the engine is).
+#ifndef BITEWISE_SERVICES_BANDIT_BANDIT_SERVICE_H_
+#define BITEWISE_SERVICES_BANDIT_BANDIT_SERVICE_H_
+
+#include "bitewise/v1/bandit.grpc.pb.h"
+#include "services/bandit/core/config.h"
+#include "services/bandit/engine.h"
+
+namespace bitewise::bandit {
+
+class BanditServiceImpl final : public v1::BanditService::Service {
+ public:
+  // `engine` must outlive the service. `defaults` fill the fields that a
+  // CreateUser request leaves unset.
+  BanditServiceImpl(BanditEngine* engine, const BanditConfig& defaults);
+
+  grpc::Status Select(grpc::ServerContext* context,
+                      const v1::SelectRequest* request,
+                      v1::SelectResponse* response) override;
+  grpc::Status Update(grpc::ServerContext* context,
+                      const v1::UpdateRequest* request,
+                      v1::UpdateResponse* response) override;
+  grpc::Status CreateUser(grpc::ServerContext* context,
+                          const v1::CreateUserRequest* request,
+                          v1::User* response) override;
+  grpc::Status GetUser(grpc::ServerContext* context,
+                       const v1::GetUserRequest* request,
+                       v1::User* response) override;
+  grpc::Status ListUsers(grpc::ServerContext* context,
+                         const v1::ListUsersRequest* request,
+                         v1::ListUsersResponse* response) override;
+  grpc::Status ResetUser(grpc::ServerContext* context,
+                         const v1::ResetUserRequest* request,
+                         v1::User* response) override;
+  grpc::Status DeleteUser(grpc::ServerContext* context,
+                          const v1::DeleteUserRequest* request,
+                          v1::DeleteUserResponse* response) override;
+  grpc::Status GetModel(grpc::ServerContext* context,
+                        const v1::GetModelRequest* request,
+                        v1::Model* response) override;
+  grpc::Status ListEvents(grpc::ServerContext* context,
+                          const v1::ListEventsRequest* request,
+                          v1::ListEventsResponse* response) override;
+
+ private:
+  BanditEngine* const engine_;
+  const BanditConfig defaults_;
+};
+
+}  // namespace bitewise::bandit
+
+#endif  // BITEWISE_SERVICES_BANDIT_BANDIT_SERVICE_H_

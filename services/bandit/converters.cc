@@ -1,0 +1,191 @@
+#include "services/bandit/converters.h"
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "google/protobuf/timestamp.pb.h"
+
+namespace bitewise::bandit {
+namespace {
+
+void TimeToProto(absl::Time t, google::protobuf::Timestamp* proto) {
+  const int64_t micros = absl::ToUnixMicros(t);
+  int64_t seconds = micros / 1000000;
+  int64_t rem = micros % 1000000;
+  if (rem < 0) {
+    rem += 1000000;
+    --seconds;
+  }
+  proto->set_seconds(seconds);
+  proto->set_nanos(static_cast<int32_t>(rem * 1000));
+}
+
+// FNV-1a: a stable default seed per user, the same on every platform.
+uint64_t StableHash(const std::string& s) {
+  uint64_t h = 1469598103934665603ull;
+  for (const unsigned char ch : s) {
+    h ^= ch;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+}  // namespace
+
+absl::StatusOr<BanditConfig> ConfigFromProto(const v1::UserConfig& proto,
+                                             const BanditConfig& defaults,
+                                             const std::string& user_id) {
+  BanditConfig config = defaults;
+  switch (proto.learner()) {
+    case v1::LEARNER_UNSPECIFIED:
+      break;
+    case v1::LEARNER_POSTHOC:
+      config.learner = Learner::kPostHoc;
+      break;
+    case v1::LEARNER_CONTEXT_ONLY:
+      config.learner = Learner::kContextOnly;
+      break;
+    default:
+      return absl::InvalidArgumentError(
+          absl::StrCat("config.learner: unknown value ", proto.learner()));
+  }
+  switch (proto.strategy()) {
+    case v1::STRATEGY_UNSPECIFIED:
+      break;
+    case v1::STRATEGY_LINUCB:
+      config.strategy = Strategy::kLinUcb;
+      break;
+    case v1::STRATEGY_GREEDY:
+      config.strategy = Strategy::kGreedy;
+      break;
+    case v1::STRATEGY_EPSILON_GREEDY:
+      config.strategy = Strategy::kEpsilonGreedy;
+      break;
+    case v1::STRATEGY_THOMPSON:
+      config.strategy = Strategy::kThompson;
+      break;
+    case v1::STRATEGY_UNIFORM:
+      config.strategy = Strategy::kUniform;
+      break;
+    default:
+      return absl::InvalidArgumentError(
+          absl::StrCat("config.strategy: unknown value ", proto.strategy()));
+  }
+  if (proto.has_alpha()) config.alpha = proto.alpha();
+  if (proto.has_lambda_c()) config.lambda_c = proto.lambda_c();
+  if (proto.has_lambda_p()) config.lambda_p = proto.lambda_p();
+  if (proto.has_epsilon()) config.epsilon = proto.epsilon();
+  if (proto.context_dim() > 0) {
+    config.context_dim =
+        static_cast<int>(std::min<uint32_t>(proto.context_dim(), 1u << 30));
+  }
+  if (proto.posthoc_dim() > 0) {
+    config.posthoc_dim =
+        static_cast<int>(std::min<uint32_t>(proto.posthoc_dim(), 1u << 30));
+  }
+  if (proto.action_names_size() > 0) {
+    config.action_names.assign(proto.action_names().begin(),
+                               proto.action_names().end());
+  }
+  config.seed = proto.has_seed() ? proto.seed() : StableHash(user_id);
+  config.importance_weighting = proto.importance_weighting();
+  absl::Status status = ValidateConfig(config);
+  if (!status.ok()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("config.", status.message()));
+  }
+  return config;
+}
+
+void ConfigToProto(const BanditConfig& config, v1::UserConfig* proto) {
+  proto->set_learner(config.learner == Learner::kPostHoc
+                         ? v1::LEARNER_POSTHOC
+                         : v1::LEARNER_CONTEXT_ONLY);
+  proto->set_strategy(static_cast<v1::Strategy>(config.strategy));
+  proto->set_alpha(config.alpha);
+  proto->set_lambda_c(config.lambda_c);
+  proto->set_lambda_p(config.lambda_p);
+  proto->set_epsilon(config.epsilon);
+  proto->set_context_dim(static_cast<uint32_t>(config.context_dim));
+  proto->set_posthoc_dim(static_cast<uint32_t>(config.posthoc_dim));
+  for (const std::string& name : config.action_names) {
+    proto->add_action_names(name);
+  }
+  proto->set_seed(config.seed);
+  proto->set_importance_weighting(config.importance_weighting);
+}
+
+void UserToProto(const UserRecord& user, v1::User* proto) {
+  proto->set_user_id(user.user_id);
+  ConfigToProto(user.config, proto->mutable_config());
+  proto->set_model_version(user.model_version);
+  proto->set_pending_events(user.pending_events);
+  TimeToProto(user.created_at, proto->mutable_created_at());
+}
+
+void EventToProto(const EventRecord& event, v1::Event* proto) {
+  proto->set_event_id(absl::StrCat(event.event_id));
+  proto->set_user_id(event.user_id);
+  proto->set_meal_id(event.meal_id);
+  proto->set_item_label(event.item_label);
+  proto->mutable_context()->Add(event.context.begin(), event.context.end());
+  proto->set_action(event.action);
+  proto->set_propensity(event.propensity);
+  proto->set_completed(event.completed);
+  TimeToProto(event.selected_at, proto->mutable_selected_at());
+  if (event.completed) {
+    proto->set_loss(event.loss);
+    proto->mutable_posthoc()->Add(event.posthoc.begin(), event.posthoc.end());
+    proto->set_model_version(event.model_version);
+    TimeToProto(event.updated_at, proto->mutable_updated_at());
+  }
+}
+
+void SelectToProto(const SelectResult& result, v1::SelectResponse* proto) {
+  proto->set_event_id(absl::StrCat(result.event_id));
+  proto->set_action(result.action);
+  proto->set_action_name(result.action_name);
+  proto->set_propensity(result.propensity);
+  proto->set_model_version(result.model_version);
+  for (size_t a = 0; a < result.estimates.size(); ++a) {
+    v1::ActionEstimate* e = proto->add_estimates();
+    e->set_action(static_cast<int32_t>(a));
+    e->set_action_name(result.action_names[a]);
+    e->set_predicted_loss(result.estimates[a].predicted_loss);
+    e->set_width(result.estimates[a].width);
+    e->set_lcb(result.estimates[a].lcb);
+  }
+}
+
+void ModelToProto(const ModelExport& model, v1::Model* proto) {
+  proto->set_user_id(model.user.user_id);
+  ConfigToProto(model.user.config, proto->mutable_config());
+  proto->set_model_version(model.user.model_version);
+  for (const ActionModelExport& a : model.actions) {
+    v1::ActionModel* out = proto->add_actions();
+    out->set_action(a.action);
+    out->set_action_name(a.action_name);
+    out->set_count(a.count);
+    out->mutable_theta()->Add(a.theta.begin(), a.theta.end());
+    out->mutable_phi()->Add(a.phi.begin(), a.phi.end());
+    out->set_mean_loss(a.mean_loss);
+  }
+}
+
+absl::StatusOr<int64_t> ParseEventId(const std::string& event_id) {
+  int64_t id = 0;
+  if (!absl::SimpleAtoi(event_id, &id) || id <= 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "event_id: expected the decimal id returned by Select, got \"",
+        event_id.substr(0, 64), "\""));
+  }
+  return id;
+}
+
+Page PageFromProto(int32_t page_size, const std::string& page_token) {
+  Page page;
+  if (page_size > 0) page.page_size = page_size;
+  page.page_token = page_token;
+  return page;
+}
+
+}  // namespace bitewise::bandit

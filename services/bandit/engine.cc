@@ -1,0 +1,280 @@
+#include "services/bandit/engine.h"
+
+#include <random>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "services/bandit/core/policy.h"
+#include "services/common/status_macros.h"
+
+namespace bitewise::bandit {
+namespace {
+
+Round ToRound(const EventRecord& event) {
+  Round round;
+  round.context = event.context;
+  round.action = event.action;
+  round.loss = event.loss;
+  round.posthoc = event.posthoc;
+  round.weight = event.weight;
+  return round;
+}
+
+}  // namespace
+
+absl::Status ValidateUserId(const std::string& user_id) {
+  if (user_id.empty() || user_id.size() > 128) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "user_id: must be 1-128 characters, got ", user_id.size()));
+  }
+  for (const char ch : user_id) {
+    const bool ok = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') ||
+                    (ch >= '0' && ch <= '9') || ch == '.' || ch == '_' ||
+                    ch == '-';
+    if (!ok) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("user_id: only letters, digits, '.', '_' and '-' are "
+                       "allowed, got \"",
+                       user_id, "\""));
+    }
+  }
+  return absl::OkStatus();
+}
+
+BanditEngine::BanditEngine(EventStore* store, const EngineOptions& options)
+    : store_(store), options_(options) {}
+
+absl::StatusOr<std::shared_ptr<BanditEngine::UserSlot>> BanditEngine::Slot(
+    const std::string& user_id, bool create) {
+  RETURN_IF_ERROR(ValidateUserId(user_id));
+  {
+    absl::MutexLock lock(&slots_mu_);
+    auto it = slots_.find(user_id);
+    if (it != slots_.end()) return it->second;
+  }
+  // Unknown ids do not get a slot, so lookups of made-up users cost nothing.
+  if (!create) RETURN_IF_ERROR(store_->GetUser(user_id).status());
+  absl::MutexLock lock(&slots_mu_);
+  std::shared_ptr<UserSlot>& slot = slots_[user_id];
+  if (slot == nullptr) slot = std::make_shared<UserSlot>();
+  return slot;
+}
+
+absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
+                                        UserSlot& slot) {
+  if (slot.model.has_value()) {
+    Touch(slot);
+    return absl::OkStatus();
+  }
+  ASSIGN_OR_RETURN(UserRecord record, store_->GetUser(user_id));
+  ASSIGN_OR_RETURN(std::vector<EventRecord> events,
+                   store_->CompletedEvents(user_id));
+  std::vector<Round> rounds;
+  rounds.reserve(events.size());
+  for (const EventRecord& event : events) rounds.push_back(ToRound(event));
+  ASSIGN_OR_RETURN(
+      LinUcbModel model,
+      LinUcbModel::Rebuild(record.config, rounds, options_.primal_threshold));
+  // Selects since creation or reset index the user's random stream.
+  slot.select_count = record.model_version + record.pending_events;
+  slot.record = std::move(record);
+  slot.model.emplace(std::move(model));
+  Touch(slot);
+  return absl::OkStatus();
+}
+
+void BanditEngine::Unload(UserSlot& slot) {
+  slot.model.reset();
+  absl::MutexLock lock(&cache_mu_);
+  if (slot.in_lru) {
+    lru_.erase(slot.lru_pos);
+    slot.in_lru = false;
+    cached_bytes_ -= slot.bytes;
+    slot.bytes = 0;
+  }
+}
+
+void BanditEngine::Touch(UserSlot& slot) {
+  const size_t bytes = slot.model->MemoryBytes();
+  absl::MutexLock lock(&cache_mu_);
+  if (slot.in_lru) {
+    lru_.erase(slot.lru_pos);
+    cached_bytes_ -= slot.bytes;
+  }
+  lru_.push_front(&slot);
+  slot.lru_pos = lru_.begin();
+  slot.in_lru = true;
+  slot.bytes = bytes;
+  cached_bytes_ += bytes;
+  // Evict from the oldest end; a model in use (its mutex held) is skipped
+  // rather than waited for, which also rules out lock-order deadlocks.
+  auto it = lru_.end();
+  while (cached_bytes_ > options_.cache_budget_bytes && it != lru_.begin()) {
+    --it;
+    UserSlot* victim = *it;
+    if (victim == &slot || !victim->mu.TryLock()) continue;
+    victim->model.reset();
+    cached_bytes_ -= victim->bytes;
+    victim->bytes = 0;
+    victim->in_lru = false;
+    it = lru_.erase(it);
+    victim->mu.Unlock();
+  }
+}
+
+absl::StatusOr<UserRecord> BanditEngine::CreateUser(
+    const std::string& user_id, const BanditConfig& config) {
+  RETURN_IF_ERROR(ValidateConfig(config));
+  ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, true));
+  absl::MutexLock lock(&slot->mu);
+  UserRecord record;
+  record.user_id = user_id;
+  record.config = config;
+  record.created_at = absl::FromUnixMicros(absl::ToUnixMicros(absl::Now()));
+  RETURN_IF_ERROR(store_->CreateUser(record));
+  Unload(*slot);
+  return record;
+}
+
+absl::StatusOr<UserRecord> BanditEngine::GetUser(const std::string& user_id) {
+  RETURN_IF_ERROR(ValidateUserId(user_id));
+  return store_->GetUser(user_id);
+}
+
+absl::StatusOr<PageResult<UserRecord>> BanditEngine::ListUsers(
+    const Page& page) {
+  return store_->ListUsers(page);
+}
+
+absl::StatusOr<UserRecord> BanditEngine::ResetUser(const std::string& user_id) {
+  ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
+  absl::MutexLock lock(&slot->mu);
+  RETURN_IF_ERROR(store_->ResetUser(user_id));
+  Unload(*slot);
+  return store_->GetUser(user_id);
+}
+
+absl::Status BanditEngine::DeleteUser(const std::string& user_id) {
+  ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
+  absl::MutexLock lock(&slot->mu);
+  RETURN_IF_ERROR(store_->DeleteUser(user_id));
+  Unload(*slot);
+  return absl::OkStatus();
+}
+
+absl::StatusOr<SelectResult> BanditEngine::Select(const SelectInput& input) {
+  ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(input.user_id, false));
+  absl::MutexLock lock(&slot->mu);
+  RETURN_IF_ERROR(EnsureLoaded(input.user_id, *slot));
+  const LinUcbModel& model = *slot->model;
+  RETURN_IF_ERROR(model.ValidateContext(input.context));
+
+  SelectResult result;
+  result.estimates = model.Estimate(input.context);
+  std::mt19937_64 rng = SelectRng(slot->record.config.seed, slot->select_count);
+  const Choice choice = ChooseAction(model.config(), result.estimates, rng);
+
+  EventRecord event;
+  event.user_id = input.user_id;
+  event.meal_id = input.meal_id;
+  event.item_label = input.item_label;
+  event.context = input.context;
+  event.action = choice.action;
+  event.propensity = choice.propensity;
+  event.selected_at = absl::Now();
+  ASSIGN_OR_RETURN(result.event_id, store_->AppendPending(event));
+  ++slot->select_count;
+
+  result.action = choice.action;
+  result.action_name = model.config().action_names[choice.action];
+  result.action_names = model.config().action_names;
+  result.propensity = choice.propensity;
+  result.model_version = model.TotalRounds();
+  return result;
+}
+
+absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
+  if (input.event_id <= 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "event_id: must be a positive integer, got ", input.event_id));
+  }
+  ASSIGN_OR_RETURN(const EventRecord found, store_->GetEvent(input.event_id));
+  ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(found.user_id, false));
+  absl::MutexLock lock(&slot->mu);
+  // Read again under the user's lock: a concurrent Update may have won.
+  ASSIGN_OR_RETURN(const EventRecord event, store_->GetEvent(input.event_id));
+  UpdateResult result;
+  result.user_id = event.user_id;
+  if (event.completed) {
+    result.model_version = event.model_version;
+    result.already_applied = true;
+    return result;
+  }
+  RETURN_IF_ERROR(EnsureLoaded(event.user_id, *slot));
+  LinUcbModel& model = *slot->model;
+  RETURN_IF_ERROR(model.ValidateOutcome(input.loss, input.posthoc));
+
+  Round round;
+  round.context = event.context;
+  round.action = event.action;
+  round.loss = input.loss;
+  round.posthoc = input.posthoc;
+  round.weight =
+      model.config().importance_weighting ? 1.0 / event.propensity : 1.0;
+  // The stored event is validated like the request: a log written by an
+  // older build must not corrupt the model.
+  RETURN_IF_ERROR(model.ValidateRound(round));
+
+  ASSIGN_OR_RETURN(
+      const EventRecord completed,
+      store_->CompleteEvent(event.event_id, round.loss, round.posthoc,
+                            round.weight, absl::Now()));
+  model.Update(round);
+  slot->record.model_version = completed.model_version;
+  Touch(*slot);
+  result.model_version = completed.model_version;
+  return result;
+}
+
+absl::StatusOr<ModelExport> BanditEngine::GetModel(const std::string& user_id) {
+  ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
+  absl::MutexLock lock(&slot->mu);
+  RETURN_IF_ERROR(EnsureLoaded(user_id, *slot));
+  const LinUcbModel& model = *slot->model;
+  ModelExport out;
+  ASSIGN_OR_RETURN(out.user, store_->GetUser(user_id));
+  for (int a = 0; a < model.num_actions(); ++a) {
+    ActionModelExport action;
+    action.action = a;
+    action.action_name = model.config().action_names[a];
+    action.count = model.Count(a);
+    const Eigen::VectorXd theta = model.Theta(a);
+    action.theta.assign(theta.data(), theta.data() + theta.size());
+    const Eigen::VectorXd phi = model.Phi(a);
+    action.phi.assign(phi.data(), phi.data() + phi.size());
+    action.mean_loss =
+        action.count > 0 ? model.LossSum(a) / static_cast<double>(action.count)
+                         : 0.0;
+    out.actions.push_back(std::move(action));
+  }
+  return out;
+}
+
+absl::StatusOr<PageResult<EventRecord>> BanditEngine::ListEvents(
+    const std::string& user_id, const std::string& meal_id, const Page& page) {
+  RETURN_IF_ERROR(ValidateUserId(user_id));
+  return store_->ListEvents(user_id, meal_id, page);
+}
+
+size_t BanditEngine::CachedBytes() const {
+  absl::MutexLock lock(&cache_mu_);
+  return cached_bytes_;
+}
+
+int BanditEngine::CachedModels() const {
+  absl::MutexLock lock(&cache_mu_);
+  return static_cast<int>(lru_.size());
+}
+
+}  // namespace bitewise::bandit

@@ -1,0 +1,150 @@
+// BanditEngine: the BanditService's behaviour without gRPC. It pairs the
+// durable EventStore (the truth) with an LRU cache of per-user LinUcbModels
+// (derived state, rebuilt from the log when loaded), chooses actions, and
+// applies updates exactly once.
+//
+// Thread-safe. Calls for one user are serialised by that user's mutex;
+// different users run in parallel. Every mutation is written to the store
+// before the in-memory model changes, so an acknowledged Update survives a
+// crash and a failed one changes nothing.
+//
+// Errors: INVALID_ARGUMENT (names the field), NOT_FOUND (unknown user or
+// event), ALREADY_EXISTS (CreateUser), and the store's own errors.
+#ifndef BITEWISE_SERVICES_BANDIT_ENGINE_H_
+#define BITEWISE_SERVICES_BANDIT_ENGINE_H_
+
+#include <cstdint>
+#include <list>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/container/flat_hash_map.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
+#include "services/bandit/core/config.h"
+#include "services/bandit/core/linucb.h"
+#include "services/bandit/store/event_store.h"
+
+namespace bitewise::bandit {
+
+struct EngineOptions {
+  // Loaded models are evicted, least recently used first, while their
+  // total size exceeds this. A model in use is never evicted.
+  size_t cache_budget_bytes = size_t{2} << 30;
+  // Passed to LinUcbModel: rounds at which an action turns primal (0: d).
+  int primal_threshold = 0;
+};
+
+struct SelectInput {
+  std::string user_id;
+  std::vector<double> context;
+  std::string meal_id;
+  std::string item_label;
+};
+
+struct SelectResult {
+  int64_t event_id = 0;
+  int action = 0;
+  std::string action_name;
+  double propensity = 1.0;
+  std::vector<ActionEstimate> estimates;
+  std::vector<std::string> action_names;  // index-aligned with estimates
+  int64_t model_version = 0;
+};
+
+struct UpdateInput {
+  int64_t event_id = 0;
+  double loss = 0.0;
+  std::vector<double> posthoc;
+};
+
+struct UpdateResult {
+  std::string user_id;
+  int64_t model_version = 0;
+  bool already_applied = false;
+};
+
+struct ActionModelExport {
+  int action = 0;
+  std::string action_name;
+  int64_t count = 0;
+  std::vector<double> theta;
+  std::vector<double> phi;
+  double mean_loss = 0.0;
+};
+
+struct ModelExport {
+  UserRecord user;
+  std::vector<ActionModelExport> actions;
+};
+
+// INVALID_ARGUMENT unless `user_id` is 1-128 characters of [A-Za-z0-9._-].
+absl::Status ValidateUserId(const std::string& user_id);
+
+class BanditEngine {
+ public:
+  // `store` must outlive the engine.
+  BanditEngine(EventStore* store, const EngineOptions& options);
+
+  absl::StatusOr<UserRecord> CreateUser(const std::string& user_id,
+                                        const BanditConfig& config);
+  absl::StatusOr<UserRecord> GetUser(const std::string& user_id);
+  absl::StatusOr<PageResult<UserRecord>> ListUsers(const Page& page);
+  absl::StatusOr<UserRecord> ResetUser(const std::string& user_id);
+  absl::Status DeleteUser(const std::string& user_id);
+
+  absl::StatusOr<SelectResult> Select(const SelectInput& input);
+  absl::StatusOr<UpdateResult> Update(const UpdateInput& input);
+
+  absl::StatusOr<ModelExport> GetModel(const std::string& user_id);
+  absl::StatusOr<PageResult<EventRecord>> ListEvents(const std::string& user_id,
+                                                     const std::string& meal_id,
+                                                     const Page& page);
+
+  // Bytes held by loaded models, and how many are loaded.
+  size_t CachedBytes() const;
+  int CachedModels() const;
+
+ private:
+  struct UserSlot {
+    absl::Mutex mu;
+    // Loaded state, valid while `model` has a value.
+    std::optional<LinUcbModel> model ABSL_GUARDED_BY(mu);
+    UserRecord record ABSL_GUARDED_BY(mu);
+    int64_t select_count ABSL_GUARDED_BY(mu) = 0;
+    // Cache bookkeeping, guarded by the engine's cache_mu_.
+    size_t bytes = 0;
+    bool in_lru = false;
+    std::list<UserSlot*>::iterator lru_pos;
+  };
+
+  // The slot for a user, created on first use. NOT_FOUND without creating
+  // a slot if the store does not know the user and `create` is false.
+  absl::StatusOr<std::shared_ptr<UserSlot>> Slot(const std::string& user_id,
+                                                 bool create);
+  // Loads (rebuilds) the user's model if it is not loaded.
+  absl::Status EnsureLoaded(const std::string& user_id, UserSlot& slot)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
+  void Unload(UserSlot& slot) ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
+  // Records the slot's size as most recently used and evicts others.
+  void Touch(UserSlot& slot) ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
+
+  EventStore* const store_;
+  const EngineOptions options_;
+
+  mutable absl::Mutex slots_mu_;
+  absl::flat_hash_map<std::string, std::shared_ptr<UserSlot>> slots_
+      ABSL_GUARDED_BY(slots_mu_);
+
+  mutable absl::Mutex cache_mu_;
+  std::list<UserSlot*> lru_ ABSL_GUARDED_BY(cache_mu_);  // front: newest
+  size_t cached_bytes_ ABSL_GUARDED_BY(cache_mu_) = 0;
+};
+
+}  // namespace bitewise::bandit
+
+#endif  // BITEWISE_SERVICES_BANDIT_ENGINE_H_

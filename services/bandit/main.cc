@@ -1,0 +1,123 @@
+// bitewise-bandit: the BanditService binary. Flags are parsed here and
+// nowhere else; everything below main takes Options structs.
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "absl/strings/str_cat.h"
+#include "services/bandit/bandit_service.h"
+#include "services/bandit/engine.h"
+#include "services/bandit/store/sqlite_event_store.h"
+#include "services/common/server.h"
+#include "services/common/server_flags.h"
+
+ABSL_FLAG(std::string, db, "bitewise-bandit.db",
+          "SQLite file holding users and event logs (created if missing).");
+ABSL_FLAG(bool, sqlite_fsync, true,
+          "fsync every commit (synchronous=FULL). false still survives a "
+          "crash of the process, but not a power loss.");
+ABSL_FLAG(int64_t, cache_budget_mb, 2048,
+          "Memory budget for loaded user models; least recently used models "
+          "beyond it are unloaded and rebuilt from the log on next use.");
+ABSL_FLAG(std::string, default_learner, "posthoc",
+          "Learner for new users: posthoc or context_only.");
+ABSL_FLAG(std::string, default_strategy, "linucb",
+          "Strategy for new users: linucb, greedy, epsilon_greedy, thompson, "
+          "uniform.");
+ABSL_FLAG(double, default_alpha, 0.01, "Exploration weight for new users.");
+ABSL_FLAG(double, default_lambda_c, 1000.0, "Context ridge for new users.");
+ABSL_FLAG(double, default_lambda_p, 1.0, "Post hoc ridge for new users.");
+ABSL_FLAG(double, default_epsilon, 0.1, "Epsilon for epsilon-greedy users.");
+ABSL_FLAG(int, default_context_dim, 2048,
+          "Context dimension for new users (SPANet: 2048).");
+ABSL_FLAG(int, default_posthoc_dim, 4,
+          "Post hoc dimension for new users (HapticNet: 4).");
+
+namespace {
+
+constexpr int kDefaultPort = 50051;
+
+int Die(const std::string& what, const absl::Status& status) {
+  std::fprintf(stderr, "bitewise-bandit: %s: %s\n", what.c_str(),
+               status.ToString().c_str());
+  return 1;
+}
+
+absl::StatusOr<bitewise::bandit::BanditConfig> DefaultsFromFlags() {
+  using bitewise::bandit::BanditConfig;
+  using bitewise::bandit::Learner;
+  using bitewise::bandit::Strategy;
+  BanditConfig config;
+  const std::string learner = absl::GetFlag(FLAGS_default_learner);
+  if (learner == "posthoc") {
+    config.learner = Learner::kPostHoc;
+  } else if (learner == "context_only") {
+    config.learner = Learner::kContextOnly;
+  } else {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--default_learner: unknown learner \"", learner, "\""));
+  }
+  const std::string strategy = absl::GetFlag(FLAGS_default_strategy);
+  bool found = false;
+  for (Strategy s :
+       {Strategy::kLinUcb, Strategy::kGreedy, Strategy::kEpsilonGreedy,
+        Strategy::kThompson, Strategy::kUniform}) {
+    if (strategy == bitewise::bandit::StrategyName(s)) {
+      config.strategy = s;
+      found = true;
+    }
+  }
+  if (!found) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--default_strategy: unknown strategy \"", strategy, "\""));
+  }
+  config.alpha = absl::GetFlag(FLAGS_default_alpha);
+  config.lambda_c = absl::GetFlag(FLAGS_default_lambda_c);
+  config.lambda_p = absl::GetFlag(FLAGS_default_lambda_p);
+  config.epsilon = absl::GetFlag(FLAGS_default_epsilon);
+  config.context_dim = absl::GetFlag(FLAGS_default_context_dim);
+  config.posthoc_dim = absl::GetFlag(FLAGS_default_posthoc_dim);
+  absl::Status status = bitewise::bandit::ValidateConfig(config);
+  if (!status.ok()) return status;
+  return config;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bitewise::BlockTerminationSignals();
+  absl::SetProgramUsageMessage(
+      "BanditService: per-user post hoc contextual bandits over gRPC.");
+  absl::ParseCommandLine(argc, argv);
+
+  absl::StatusOr<bitewise::bandit::BanditConfig> defaults = DefaultsFromFlags();
+  if (!defaults.ok()) return Die("bad flags", defaults.status());
+
+  bitewise::bandit::SqliteStoreOptions store_options;
+  store_options.path = absl::GetFlag(FLAGS_db);
+  store_options.synchronous_full = absl::GetFlag(FLAGS_sqlite_fsync);
+  auto store = bitewise::bandit::SqliteEventStore::Open(store_options);
+  if (!store.ok()) return Die("cannot open the event store", store.status());
+
+  bitewise::bandit::EngineOptions engine_options;
+  engine_options.cache_budget_bytes =
+      static_cast<size_t>(absl::GetFlag(FLAGS_cache_budget_mb)) << 20;
+  bitewise::bandit::BanditEngine engine(store->get(), engine_options);
+  bitewise::bandit::BanditServiceImpl service(&engine, *defaults);
+
+  auto server = bitewise::ServiceServer::Start(
+      bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
+      {"bitewise.v1.BanditService"});
+  if (!server.ok()) return Die("cannot start the server", server.status());
+  // Ready: the store is open and the server accepts calls.
+  (*server)->SetServing(true);
+  std::fprintf(stderr, "bitewise-bandit: serving on %s (db %s)\n",
+               (*server)->address().c_str(), store_options.path.c_str());
+  std::fflush(stderr);
+  absl::Status status = bitewise::RunUntilSignal(**server);
+  if (!status.ok()) return Die("shutdown", status);
+  return 0;
+}

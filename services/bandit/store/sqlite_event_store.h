@@ -1,0 +1,109 @@
+// SqliteEventStore: the embedded EventStore, one SQLite file per service.
+//
+// The file is opened in WAL mode with foreign keys on, so readers never block
+// the writer and deleting a user cascades to its events. Every mutation is one
+// SQLite transaction: an OK return means the change is on disk (with
+// synchronous_full, even across a power loss), and a failure leaves nothing
+// half-written.
+//
+// One connection serves the whole process, guarded by a mutex: the store is
+// bound by fsync on commit, not by parallel reads, and a single connection
+// keeps transactions trivially isolated from each other. Several processes may
+// open the same file; they wait for each other up to busy_timeout.
+//
+// Behaviour beyond the EventStore contract:
+//  - Timestamps are stored in whole microseconds since the Unix epoch.
+//  - Doubles round-trip bit for bit (including -0.0, denormals and, inside
+//    vectors, NaN payloads). A NaN scalar (propensity, loss, weight) cannot be
+//    stored and is rejected with INVALID_ARGUMENT.
+//  - CreateUser rejects an invalid config (ValidateConfig) or an empty user_id
+//    with INVALID_ARGUMENT.
+//  - A pending event reads back with the EventRecord defaults for its outcome
+//    fields (loss 0, no posthoc, weight 1, model_version 0, updated_at epoch).
+//  - ListEvents and CompletedEvents return NOT_FOUND for an unknown user rather
+//    than an empty list; an empty meal_id lists every meal.
+//  - Event ids are never reused, even after ResetUser or DeleteUser, so a
+//    stale id held by a client can only ever be NOT_FOUND.
+//  - Lock timeouts surface as UNAVAILABLE, a full disk as RESOURCE_EXHAUSTED,
+//    unreadable stored data as DATA_LOSS.
+#ifndef BITEWISE_SERVICES_BANDIT_STORE_SQLITE_EVENT_STORE_H_
+#define BITEWISE_SERVICES_BANDIT_STORE_SQLITE_EVENT_STORE_H_
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
+#include "absl/time/time.h"
+#include "services/bandit/store/event_store.h"
+
+struct sqlite3;
+
+namespace bitewise::bandit {
+
+struct SqliteStoreOptions {
+  // The database file. Created, with the schema, if it does not exist; an
+  // existing file must be a bitewise store of a schema version this build
+  // knows. ":memory:" gives a private, non-durable store (tests only).
+  std::string path;
+  // true: synchronous=FULL, every commit is fsynced, so an acknowledged write
+  // survives power loss as well as a crash of the process. false:
+  // synchronous=NORMAL, which in WAL mode still survives kill -9 of the
+  // process but may lose the last commits on power loss or an OS crash.
+  bool synchronous_full = true;
+  // How long an operation waits for a lock held by another process on the
+  // same file before failing with UNAVAILABLE.
+  absl::Duration busy_timeout = absl::Seconds(5);
+};
+
+class SqliteEventStore final : public EventStore {
+ public:
+  // Opens or creates the store. FAILED_PRECONDITION, naming the path, if the
+  // file is not a SQLite database, belongs to another application, or has a
+  // schema version this build does not know; INVALID_ARGUMENT for an empty
+  // path.
+  static absl::StatusOr<std::unique_ptr<SqliteEventStore>> Open(
+      const SqliteStoreOptions& options);
+
+  SqliteEventStore(const SqliteEventStore&) = delete;
+  SqliteEventStore& operator=(const SqliteEventStore&) = delete;
+  ~SqliteEventStore() override;
+
+  absl::Status CreateUser(const UserRecord& user) override;
+  absl::StatusOr<UserRecord> GetUser(const std::string& user_id) override;
+  absl::StatusOr<PageResult<UserRecord>> ListUsers(const Page& page) override;
+  absl::Status DeleteUser(const std::string& user_id) override;
+  absl::Status ResetUser(const std::string& user_id) override;
+
+  absl::StatusOr<int64_t> AppendPending(const EventRecord& event) override;
+  absl::StatusOr<EventRecord> CompleteEvent(int64_t event_id, double loss,
+                                            const std::vector<double>& posthoc,
+                                            double weight,
+                                            absl::Time updated_at) override;
+  absl::StatusOr<EventRecord> GetEvent(int64_t event_id) override;
+  absl::StatusOr<PageResult<EventRecord>> ListEvents(const std::string& user_id,
+                                                     const std::string& meal_id,
+                                                     const Page& page) override;
+  absl::StatusOr<std::vector<EventRecord>> CompletedEvents(
+      const std::string& user_id) override;
+
+ private:
+  explicit SqliteEventStore(sqlite3* db);
+
+  absl::StatusOr<UserRecord> GetUserLocked(const std::string& user_id)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // NOT_FOUND unless the user exists.
+  absl::Status CheckUserExistsLocked(const std::string& user_id)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+
+  absl::Mutex mu_;
+  sqlite3* const db_ ABSL_PT_GUARDED_BY(mu_);
+};
+
+}  // namespace bitewise::bandit
+
+#endif  // BITEWISE_SERVICES_BANDIT_STORE_SQLITE_EVENT_STORE_H_

@@ -1,0 +1,201 @@
+#include "services/common/server.h"
+
+#include <grpc/grpc.h>
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <grpcpp/security/server_credentials.h>
+#include <grpcpp/server_builder.h>
+#include <pthread.h>
+#include <signal.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
+#include "absl/time/clock.h"
+#include "services/common/status_macros.h"
+
+namespace bitewise {
+namespace {
+
+absl::StatusOr<std::string> ReadPemFile(const std::string& path,
+                                        absl::string_view what) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "cannot read ", what, " file \"", path, "\": ", std::strerror(errno)));
+  }
+  std::ostringstream contents;
+  contents << in.rdbuf();
+  if (in.bad()) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("error reading ", what, " file \"", path, "\""));
+  }
+  return contents.str();
+}
+
+absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> MakeCredentials(
+    const ServerOptions& options) {
+  const bool has_cert = !options.tls_cert_file.empty();
+  const bool has_key = !options.tls_key_file.empty();
+  const bool has_client_ca = !options.tls_client_ca_file.empty();
+  if (has_cert != has_key) {
+    return absl::InvalidArgumentError(
+        "TLS needs both a certificate file and a key file, got only one");
+  }
+  if (has_client_ca && !has_cert) {
+    return absl::InvalidArgumentError(
+        "a client CA file (mutual TLS) needs a server certificate and key");
+  }
+  if (!has_cert) return grpc::InsecureServerCredentials();
+
+  grpc::SslServerCredentialsOptions ssl(
+      has_client_ca ? GRPC_SSL_REQUEST_AND_REQUIRE_CLIENT_CERTIFICATE_AND_VERIFY
+                    : GRPC_SSL_DONT_REQUEST_CLIENT_CERTIFICATE);
+  grpc::SslServerCredentialsOptions::PemKeyCertPair pair;
+  ASSIGN_OR_RETURN(pair.cert_chain,
+                   ReadPemFile(options.tls_cert_file, "TLS certificate"));
+  ASSIGN_OR_RETURN(pair.private_key,
+                   ReadPemFile(options.tls_key_file, "TLS key"));
+  ssl.pem_key_cert_pairs.push_back(std::move(pair));
+  if (has_client_ca) {
+    ASSIGN_OR_RETURN(ssl.pem_root_certs,
+                     ReadPemFile(options.tls_client_ca_file, "TLS client CA"));
+  }
+  return grpc::SslServerCredentials(ssl);
+}
+
+// Turns the listen address into one a local client can dial: wildcard hosts
+// are not connectable addresses on every platform.
+std::string DialableAddress(const std::string& listen_address, int port) {
+  const size_t colon = listen_address.rfind(':');
+  std::string host = colon == std::string::npos
+                         ? std::string()
+                         : listen_address.substr(0, colon);
+  if (host.empty() || host == "0.0.0.0") host = "127.0.0.1";
+  if (host == "[::]") host = "[::1]";
+  return absl::StrCat(host, ":", port);
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
+    const ServerOptions& options, std::vector<grpc::Service*> services,
+    std::vector<std::string> health_names) {
+  if (options.max_message_bytes <= 0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "max_message_bytes must be positive, got ", options.max_message_bytes));
+  }
+  ASSIGN_OR_RETURN(std::shared_ptr<grpc::ServerCredentials> credentials,
+                   MakeCredentials(options));
+
+  // Both are consulted by ServerBuilder, so they must be on before building.
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort(options.listen_address, credentials, &port);
+  // gRPC sets SO_REUSEPORT by default, which would let a second server bind
+  // the same port and silently take half the traffic; fail loudly instead.
+  builder.AddChannelArgument(GRPC_ARG_ALLOW_REUSEPORT, 0);
+  builder.SetMaxReceiveMessageSize(options.max_message_bytes);
+  builder.SetMaxSendMessageSize(options.max_message_bytes);
+  for (grpc::Service* service : services) builder.RegisterService(service);
+
+  std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+  if (server == nullptr || port == 0) {
+    return absl::UnavailableError(
+        absl::StrCat("cannot listen on \"", options.listen_address,
+                     "\" (invalid address, or port already in use)"));
+  }
+  auto result = std::unique_ptr<ServiceServer>(new ServiceServer(
+      std::move(server), std::move(health_names), port,
+      DialableAddress(options.listen_address, port), options.drain_timeout));
+  result->SetServing(false);
+  return result;
+}
+
+ServiceServer::ServiceServer(std::unique_ptr<grpc::Server> server,
+                             std::vector<std::string> health_names, int port,
+                             std::string address, absl::Duration drain_timeout)
+    : server_(std::move(server)),
+      health_names_(std::move(health_names)),
+      port_(port),
+      address_(std::move(address)),
+      drain_timeout_(drain_timeout) {}
+
+ServiceServer::~ServiceServer() {
+  Shutdown();
+  Wait();
+}
+
+void ServiceServer::SetServing(bool serving) {
+  absl::MutexLock lock(&mu_);
+  if (shut_down_) return;
+  grpc::HealthCheckServiceInterface* health = server_->GetHealthCheckService();
+  health->SetServingStatus("", serving);
+  for (const std::string& name : health_names_) {
+    health->SetServingStatus(name, serving);
+  }
+}
+
+void ServiceServer::Shutdown() {
+  {
+    absl::MutexLock lock(&mu_);
+    if (shut_down_) return;
+    shut_down_ = true;
+  }
+  // grpc::Server::Shutdown also flips health to NOT_SERVING, but only once
+  // it starts; saying so first lets load balancers stop routing here early.
+  grpc::HealthCheckServiceInterface* health = server_->GetHealthCheckService();
+  health->SetServingStatus("", false);
+  for (const std::string& name : health_names_) {
+    health->SetServingStatus(name, false);
+  }
+  server_->Shutdown(absl::ToChronoTime(absl::Now() + drain_timeout_));
+}
+
+void ServiceServer::Wait() { server_->Wait(); }
+
+namespace {
+
+sigset_t TerminationSignals() {
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
+  return signals;
+}
+
+}  // namespace
+
+void BlockTerminationSignals() {
+  const sigset_t signals = TerminationSignals();
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+}
+
+absl::Status RunUntilSignal(ServiceServer& server) {
+  const sigset_t signals = TerminationSignals();
+  // sigwait is only defined for blocked signals; blocking again here is a
+  // no-op when the main already did it.
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  int signal_number = 0;
+  if (const int error = sigwait(&signals, &signal_number); error != 0) {
+    return absl::InternalError(
+        absl::StrCat("sigwait failed: ", std::strerror(error)));
+  }
+  std::fprintf(stderr, "bitewise: received %s, draining (up to %s)\n",
+               signal_number == SIGTERM ? "SIGTERM" : "SIGINT",
+               absl::FormatDuration(server.drain_timeout()).c_str());
+  server.Shutdown();
+  server.Wait();
+  return absl::OkStatus();
+}
+
+}  // namespace bitewise

@@ -1,0 +1,37 @@
+#include "services/common/server_flags.h"
+
+#include "absl/flags/flag.h"
+#include "absl/strings/str_cat.h"
+#include "absl/time/time.h"
+
+ABSL_FLAG(std::string, listen, "",
+          "host:port to listen on; empty means 127.0.0.1 and the service's "
+          "default port. Use 0.0.0.0:<port> to accept remote clients.");
+ABSL_FLAG(std::string, tls_cert, "",
+          "PEM server certificate chain; with --tls_key turns on TLS.");
+ABSL_FLAG(std::string, tls_key, "", "PEM private key for --tls_cert.");
+ABSL_FLAG(std::string, tls_client_ca, "",
+          "PEM CA bundle; when set, clients must present a certificate it "
+          "signed (mutual TLS).");
+ABSL_FLAG(int, max_message_bytes, 4 << 20,
+          "Largest request or response message, in bytes.");
+ABSL_FLAG(int, drain_timeout_s, 10,
+          "Seconds in-flight calls may take to finish after SIGTERM.");
+
+namespace bitewise {
+
+ServerOptions ServerOptionsFromFlags(int default_port) {
+  ServerOptions options;
+  options.listen_address = absl::GetFlag(FLAGS_listen);
+  if (options.listen_address.empty()) {
+    options.listen_address = absl::StrCat("127.0.0.1:", default_port);
+  }
+  options.tls_cert_file = absl::GetFlag(FLAGS_tls_cert);
+  options.tls_key_file = absl::GetFlag(FLAGS_tls_key);
+  options.tls_client_ca_file = absl::GetFlag(FLAGS_tls_client_ca);
+  options.max_message_bytes = absl::GetFlag(FLAGS_max_message_bytes);
+  options.drain_timeout = absl::Seconds(absl::GetFlag(FLAGS_drain_timeout_s));
+  return options;
+}
+
+}  // namespace bitewise

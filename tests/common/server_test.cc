@@ -1,0 +1,480 @@
+// Tests for the shared server bootstrap and channel helpers against a real
+// gRPC server on 127.0.0.1:0: health, reflection, status mapping, TLS and
+// mutual TLS (certificates made with the openssl CLI), binding errors and
+// draining shutdown.
+#include "services/common/server.h"
+
+#include <grpcpp/client_context.h>
+#include <grpcpp/completion_queue.h>
+#include <grpcpp/generic/generic_stub.h>
+#include <grpcpp/support/byte_buffer.h>
+#include <pthread.h>
+#include <signal.h>
+#include <stdlib.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/str_cat.h"
+#include "absl/synchronization/notification.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
+#include "bitewise/v1/haptic.grpc.pb.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "services/common/channel.h"
+#include "services/common/grpc_status.h"
+
+namespace bitewise {
+namespace {
+
+using ::testing::HasSubstr;
+
+constexpr char kHapticName[] = "bitewise.v1.HapticService";
+constexpr absl::Duration kTimeout = absl::Seconds(5);
+
+// A real HapticService whose Classify rejects an empty trace the way service
+// adapters will: through ToGrpcStatus. With `hold` set, calls block until it
+// is notified, so tests can keep a call in flight across Shutdown().
+class FakeHapticService final : public v1::HapticService::Service {
+ public:
+  grpc::Status Classify(grpc::ServerContext* context,
+                        const v1::ClassifyRequest* request,
+                        v1::ClassifyResponse* response) override {
+    if (hold != nullptr) {
+      entered.Notify();
+      hold->WaitForNotification();
+    }
+    if (request->samples().empty()) {
+      return ToGrpcStatus(
+          absl::InvalidArgumentError("samples: need at least one sample"));
+    }
+    response->set_category(v1::HAPTIC_CATEGORY_SOFT);
+    return grpc::Status::OK;
+  }
+
+  absl::Notification* hold = nullptr;
+  absl::Notification entered;
+};
+
+std::shared_ptr<grpc::Channel> Connect(const std::string& address,
+                                       const ChannelOptions& options = {}) {
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel =
+      MakeChannel(address, options);
+  EXPECT_TRUE(channel.ok()) << channel.status();
+  return channel.ok() ? *channel : nullptr;
+}
+
+absl::StatusOr<std::unique_ptr<ServiceServer>> StartHaptic(
+    FakeHapticService& service, ServerOptions options = {}) {
+  return ServiceServer::Start(options, {&service}, {kHapticName});
+}
+
+absl::Status CallClassify(const std::shared_ptr<grpc::Channel>& channel,
+                          int num_samples) {
+  auto stub = v1::HapticService::NewStub(channel);
+  grpc::ClientContext context;
+  context.set_deadline(absl::ToChronoTime(absl::Now() + kTimeout));
+  v1::ClassifyRequest request;
+  for (int i = 0; i < num_samples; ++i) request.add_samples()->set_fz_n(1.0);
+  v1::ClassifyResponse response;
+  return FromGrpcStatus(stub->Classify(&context, request, &response));
+}
+
+TEST(GrpcStatusTest, RoundTripsEveryCodeAndMessage) {
+  for (int code = 0; code <= 16; ++code) {
+    const absl::Status original(
+        static_cast<absl::StatusCode>(code),
+        code == 0 ? "" : absl::StrCat("message ", code));
+    const grpc::Status wire = ToGrpcStatus(original);
+    EXPECT_EQ(static_cast<int>(wire.error_code()), code);
+    EXPECT_EQ(wire.error_message(), original.message());
+    EXPECT_EQ(FromGrpcStatus(wire), original);
+  }
+}
+
+TEST(GrpcStatusTest, UnknownGrpcCodeIsStillAnError) {
+  const absl::Status status =
+      FromGrpcStatus(grpc::Status(static_cast<grpc::StatusCode>(99), "odd"));
+  EXPECT_EQ(status.code(), absl::StatusCode::kUnknown);
+  EXPECT_EQ(status.message(), "odd");
+}
+
+TEST(ServiceServerTest, ResolvesPortZero) {
+  FakeHapticService service;
+  auto server = StartHaptic(service);
+  ASSERT_TRUE(server.ok()) << server.status();
+  EXPECT_GT((*server)->port(), 0);
+  EXPECT_EQ((*server)->address(),
+            absl::StrCat("127.0.0.1:", (*server)->port()));
+}
+
+TEST(ServiceServerTest, ErrorStatusReachesClientUnchanged) {
+  FakeHapticService service;
+  auto server = StartHaptic(service);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto channel = Connect((*server)->address());
+
+  EXPECT_EQ(CallClassify(channel, 0),
+            absl::InvalidArgumentError("samples: need at least one sample"));
+  EXPECT_TRUE(CallClassify(channel, 3).ok());
+}
+
+TEST(ServiceServerTest, HealthFollowsSetServing) {
+  FakeHapticService service;
+  auto server = StartHaptic(service);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto channel = Connect((*server)->address());
+
+  for (const std::string name : {"", kHapticName}) {
+    absl::StatusOr<ServingStatus> status = CheckHealth(channel, name, kTimeout);
+    ASSERT_TRUE(status.ok()) << status.status();
+    EXPECT_EQ(*status, ServingStatus::kNotServing) << "service " << name;
+  }
+  const absl::Status not_ready =
+      WaitForServing(channel, kHapticName, absl::Milliseconds(200));
+  EXPECT_EQ(not_ready.code(), absl::StatusCode::kDeadlineExceeded);
+  EXPECT_THAT(not_ready.message(), HasSubstr("NOT_SERVING"));
+
+  (*server)->SetServing(true);
+  EXPECT_TRUE(WaitForServing(channel, "", kTimeout).ok());
+  EXPECT_TRUE(WaitForServing(channel, kHapticName, kTimeout).ok());
+
+  (*server)->SetServing(false);
+  absl::StatusOr<ServingStatus> status =
+      CheckHealth(channel, kHapticName, kTimeout);
+  ASSERT_TRUE(status.ok()) << status.status();
+  EXPECT_EQ(*status, ServingStatus::kNotServing);
+}
+
+TEST(ServiceServerTest, UnknownHealthNameIsNotFound) {
+  FakeHapticService service;
+  auto server = StartHaptic(service);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto channel = Connect((*server)->address());
+  EXPECT_EQ(CheckHealth(channel, "no.such.Service", kTimeout).status().code(),
+            absl::StatusCode::kNotFound);
+}
+
+std::string ToBytes(const grpc::ByteBuffer& buffer) {
+  grpc::Slice slice;
+  if (!buffer.DumpToSingleSlice(&slice).ok()) return "";
+  return std::string(reinterpret_cast<const char*>(slice.begin()),
+                     slice.size());
+}
+
+// Waits for `tag` on `cq`; operations are issued one at a time, so the next
+// event is always the one just started.
+bool Await(grpc::CompletionQueue& cq, void* tag) {
+  void* got = nullptr;
+  bool ok = false;
+  return cq.Next(&got, &ok) && got == tag && ok;
+}
+
+TEST(ServiceServerTest, ReflectionListsServices) {
+  FakeHapticService service;
+  auto server = StartHaptic(service);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto channel = Connect((*server)->address());
+
+  // ServerReflectionRequest{list_services: ""}: field 7, length-delimited.
+  const std::string request_bytes("\x3a\x00", 2);
+  grpc::Slice request_slice(request_bytes);
+  grpc::ByteBuffer request(&request_slice, 1);
+  grpc::ByteBuffer response;
+  grpc::Status status;
+
+  grpc::GenericStub stub(channel);
+  grpc::ClientContext context;
+  context.set_deadline(absl::ToChronoTime(absl::Now() + kTimeout));
+  grpc::CompletionQueue cq;
+  auto call = stub.PrepareCall(
+      &context,
+      "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo", &cq);
+  ASSERT_NE(call, nullptr);
+  int tags[5];
+  call->StartCall(&tags[0]);
+  ASSERT_TRUE(Await(cq, &tags[0]));
+  call->Write(request, &tags[1]);
+  ASSERT_TRUE(Await(cq, &tags[1]));
+  call->WritesDone(&tags[2]);
+  ASSERT_TRUE(Await(cq, &tags[2]));
+  call->Read(&response, &tags[3]);
+  ASSERT_TRUE(Await(cq, &tags[3]));
+  call->Finish(&status, &tags[4]);
+  ASSERT_TRUE(Await(cq, &tags[4]));
+  EXPECT_TRUE(status.ok()) << status.error_message();
+  cq.Shutdown();
+  void* ignored_tag;
+  bool ignored_ok;
+  while (cq.Next(&ignored_tag, &ignored_ok)) {
+  }
+
+  const std::string bytes = ToBytes(response);
+  EXPECT_THAT(bytes, HasSubstr(kHapticName));
+  EXPECT_THAT(bytes, HasSubstr("grpc.health.v1.Health"));
+}
+
+TEST(ServiceServerTest, InvalidAddressFailsCleanly) {
+  FakeHapticService service;
+  ServerOptions options;
+  options.listen_address = "256.1.1.1:1";
+  auto server = StartHaptic(service, options);
+  ASSERT_FALSE(server.ok());
+  EXPECT_EQ(server.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(server.status().message(), HasSubstr("256.1.1.1:1"));
+}
+
+TEST(ServiceServerTest, PortInUseFailsCleanly) {
+  FakeHapticService first_service;
+  auto first = StartHaptic(first_service);
+  ASSERT_TRUE(first.ok()) << first.status();
+
+  FakeHapticService second_service;
+  ServerOptions options;
+  options.listen_address = (*first)->address();
+  auto second = StartHaptic(second_service, options);
+  ASSERT_FALSE(second.ok());
+  EXPECT_EQ(second.status().code(), absl::StatusCode::kUnavailable);
+}
+
+TEST(ServiceServerTest, RejectsNonPositiveMessageSize) {
+  FakeHapticService service;
+  ServerOptions options;
+  options.max_message_bytes = 0;
+  EXPECT_EQ(StartHaptic(service, options).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+TEST(ServiceServerTest, ShutdownStopsServing) {
+  FakeHapticService service;
+  auto server = StartHaptic(service);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto channel = Connect((*server)->address());
+  (*server)->SetServing(true);
+  ASSERT_TRUE(WaitForServing(channel, kHapticName, kTimeout).ok());
+
+  (*server)->Shutdown();
+  (*server)->Wait();
+  (*server)->SetServing(true);  // Must not resurrect a stopped server.
+  EXPECT_FALSE(
+      WaitForServing(channel, kHapticName, absl::Milliseconds(300)).ok());
+  EXPECT_FALSE(CallClassify(channel, 1).ok());
+}
+
+TEST(ServiceServerTest, ShutdownDrainsInFlightCalls) {
+  FakeHapticService service;
+  absl::Notification release;
+  service.hold = &release;
+  auto server = StartHaptic(service);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto channel = Connect((*server)->address());
+
+  absl::Status in_flight_result;
+  std::thread client([&] { in_flight_result = CallClassify(channel, 1); });
+  service.entered.WaitForNotification();
+
+  std::thread stopper([&] { (*server)->Shutdown(); });
+  // Give Shutdown time to start refusing new work before the call finishes.
+  absl::SleepFor(absl::Milliseconds(200));
+  release.Notify();
+  client.join();
+  stopper.join();
+  (*server)->Wait();
+  EXPECT_TRUE(in_flight_result.ok()) << in_flight_result;
+}
+
+TEST(ServiceServerTest, RunUntilSignalDrainsOnSigterm) {
+  FakeHapticService service;
+  ServerOptions options;
+  options.drain_timeout = absl::Seconds(2);
+  auto server = StartHaptic(service, options);
+  ASSERT_TRUE(server.ok()) << server.status();
+  (*server)->SetServing(true);
+
+  absl::Notification blocked;
+  absl::Status result = absl::UnknownError("not run");
+  // The signal goes to this thread only: the test process's other threads
+  // were started without the mask, as a real main's would not be.
+  std::thread runner([&] {
+    BlockTerminationSignals();
+    blocked.Notify();
+    result = RunUntilSignal(**server);
+  });
+  blocked.WaitForNotification();
+  ASSERT_EQ(pthread_kill(runner.native_handle(), SIGTERM), 0);
+  runner.join();
+  EXPECT_TRUE(result.ok()) << result;
+
+  auto channel = Connect((*server)->address());
+  EXPECT_FALSE(CheckHealth(channel, "", absl::Seconds(1)).ok());
+}
+
+// Certificates for one test run: a CA, a server certificate for
+// 127.0.0.1/localhost and a client certificate, all signed by the CA.
+struct TestCerts {
+  std::string dir;
+  std::string error;  // Empty when generation succeeded.
+
+  std::string Path(const std::string& name) const {
+    return absl::StrCat(dir, "/", name);
+  }
+  ~TestCerts() {
+    if (!dir.empty()) std::filesystem::remove_all(dir);
+  }
+};
+
+// Runs the openssl CLI into a fresh temporary directory. Failure is recorded,
+// not skipped: CI installs openssl, so its absence is a broken environment.
+void GenerateCerts(TestCerts& certs) {
+  std::string dir_template =
+      (std::filesystem::temp_directory_path() / "bitewise_common_test_XXXXXX")
+          .string();
+  if (mkdtemp(dir_template.data()) == nullptr) {
+    certs.error = "mkdtemp failed";
+    return;
+  }
+  certs.dir = dir_template;
+  const std::string script = absl::StrCat(
+      "cd '", certs.dir, "' && {",
+      " openssl req -x509 -newkey rsa:2048 -nodes -days 2",
+      "   -subj /CN=bitewise-test-ca -keyout ca.key -out ca.pem &&",
+      " printf 'subjectAltName=DNS:localhost,IP:127.0.0.1\\n",
+      "extendedKeyUsage=serverAuth\\n' > server.ext &&",
+      " printf 'extendedKeyUsage=clientAuth\\n' > client.ext &&",
+      " for who in server client; do",
+      "   openssl req -newkey rsa:2048 -nodes -subj /CN=bitewise-$who",
+      "     -keyout $who.key -out $who.csr &&",
+      "   openssl x509 -req -in $who.csr -CA ca.pem -CAkey ca.key",
+      "     -CAcreateserial -days 2 -extfile $who.ext -out $who.pem",
+      "   || exit 1;", " done; } > openssl.log 2>&1");
+  if (std::system(script.c_str()) != 0) {
+    std::ifstream log(certs.Path("openssl.log"));
+    std::stringstream log_text;
+    log_text << log.rdbuf();
+    certs.error = absl::StrCat(
+        "openssl failed (it is required, not optional):\n", log_text.str());
+  }
+}
+
+const TestCerts& Certs() {
+  static TestCerts certs;
+  static const bool generated = (GenerateCerts(certs), true);
+  (void)generated;
+  return certs;
+}
+
+ServerOptions TlsServerOptions(bool mutual) {
+  const TestCerts& certs = Certs();
+  ServerOptions options;
+  options.tls_cert_file = certs.Path("server.pem");
+  options.tls_key_file = certs.Path("server.key");
+  if (mutual) options.tls_client_ca_file = certs.Path("ca.pem");
+  return options;
+}
+
+ChannelOptions TlsChannelOptions(bool with_client_cert) {
+  const TestCerts& certs = Certs();
+  ChannelOptions options;
+  options.tls_ca_file = certs.Path("ca.pem");
+  if (with_client_cert) {
+    options.tls_cert_file = certs.Path("client.pem");
+    options.tls_key_file = certs.Path("client.key");
+  }
+  return options;
+}
+
+TEST(ServiceServerTlsTest, TlsClientConnectsAndPlaintextClientDoesNot) {
+  ASSERT_EQ(Certs().error, "");
+  FakeHapticService service;
+  auto server = StartHaptic(service, TlsServerOptions(/*mutual=*/false));
+  ASSERT_TRUE(server.ok()) << server.status();
+  (*server)->SetServing(true);
+
+  auto tls = Connect((*server)->address(), TlsChannelOptions(false));
+  EXPECT_TRUE(WaitForServing(tls, kHapticName, kTimeout).ok());
+  EXPECT_EQ(CallClassify(tls, 0).code(), absl::StatusCode::kInvalidArgument);
+
+  // The certificate also names localhost, checked via the override.
+  ChannelOptions by_name = TlsChannelOptions(false);
+  by_name.tls_server_name_override = "localhost";
+  EXPECT_TRUE(WaitForServing(Connect((*server)->address(), by_name),
+                             kHapticName, kTimeout)
+                  .ok());
+
+  auto plaintext = Connect((*server)->address());
+  EXPECT_EQ(CheckHealth(plaintext, "", absl::Seconds(2)).status().code(),
+            absl::StatusCode::kUnavailable);
+}
+
+TEST(ServiceServerTlsTest, MutualTlsRequiresClientCertificate) {
+  ASSERT_EQ(Certs().error, "");
+  FakeHapticService service;
+  auto server = StartHaptic(service, TlsServerOptions(/*mutual=*/true));
+  ASSERT_TRUE(server.ok()) << server.status();
+  (*server)->SetServing(true);
+
+  auto with_cert = Connect((*server)->address(), TlsChannelOptions(true));
+  EXPECT_TRUE(WaitForServing(with_cert, kHapticName, kTimeout).ok());
+  EXPECT_TRUE(CallClassify(with_cert, 2).ok());
+
+  auto without_cert = Connect((*server)->address(), TlsChannelOptions(false));
+  EXPECT_FALSE(CheckHealth(without_cert, "", absl::Seconds(2)).ok());
+  EXPECT_FALSE(CallClassify(without_cert, 2).ok());
+}
+
+TEST(ServiceServerTlsTest, UnreadableFilesAreNamed) {
+  ASSERT_EQ(Certs().error, "");
+  FakeHapticService service;
+  ServerOptions options = TlsServerOptions(/*mutual=*/true);
+  options.tls_cert_file = Certs().Path("missing-server.pem");
+  auto server = StartHaptic(service, options);
+  ASSERT_FALSE(server.ok());
+  EXPECT_EQ(server.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(server.status().message(), HasSubstr("missing-server.pem"));
+
+  options = TlsServerOptions(/*mutual=*/true);
+  options.tls_client_ca_file = "/nonexistent/client-ca.pem";
+  server = StartHaptic(service, options);
+  ASSERT_FALSE(server.ok());
+  EXPECT_THAT(server.status().message(),
+              HasSubstr("/nonexistent/client-ca.pem"));
+
+  ChannelOptions channel_options = TlsChannelOptions(true);
+  channel_options.tls_key_file = Certs().Path("missing-client.key");
+  auto channel = MakeChannel("127.0.0.1:1", channel_options);
+  ASSERT_FALSE(channel.ok());
+  EXPECT_EQ(channel.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(channel.status().message(), HasSubstr("missing-client.key"));
+}
+
+TEST(ServiceServerTlsTest, InconsistentTlsOptionsAreRejected) {
+  FakeHapticService service;
+  ServerOptions key_only;
+  key_only.tls_key_file = "server.key";
+  EXPECT_EQ(StartHaptic(service, key_only).status().code(),
+            absl::StatusCode::kInvalidArgument);
+
+  ServerOptions ca_only;
+  ca_only.tls_client_ca_file = "ca.pem";
+  EXPECT_EQ(StartHaptic(service, ca_only).status().code(),
+            absl::StatusCode::kInvalidArgument);
+
+  ChannelOptions cert_without_ca;
+  cert_without_ca.tls_cert_file = "client.pem";
+  cert_without_ca.tls_key_file = "client.key";
+  EXPECT_EQ(MakeChannel("127.0.0.1:1", cert_without_ca).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace bitewise
