@@ -1,0 +1,296 @@
+// In-process tests of the BanditService: the real engine, a real SQLite
+// file and a real gRPC server on a loopback port, called through a stub.
+#include "services/bandit/bandit_service.h"
+
+#include <stdlib.h>
+
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "gtest/gtest.h"
+#include "services/bandit/store/sqlite_event_store.h"
+#include "services/common/channel.h"
+#include "services/common/server.h"
+
+namespace bitewise::bandit {
+namespace {
+
+class BanditServiceTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string dir = ::testing::TempDir() + "/service_XXXXXX";
+    ASSERT_NE(mkdtemp(dir.data()), nullptr);
+    SqliteStoreOptions store_options;
+    store_options.path = dir + "/bandit.db";
+    store_options.synchronous_full = false;
+    auto store = SqliteEventStore::Open(store_options);
+    ASSERT_TRUE(store.ok()) << store.status();
+    store_ = std::move(store).value();
+    engine_ = std::make_unique<BanditEngine>(store_.get(), EngineOptions());
+    BanditConfig defaults;
+    defaults.context_dim = 6;
+    service_ = std::make_unique<BanditServiceImpl>(engine_.get(), defaults);
+    auto server = ServiceServer::Start(ServerOptions(), {service_.get()},
+                                       {"bitewise.v1.BanditService"});
+    ASSERT_TRUE(server.ok()) << server.status();
+    server_ = std::move(server).value();
+    server_->SetServing(true);
+    auto channel = MakeChannel(server_->address(), ChannelOptions());
+    ASSERT_TRUE(channel.ok());
+    ASSERT_TRUE(
+        WaitForServing(*channel, "bitewise.v1.BanditService", absl::Seconds(10))
+            .ok());
+    stub_ = v1::BanditService::NewStub(*channel);
+  }
+
+  void TearDown() override {
+    if (server_) server_->Shutdown();
+  }
+
+  std::unique_ptr<grpc::ClientContext> Ctx() {
+    auto context = std::make_unique<grpc::ClientContext>();
+    context->set_deadline(std::chrono::system_clock::now() +
+                          std::chrono::seconds(10));
+    return context;
+  }
+
+  v1::User CreateUser(const std::string& id) {
+    v1::CreateUserRequest request;
+    request.set_user_id(id);
+    v1::User user;
+    grpc::Status status = stub_->CreateUser(Ctx().get(), request, &user);
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    return user;
+  }
+
+  grpc::Status Select(const std::string& user, std::vector<double> context,
+                      v1::SelectResponse* response,
+                      const std::string& meal = "") {
+    v1::SelectRequest request;
+    request.set_user_id(user);
+    request.set_meal_id(meal);
+    request.mutable_context()->Add(context.begin(), context.end());
+    return stub_->Select(Ctx().get(), request, response);
+  }
+
+  grpc::Status Update(const std::string& event_id, double loss,
+                      std::vector<double> posthoc,
+                      v1::UpdateResponse* response) {
+    v1::UpdateRequest request;
+    request.set_event_id(event_id);
+    request.set_loss(loss);
+    request.mutable_posthoc()->Add(posthoc.begin(), posthoc.end());
+    return stub_->Update(Ctx().get(), request, response);
+  }
+
+  std::unique_ptr<SqliteEventStore> store_;
+  std::unique_ptr<BanditEngine> engine_;
+  std::unique_ptr<BanditServiceImpl> service_;
+  std::unique_ptr<ServiceServer> server_;
+  std::unique_ptr<v1::BanditService::Stub> stub_;
+};
+
+TEST_F(BanditServiceTest, CreateUserTakesServerDefaults) {
+  const v1::User user = CreateUser("alice");
+  EXPECT_EQ(user.config().context_dim(), 6u);
+  EXPECT_EQ(user.config().posthoc_dim(), 4u);
+  EXPECT_EQ(user.config().learner(), v1::LEARNER_POSTHOC);
+  EXPECT_EQ(user.config().strategy(), v1::STRATEGY_LINUCB);
+  EXPECT_DOUBLE_EQ(user.config().alpha(), 0.01);
+  EXPECT_DOUBLE_EQ(user.config().lambda_c(), 1000.0);
+  EXPECT_DOUBLE_EQ(user.config().lambda_p(), 1.0);
+  ASSERT_EQ(user.config().action_names_size(), 6);
+  EXPECT_EQ(user.config().action_names(3), "TV90");
+  EXPECT_TRUE(user.config().has_seed());
+
+  v1::CreateUserRequest request;
+  request.set_user_id("bob");
+  request.mutable_config()->set_alpha(0.5);
+  request.mutable_config()->set_context_dim(3);
+  request.mutable_config()->set_learner(v1::LEARNER_CONTEXT_ONLY);
+  request.mutable_config()->add_action_names("left");
+  request.mutable_config()->add_action_names("right");
+  request.mutable_config()->set_seed(7);
+  v1::User bob;
+  ASSERT_TRUE(stub_->CreateUser(Ctx().get(), request, &bob).ok());
+  EXPECT_DOUBLE_EQ(bob.config().alpha(), 0.5);
+  EXPECT_EQ(bob.config().context_dim(), 3u);
+  EXPECT_EQ(bob.config().action_names_size(), 2);
+  EXPECT_EQ(bob.config().seed(), 7u);
+
+  grpc::Status status = stub_->CreateUser(Ctx().get(), request, &bob);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::ALREADY_EXISTS);
+  request.set_user_id("carol");
+  request.mutable_config()->set_lambda_c(-1);
+  status = stub_->CreateUser(Ctx().get(), request, &bob);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(status.error_message().find("config.lambda_c"), std::string::npos)
+      << status.error_message();
+  request.mutable_config()->clear_lambda_c();
+  request.mutable_config()->set_strategy(static_cast<v1::Strategy>(42));
+  status = stub_->CreateUser(Ctx().get(), request, &bob);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  request.set_user_id("");
+  status = stub_->CreateUser(Ctx().get(), request, &bob);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+}
+
+TEST_F(BanditServiceTest, SelectUpdateGetModelListEvents) {
+  CreateUser("alice");
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (int t = 0; t < 30; ++t) {
+    std::vector<double> c(6);
+    for (double& x : c) x = u(rng);
+    v1::SelectResponse chosen;
+    ASSERT_TRUE(Select("alice", c, &chosen, t < 10 ? "m1" : "m2").ok());
+    ASSERT_EQ(chosen.estimates_size(), 6);
+    for (const v1::ActionEstimate& e : chosen.estimates()) {
+      EXPECT_NEAR(e.lcb(), e.predicted_loss() - 0.01 * e.width(), 1e-15);
+    }
+    EXPECT_EQ(chosen.action_name(),
+              chosen.estimates(chosen.action()).action_name());
+    EXPECT_EQ(chosen.propensity(), 1.0);
+    EXPECT_EQ(chosen.model_version(), t);
+    v1::UpdateResponse updated;
+    ASSERT_TRUE(
+        Update(chosen.event_id(), u(rng) < 0.5, {1, 0, 0, 0}, &updated).ok());
+    EXPECT_EQ(updated.model_version(), t + 1);
+  }
+  v1::GetModelRequest model_request;
+  model_request.set_user_id("alice");
+  v1::Model model;
+  ASSERT_TRUE(stub_->GetModel(Ctx().get(), model_request, &model).ok());
+  EXPECT_EQ(model.model_version(), 30);
+  int64_t total = 0;
+  for (const v1::ActionModel& a : model.actions()) {
+    EXPECT_EQ(a.theta_size(), 6);
+    EXPECT_EQ(a.phi_size(), 4);
+    total += a.count();
+  }
+  EXPECT_EQ(total, 30);
+
+  v1::ListEventsRequest list;
+  list.set_user_id("alice");
+  list.set_meal_id("m2");
+  list.set_page_size(7);
+  int seen = 0;
+  for (int page = 0; page < 10; ++page) {
+    v1::ListEventsResponse events;
+    ASSERT_TRUE(stub_->ListEvents(Ctx().get(), list, &events).ok());
+    for (const v1::Event& e : events.events()) {
+      EXPECT_EQ(e.meal_id(), "m2");
+      EXPECT_TRUE(e.completed());
+      EXPECT_EQ(e.context_size(), 6);
+      ++seen;
+    }
+    if (events.next_page_token().empty()) break;
+    list.set_page_token(events.next_page_token());
+  }
+  EXPECT_EQ(seen, 20);
+}
+
+TEST_F(BanditServiceTest, ErrorsNameTheFieldAndChangeNothing) {
+  CreateUser("alice");
+  v1::SelectResponse chosen;
+  grpc::Status status = Select("alice", {1, 2, 3}, &chosen);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(status.error_message().find("context: expected 6 values, got 3"),
+            std::string::npos)
+      << status.error_message();
+  status = Select("alice", {1, 2, NAN, 4, 5, 6}, &chosen);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  status = Select("nobody", {1, 2, 3, 4, 5, 6}, &chosen);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::NOT_FOUND);
+
+  ASSERT_TRUE(Select("alice", {1, 2, 3, 4, 5, 6}, &chosen).ok());
+  v1::UpdateResponse updated;
+  status = Update(chosen.event_id(), 2.0, {1, 0, 0, 0}, &updated);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(status.error_message().find("loss"), std::string::npos);
+  status = Update(chosen.event_id(), 1.0, {1, 0, 0}, &updated);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(status.error_message().find("posthoc: expected 4 values, got 3"),
+            std::string::npos)
+      << status.error_message();
+  status = Update("abc", 1.0, {1, 0, 0, 0}, &updated);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(status.error_message().find("event_id"), std::string::npos);
+  status = Update("987654", 1.0, {1, 0, 0, 0}, &updated);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::NOT_FOUND);
+
+  v1::GetUserRequest get;
+  get.set_user_id("alice");
+  v1::User user;
+  ASSERT_TRUE(stub_->GetUser(Ctx().get(), get, &user).ok());
+  EXPECT_EQ(user.model_version(), 0);
+  EXPECT_EQ(user.pending_events(), 1);
+
+  ASSERT_TRUE(Update(chosen.event_id(), 1.0, {1, 0, 0, 0}, &updated).ok());
+  EXPECT_FALSE(updated.already_applied());
+  ASSERT_TRUE(Update(chosen.event_id(), 0.0, {0, 1, 0, 0}, &updated).ok());
+  EXPECT_TRUE(updated.already_applied());
+  EXPECT_EQ(updated.model_version(), 1);
+}
+
+TEST_F(BanditServiceTest, OversizedMessageIsRejected) {
+  CreateUser("alice");
+  v1::SelectResponse chosen;
+  // 1M doubles is 8 MB, over the 4 MiB default limit.
+  grpc::Status status =
+      Select("alice", std::vector<double>(1 << 20, 0.5), &chosen);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::RESOURCE_EXHAUSTED);
+  v1::GetUserRequest get;
+  get.set_user_id("alice");
+  v1::User user;
+  ASSERT_TRUE(stub_->GetUser(Ctx().get(), get, &user).ok());
+  EXPECT_EQ(user.pending_events(), 0);
+}
+
+TEST_F(BanditServiceTest, ListResetDeleteUsers) {
+  for (const char* id : {"u3", "u1", "u2"}) CreateUser(id);
+  v1::ListUsersRequest list;
+  list.set_page_size(2);
+  v1::ListUsersResponse page;
+  ASSERT_TRUE(stub_->ListUsers(Ctx().get(), list, &page).ok());
+  ASSERT_EQ(page.users_size(), 2);
+  EXPECT_EQ(page.users(0).user_id(), "u1");
+  ASSERT_FALSE(page.next_page_token().empty());
+  list.set_page_token(page.next_page_token());
+  ASSERT_TRUE(stub_->ListUsers(Ctx().get(), list, &page).ok());
+  ASSERT_EQ(page.users_size(), 1);
+  EXPECT_EQ(page.users(0).user_id(), "u3");
+  EXPECT_TRUE(page.next_page_token().empty());
+
+  v1::SelectResponse chosen;
+  ASSERT_TRUE(Select("u1", {1, 1, 1, 1, 1, 1}, &chosen).ok());
+  v1::UpdateResponse updated;
+  ASSERT_TRUE(Update(chosen.event_id(), 1, {0, 0, 1, 0}, &updated).ok());
+  v1::ResetUserRequest reset;
+  reset.set_user_id("u1");
+  v1::User user;
+  ASSERT_TRUE(stub_->ResetUser(Ctx().get(), reset, &user).ok());
+  EXPECT_EQ(user.model_version(), 0);
+  // The old event is gone with the reset.
+  ASSERT_EQ(Update(chosen.event_id(), 1, {0, 0, 1, 0}, &updated).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+
+  v1::DeleteUserRequest del;
+  del.set_user_id("u2");
+  v1::DeleteUserResponse deleted;
+  ASSERT_TRUE(stub_->DeleteUser(Ctx().get(), del, &deleted).ok());
+  EXPECT_EQ(stub_->DeleteUser(Ctx().get(), del, &deleted).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  v1::GetModelRequest model;
+  model.set_user_id("u2");
+  v1::Model out;
+  EXPECT_EQ(stub_->GetModel(Ctx().get(), model, &out).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+}
+
+}  // namespace
+}  // namespace bitewise::bandit

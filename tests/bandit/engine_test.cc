@@ -1,0 +1,315 @@
+#include "services/bandit/engine.h"
+
+#include <stdlib.h>
+
+#include <cmath>
+#include <memory>
+#include <random>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "gtest/gtest.h"
+#include "services/bandit/store/sqlite_event_store.h"
+
+namespace bitewise::bandit {
+namespace {
+
+std::vector<double> RandomVector(int n, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<double> v(n);
+  for (double& x : v) x = u(rng);
+  return v;
+}
+
+BanditConfig SmallConfig() {
+  BanditConfig config;
+  config.context_dim = 8;
+  config.posthoc_dim = 4;
+  config.alpha = 0.3;
+  config.lambda_c = 2.0;
+  config.seed = 99;
+  return config;
+}
+
+class EngineTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string dir = ::testing::TempDir() + "/engine_XXXXXX";
+    ASSERT_NE(mkdtemp(dir.data()), nullptr);
+    path_ = dir + "/bandit.db";
+    Reopen();
+  }
+
+  void Reopen(EngineOptions options = EngineOptions()) {
+    engine_.reset();
+    store_.reset();
+    SqliteStoreOptions store_options;
+    store_options.path = path_;
+    store_options.synchronous_full = false;  // tests need not fsync
+    auto store = SqliteEventStore::Open(store_options);
+    ASSERT_TRUE(store.ok()) << store.status();
+    store_ = std::move(store).value();
+    engine_ = std::make_unique<BanditEngine>(store_.get(), options);
+  }
+
+  // One Select + Update; returns the Select's result.
+  SelectResult Bite(const std::string& user, std::mt19937_64& rng,
+                    const std::string& meal = "m") {
+    SelectInput select{user, RandomVector(8, rng), meal, "item"};
+    absl::StatusOr<SelectResult> chosen = engine_->Select(select);
+    EXPECT_TRUE(chosen.ok()) << chosen.status();
+    UpdateInput update{chosen->event_id, chosen->action % 2 ? 1.0 : 0.0,
+                       RandomVector(4, rng)};
+    absl::StatusOr<UpdateResult> updated = engine_->Update(update);
+    EXPECT_TRUE(updated.ok()) << updated.status();
+    return *chosen;
+  }
+
+  std::string path_;
+  std::unique_ptr<SqliteEventStore> store_;
+  std::unique_ptr<BanditEngine> engine_;
+};
+
+TEST_F(EngineTest, SelectThenUpdateIsRecordedAndIdempotent) {
+  ASSERT_TRUE(engine_->CreateUser("alice", SmallConfig()).ok());
+  std::mt19937_64 rng(1);
+  SelectInput select{"alice", RandomVector(8, rng), "breakfast", "grape"};
+  absl::StatusOr<SelectResult> chosen = engine_->Select(select);
+  ASSERT_TRUE(chosen.ok()) << chosen.status();
+  EXPECT_EQ(chosen->estimates.size(), 6u);
+  EXPECT_EQ(chosen->model_version, 0);
+  EXPECT_EQ(chosen->action_names[chosen->action], chosen->action_name);
+
+  UpdateInput update{chosen->event_id, 1.0, {0.1, 0.2, 0.3, 0.4}};
+  absl::StatusOr<UpdateResult> first = engine_->Update(update);
+  ASSERT_TRUE(first.ok()) << first.status();
+  EXPECT_EQ(first->model_version, 1);
+  EXPECT_FALSE(first->already_applied);
+  EXPECT_EQ(first->user_id, "alice");
+
+  // A repeat, even with another outcome, returns the recorded result.
+  update.loss = 0.0;
+  absl::StatusOr<UpdateResult> again = engine_->Update(update);
+  ASSERT_TRUE(again.ok());
+  EXPECT_TRUE(again->already_applied);
+  EXPECT_EQ(again->model_version, 1);
+  absl::StatusOr<EventRecord> stored = store_->GetEvent(chosen->event_id);
+  ASSERT_TRUE(stored.ok());
+  EXPECT_EQ(stored->loss, 1.0);
+  EXPECT_EQ(stored->meal_id, "breakfast");
+  EXPECT_EQ(stored->item_label, "grape");
+  EXPECT_EQ(engine_->GetUser("alice")->model_version, 1);
+}
+
+TEST_F(EngineTest, BadInputGetsPreciseStatusAndWritesNothing) {
+  ASSERT_TRUE(engine_->CreateUser("bob", SmallConfig()).ok());
+  std::mt19937_64 rng(2);
+
+  absl::StatusOr<SelectResult> bad =
+      engine_->Select({"bob", RandomVector(7, rng), "", ""});
+  EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(bad.status().message().find("context: expected 8 values, got 7"),
+            std::string::npos)
+      << bad.status();
+  std::vector<double> nan_context = RandomVector(8, rng);
+  nan_context[3] = std::nan("");
+  bad = engine_->Select({"bob", nan_context, "", ""});
+  EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_NE(bad.status().message().find("context[3]"), std::string::npos);
+  EXPECT_EQ(
+      engine_->Select({"nobody", RandomVector(8, rng), "", ""}).status().code(),
+      absl::StatusCode::kNotFound);
+  EXPECT_EQ(engine_->Select({"bad id!", RandomVector(8, rng), "", ""})
+                .status()
+                .code(),
+            absl::StatusCode::kInvalidArgument);
+  EXPECT_TRUE(store_->ListEvents("bob", "", Page())->items.empty());
+
+  absl::StatusOr<SelectResult> chosen =
+      engine_->Select({"bob", RandomVector(8, rng), "", ""});
+  ASSERT_TRUE(chosen.ok());
+  const std::vector<UpdateInput> bad_updates = {
+      {chosen->event_id, 1.5, {0, 0, 0, 1}},
+      {chosen->event_id, -0.1, {0, 0, 0, 1}},
+      {chosen->event_id, std::nan(""), {0, 0, 0, 1}},
+      {chosen->event_id, 1.0, {0, 0, 1}},
+      {chosen->event_id, 1.0, {0, 0, INFINITY, 1}},
+      {chosen->event_id, 1.0, {}},
+  };
+  const char* const fields[] = {"loss",    "loss",       "loss",
+                                "posthoc", "posthoc[2]", "posthoc"};
+  for (size_t i = 0; i < bad_updates.size(); ++i) {
+    absl::StatusOr<UpdateResult> result = engine_->Update(bad_updates[i]);
+    EXPECT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument) << i;
+    EXPECT_NE(result.status().message().find(fields[i]), std::string::npos)
+        << result.status();
+  }
+  EXPECT_EQ(engine_->Update({chosen->event_id + 1000, 1.0, {0, 0, 0, 1}})
+                .status()
+                .code(),
+            absl::StatusCode::kNotFound);
+  EXPECT_EQ(engine_->Update({0, 1.0, {0, 0, 0, 1}}).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  // Nothing was applied: the event is still pending and the model empty.
+  EXPECT_FALSE(store_->GetEvent(chosen->event_id)->completed);
+  EXPECT_EQ(engine_->GetUser("bob")->model_version, 0);
+  EXPECT_EQ(engine_->GetModel("bob")->actions[0].count, 0);
+  EXPECT_TRUE(engine_->Update({chosen->event_id, 0.0, {0, 0, 0, 1}}).ok());
+}
+
+TEST_F(EngineTest, ModelSurvivesReopenWithin1e12) {
+  BanditConfig config = SmallConfig();
+  config.lambda_c = 1000.0;  // the default
+  ASSERT_TRUE(engine_->CreateUser("carol", config).ok());
+  std::mt19937_64 rng(3);
+  for (int t = 0; t < 120; ++t) Bite("carol", rng);
+  // A pending event selected before the restart can be completed after it.
+  absl::StatusOr<SelectResult> pending =
+      engine_->Select({"carol", RandomVector(8, rng), "", ""});
+  ASSERT_TRUE(pending.ok());
+  const std::vector<double> probe = RandomVector(8, rng);
+  absl::StatusOr<ModelExport> before = engine_->GetModel("carol");
+  absl::StatusOr<SelectResult> select_before =
+      engine_->Select({"carol", probe, "", ""});
+  ASSERT_TRUE(before.ok() && select_before.ok());
+
+  Reopen();
+  absl::StatusOr<ModelExport> after = engine_->GetModel("carol");
+  ASSERT_TRUE(after.ok());
+  EXPECT_EQ(after->user.model_version, 120);
+  for (int a = 0; a < 6; ++a) {
+    EXPECT_EQ(after->actions[a].count, before->actions[a].count);
+    for (int i = 0; i < 8; ++i) {
+      EXPECT_NEAR(after->actions[a].theta[i], before->actions[a].theta[i],
+                  1e-12 * std::max(1.0, std::abs(before->actions[a].theta[i])));
+    }
+  }
+  absl::StatusOr<SelectResult> select_after =
+      engine_->Select({"carol", probe, "", ""});
+  ASSERT_TRUE(select_after.ok());
+  EXPECT_EQ(select_after->action, select_before->action);
+  for (int a = 0; a < 6; ++a) {
+    const ActionEstimate& x = select_before->estimates[a];
+    const ActionEstimate& y = select_after->estimates[a];
+    EXPECT_NEAR(y.lcb, x.lcb, 1e-12 * std::max(1.0, std::abs(x.lcb)));
+    EXPECT_NEAR(y.width, x.width, 1e-12 * std::max(1.0, x.width));
+  }
+  EXPECT_TRUE(engine_->Update({pending->event_id, 1.0, {0, 1, 0, 0}}).ok());
+  EXPECT_EQ(engine_->GetUser("carol")->model_version, 121);
+}
+
+TEST_F(EngineTest, SeededStrategiesAreReproducibleAcrossResetAndRestart) {
+  BanditConfig config = SmallConfig();
+  config.strategy = Strategy::kEpsilonGreedy;
+  config.epsilon = 0.5;
+  ASSERT_TRUE(engine_->CreateUser("dan", config).ok());
+  auto run = [&](int bites) {
+    std::mt19937_64 rng(4);
+    std::vector<int> actions;
+    for (int t = 0; t < bites; ++t) actions.push_back(Bite("dan", rng).action);
+    return actions;
+  };
+  const std::vector<int> first = run(30);
+  ASSERT_TRUE(engine_->ResetUser("dan").ok());
+  EXPECT_EQ(engine_->GetUser("dan")->model_version, 0);
+  EXPECT_EQ(run(30), first);
+  // A restart mid-way continues the same random stream.
+  ASSERT_TRUE(engine_->ResetUser("dan").ok());
+  std::mt19937_64 rng(4);
+  std::vector<int> split;
+  for (int t = 0; t < 15; ++t) split.push_back(Bite("dan", rng).action);
+  Reopen();
+  for (int t = 15; t < 30; ++t) split.push_back(Bite("dan", rng).action);
+  EXPECT_EQ(split, first);
+  // Exploration happened: not every bite took the same action.
+  EXPECT_GT(std::set<int>(first.begin(), first.end()).size(), 2u);
+}
+
+TEST_F(EngineTest, CacheBudgetEvictsAndReloadsTransparently) {
+  EngineOptions options;
+  options.cache_budget_bytes = 1;  // at most the model in use stays loaded
+  Reopen(options);
+  for (const char* user : {"u1", "u2", "u3"}) {
+    ASSERT_TRUE(engine_->CreateUser(user, SmallConfig()).ok());
+  }
+  std::mt19937_64 rng(5);
+  for (int t = 0; t < 20; ++t) {
+    for (const char* user : {"u1", "u2", "u3"}) Bite(user, rng);
+    EXPECT_LE(engine_->CachedModels(), 1);
+  }
+  // Reloaded models equal a model that was never evicted.
+  std::unique_ptr<BanditEngine> roomy =
+      std::make_unique<BanditEngine>(store_.get(), EngineOptions());
+  const std::vector<double> probe = RandomVector(8, rng);
+  for (const char* user : {"u1", "u2", "u3"}) {
+    absl::StatusOr<ModelExport> a = engine_->GetModel(user);
+    absl::StatusOr<ModelExport> b = roomy->GetModel(user);
+    ASSERT_TRUE(a.ok() && b.ok());
+    EXPECT_EQ(a->user.model_version, 20);
+    for (int i = 0; i < 6; ++i)
+      EXPECT_EQ(a->actions[i].theta, b->actions[i].theta);
+  }
+}
+
+TEST_F(EngineTest, ConcurrentCallsKeepEveryUpdate) {
+  for (const char* user : {"p0", "p1", "p2", "shared"}) {
+    ASSERT_TRUE(engine_->CreateUser(user, SmallConfig()).ok());
+  }
+  std::vector<std::thread> threads;
+  for (int i = 0; i < 4; ++i) {
+    threads.emplace_back([this, i] {
+      std::mt19937_64 rng(100 + i);
+      const std::string own = i < 3 ? "p" + std::to_string(i) : "shared";
+      for (int t = 0; t < 25; ++t) {
+        Bite(own, rng);
+        Bite("shared", rng);
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  EXPECT_EQ(engine_->GetUser("shared")->model_version, 25 + 4 * 25);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(engine_->GetUser("p" + std::to_string(i))->model_version, 25);
+  }
+  // The live model of the shared user equals one rebuilt from its log.
+  absl::StatusOr<ModelExport> live = engine_->GetModel("shared");
+  Reopen();
+  absl::StatusOr<ModelExport> rebuilt = engine_->GetModel("shared");
+  for (int a = 0; a < 6; ++a) {
+    EXPECT_EQ(live->actions[a].count, rebuilt->actions[a].count);
+    for (int j = 0; j < 8; ++j) {
+      EXPECT_NEAR(live->actions[a].theta[j], rebuilt->actions[a].theta[j],
+                  1e-10);
+    }
+  }
+}
+
+TEST_F(EngineTest, UserLifecycle) {
+  EXPECT_EQ(engine_->CreateUser("eve", SmallConfig()).status().code(),
+            absl::StatusCode::kOk);
+  EXPECT_EQ(engine_->CreateUser("eve", SmallConfig()).status().code(),
+            absl::StatusCode::kAlreadyExists);
+  BanditConfig bad = SmallConfig();
+  bad.alpha = -1;
+  EXPECT_EQ(engine_->CreateUser("frank", bad).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(engine_->GetUser("frank").status().code(),
+            absl::StatusCode::kNotFound);
+  std::mt19937_64 rng(6);
+  Bite("eve", rng, "lunch");
+  Bite("eve", rng, "dinner");
+  EXPECT_EQ(engine_->ListEvents("eve", "lunch", Page())->items.size(), 1u);
+  EXPECT_EQ(engine_->ListEvents("eve", "", Page())->items.size(), 2u);
+  ASSERT_TRUE(engine_->DeleteUser("eve").ok());
+  EXPECT_EQ(engine_->GetModel("eve").status().code(),
+            absl::StatusCode::kNotFound);
+  EXPECT_EQ(engine_->DeleteUser("eve").code(), absl::StatusCode::kNotFound);
+  // The id can be used again, from scratch.
+  ASSERT_TRUE(engine_->CreateUser("eve", SmallConfig()).ok());
+  EXPECT_EQ(engine_->GetModel("eve")->user.model_version, 0);
+}
+
+}  // namespace
+}  // namespace bitewise::bandit
