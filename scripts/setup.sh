@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Installs the Debian bookworm packages bitewise needs (only those missing)
+# and builds the whole tree into build/. Safe to run again: it only does
+# what is left to do.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PACKAGES=(
+  build-essential cmake ninja-build ccache pkg-config git openssl
+  clang-format
+  libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
+  libabsl-dev libeigen3-dev libopencv-dev libonnx-dev
+  libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev sqlite3
+)
+
+step() { printf '\n==> %s\n' "$*"; }
+
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" ||
+    missing+=("$p")
+done
+if ((${#missing[@]})); then
+  step "Installing ${#missing[@]} missing Debian packages: ${missing[*]}"
+  SUDO=""
+  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+  $SUDO apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends \
+    "${missing[@]}"
+fi
+
+JOBS="${BITEWISE_JOBS:-$(nproc)}"
+if [ ! -f build/CMakeCache.txt ]; then
+  step "Configuring (CMake, Ninja, Release)"
+  cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release
+fi
+step "Building with $JOBS jobs (first build takes a few minutes; ccache makes later ones fast)"
+cmake --build build -j "$JOBS"

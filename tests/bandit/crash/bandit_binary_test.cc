@@ -1,0 +1,1004 @@
+// End-to-end tests of the real bitewise-bandit binary, started as a child
+// process on a fresh SQLite file: no acknowledged update is lost to SIGKILL,
+// the served estimates agree with the dense float64 reference, SIGTERM
+// drains and exits 0, and bad input gets the documented status codes without
+// touching the model.
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <grpcpp/client_context.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <stdlib.h>
+#include <sys/prctl.h>
+#include <sys/socket.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <limits>
+#include <map>
+#include <memory>
+#include <random>
+#include <sstream>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "Eigen/Dense"
+#include "absl/base/casts.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
+#include "bitewise/v1/bandit.grpc.pb.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "services/bandit/core/config.h"
+#include "services/bandit/core/linucb.h"
+#include "services/common/channel.h"
+#include "services/common/grpc_status.h"
+#include "tests/bandit/dense_reference.h"
+
+namespace bitewise {
+namespace {
+
+using ::testing::HasSubstr;
+
+constexpr char kBinary[] = BITEWISE_BANDIT_BINARY;
+constexpr char kServiceName[] = "bitewise.v1.BanditService";
+// Generous: the machine is small and shared.
+constexpr absl::Duration kCallTimeout = absl::Seconds(20);
+constexpr absl::Duration kStartTimeout = absl::Seconds(60);
+constexpr absl::Duration kServingTimeout = absl::Seconds(20);
+constexpr absl::Duration kExitTimeout = absl::Seconds(20);
+constexpr int kStartAttempts = 5;
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::ostringstream contents;
+  contents << in.rdbuf();
+  return contents.str();
+}
+
+std::string DescribeWaitStatus(int status) {
+  if (WIFEXITED(status)) return absl::StrCat("exit ", WEXITSTATUS(status));
+  if (WIFSIGNALED(status)) {
+    return absl::StrCat("killed by signal ", WTERMSIG(status));
+  }
+  return absl::StrCat("wait status ", status);
+}
+
+// A port that was free a moment ago: bound to 127.0.0.1:0 and released. The
+// server may still lose a race for it, hence the retries in Start().
+absl::StatusOr<int> PickFreePort() {
+  const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+  if (fd < 0) return absl::InternalError(std::strerror(errno));
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  addr.sin_port = 0;
+  socklen_t len = sizeof(addr);
+  if (bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0 ||
+      getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
+    const std::string error = std::strerror(errno);
+    close(fd);
+    return absl::InternalError(absl::StrCat("picking a port: ", error));
+  }
+  close(fd);
+  return static_cast<int>(ntohs(addr.sin_port));
+}
+
+// One run of the bitewise-bandit binary. Stdout and stderr go to a log file;
+// the child dies with the test process even if the test crashes.
+class ServerProcess {
+ public:
+  ServerProcess() = default;
+  ~ServerProcess() { Kill(); }
+  ServerProcess(const ServerProcess&) = delete;
+  ServerProcess& operator=(const ServerProcess&) = delete;
+
+  // Starts the binary on `db`, logging to `log_path` (appended), and returns
+  // once the BanditService reports SERVING. Retries on a new port if the
+  // chosen one was taken in the meantime.
+  absl::Status Start(const std::string& db, const std::string& log_path) {
+    if (pid_ > 0) return absl::FailedPreconditionError("already running");
+    log_path_ = log_path;
+    std::string last_error;
+    for (int attempt = 0; attempt < kStartAttempts; ++attempt) {
+      absl::StatusOr<int> port = PickFreePort();
+      if (!port.ok()) return port.status();
+      absl::Status spawned = Spawn(db, *port);
+      if (!spawned.ok()) return spawned;
+      const std::string ready_line =
+          absl::StrCat("serving on 127.0.0.1:", *port, " ");
+      const absl::Time deadline = absl::Now() + kStartTimeout;
+      bool exited = false;
+      while (true) {
+        int status = 0;
+        const pid_t reaped = waitpid(pid_, &status, WNOHANG);
+        if (reaped == pid_) {
+          pid_ = -1;
+          exited = true;
+          last_error =
+              absl::StrCat("bitewise-bandit ", DescribeWaitStatus(status),
+                           " on port ", *port, "; log:\n", ReadFile(log_path_));
+          break;
+        }
+        // The line is printed after the health status is set, so a channel
+        // made now connects at once instead of backing off.
+        if (absl::StrContains(ReadFile(log_path_), ready_line)) break;
+        if (absl::Now() > deadline) {
+          Kill();
+          return absl::DeadlineExceededError(
+              absl::StrCat("bitewise-bandit did not start within ",
+                           absl::FormatDuration(kStartTimeout), "; log:\n",
+                           ReadFile(log_path_)));
+        }
+        absl::SleepFor(absl::Milliseconds(5));
+      }
+      if (exited) {
+        // Only a lost port race is worth another try.
+        if (absl::StrContains(last_error, "cannot start the server")) continue;
+        return absl::InternalError(last_error);
+      }
+      address_ = absl::StrCat("127.0.0.1:", *port);
+      absl::StatusOr<std::shared_ptr<grpc::Channel>> channel =
+          MakeChannel(address_, ChannelOptions{});
+      if (!channel.ok()) return channel.status();
+      channel_ = *channel;
+      absl::Status serving =
+          WaitForServing(channel_, kServiceName, kServingTimeout);
+      if (!serving.ok()) {
+        Kill();
+        return absl::Status(
+            serving.code(),
+            absl::StrCat(serving.message(), "; log:\n", ReadFile(log_path_)));
+      }
+      stub_ = v1::BanditService::NewStub(channel_);
+      return absl::OkStatus();
+    }
+    return absl::UnavailableError(absl::StrCat(
+        "no free port after ", kStartAttempts, " attempts: ", last_error));
+  }
+
+  // Sends `signal` and waits up to `timeout` for the child to exit. Returns
+  // its wait status; DEADLINE_EXCEEDED leaves it running (Kill() reaps it).
+  absl::StatusOr<int> SignalAndWait(int signal, absl::Duration timeout) {
+    if (pid_ <= 0) return absl::FailedPreconditionError("not running");
+    if (kill(pid_, signal) != 0) {
+      return absl::InternalError(absl::StrCat("kill: ", std::strerror(errno)));
+    }
+    const absl::Time deadline = absl::Now() + timeout;
+    while (true) {
+      int status = 0;
+      const pid_t reaped = waitpid(pid_, &status, WNOHANG);
+      if (reaped == pid_) {
+        pid_ = -1;
+        stub_.reset();
+        channel_.reset();
+        return status;
+      }
+      if (reaped < 0) {
+        return absl::InternalError(
+            absl::StrCat("waitpid: ", std::strerror(errno)));
+      }
+      if (absl::Now() > deadline) {
+        return absl::DeadlineExceededError(
+            absl::StrCat("still running ", absl::FormatDuration(timeout),
+                         " after signal ", signal));
+      }
+      absl::SleepFor(absl::Milliseconds(5));
+    }
+  }
+
+  // SIGKILL and reap, if running. Safe to call at any time.
+  void Kill() {
+    stub_.reset();
+    channel_.reset();
+    if (pid_ <= 0) return;
+    kill(pid_, SIGKILL);
+    int status = 0;
+    while (waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
+    }
+    pid_ = -1;
+  }
+
+  bool running() const { return pid_ > 0; }
+  pid_t pid() const { return pid_; }
+  v1::BanditService::Stub& stub() { return *stub_; }
+  const std::string& log_path() const { return log_path_; }
+
+ private:
+  absl::Status Spawn(const std::string& db, int port) {
+    // Everything the child needs is prepared here: between fork and execv
+    // only async-signal-safe calls are allowed (gRPC threads exist).
+    std::vector<std::string> args = {
+        kBinary,
+        absl::StrCat("--db=", db),
+        absl::StrCat("--listen=127.0.0.1:", port),
+        "--drain_timeout_s=5",
+    };
+    std::vector<char*> argv;
+    for (std::string& arg : args) argv.push_back(arg.data());
+    argv.push_back(nullptr);
+    const int log_fd = open(log_path_.c_str(),
+                            O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (log_fd < 0) {
+      return absl::InternalError(
+          absl::StrCat("open ", log_path_, ": ", std::strerror(errno)));
+    }
+    const int null_fd = open("/dev/null", O_RDONLY | O_CLOEXEC);
+    if (null_fd < 0) {
+      close(log_fd);
+      return absl::InternalError(
+          absl::StrCat("open /dev/null: ", std::strerror(errno)));
+    }
+    const pid_t parent = getpid();
+    const pid_t pid = fork();
+    if (pid == 0) {
+      // Die with the test, even if it crashes before TearDown.
+      prctl(PR_SET_PDEATHSIG, SIGKILL);
+      if (getppid() != parent) _exit(127);
+      dup2(null_fd, STDIN_FILENO);
+      dup2(log_fd, STDOUT_FILENO);
+      dup2(log_fd, STDERR_FILENO);
+      sigset_t none;
+      sigemptyset(&none);
+      sigprocmask(SIG_SETMASK, &none, nullptr);
+      execv(argv[0], argv.data());
+      static const char kMessage[] = "bandit_binary_test: execv failed\n";
+      (void)!write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
+      _exit(127);
+    }
+    const int fork_errno = errno;
+    close(log_fd);
+    close(null_fd);
+    if (pid < 0) {
+      return absl::InternalError(
+          absl::StrCat("fork: ", std::strerror(fork_errno)));
+    }
+    pid_ = pid;
+    return absl::OkStatus();
+  }
+
+  pid_t pid_ = -1;
+  std::string log_path_;
+  std::string address_;
+  std::shared_ptr<grpc::Channel> channel_;
+  std::unique_ptr<v1::BanditService::Stub> stub_;
+};
+
+// One unary call with a deadline; the gRPC status comes back as absl::Status.
+template <typename Request, typename Response>
+absl::StatusOr<Response> Call(
+    v1::BanditService::Stub& stub,
+    grpc::Status (v1::BanditService::Stub::*method)(grpc::ClientContext*,
+                                                    const Request&, Response*),
+    const Request& request) {
+  grpc::ClientContext context;
+  context.set_deadline(absl::ToChronoTime(absl::Now() + kCallTimeout));
+  Response response;
+  const grpc::Status status = (stub.*method)(&context, request, &response);
+  if (!status.ok()) return FromGrpcStatus(status);
+  return response;
+}
+
+absl::StatusOr<v1::SelectResponse> Select(v1::BanditService::Stub& stub,
+                                          const std::string& user_id,
+                                          const std::vector<double>& context) {
+  v1::SelectRequest request;
+  request.set_user_id(user_id);
+  request.mutable_context()->Add(context.begin(), context.end());
+  request.set_meal_id("meal-1");
+  request.set_item_label("banana");
+  return Call(stub, &v1::BanditService::Stub::Select, request);
+}
+
+absl::StatusOr<v1::UpdateResponse> Update(v1::BanditService::Stub& stub,
+                                          const std::string& event_id,
+                                          double loss,
+                                          const std::vector<double>& posthoc) {
+  v1::UpdateRequest request;
+  request.set_event_id(event_id);
+  request.set_loss(loss);
+  request.mutable_posthoc()->Add(posthoc.begin(), posthoc.end());
+  return Call(stub, &v1::BanditService::Stub::Update, request);
+}
+
+absl::StatusOr<v1::User> GetUser(v1::BanditService::Stub& stub,
+                                 const std::string& user_id) {
+  v1::GetUserRequest request;
+  request.set_user_id(user_id);
+  return Call(stub, &v1::BanditService::Stub::GetUser, request);
+}
+
+absl::StatusOr<v1::Model> GetModel(v1::BanditService::Stub& stub,
+                                   const std::string& user_id) {
+  v1::GetModelRequest request;
+  request.set_user_id(user_id);
+  return Call(stub, &v1::BanditService::Stub::GetModel, request);
+}
+
+// Every event of the user, following page tokens.
+absl::StatusOr<std::vector<v1::Event>> ListAllEvents(
+    v1::BanditService::Stub& stub, const std::string& user_id) {
+  std::vector<v1::Event> events;
+  std::string token;
+  for (int page = 0; page < 1000; ++page) {
+    v1::ListEventsRequest request;
+    request.set_user_id(user_id);
+    request.set_page_size(16);
+    request.set_page_token(token);
+    absl::StatusOr<v1::ListEventsResponse> response =
+        Call(stub, &v1::BanditService::Stub::ListEvents, request);
+    if (!response.ok()) return response.status();
+    events.insert(events.end(), response->events().begin(),
+                  response->events().end());
+    token = response->next_page_token();
+    if (token.empty()) return events;
+  }
+  return absl::InternalError("ListEvents: more than 1000 pages");
+}
+
+std::vector<double> RandomVector(int n, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::vector<double> v(n);
+  for (double& x : v) x = u(rng);
+  return v;
+}
+
+// Agreement relative to the larger magnitude, with a floor of 1 so values
+// near zero are compared absolutely.
+::testing::AssertionResult Near(double actual, double expected, double tol) {
+  const double scale = std::max({1.0, std::abs(actual), std::abs(expected)});
+  if (std::abs(actual - expected) <= tol * scale) {
+    return ::testing::AssertionSuccess();
+  }
+  return ::testing::AssertionFailure()
+         << actual << " vs " << expected << " (difference "
+         << std::abs(actual - expected) << ", tolerance " << tol * scale << ")";
+}
+
+// Bit-for-bit equality, so that -0.0, subnormals and the last ulp count.
+template <typename Container>
+::testing::AssertionResult BitEqual(const Container& actual,
+                                    const std::vector<double>& expected) {
+  if (static_cast<size_t>(actual.size()) != expected.size()) {
+    return ::testing::AssertionFailure()
+           << "length " << actual.size() << " vs " << expected.size();
+  }
+  for (size_t i = 0; i < expected.size(); ++i) {
+    const double a = actual[static_cast<int>(i)];
+    if (absl::bit_cast<uint64_t>(a) != absl::bit_cast<uint64_t>(expected[i])) {
+      return ::testing::AssertionFailure() << "[" << i << "]: " << a << " vs "
+                                           << expected[i] << " (bits differ)";
+    }
+  }
+  return ::testing::AssertionSuccess();
+}
+
+::testing::AssertionResult BitEqual(double actual, double expected) {
+  if (absl::bit_cast<uint64_t>(actual) == absl::bit_cast<uint64_t>(expected)) {
+    return ::testing::AssertionSuccess();
+  }
+  return ::testing::AssertionFailure()
+         << actual << " vs " << expected << " (bits differ)";
+}
+
+// What the test sent for one completed round and what the server answered.
+struct SentRound {
+  std::string event_id;
+  std::vector<double> context;
+  int action = 0;
+  double loss = 0.0;
+  std::vector<double> posthoc;
+  int64_t model_version = 0;  // returned by the acknowledged Update
+};
+
+bandit::Round ToRound(const SentRound& sent) {
+  bandit::Round round;
+  round.context = sent.context;
+  round.action = sent.action;
+  round.loss = sent.loss;
+  round.posthoc = sent.posthoc;
+  round.weight = 1.0;
+  return round;
+}
+
+// Compares the served estimates at `context` with the dense reference.
+void ExpectEstimatesMatchReference(
+    const v1::SelectResponse& response,
+    const std::vector<bandit::testing::DenseActionModel>& reference,
+    const std::vector<double>& context, double alpha, double tol) {
+  ASSERT_EQ(response.estimates_size(), static_cast<int>(reference.size()));
+  const Eigen::Map<const Eigen::VectorXd> c(context.data(), context.size());
+  for (int a = 0; a < response.estimates_size(); ++a) {
+    const v1::ActionEstimate& got = response.estimates(a);
+    const double predicted = reference[a].theta.dot(c);
+    const double width = std::sqrt(c.dot(reference[a].sigma * c));
+    const double lcb = predicted - alpha * width;
+    EXPECT_EQ(got.action(), a);
+    EXPECT_TRUE(Near(got.predicted_loss(), predicted, tol))
+        << "action " << a << " predicted_loss";
+    EXPECT_TRUE(Near(got.width(), width, tol)) << "action " << a << " width";
+    EXPECT_TRUE(Near(got.lcb(), lcb, tol)) << "action " << a << " lcb";
+  }
+}
+
+// Compares an exported model with the dense reference.
+void ExpectModelMatchesReference(
+    const v1::Model& model,
+    const std::vector<bandit::testing::DenseActionModel>& reference,
+    const std::vector<bandit::Round>& rounds, bool posthoc, double tol) {
+  ASSERT_EQ(model.actions_size(), static_cast<int>(reference.size()));
+  std::vector<int64_t> counts(reference.size(), 0);
+  for (const bandit::Round& round : rounds) ++counts[round.action];
+  for (int a = 0; a < model.actions_size(); ++a) {
+    const v1::ActionModel& got = model.actions(a);
+    EXPECT_EQ(got.action(), a);
+    EXPECT_EQ(got.count(), counts[a]) << "action " << a;
+    ASSERT_EQ(got.theta_size(), reference[a].theta.size()) << "action " << a;
+    for (int i = 0; i < got.theta_size(); ++i) {
+      EXPECT_TRUE(Near(got.theta(i), reference[a].theta(i), tol))
+          << "action " << a << " theta[" << i << "]";
+    }
+    if (!posthoc) {
+      EXPECT_EQ(got.phi_size(), 0) << "action " << a;
+      continue;
+    }
+    ASSERT_EQ(got.phi_size(), reference[a].phi.size()) << "action " << a;
+    for (int i = 0; i < got.phi_size(); ++i) {
+      EXPECT_TRUE(Near(got.phi(i), reference[a].phi(i), tol))
+          << "action " << a << " phi[" << i << "]";
+    }
+  }
+}
+
+class BanditBinaryTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    std::string pattern =
+        (std::filesystem::temp_directory_path() / "bandit_binary_test.XXXXXX")
+            .string();
+    ASSERT_NE(mkdtemp(pattern.data()), nullptr) << std::strerror(errno);
+    dir_ = pattern;
+    db_ = dir_ + "/bandit.db";
+  }
+
+  void TearDown() override {
+    server_.Kill();
+    if (HasFailure()) {
+      for (int i = 0; i < starts_; ++i) {
+        std::cerr << "---- " << LogPath(i) << "\n"
+                  << ReadFile(LogPath(i)) << "----\n";
+      }
+    }
+    std::error_code ignored;
+    std::filesystem::remove_all(dir_, ignored);
+  }
+
+  std::string LogPath(int start) const {
+    return absl::StrCat(dir_, "/server-", start, ".log");
+  }
+
+  // Starts (or restarts) the binary on the test's database, with a fresh
+  // log file per start.
+  absl::Status StartServer() { return server_.Start(db_, LogPath(starts_++)); }
+
+  v1::BanditService::Stub& stub() { return server_.stub(); }
+
+  // A post hoc user with small dimensions and non-default hyperparameters.
+  absl::StatusOr<v1::User> CreateUser(const std::string& user_id,
+                                      v1::Learner learner, int context_dim,
+                                      int posthoc_dim, double alpha,
+                                      double lambda_c, double lambda_p) {
+    v1::CreateUserRequest request;
+    request.set_user_id(user_id);
+    v1::UserConfig* config = request.mutable_config();
+    config->set_learner(learner);
+    config->set_strategy(v1::STRATEGY_LINUCB);
+    config->set_context_dim(context_dim);
+    config->set_posthoc_dim(posthoc_dim);
+    config->set_alpha(alpha);
+    config->set_lambda_c(lambda_c);
+    config->set_lambda_p(lambda_p);
+    config->set_seed(7);
+    return Call(stub(), &v1::BanditService::Stub::CreateUser, request);
+  }
+
+  std::string dir_;
+  std::string db_;
+  int starts_ = 0;
+  ServerProcess server_;
+};
+
+TEST_F(BanditBinaryTest, SigkillLosesNoAcknowledgedUpdate) {
+  constexpr char kUser[] = "kill-user";
+  constexpr int kDim = 16;
+  constexpr int kPostHocDim = 4;
+  constexpr int kRounds = 60;
+  absl::Status started = StartServer();
+  ASSERT_TRUE(started.ok()) << started;
+  {
+    absl::StatusOr<v1::User> user = CreateUser(kUser, v1::LEARNER_POSTHOC, kDim,
+                                               kPostHocDim, 0.3, 2.0, 1.0);
+    ASSERT_TRUE(user.ok()) << user.status();
+  }
+
+  std::mt19937_64 rng(20210530);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<SentRound> acknowledged;
+  for (int t = 0; t < kRounds; ++t) {
+    SentRound sent;
+    sent.context = RandomVector(kDim, rng);
+    // Values a lossy encoding would change: signed zero and a subnormal.
+    if (t % 7 == 0) sent.context[t % kDim] = -0.0;
+    if (t % 11 == 0) sent.context[(t + 3) % kDim] = 4.9e-324;
+    absl::StatusOr<v1::SelectResponse> selected =
+        Select(stub(), kUser, sent.context);
+    ASSERT_TRUE(selected.ok()) << "round " << t << ": " << selected.status();
+    EXPECT_EQ(selected->model_version(), t);
+    sent.event_id = selected->event_id();
+    sent.action = selected->action();
+    // Arbitrary doubles, plus the integral values SQLite likes to rewrite.
+    switch (t % 10) {
+      case 0:
+        sent.loss = 0.0;
+        break;
+      case 1:
+        sent.loss = 1.0;
+        break;
+      case 2:
+        sent.loss = -0.0;
+        break;
+      default:
+        sent.loss = unit(rng);
+    }
+    sent.posthoc = RandomVector(kPostHocDim, rng);
+    absl::StatusOr<v1::UpdateResponse> updated =
+        Update(stub(), sent.event_id, sent.loss, sent.posthoc);
+    ASSERT_TRUE(updated.ok()) << "round " << t << ": " << updated.status();
+    EXPECT_FALSE(updated->already_applied());
+    EXPECT_EQ(updated->user_id(), kUser);
+    EXPECT_EQ(updated->model_version(), t + 1);
+    sent.model_version = updated->model_version();
+    acknowledged.push_back(std::move(sent));
+  }
+
+  // Two bites selected but never reported.
+  struct Pending {
+    std::string event_id;
+    std::vector<double> context;
+    int action = 0;
+  };
+  std::vector<Pending> pending;
+  for (int i = 0; i < 2; ++i) {
+    Pending p;
+    p.context = RandomVector(kDim, rng);
+    absl::StatusOr<v1::SelectResponse> selected =
+        Select(stub(), kUser, p.context);
+    ASSERT_TRUE(selected.ok()) << selected.status();
+    p.event_id = selected->event_id();
+    p.action = selected->action();
+    pending.push_back(std::move(p));
+  }
+
+  absl::StatusOr<v1::Model> model_before = GetModel(stub(), kUser);
+  ASSERT_TRUE(model_before.ok()) << model_before.status();
+  EXPECT_EQ(model_before->model_version(), kRounds);
+  // The probe's Select is one more pending event; that is fine.
+  const std::vector<double> probe = RandomVector(kDim, rng);
+  absl::StatusOr<v1::SelectResponse> probe_before =
+      Select(stub(), kUser, probe);
+  ASSERT_TRUE(probe_before.ok()) << probe_before.status();
+
+  absl::StatusOr<int> killed = server_.SignalAndWait(SIGKILL, kExitTimeout);
+  ASSERT_TRUE(killed.ok()) << killed.status();
+  ASSERT_TRUE(WIFSIGNALED(*killed) && WTERMSIG(*killed) == SIGKILL)
+      << DescribeWaitStatus(*killed);
+
+  absl::Status restarted = StartServer();
+  ASSERT_TRUE(restarted.ok()) << restarted;
+
+  absl::StatusOr<v1::User> user = GetUser(stub(), kUser);
+  ASSERT_TRUE(user.ok()) << user.status();
+  EXPECT_EQ(user->model_version(), static_cast<int64_t>(acknowledged.size()));
+  EXPECT_EQ(user->pending_events(), 3);
+  EXPECT_EQ(user->config().context_dim(), static_cast<uint32_t>(kDim));
+  EXPECT_EQ(user->config().alpha(), 0.3);
+  EXPECT_EQ(user->config().lambda_c(), 2.0);
+
+  // The log: every acknowledged event completed exactly as sent, and the
+  // pending ones still pending with their contexts.
+  absl::StatusOr<std::vector<v1::Event>> events = ListAllEvents(stub(), kUser);
+  ASSERT_TRUE(events.ok()) << events.status();
+  EXPECT_EQ(events->size(), acknowledged.size() + 3);
+  std::map<std::string, const v1::Event*> by_id;
+  for (const v1::Event& event : *events) by_id[event.event_id()] = &event;
+  for (const SentRound& sent : acknowledged) {
+    SCOPED_TRACE(absl::StrCat("event ", sent.event_id));
+    auto it = by_id.find(sent.event_id);
+    ASSERT_NE(it, by_id.end());
+    const v1::Event& event = *it->second;
+    EXPECT_EQ(event.user_id(), kUser);
+    EXPECT_TRUE(event.completed());
+    EXPECT_EQ(event.action(), sent.action);
+    EXPECT_TRUE(BitEqual(event.loss(), sent.loss));
+    EXPECT_TRUE(BitEqual(event.context(), sent.context));
+    EXPECT_TRUE(BitEqual(event.posthoc(), sent.posthoc));
+    EXPECT_EQ(event.model_version(), sent.model_version);
+    EXPECT_EQ(event.meal_id(), "meal-1");
+    EXPECT_EQ(event.item_label(), "banana");
+  }
+  for (const Pending& p : pending) {
+    SCOPED_TRACE(absl::StrCat("pending event ", p.event_id));
+    auto it = by_id.find(p.event_id);
+    ASSERT_NE(it, by_id.end());
+    EXPECT_FALSE(it->second->completed());
+    EXPECT_EQ(it->second->action(), p.action);
+    EXPECT_TRUE(BitEqual(it->second->context(), p.context));
+  }
+  ASSERT_NE(by_id.find(probe_before->event_id()), by_id.end());
+  EXPECT_FALSE(by_id[probe_before->event_id()]->completed());
+
+  // The model rebuilt from the log is the model that was served.
+  absl::StatusOr<v1::Model> model_after = GetModel(stub(), kUser);
+  ASSERT_TRUE(model_after.ok()) << model_after.status();
+  EXPECT_EQ(model_after->model_version(), model_before->model_version());
+  ASSERT_EQ(model_after->actions_size(), model_before->actions_size());
+  for (int a = 0; a < model_after->actions_size(); ++a) {
+    const v1::ActionModel& before = model_before->actions(a);
+    const v1::ActionModel& after = model_after->actions(a);
+    EXPECT_EQ(after.count(), before.count()) << "action " << a;
+    EXPECT_TRUE(Near(after.mean_loss(), before.mean_loss(), 1e-12))
+        << "action " << a;
+    ASSERT_EQ(after.theta_size(), kDim);
+    ASSERT_EQ(before.theta_size(), kDim);
+    for (int i = 0; i < kDim; ++i) {
+      EXPECT_TRUE(Near(after.theta(i), before.theta(i), 1e-12))
+          << "action " << a << " theta[" << i << "]";
+    }
+    ASSERT_EQ(after.phi_size(), kPostHocDim);
+    ASSERT_EQ(before.phi_size(), kPostHocDim);
+    for (int i = 0; i < kPostHocDim; ++i) {
+      EXPECT_TRUE(Near(after.phi(i), before.phi(i), 1e-12))
+          << "action " << a << " phi[" << i << "]";
+    }
+  }
+
+  absl::StatusOr<v1::SelectResponse> probe_after = Select(stub(), kUser, probe);
+  ASSERT_TRUE(probe_after.ok()) << probe_after.status();
+  EXPECT_EQ(probe_after->model_version(), kRounds);
+  EXPECT_EQ(probe_after->action(), probe_before->action());
+  ASSERT_EQ(probe_after->estimates_size(), probe_before->estimates_size());
+  for (int a = 0; a < probe_after->estimates_size(); ++a) {
+    const v1::ActionEstimate& before = probe_before->estimates(a);
+    const v1::ActionEstimate& after = probe_after->estimates(a);
+    EXPECT_TRUE(Near(after.predicted_loss(), before.predicted_loss(), 1e-12))
+        << "action " << a;
+    EXPECT_TRUE(Near(after.width(), before.width(), 1e-12)) << "action " << a;
+    EXPECT_TRUE(Near(after.lcb(), before.lcb(), 1e-12)) << "action " << a;
+  }
+
+  // A bite selected before the crash can still be reported: Select stored
+  // its context and action durably.
+  SentRound late;
+  late.event_id = pending[0].event_id;
+  late.context = pending[0].context;
+  late.action = pending[0].action;
+  late.loss = 1.0;
+  late.posthoc = RandomVector(kPostHocDim, rng);
+  absl::StatusOr<v1::UpdateResponse> late_update =
+      Update(stub(), late.event_id, late.loss, late.posthoc);
+  ASSERT_TRUE(late_update.ok()) << late_update.status();
+  EXPECT_FALSE(late_update->already_applied());
+  EXPECT_EQ(late_update->model_version(), kRounds + 1);
+  acknowledged.push_back(late);
+
+  // The model now includes that round with the context given to Select.
+  {
+    bandit::BanditConfig config;
+    config.learner = bandit::Learner::kPostHoc;
+    config.alpha = 0.3;
+    config.lambda_c = 2.0;
+    config.lambda_p = 1.0;
+    config.context_dim = kDim;
+    config.posthoc_dim = kPostHocDim;
+    std::vector<bandit::Round> rounds;
+    for (const SentRound& sent : acknowledged) rounds.push_back(ToRound(sent));
+    absl::StatusOr<v1::Model> model = GetModel(stub(), kUser);
+    ASSERT_TRUE(model.ok()) << model.status();
+    EXPECT_EQ(model->model_version(), kRounds + 1);
+    ExpectModelMatchesReference(
+        *model, bandit::testing::DenseReference(config, rounds), rounds,
+        /*posthoc=*/true, 1e-8);
+  }
+
+  // Retrying an update acknowledged before the crash changes nothing and
+  // returns the recorded result.
+  const SentRound& retried = acknowledged[10];
+  absl::StatusOr<v1::UpdateResponse> retry =
+      Update(stub(), retried.event_id, 0.5, RandomVector(kPostHocDim, rng));
+  ASSERT_TRUE(retry.ok()) << retry.status();
+  EXPECT_TRUE(retry->already_applied());
+  EXPECT_EQ(retry->model_version(), retried.model_version);
+  EXPECT_EQ(retry->user_id(), kUser);
+  absl::StatusOr<v1::UpdateResponse> retry_late =
+      Update(stub(), late.event_id, late.loss, late.posthoc);
+  ASSERT_TRUE(retry_late.ok()) << retry_late.status();
+  EXPECT_TRUE(retry_late->already_applied());
+  EXPECT_EQ(retry_late->model_version(), kRounds + 1);
+  user = GetUser(stub(), kUser);
+  ASSERT_TRUE(user.ok()) << user.status();
+  EXPECT_EQ(user->model_version(), kRounds + 1);
+  // Two probe Selects and one pending bite remain.
+  EXPECT_EQ(user->pending_events(), 3);
+}
+
+TEST_F(BanditBinaryTest, ServedEstimatesMatchDenseReference) {
+  constexpr int kDim = 12;
+  constexpr int kPostHocDim = 4;
+  // Enough rounds that actions pass d and switch to the primal form.
+  constexpr int kRounds = 96;
+  constexpr double kAlpha = 0.8;
+  constexpr double kLambdaC = 1.5;
+  constexpr double kLambdaP = 0.7;
+  absl::Status started = StartServer();
+  ASSERT_TRUE(started.ok()) << started;
+
+  for (const v1::Learner learner :
+       {v1::LEARNER_POSTHOC, v1::LEARNER_CONTEXT_ONLY}) {
+    const bool posthoc = learner == v1::LEARNER_POSTHOC;
+    const std::string user_id = posthoc ? "ref-posthoc" : "ref-context-only";
+    SCOPED_TRACE(user_id);
+    absl::StatusOr<v1::User> user = CreateUser(
+        user_id, learner, kDim, kPostHocDim, kAlpha, kLambdaC, kLambdaP);
+    ASSERT_TRUE(user.ok()) << user.status();
+    // K comes from the server's default action names.
+    ASSERT_EQ(user->config().action_names_size(), 6);
+    EXPECT_EQ(user->config().learner(), learner);
+
+    bandit::BanditConfig config;
+    config.learner =
+        posthoc ? bandit::Learner::kPostHoc : bandit::Learner::kContextOnly;
+    config.alpha = kAlpha;
+    config.lambda_c = kLambdaC;
+    config.lambda_p = kLambdaP;
+    config.context_dim = kDim;
+    config.posthoc_dim = kPostHocDim;
+    config.action_names.assign(user->config().action_names().begin(),
+                               user->config().action_names().end());
+
+    std::mt19937_64 rng(posthoc ? 11 : 12);
+    std::bernoulli_distribution coin(0.5);
+    std::vector<bandit::Round> rounds;
+    for (int t = 0; t < kRounds; ++t) {
+      const std::vector<double> context = RandomVector(kDim, rng);
+      absl::StatusOr<v1::SelectResponse> selected =
+          Select(stub(), user_id, context);
+      ASSERT_TRUE(selected.ok()) << "round " << t << ": " << selected.status();
+      // Every choice is made from estimates that match the reference.
+      {
+        SCOPED_TRACE(absl::StrCat("round ", t));
+        ExpectEstimatesMatchReference(
+            *selected, bandit::testing::DenseReference(config, rounds), context,
+            kAlpha, 1e-8);
+      }
+      bandit::Round round;
+      round.context = context;
+      round.action = selected->action();
+      round.loss = coin(rng) ? 1.0 : 0.0;
+      // The context-only learner ignores post hoc contexts; send one anyway
+      // for half of the rounds.
+      if (posthoc || t % 2 == 0) round.posthoc = RandomVector(kPostHocDim, rng);
+      absl::StatusOr<v1::UpdateResponse> updated =
+          Update(stub(), selected->event_id(), round.loss, round.posthoc);
+      ASSERT_TRUE(updated.ok()) << "round " << t << ": " << updated.status();
+      EXPECT_EQ(updated->model_version(), t + 1);
+      rounds.push_back(std::move(round));
+    }
+
+    const std::vector<bandit::testing::DenseActionModel> reference =
+        bandit::testing::DenseReference(config, rounds);
+    for (int probe = 0; probe < 4; ++probe) {
+      SCOPED_TRACE(absl::StrCat("probe ", probe));
+      const std::vector<double> context = RandomVector(kDim, rng);
+      absl::StatusOr<v1::SelectResponse> selected =
+          Select(stub(), user_id, context);
+      ASSERT_TRUE(selected.ok()) << selected.status();
+      EXPECT_EQ(selected->model_version(), kRounds);
+      ExpectEstimatesMatchReference(*selected, reference, context, kAlpha,
+                                    1e-8);
+      // LinUCB: the lowest lower confidence bound, ties to the lowest index.
+      int best = 0;
+      for (int a = 1; a < selected->estimates_size(); ++a) {
+        if (selected->estimates(a).lcb() < selected->estimates(best).lcb()) {
+          best = a;
+        }
+      }
+      EXPECT_EQ(selected->action(), best);
+    }
+
+    absl::StatusOr<v1::Model> model = GetModel(stub(), user_id);
+    ASSERT_TRUE(model.ok()) << model.status();
+    EXPECT_EQ(model->model_version(), kRounds);
+    ExpectModelMatchesReference(*model, reference, rounds, posthoc, 1e-8);
+    // The data exercised both representations of A_a: some action has
+    // more rounds than d (primal), every action has at least one.
+    int64_t most = 0;
+    for (const v1::ActionModel& action : model->actions()) {
+      EXPECT_GT(action.count(), 0) << "action " << action.action();
+      most = std::max(most, action.count());
+    }
+    EXPECT_GT(most, kDim);
+  }
+}
+
+TEST_F(BanditBinaryTest, SigtermDrainsAndExitsZero) {
+  absl::Status started = StartServer();
+  ASSERT_TRUE(started.ok()) << started;
+  ASSERT_TRUE(
+      CreateUser("term-user", v1::LEARNER_POSTHOC, 8, 4, 0.3, 2.0, 1.0).ok());
+  absl::StatusOr<v1::SelectResponse> selected =
+      Select(stub(), "term-user", std::vector<double>(8, 0.25));
+  ASSERT_TRUE(selected.ok()) << selected.status();
+  absl::StatusOr<v1::UpdateResponse> updated =
+      Update(stub(), selected->event_id(), 0.0, {0.1, 0.2, 0.3, 0.4});
+  ASSERT_TRUE(updated.ok()) << updated.status();
+
+  const std::string log_path = server_.log_path();
+  const absl::Time start = absl::Now();
+  absl::StatusOr<int> exited = server_.SignalAndWait(SIGTERM, kExitTimeout);
+  const absl::Duration elapsed = absl::Now() - start;
+  ASSERT_TRUE(exited.ok()) << exited.status();
+  EXPECT_TRUE(WIFEXITED(*exited) && WEXITSTATUS(*exited) == 0)
+      << DescribeWaitStatus(*exited);
+  // Nothing is in flight, so draining must not wait out its timeout.
+  EXPECT_LT(elapsed, absl::Seconds(4));
+  const std::string log = ReadFile(log_path);
+  EXPECT_THAT(log, HasSubstr("bitewise-bandit: serving on 127.0.0.1:"));
+  EXPECT_THAT(log, HasSubstr("bitewise: received SIGTERM, draining"));
+
+  // A clean stop keeps the data too.
+  absl::Status restarted = StartServer();
+  ASSERT_TRUE(restarted.ok()) << restarted;
+  absl::StatusOr<v1::User> user = GetUser(stub(), "term-user");
+  ASSERT_TRUE(user.ok()) << user.status();
+  EXPECT_EQ(user->model_version(), 1);
+}
+
+TEST_F(BanditBinaryTest, BadInputGetsTheRightStatusAndChangesNothing) {
+  constexpr char kUser[] = "bad-input-user";
+  constexpr int kDim = 16;
+  constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  absl::Status started = StartServer();
+  ASSERT_TRUE(started.ok()) << started;
+  ASSERT_TRUE(
+      CreateUser(kUser, v1::LEARNER_POSTHOC, kDim, 4, 0.3, 2.0, 1.0).ok());
+  std::mt19937_64 rng(99);
+
+  // One completed round, so model_version is not trivially 0.
+  absl::StatusOr<v1::SelectResponse> first =
+      Select(stub(), kUser, RandomVector(kDim, rng));
+  ASSERT_TRUE(first.ok()) << first.status();
+  ASSERT_TRUE(
+      Update(stub(), first->event_id(), 0.0, RandomVector(4, rng)).ok());
+  // The pending event every bad Update is aimed at.
+  absl::StatusOr<v1::SelectResponse> target =
+      Select(stub(), kUser, RandomVector(kDim, rng));
+  ASSERT_TRUE(target.ok()) << target.status();
+
+  auto expect_user_unchanged = [&](const std::string& what) {
+    absl::StatusOr<v1::User> user = GetUser(stub(), kUser);
+    ASSERT_TRUE(user.ok()) << user.status();
+    EXPECT_EQ(user->model_version(), 1) << "after " << what;
+    EXPECT_EQ(user->pending_events(), 1) << "after " << what;
+  };
+
+  // Bad contexts: nothing is recorded.
+  {
+    absl::StatusOr<v1::SelectResponse> r =
+        Select(stub(), kUser, RandomVector(kDim - 1, rng));
+    EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument)
+        << r.status();
+    EXPECT_THAT(r.status().message(), HasSubstr("context"));
+    EXPECT_THAT(r.status().message(), HasSubstr("16"));
+    EXPECT_THAT(r.status().message(), HasSubstr("15"));
+    expect_user_unchanged("short context");
+  }
+  {
+    absl::StatusOr<v1::SelectResponse> r =
+        Select(stub(), kUser, RandomVector(kDim + 1, rng));
+    EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument)
+        << r.status();
+    EXPECT_THAT(r.status().message(), HasSubstr("context"));
+    EXPECT_THAT(r.status().message(), HasSubstr("17"));
+    expect_user_unchanged("long context");
+  }
+  for (const double bad : {kNaN, kInf, -kInf}) {
+    std::vector<double> context = RandomVector(kDim, rng);
+    context[5] = bad;
+    absl::StatusOr<v1::SelectResponse> r = Select(stub(), kUser, context);
+    EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument)
+        << bad << ": " << r.status();
+    EXPECT_THAT(r.status().message(), HasSubstr("context"));
+    expect_user_unchanged(absl::StrCat("context with ", bad));
+  }
+
+  // Bad outcomes: the pending event stays pending, the model unchanged.
+  struct BadUpdate {
+    std::string what;
+    double loss;
+    std::vector<double> posthoc;
+    std::string field;
+  };
+  std::vector<double> nan_posthoc = RandomVector(4, rng);
+  nan_posthoc[2] = kNaN;
+  const std::vector<BadUpdate> bad_updates = {
+      {"loss 1.5", 1.5, RandomVector(4, rng), "loss"},
+      {"loss -0.25", -0.25, RandomVector(4, rng), "loss"},
+      {"loss NaN", kNaN, RandomVector(4, rng), "loss"},
+      {"loss inf", kInf, RandomVector(4, rng), "loss"},
+      {"posthoc of length 3", 0.5, RandomVector(3, rng), "posthoc"},
+      {"posthoc of length 5", 0.5, RandomVector(5, rng), "posthoc"},
+      {"empty posthoc", 0.5, {}, "posthoc"},
+      {"posthoc with NaN", 0.5, nan_posthoc, "posthoc"},
+  };
+  for (const BadUpdate& bad : bad_updates) {
+    absl::StatusOr<v1::UpdateResponse> r =
+        Update(stub(), target->event_id(), bad.loss, bad.posthoc);
+    EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument)
+        << bad.what << ": " << r.status();
+    EXPECT_THAT(r.status().message(), HasSubstr(bad.field)) << bad.what;
+    expect_user_unchanged(bad.what);
+  }
+
+  // Unknown and malformed names.
+  {
+    absl::StatusOr<v1::SelectResponse> r =
+        Select(stub(), "no-such-user", RandomVector(kDim, rng));
+    EXPECT_EQ(r.status().code(), absl::StatusCode::kNotFound) << r.status();
+    EXPECT_EQ(GetUser(stub(), "no-such-user").status().code(),
+              absl::StatusCode::kNotFound);
+    EXPECT_EQ(GetModel(stub(), "no-such-user").status().code(),
+              absl::StatusCode::kNotFound);
+    EXPECT_EQ(GetUser(stub(), "bad user!").status().code(),
+              absl::StatusCode::kInvalidArgument);
+  }
+  {
+    absl::StatusOr<v1::UpdateResponse> r =
+        Update(stub(), "999999", 0.5, RandomVector(4, rng));
+    EXPECT_EQ(r.status().code(), absl::StatusCode::kNotFound) << r.status();
+    expect_user_unchanged("unknown event id");
+  }
+  for (const char* malformed : {"abc", "", "0", "-3", "12abc", "1.5"}) {
+    absl::StatusOr<v1::UpdateResponse> r =
+        Update(stub(), malformed, 0.5, RandomVector(4, rng));
+    EXPECT_EQ(r.status().code(), absl::StatusCode::kInvalidArgument)
+        << "\"" << malformed << "\": " << r.status();
+    EXPECT_THAT(r.status().message(), HasSubstr("event_id"));
+    expect_user_unchanged(absl::StrCat("event id \"", malformed, "\""));
+  }
+
+  // None of the failures consumed the pending event.
+  absl::StatusOr<v1::UpdateResponse> good =
+      Update(stub(), target->event_id(), 1.0, RandomVector(4, rng));
+  ASSERT_TRUE(good.ok()) << good.status();
+  EXPECT_FALSE(good->already_applied());
+  EXPECT_EQ(good->model_version(), 2);
+}
+
+}  // namespace
+}  // namespace bitewise
