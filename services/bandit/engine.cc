@@ -204,6 +204,10 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
   absl::MutexLock lock(&slot->mu);
   // Read again under the user's lock: a concurrent Update may have won.
   ASSIGN_OR_RETURN(const EventRecord event, store_->GetEvent(input.event_id));
+  RETURN_IF_ERROR(EnsureLoaded(event.user_id, *slot));
+  LinUcbModel& model = *slot->model;
+  // Bad input is an error even on a retry of a completed event.
+  RETURN_IF_ERROR(model.ValidateOutcome(input.loss, input.posthoc));
   UpdateResult result;
   result.user_id = event.user_id;
   if (event.completed) {
@@ -211,9 +215,6 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
     result.already_applied = true;
     return result;
   }
-  RETURN_IF_ERROR(EnsureLoaded(event.user_id, *slot));
-  LinUcbModel& model = *slot->model;
-  RETURN_IF_ERROR(model.ValidateOutcome(input.loss, input.posthoc));
 
   Round round;
   round.context = event.context;

@@ -101,6 +101,11 @@ TEST_F(EngineTest, SelectThenUpdateIsRecordedAndIdempotent) {
   EXPECT_EQ(stored->meal_id, "breakfast");
   EXPECT_EQ(stored->item_label, "grape");
   EXPECT_EQ(engine_->GetUser("alice")->model_version, 1);
+  // A retry with invalid input is still an error, and changes nothing.
+  update.loss = 1.5;
+  EXPECT_EQ(engine_->Update(update).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(store_->GetEvent(chosen->event_id)->loss, 1.0);
 }
 
 TEST_F(EngineTest, BadInputGetsPreciseStatusAndWritesNothing) {
