@@ -216,9 +216,7 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
     return result;
   }
 
-  Round round;
-  round.context = event.context;
-  round.action = event.action;
+  Round round = ToRound(event);
   round.loss = input.loss;
   round.posthoc = input.posthoc;
   round.weight =

@@ -1,0 +1,20 @@
+// Reading the PEM files behind the TLS flags, shared by the server and the
+// client channel so that both report an unreadable file the same way.
+#ifndef BITEWISE_SERVICES_COMMON_TLS_FILES_H_
+#define BITEWISE_SERVICES_COMMON_TLS_FILES_H_
+
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+
+namespace bitewise {
+
+// The whole file. FAILED_PRECONDITION naming `what` (e.g. "server
+// certificate"), the path and the OS error if it cannot be read.
+absl::StatusOr<std::string> ReadPemFile(const std::string& path,
+                                        absl::string_view what);
+
+}  // namespace bitewise
+
+#endif  // BITEWISE_SERVICES_COMMON_TLS_FILES_H_
