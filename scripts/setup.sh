@@ -25,7 +25,7 @@ if ((${#missing[@]})); then
   SUDO=""
   if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
   $SUDO apt-get update -q
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends \
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q \
     "${missing[@]}"
 fi
 
