@@ -1,0 +1,54 @@
+// The simulated world's foods: what each type feels like (its haptic
+// category), how often each skewering action picks it up, and how it looks.
+// Shared by the force-trace model (HapticNet's training data and the
+// simulated Net F/T box), the camera renderer and the simulated meals.
+//
+// The success probabilities are assumptions built on SPEC section 1's known
+// optima (grape TV90; strawberry VS0 or TV0; banana TA0 or TA90; carrot
+// VS90) and on the physical reasoning behind them: hard foods need a
+// vertical skewer across the fibres, soft foods need the tilted angled
+// scoop, hard-skinned foods need the tines-vertical approach across the
+// skin, and medium foods take any vertical skewer. See docs/simulation.md.
+#ifndef BITEWISE_SERVICES_ROBOT_SIM_FOOD_CATALOG_H_
+#define BITEWISE_SERVICES_ROBOT_SIM_FOOD_CATALOG_H_
+
+#include <array>
+#include <string>
+#include <vector>
+
+namespace bitewise::sim {
+
+// HapticNet's four classes, in the order of its outputs.
+enum class HapticCategory { kHard = 0, kMedium = 1, kSoft = 2, kHardSkin = 3 };
+constexpr int kHapticCategories = 4;
+const char* HapticCategoryName(HapticCategory category);
+
+constexpr int kNumActions = 6;  // VS0, VS90, TV0, TV90, TA0, TA90
+
+struct FoodType {
+  std::string name;
+  HapticCategory category;
+  // Probability that each action (SPEC order) acquires the item.
+  std::array<double, kNumActions> success;
+  // Appearance: mean colour (linear RGB in [0, 1]) and its per-item spread;
+  // items vary in size within [min, max] metres and lie at any angle.
+  std::array<double, 3> rgb;
+  double rgb_spread;
+  std::array<double, 2> length_m;  // major axis
+  std::array<double, 2> width_m;   // minor axis
+  std::array<double, 2> height_m;  // above the plate
+  // Part of SPEC's unseen-food evaluation set.
+  bool unseen;
+};
+
+// Every food type, unseen foods first in SPEC's order.
+const std::vector<FoodType>& FoodCatalog();
+// The eight unseen foods of SPEC: carrot, celery, strawberry, cantaloupe,
+// banana, kiwi, cherry_tomato, grape.
+std::vector<const FoodType*> UnseenFoods();
+// nullptr if no food has this name.
+const FoodType* FindFood(const std::string& name);
+
+}  // namespace bitewise::sim
+
+#endif  // BITEWISE_SERVICES_ROBOT_SIM_FOOD_CATALOG_H_
