@@ -1,0 +1,86 @@
+#include "clients/orchestrator/update_journal.h"
+
+#include <stdlib.h>
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "gtest/gtest.h"
+
+namespace bitewise::orchestrator {
+namespace {
+
+std::string TempPath() {
+  std::string dir = ::testing::TempDir() + "/journal_XXXXXX";
+  EXPECT_NE(mkdtemp(dir.data()), nullptr);
+  return dir + "/updates.journal";
+}
+
+TEST(UpdateJournalTest, AbsentFileIsEmpty) {
+  UpdateJournal journal(TempPath());
+  absl::StatusOr<std::vector<JournaledUpdate>> all = journal.ReadAll();
+  ASSERT_TRUE(all.ok());
+  EXPECT_TRUE(all->empty());
+}
+
+TEST(UpdateJournalTest, RoundTripsDoublesExactly) {
+  UpdateJournal journal(TempPath());
+  const std::vector<double> posthoc = {
+      -0.1, std::log(0.3), -std::numeric_limits<double>::denorm_min(),
+      -1234.5678901234567};
+  ASSERT_TRUE(journal.Append({"17", 1.0, posthoc}).ok());
+  ASSERT_TRUE(journal.Append({"18", 0.0, {}}).ok());
+  absl::StatusOr<std::vector<JournaledUpdate>> all = journal.ReadAll();
+  ASSERT_TRUE(all.ok()) << all.status();
+  ASSERT_EQ(all->size(), 2u);
+  EXPECT_EQ((*all)[0].event_id, "17");
+  EXPECT_EQ((*all)[0].loss, 1.0);
+  EXPECT_EQ((*all)[0].posthoc, posthoc);
+  EXPECT_EQ((*all)[1].event_id, "18");
+  EXPECT_TRUE((*all)[1].posthoc.empty());
+}
+
+TEST(UpdateJournalTest, DrainKeepsOnlyWhatFailed) {
+  UpdateJournal journal(TempPath());
+  for (const char* id : {"1", "2", "3", "4"}) {
+    ASSERT_TRUE(journal.Append({id, 1.0, {-1.0, -2.0}}).ok());
+  }
+  std::vector<std::string> seen;
+  absl::StatusOr<int> delivered =
+      journal.Drain([&](const JournaledUpdate& update) {
+        seen.push_back(update.event_id);
+        return update.event_id == "2" || update.event_id == "4"
+                   ? absl::UnavailableError("bandit down")
+                   : absl::OkStatus();
+      });
+  ASSERT_TRUE(delivered.ok());
+  EXPECT_EQ(*delivered, 2);
+  EXPECT_EQ(seen, (std::vector<std::string>{"1", "2", "3", "4"}));
+  absl::StatusOr<std::vector<JournaledUpdate>> left = journal.ReadAll();
+  ASSERT_TRUE(left.ok());
+  ASSERT_EQ(left->size(), 2u);
+  EXPECT_EQ((*left)[0].event_id, "2");
+  EXPECT_EQ((*left)[1].event_id, "4");
+  // Delivering the rest empties (removes) the journal.
+  delivered =
+      journal.Drain([](const JournaledUpdate&) { return absl::OkStatus(); });
+  ASSERT_TRUE(delivered.ok());
+  EXPECT_EQ(*delivered, 2);
+  EXPECT_FALSE(std::ifstream(journal.path()).good());
+}
+
+TEST(UpdateJournalTest, MalformedLineIsDataLossNamingTheLine) {
+  const std::string path = TempPath();
+  std::ofstream(path) << "5\t1\t-0.5\n6\tnot-a-number\n";
+  UpdateJournal journal(path);
+  absl::StatusOr<std::vector<JournaledUpdate>> all = journal.ReadAll();
+  EXPECT_EQ(all.status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_NE(all.status().message().find("line 2"), std::string::npos)
+      << all.status();
+}
+
+}  // namespace
+}  // namespace bitewise::orchestrator
