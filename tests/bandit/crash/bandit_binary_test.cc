@@ -3,14 +3,9 @@
 // the served estimates agree with the dense float64 reference, SIGTERM
 // drains and exits 0, and bad input gets the documented status codes without
 // touching the model.
-#include <arpa/inet.h>
-#include <fcntl.h>
 #include <grpcpp/client_context.h>
-#include <netinet/in.h>
 #include <signal.h>
 #include <stdlib.h>
-#include <sys/prctl.h>
-#include <sys/socket.h>
 #include <sys/types.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -47,12 +42,16 @@
 #include "services/bandit/core/linucb.h"
 #include "services/common/channel.h"
 #include "services/common/grpc_status.h"
+#include "services/common/status_macros.h"
 #include "tests/bandit/dense_reference.h"
+#include "tests/common/child_process.h"
 
 namespace bitewise {
 namespace {
 
+using testing::DescribeWaitStatus;
 using ::testing::HasSubstr;
+using testing::ReadFile;
 
 constexpr char kBinary[] = BITEWISE_BANDIT_BINARY;
 constexpr char kServiceName[] = "bitewise.v1.BanditService";
@@ -63,97 +62,36 @@ constexpr absl::Duration kServingTimeout = absl::Seconds(20);
 constexpr absl::Duration kExitTimeout = absl::Seconds(20);
 constexpr int kStartAttempts = 5;
 
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream contents;
-  contents << in.rdbuf();
-  return contents.str();
-}
-
-std::string DescribeWaitStatus(int status) {
-  if (WIFEXITED(status)) return absl::StrCat("exit ", WEXITSTATUS(status));
-  if (WIFSIGNALED(status)) {
-    return absl::StrCat("killed by signal ", WTERMSIG(status));
-  }
-  return absl::StrCat("wait status ", status);
-}
-
-// A port that was free a moment ago: bound to 127.0.0.1:0 and released. The
-// server may still lose a race for it, hence the retries in Start().
-absl::StatusOr<int> PickFreePort() {
-  const int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
-  if (fd < 0) return absl::InternalError(std::strerror(errno));
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  addr.sin_port = 0;
-  socklen_t len = sizeof(addr);
-  if (bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0 ||
-      getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len) != 0) {
-    const std::string error = std::strerror(errno);
-    close(fd);
-    return absl::InternalError(absl::StrCat("picking a port: ", error));
-  }
-  close(fd);
-  return static_cast<int>(ntohs(addr.sin_port));
-}
-
-// One run of the bitewise-bandit binary. Stdout and stderr go to a log file;
-// the child dies with the test process even if the test crashes.
+// One run of the bitewise-bandit binary, with a stub once it is SERVING.
 class ServerProcess {
  public:
-  ServerProcess() = default;
-  ~ServerProcess() { Kill(); }
-  ServerProcess(const ServerProcess&) = delete;
-  ServerProcess& operator=(const ServerProcess&) = delete;
-
   // Starts the binary on `db`, logging to `log_path` (appended), and returns
   // once the BanditService reports SERVING. Retries on a new port if the
   // chosen one was taken in the meantime.
   absl::Status Start(const std::string& db, const std::string& log_path) {
-    if (pid_ > 0) return absl::FailedPreconditionError("already running");
-    log_path_ = log_path;
+    if (child_.running())
+      return absl::FailedPreconditionError("already running");
     std::string last_error;
     for (int attempt = 0; attempt < kStartAttempts; ++attempt) {
-      absl::StatusOr<int> port = PickFreePort();
+      absl::StatusOr<int> port = testing::PickFreePort();
       if (!port.ok()) return port.status();
-      absl::Status spawned = Spawn(db, *port);
-      if (!spawned.ok()) return spawned;
-      const std::string ready_line =
-          absl::StrCat("serving on 127.0.0.1:", *port, " ");
-      const absl::Time deadline = absl::Now() + kStartTimeout;
-      bool exited = false;
-      while (true) {
-        int status = 0;
-        const pid_t reaped = waitpid(pid_, &status, WNOHANG);
-        if (reaped == pid_) {
-          pid_ = -1;
-          exited = true;
-          last_error =
-              absl::StrCat("bitewise-bandit ", DescribeWaitStatus(status),
-                           " on port ", *port, "; log:\n", ReadFile(log_path_));
-          break;
-        }
-        // The line is printed after the health status is set, so a channel
-        // made now connects at once instead of backing off.
-        if (absl::StrContains(ReadFile(log_path_), ready_line)) break;
-        if (absl::Now() > deadline) {
-          Kill();
-          return absl::DeadlineExceededError(
-              absl::StrCat("bitewise-bandit did not start within ",
-                           absl::FormatDuration(kStartTimeout), "; log:\n",
-                           ReadFile(log_path_)));
-        }
-        absl::SleepFor(absl::Milliseconds(5));
-      }
-      if (exited) {
+      RETURN_IF_ERROR(child_.Start(
+          {kBinary, absl::StrCat("--db=", db),
+           absl::StrCat("--listen=127.0.0.1:", *port), "--drain_timeout_s=5"},
+          log_path));
+      // The line is printed after the health status is set, so a channel
+      // made now connects at once instead of backing off.
+      absl::Status ready = child_.WaitForLog(
+          absl::StrCat("serving on 127.0.0.1:", *port, " "), kStartTimeout);
+      if (!ready.ok()) {
+        last_error = std::string(ready.message());
+        child_.Kill();
         // Only a lost port race is worth another try.
         if (absl::StrContains(last_error, "cannot start the server")) continue;
-        return absl::InternalError(last_error);
+        return ready;
       }
-      address_ = absl::StrCat("127.0.0.1:", *port);
       absl::StatusOr<std::shared_ptr<grpc::Channel>> channel =
-          MakeChannel(address_, ChannelOptions{});
+          MakeChannel(absl::StrCat("127.0.0.1:", *port), ChannelOptions{});
       if (!channel.ok()) return channel.status();
       channel_ = *channel;
       absl::Status serving =
@@ -162,7 +100,7 @@ class ServerProcess {
         Kill();
         return absl::Status(
             serving.code(),
-            absl::StrCat(serving.message(), "; log:\n", ReadFile(log_path_)));
+            absl::StrCat(serving.message(), "; log:\n", child_.log()));
       }
       stub_ = v1::BanditService::NewStub(channel_);
       return absl::OkStatus();
@@ -174,106 +112,27 @@ class ServerProcess {
   // Sends `signal` and waits up to `timeout` for the child to exit. Returns
   // its wait status; DEADLINE_EXCEEDED leaves it running (Kill() reaps it).
   absl::StatusOr<int> SignalAndWait(int signal, absl::Duration timeout) {
-    if (pid_ <= 0) return absl::FailedPreconditionError("not running");
-    if (kill(pid_, signal) != 0) {
-      return absl::InternalError(absl::StrCat("kill: ", std::strerror(errno)));
+    absl::StatusOr<int> status = child_.SignalAndWait(signal, timeout);
+    if (status.ok()) {
+      stub_.reset();
+      channel_.reset();
     }
-    const absl::Time deadline = absl::Now() + timeout;
-    while (true) {
-      int status = 0;
-      const pid_t reaped = waitpid(pid_, &status, WNOHANG);
-      if (reaped == pid_) {
-        pid_ = -1;
-        stub_.reset();
-        channel_.reset();
-        return status;
-      }
-      if (reaped < 0) {
-        return absl::InternalError(
-            absl::StrCat("waitpid: ", std::strerror(errno)));
-      }
-      if (absl::Now() > deadline) {
-        return absl::DeadlineExceededError(
-            absl::StrCat("still running ", absl::FormatDuration(timeout),
-                         " after signal ", signal));
-      }
-      absl::SleepFor(absl::Milliseconds(5));
-    }
+    return status;
   }
 
-  // SIGKILL and reap, if running. Safe to call at any time.
   void Kill() {
     stub_.reset();
     channel_.reset();
-    if (pid_ <= 0) return;
-    kill(pid_, SIGKILL);
-    int status = 0;
-    while (waitpid(pid_, &status, 0) < 0 && errno == EINTR) {
-    }
-    pid_ = -1;
+    child_.Kill();
   }
 
-  bool running() const { return pid_ > 0; }
-  pid_t pid() const { return pid_; }
+  bool running() const { return child_.running(); }
+  pid_t pid() const { return child_.pid(); }
   v1::BanditService::Stub& stub() { return *stub_; }
-  const std::string& log_path() const { return log_path_; }
+  const std::string& log_path() const { return child_.log_path(); }
 
  private:
-  absl::Status Spawn(const std::string& db, int port) {
-    // Everything the child needs is prepared here: between fork and execv
-    // only async-signal-safe calls are allowed (gRPC threads exist).
-    std::vector<std::string> args = {
-        kBinary,
-        absl::StrCat("--db=", db),
-        absl::StrCat("--listen=127.0.0.1:", port),
-        "--drain_timeout_s=5",
-    };
-    std::vector<char*> argv;
-    for (std::string& arg : args) argv.push_back(arg.data());
-    argv.push_back(nullptr);
-    const int log_fd = open(log_path_.c_str(),
-                            O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
-    if (log_fd < 0) {
-      return absl::InternalError(
-          absl::StrCat("open ", log_path_, ": ", std::strerror(errno)));
-    }
-    const int null_fd = open("/dev/null", O_RDONLY | O_CLOEXEC);
-    if (null_fd < 0) {
-      close(log_fd);
-      return absl::InternalError(
-          absl::StrCat("open /dev/null: ", std::strerror(errno)));
-    }
-    const pid_t parent = getpid();
-    const pid_t pid = fork();
-    if (pid == 0) {
-      // Die with the test, even if it crashes before TearDown.
-      prctl(PR_SET_PDEATHSIG, SIGKILL);
-      if (getppid() != parent) _exit(127);
-      dup2(null_fd, STDIN_FILENO);
-      dup2(log_fd, STDOUT_FILENO);
-      dup2(log_fd, STDERR_FILENO);
-      sigset_t none;
-      sigemptyset(&none);
-      sigprocmask(SIG_SETMASK, &none, nullptr);
-      execv(argv[0], argv.data());
-      static const char kMessage[] = "bandit_binary_test: execv failed\n";
-      (void)!write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
-      _exit(127);
-    }
-    const int fork_errno = errno;
-    close(log_fd);
-    close(null_fd);
-    if (pid < 0) {
-      return absl::InternalError(
-          absl::StrCat("fork: ", std::strerror(fork_errno)));
-    }
-    pid_ = pid;
-    return absl::OkStatus();
-  }
-
-  pid_t pid_ = -1;
-  std::string log_path_;
-  std::string address_;
+  testing::ChildProcess child_;
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<v1::BanditService::Stub> stub_;
 };
