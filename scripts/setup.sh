@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 
 PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config git openssl
-  clang-format
+  clang-format gnuplot-nox
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   libabsl-dev libeigen3-dev libopencv-dev libonnx-dev
   libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev sqlite3

