@@ -1,0 +1,80 @@
+// The weight-free food detector behind DetectFood: finds the plate as the
+// dominant plane in the depth image, takes what rises above it as food, and
+// uses colour to draw each item's exact outline and to split touching items
+// (a watershed on the RGB image seeded from the depth blobs' cores). Works on
+// the D415's noisy depth with holes; needs no trained weights.
+#ifndef BITEWISE_SERVICES_PERCEPTION_FOOD_DETECTOR_H_
+#define BITEWISE_SERVICES_PERCEPTION_FOOD_DETECTOR_H_
+
+#include <cstdint>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "services/perception/frame.h"
+
+namespace bitewise::perception {
+
+struct FoodDetectorOptions {
+  // Height above the plate surface from which a pixel counts as food. Above
+  // the D415's depth noise at arm's length (about 1 mm), below the flattest
+  // food items (about 8 mm).
+  double min_height_mm = 4.0;
+  // Plate surface: points within this distance of the fitted plane.
+  double plate_tolerance_mm = 3.0;
+  // Smallest item kept, by its footprint on the plate (1 cm^2 drops crumbs
+  // and noise, keeps a blueberry).
+  double min_item_area_m2 = 0.6e-4;
+  // CIELAB distance from the plate colour beyond which a pixel looks like
+  // food rather than plate (shadows on a white plate stay below it).
+  double min_colour_distance = 14.0;
+  // Colour gradient (CIELAB units per pixel) that separates two touching
+  // items; texture within one item stays below it.
+  double min_edge_strength = 10.0;
+  // RANSAC plane fit: iterations and seed (fixed, so detection repeats).
+  int ransac_iterations = 150;
+  uint64_t ransac_seed = 1;
+};
+
+struct DetectedFood {
+  PixelBox bbox;
+  // Centroid of the item's pixels.
+  double center_u_px = 0.0;
+  double center_v_px = 0.0;
+  // Direction of the minimum-area rectangle's longer side, from +u (image
+  // right) towards +v (image down), in (-pi/2, pi/2].
+  double major_axis_angle_rad = 0.0;
+  // Median depth of the item's pixels that have depth.
+  double depth_m = 0.0;
+  // The centre pixel deprojected at depth_m, camera frame (x right, y down,
+  // z forward).
+  double center_x_m = 0.0;
+  double center_y_m = 0.0;
+  double center_z_m = 0.0;
+  // How well depth and colour agree that these pixels are food, in [0, 1]:
+  // the mean over the item's pixels of 1 when both do, 0.5 when one does.
+  double score = 0.0;
+  int area_px = 0;
+};
+
+// Thread-compatible and stateless after construction: Detect is const and
+// may run concurrently.
+class FoodDetector {
+ public:
+  explicit FoodDetector(const FoodDetectorOptions& options = {});
+
+  // Items on the plate, highest score first. A frame without a visible
+  // plate (no flat surface covering a tenth of the image) has no items.
+  // Errors: INVALID_ARGUMENT if the frame has no depth (the detector
+  // segments by height above the plate).
+  absl::StatusOr<std::vector<DetectedFood>> Detect(
+      const DecodedFrame& frame) const;
+
+  const FoodDetectorOptions& options() const { return options_; }
+
+ private:
+  FoodDetectorOptions options_;
+};
+
+}  // namespace bitewise::perception
+
+#endif  // BITEWISE_SERVICES_PERCEPTION_FOOD_DETECTOR_H_

@@ -1,0 +1,167 @@
+#include "services/perception/frame.h"
+
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "opencv2/imgcodecs.hpp"
+#include "opencv2/imgproc.hpp"
+
+namespace bitewise::perception {
+namespace {
+
+absl::Status Invalid(absl::string_view message) {
+  return absl::InvalidArgumentError(message);
+}
+
+const char* EncodingName(ImageEncoding encoding) {
+  switch (encoding) {
+    case ImageEncoding::kRgb8:
+      return "IMAGE_ENCODING_RGB8";
+    case ImageEncoding::kPng:
+      return "IMAGE_ENCODING_PNG";
+    case ImageEncoding::kJpeg:
+      return "IMAGE_ENCODING_JPEG";
+    case ImageEncoding::kUnspecified:
+      break;
+  }
+  return "IMAGE_ENCODING_UNSPECIFIED";
+}
+
+bool HasSignature(absl::string_view bytes, ImageEncoding encoding) {
+  if (encoding == ImageEncoding::kPng) {
+    static constexpr char kPng[] = "\x89PNG\r\n\x1a\n";
+    return bytes.size() >= 8 && std::memcmp(bytes.data(), kPng, 8) == 0;
+  }
+  return bytes.size() >= 3 && static_cast<unsigned char>(bytes[0]) == 0xFF &&
+         static_cast<unsigned char>(bytes[1]) == 0xD8 &&
+         static_cast<unsigned char>(bytes[2]) == 0xFF;
+}
+
+absl::StatusOr<cv::Mat> DecodeRgb(const FrameBytes& bytes, int width,
+                                  int height) {
+  if (bytes.encoding == ImageEncoding::kRgb8) {
+    const size_t expected = static_cast<size_t>(width) * height * 3;
+    if (bytes.rgb.size() != expected) {
+      return Invalid(absl::StrCat("frame.rgb has ", bytes.rgb.size(),
+                                  " bytes; IMAGE_ENCODING_RGB8 at ", width, "x",
+                                  height, " needs ", expected));
+    }
+    cv::Mat rgb(height, width, CV_8UC3);
+    std::memcpy(rgb.data, bytes.rgb.data(), expected);
+    return rgb;
+  }
+  const char* name = EncodingName(bytes.encoding);
+  if (bytes.rgb.empty()) {
+    return Invalid(absl::StrCat("frame.rgb is empty (", name, ")"));
+  }
+  if (!HasSignature(bytes.rgb, bytes.encoding)) {
+    return Invalid(
+        absl::StrCat("frame.rgb does not start with the ",
+                     bytes.encoding == ImageEncoding::kPng ? "PNG" : "JPEG",
+                     " signature although frame.rgb_encoding is ", name));
+  }
+  cv::Mat bgr;
+  try {
+    const cv::Mat buffer(1, static_cast<int>(bytes.rgb.size()), CV_8UC1,
+                         const_cast<char*>(bytes.rgb.data()));
+    bgr = cv::imdecode(buffer, cv::IMREAD_COLOR);
+  } catch (const cv::Exception& e) {
+    return Invalid(
+        absl::StrCat("frame.rgb: corrupt ", name, " data: ", e.what()));
+  }
+  if (bgr.empty()) {
+    return Invalid(absl::StrCat("frame.rgb: corrupt ", name, " data (",
+                                bytes.rgb.size(),
+                                " bytes that cannot be decoded)"));
+  }
+  if (bgr.cols != width || bgr.rows != height) {
+    return Invalid(absl::StrCat("frame.rgb decodes to ", bgr.cols, "x",
+                                bgr.rows, " but frame.width x frame.height is ",
+                                width, "x", height));
+  }
+  cv::Mat rgb;
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  return rgb;
+}
+
+}  // namespace
+
+absl::StatusOr<DecodedFrame> DecodeFrame(const FrameBytes& bytes) {
+  if (bytes.width <= 0 || bytes.height <= 0) {
+    return Invalid(
+        absl::StrCat("frame.width and frame.height must be > 0 (got ",
+                     bytes.width, "x", bytes.height, ")"));
+  }
+  if (bytes.width > kMaxFrameSide || bytes.height > kMaxFrameSide) {
+    return Invalid(absl::StrCat("frame size ", bytes.width, "x", bytes.height,
+                                " exceeds the limit of ", kMaxFrameSide,
+                                " pixels per side"));
+  }
+  if (bytes.encoding == ImageEncoding::kUnspecified) {
+    return Invalid(
+        "frame.rgb_encoding is IMAGE_ENCODING_UNSPECIFIED; set RGB8, PNG or "
+        "JPEG");
+  }
+  const int width = static_cast<int>(bytes.width);
+  const int height = static_cast<int>(bytes.height);
+  const CameraIntrinsics& k = bytes.intrinsics;
+  if (!std::isfinite(k.fx) || !std::isfinite(k.fy) || k.fx <= 0 || k.fy <= 0) {
+    return Invalid(absl::StrCat(
+        "frame.intrinsics.fx and fy must be finite and > 0 (got fx=", k.fx,
+        ", fy=", k.fy, ")"));
+  }
+  if (!std::isfinite(k.cx) || !std::isfinite(k.cy)) {
+    return Invalid("frame.intrinsics.cx and cy must be finite");
+  }
+
+  DecodedFrame frame;
+  frame.intrinsics = k;
+  absl::StatusOr<cv::Mat> rgb = DecodeRgb(bytes, width, height);
+  if (!rgb.ok()) return rgb.status();
+  frame.rgb = *std::move(rgb);
+
+  if (!bytes.depth_mm.empty()) {
+    const size_t expected = static_cast<size_t>(width) * height * 2;
+    if (bytes.depth_mm.size() != expected) {
+      return Invalid(absl::StrCat(
+          "frame.depth_mm has ", bytes.depth_mm.size(), " bytes; a ", width,
+          "x", height, " frame needs ", expected,
+          " (one little-endian uint16 per RGB pixel) or none"));
+    }
+    frame.depth_mm.create(height, width, CV_16UC1);
+    const auto* in =
+        reinterpret_cast<const unsigned char*>(bytes.depth_mm.data());
+    auto* out = frame.depth_mm.ptr<uint16_t>();
+    const size_t n = static_cast<size_t>(width) * height;
+    for (size_t i = 0; i < n; ++i) {
+      out[i] = static_cast<uint16_t>(in[2 * i] | (in[2 * i + 1] << 8));
+    }
+  }
+  return frame;
+}
+
+absl::Status ValidateBox(const PixelBox& box, int frame_width,
+                         int frame_height) {
+  if (box.width <= 0 || box.height <= 0) {
+    return Invalid(absl::StrCat("bbox ", BoxToString(box),
+                                " is an empty crop: width and height must be "
+                                "> 0"));
+  }
+  // In 64 bits so that huge coordinates cannot overflow into the frame.
+  const int64_t right = static_cast<int64_t>(box.x) + box.width;
+  const int64_t bottom = static_cast<int64_t>(box.y) + box.height;
+  if (box.x < 0 || box.y < 0 || right > frame_width || bottom > frame_height) {
+    return Invalid(absl::StrCat("bbox ", BoxToString(box), " lies outside the ",
+                                frame_width, "x", frame_height, " frame"));
+  }
+  return absl::OkStatus();
+}
+
+std::string BoxToString(const PixelBox& box) {
+  return absl::StrCat("{x=", box.x, ", y=", box.y, ", width=", box.width,
+                      ", height=", box.height, "}");
+}
+
+}  // namespace bitewise::perception

@@ -1,0 +1,82 @@
+// bitewise-perception: the PerceptionService binary. Flags are parsed here
+// and nowhere else; everything below main takes Options structs.
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "absl/strings/str_cat.h"
+#include "services/common/server.h"
+#include "services/common/server_flags.h"
+#include "services/perception/default_featurizer.h"
+#include "services/perception/food_detector.h"
+#include "services/perception/perception_service.h"
+#include "services/perception/spanet_featurizer.h"
+
+ABSL_FLAG(std::string, featurizer, "default",
+          "Visual context for Featurize: default (weight-free, 64 numbers) "
+          "or spanet (2048 numbers; needs --spanet_model).");
+ABSL_FLAG(std::string, spanet_model, "",
+          "SPANet ONNX file (interface in docs/perception.md). Loaded and "
+          "checked before the service reports SERVING.");
+ABSL_FLAG(double, min_food_height_mm, 4.0,
+          "Height above the plate from which DetectFood counts a pixel as "
+          "food.");
+
+namespace {
+
+constexpr int kDefaultPort = 50052;
+
+int Die(const std::string& what, const absl::Status& status) {
+  std::fprintf(stderr, "bitewise-perception: %s: %s\n", what.c_str(),
+               status.ToString().c_str());
+  return 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bitewise::BlockTerminationSignals();
+  absl::SetProgramUsageMessage(
+      "PerceptionService: food detection and visual features over gRPC.");
+  absl::ParseCommandLine(argc, argv);
+
+  const std::string which = absl::GetFlag(FLAGS_featurizer);
+  std::unique_ptr<bitewise::perception::Featurizer> featurizer;
+  if (which == "default") {
+    featurizer = std::make_unique<bitewise::perception::DefaultFeaturizer>();
+  } else if (which == "spanet") {
+    const std::string model = absl::GetFlag(FLAGS_spanet_model);
+    if (model.empty()) {
+      return Die("bad flags", absl::InvalidArgumentError(
+                                  "--featurizer=spanet needs --spanet_model"));
+    }
+    auto spanet = bitewise::perception::SpanetFeaturizer::Load(model);
+    if (!spanet.ok()) return Die("cannot load SPANet", spanet.status());
+    featurizer = *std::move(spanet);
+  } else {
+    return Die("bad flags", absl::InvalidArgumentError(absl::StrCat(
+                                "--featurizer: unknown featurizer \"", which,
+                                "\" (default or spanet)")));
+  }
+  bitewise::perception::FoodDetectorOptions detector_options;
+  detector_options.min_height_mm = absl::GetFlag(FLAGS_min_food_height_mm);
+  const bitewise::perception::FoodDetector detector(detector_options);
+  bitewise::perception::PerceptionServiceImpl service(&detector,
+                                                      featurizer.get());
+
+  auto server = bitewise::ServiceServer::Start(
+      bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
+      {"bitewise.v1.PerceptionService"});
+  if (!server.ok()) return Die("cannot start the server", server.status());
+  // Ready: the featurizer (and its model, if any) is loaded and checked.
+  (*server)->SetServing(true);
+  std::fprintf(stderr, "bitewise-perception: serving on %s (featurizer %s)\n",
+               (*server)->address().c_str(), featurizer->name().c_str());
+  std::fflush(stderr);
+  absl::Status status = bitewise::RunUntilSignal(**server);
+  if (!status.ok()) return Die("shutdown", status);
+  return 0;
+}

@@ -1,0 +1,152 @@
+#include "services/perception/spanet_featurizer.h"
+
+#include <algorithm>
+#include <fstream>
+#include <utility>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "opencv2/imgproc.hpp"
+#include "services/common/status_macros.h"
+
+namespace bitewise::perception {
+namespace {
+
+constexpr char kRgbInput[] = "rgb";
+constexpr char kLocationInput[] = "loc_type";
+constexpr char kFeaturesOutput[] = "features";
+constexpr char kScoresOutput[] = "scores";
+
+}  // namespace
+
+SpanetPlacement SpanetPlacementFor(int crop_width, int crop_height) {
+  SpanetPlacement p;
+  if (crop_width >= crop_height) {
+    p.width = kSpanetImageSize;
+    p.height = std::max(1, crop_height * kSpanetImageSize / crop_width);
+  } else {
+    p.height = kSpanetImageSize;
+    p.width = std::max(1, crop_width * kSpanetImageSize / crop_height);
+  }
+  p.offset_x = (kSpanetImageSize - p.width) / 2;
+  p.offset_y = (kSpanetImageSize - p.height) / 2;
+  return p;
+}
+
+cv::Mat SpanetCanvas(const cv::Mat& rgb_crop) {
+  const SpanetPlacement p = SpanetPlacementFor(rgb_crop.cols, rgb_crop.rows);
+  const bool shrinking = p.width <= rgb_crop.cols;
+  cv::Mat resized;
+  cv::resize(rgb_crop, resized, cv::Size(p.width, p.height), 0, 0,
+             shrinking ? cv::INTER_AREA : cv::INTER_LINEAR);
+  cv::Mat canvas(kSpanetImageSize, kSpanetImageSize, CV_32FC3,
+                 cv::Scalar(0, 0, 0));
+  resized.convertTo(canvas(cv::Rect(p.offset_x, p.offset_y, p.width, p.height)),
+                    CV_32FC3, 1.0 / 255.0);
+  return canvas;
+}
+
+SpanetFeaturizer::SpanetFeaturizer(cv::dnn::Net net) : net_(std::move(net)) {}
+
+absl::StatusOr<std::unique_ptr<SpanetFeaturizer>> SpanetFeaturizer::Load(
+    const std::string& model_path) {
+  {
+    std::ifstream in(model_path, std::ios::binary);
+    if (!in) {
+      return absl::NotFoundError(
+          absl::StrCat("SPANet model file \"", model_path,
+                       "\" does not exist or cannot be opened"));
+    }
+  }
+  cv::dnn::Net net;
+  try {
+    net = cv::dnn::readNetFromONNX(model_path);
+  } catch (const cv::Exception& e) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("SPANet model file \"", model_path,
+                     "\" is not a loadable ONNX model: ", e.what()));
+  }
+  if (net.empty()) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "SPANet model file \"", model_path, "\" holds no network"));
+  }
+  net.setPreferableBackend(cv::dnn::DNN_BACKEND_OPENCV);
+  net.setPreferableTarget(cv::dnn::DNN_TARGET_CPU);
+  auto featurizer =
+      std::unique_ptr<SpanetFeaturizer>(new SpanetFeaturizer(std::move(net)));
+  // One run on a black image proves the interface before the service
+  // reports SERVING.
+  const cv::Mat black(kSpanetImageSize, kSpanetImageSize, CV_32FC3,
+                      cv::Scalar(0, 0, 0));
+  cv::Mat features, scores;
+  absl::Status probe =
+      featurizer->Run(black, FoodLocation::kIsolated, &features, &scores);
+  if (!probe.ok()) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("SPANet model file \"", model_path,
+                     "\" does not have SPANet's interface: ", probe.message()));
+  }
+  return featurizer;
+}
+
+absl::Status SpanetFeaturizer::Run(const cv::Mat& canvas, FoodLocation location,
+                                   cv::Mat* features, cv::Mat* scores) const {
+  const cv::Mat blob = cv::dnn::blobFromImage(canvas);  // NCHW, as is
+  cv::Mat loc = cv::Mat::zeros(1, 3, CV_32F);
+  loc.at<float>(0, static_cast<int>(location)) = 1.0f;
+  std::vector<cv::Mat> outs;
+  {
+    absl::MutexLock lock(&mu_);
+    try {
+      net_.setInput(blob, kRgbInput);
+      net_.setInput(loc, kLocationInput);
+      net_.forward(outs,
+                   std::vector<cv::String>{kFeaturesOutput, kScoresOutput});
+    } catch (const cv::Exception& e) {
+      return absl::InternalError(
+          absl::StrCat("running SPANet (inputs \"", kRgbInput, "\", \"",
+                       kLocationInput, "\"; outputs \"", kFeaturesOutput,
+                       "\", \"", kScoresOutput, "\"): ", e.what()));
+    }
+  }
+  if (outs.size() != 2 || outs[0].total() != kSpanetFeatureDim ||
+      outs[1].total() != kSpanetScores) {
+    return absl::InternalError(absl::StrCat(
+        "SPANet outputs have ", outs.empty() ? 0 : outs[0].total(),
+        " features and ", outs.size() < 2 ? 0 : outs[1].total(),
+        " scores; expected ", kSpanetFeatureDim, " and ", kSpanetScores));
+  }
+  *features = outs[0].reshape(1, 1).clone();
+  *scores = outs[1].reshape(1, 1).clone();
+  return absl::OkStatus();
+}
+
+absl::StatusOr<Features> SpanetFeaturizer::Featurize(
+    const DecodedFrame& frame, const PixelBox& box,
+    FoodLocation location) const {
+  RETURN_IF_ERROR(ValidateBox(box, frame.width(), frame.height()));
+  const cv::Mat crop = frame.rgb(cv::Rect(box.x, box.y, box.width, box.height));
+  cv::Mat features, scores;
+  RETURN_IF_ERROR(Run(SpanetCanvas(crop), location, &features, &scores));
+  Features out;
+  out.context.reserve(kSpanetFeatureDim);
+  // OpenCV's ReLU yields -0 for negative inputs; report a plain 0.
+  for (const float f : cv::Mat_<float>(features)) {
+    out.context.push_back(f == 0.0f ? 0.0 : f);
+  }
+  // The head's points are in canvas coordinates in [0, 1]; undo the
+  // letterboxing so that clients get them relative to their own crop.
+  const SpanetPlacement p = SpanetPlacementFor(box.width, box.height);
+  for (int i = 0; i < 2; ++i) {
+    const double cu = scores.at<float>(0, 2 * i) * kSpanetImageSize;
+    const double cv_ = scores.at<float>(0, 2 * i + 1) * kSpanetImageSize;
+    out.skewer_points.push_back(
+        {(cu - p.offset_x) / p.width, (cv_ - p.offset_y) / p.height});
+  }
+  for (int a = 4; a < kSpanetScores; ++a) {
+    out.action_scores.push_back(scores.at<float>(0, a));
+  }
+  return out;
+}
+
+}  // namespace bitewise::perception

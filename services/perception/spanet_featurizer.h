@@ -1,0 +1,74 @@
+// SPANet (Feng et al. 2019, the visual model of Gordon et al. 2021) run
+// through OpenCV's DNN module from an ONNX file: the 2048 activations before
+// its head are the bandit's context; the head gives two skewer points and
+// six action success rates. Preprocessing follows SPANet's own exactly (see
+// SpanetCanvas); the ONNX interface is in spanet_onnx.h.
+#ifndef BITEWISE_SERVICES_PERCEPTION_SPANET_FEATURIZER_H_
+#define BITEWISE_SERVICES_PERCEPTION_SPANET_FEATURIZER_H_
+
+#include <memory>
+#include <string>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
+#include "opencv2/core.hpp"
+#include "opencv2/dnn.hpp"
+#include "services/perception/featurizer.h"
+
+namespace bitewise::perception {
+
+// Side of SPANet's square input image.
+constexpr int kSpanetImageSize = 144;
+constexpr int kSpanetFeatureDim = 2048;
+// Head: 2 skewer points (4 numbers), then 6 action success rates.
+constexpr int kSpanetScores = 10;
+
+// Where a crop lands on SPANet's canvas: its longer side scaled to 144, the
+// shorter one by the same ratio (rounded down, as PIL's int() does), centred
+// with the remainder split as (144 - size) / 2 on the top/left.
+struct SpanetPlacement {
+  int width = 0;
+  int height = 0;
+  int offset_x = 0;
+  int offset_y = 0;
+};
+SpanetPlacement SpanetPlacementFor(int crop_width, int crop_height);
+
+// SPANet's input image for an RGB8 crop: the aspect-preserving resize above
+// (area averaging when shrinking, bilinear when enlarging) pasted on a black
+// 144x144 canvas, as CV_32FC3 RGB in [0, 1] with no mean or std removed.
+cv::Mat SpanetCanvas(const cv::Mat& rgb_crop);
+
+// Thread-safe: calls into the network are serialised (a cv::dnn::Net is not
+// reentrant); OpenCV uses all cores inside each call.
+class SpanetFeaturizer final : public Featurizer {
+ public:
+  // Loads and checks the model: it must read as ONNX, take inputs "rgb"
+  // [1,3,144,144] and "loc_type" [1,3], and produce "features" with 2048
+  // values and "scores" with 10. Errors: NOT_FOUND when the file does not
+  // exist; FAILED_PRECONDITION when it cannot be read, is not a loadable
+  // ONNX model, or does not have that interface; each names the file.
+  static absl::StatusOr<std::unique_ptr<SpanetFeaturizer>> Load(
+      const std::string& model_path);
+
+  std::string name() const override { return "spanet"; }
+  int dimension() const override { return kSpanetFeatureDim; }
+  absl::StatusOr<Features> Featurize(const DecodedFrame& frame,
+                                     const PixelBox& box,
+                                     FoodLocation location) const override;
+
+ private:
+  explicit SpanetFeaturizer(cv::dnn::Net net);
+
+  // Runs the network on one canvas; features and scores as float rows.
+  absl::Status Run(const cv::Mat& canvas, FoodLocation location,
+                   cv::Mat* features, cv::Mat* scores) const;
+
+  mutable absl::Mutex mu_;
+  mutable cv::dnn::Net net_ ABSL_GUARDED_BY(mu_);
+};
+
+}  // namespace bitewise::perception
+
+#endif  // BITEWISE_SERVICES_PERCEPTION_SPANET_FEATURIZER_H_

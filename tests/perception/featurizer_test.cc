@@ -1,0 +1,244 @@
+// The featurizers: SPANet's preprocessing geometry, SPANet through OpenCV
+// DNN on the generated ONNX model (shape, determinism, sensitivity to the
+// crop and the location, model checks at load), and the default
+// featurizer's dimension, determinism and discrimination.
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <string>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "services/perception/default_featurizer.h"
+#include "services/perception/spanet_featurizer.h"
+#include "services/perception/spanet_onnx.h"
+#include "tests/perception/test_frames.h"
+
+namespace bitewise::perception {
+namespace {
+
+using ::testing::HasSubstr;
+
+TEST(SpanetCanvasTest, WideCropBecomes144x72Centred) {
+  const SpanetPlacement p = SpanetPlacementFor(200, 100);
+  EXPECT_EQ(p.width, 144);
+  EXPECT_EQ(p.height, 72);
+  EXPECT_EQ(p.offset_x, 0);
+  EXPECT_EQ(p.offset_y, 36);
+
+  cv::Mat crop(100, 200, CV_8UC3, cv::Scalar(255, 128, 0));
+  const cv::Mat canvas = SpanetCanvas(crop);
+  ASSERT_EQ(canvas.rows, 144);
+  ASSERT_EQ(canvas.cols, 144);
+  ASSERT_EQ(canvas.type(), CV_32FC3);
+  for (int v = 0; v < 144; ++v) {
+    for (int u = 0; u < 144; ++u) {
+      const cv::Vec3f px = canvas.at<cv::Vec3f>(v, u);
+      if (v >= 36 && v < 108) {
+        // RGB order and [0, 1] scale, no mean or std.
+        EXPECT_FLOAT_EQ(px[0], 1.0f);
+        EXPECT_FLOAT_EQ(px[1], 128.0f / 255.0f);
+        EXPECT_FLOAT_EQ(px[2], 0.0f);
+      } else {
+        EXPECT_EQ(px, cv::Vec3f(0, 0, 0)) << "row " << v;
+      }
+    }
+  }
+}
+
+TEST(SpanetCanvasTest, TallAndSmallCropsKeepTheirAspect) {
+  SpanetPlacement p = SpanetPlacementFor(30, 90);
+  EXPECT_EQ(p.width, 48);
+  EXPECT_EQ(p.height, 144);
+  EXPECT_EQ(p.offset_x, 48);
+  EXPECT_EQ(p.offset_y, 0);
+  p = SpanetPlacementFor(7, 3);  // enlarged: 144 x floor(3 * 144 / 7) = 61
+  EXPECT_EQ(p.width, 144);
+  EXPECT_EQ(p.height, 61);
+  EXPECT_EQ(p.offset_y, 41);
+  p = SpanetPlacementFor(1000, 1);
+  EXPECT_EQ(p.height, 1);
+}
+
+class SpanetTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    auto loaded = SpanetFeaturizer::Load(BITEWISE_SPANET_MODEL);
+    ASSERT_TRUE(loaded.ok()) << loaded.status();
+    spanet_ = loaded->release();
+    scene_ = new testing::TestScene(testing::RenderTestScene(11, 8, true));
+  }
+  static void TearDownTestSuite() {
+    delete spanet_;
+    delete scene_;
+  }
+  PixelBox Box(int i) const {
+    const sim::ItemTruth& t = scene_->rendered.truth[i];
+    return {t.x, t.y, t.width, t.height};
+  }
+  static SpanetFeaturizer* spanet_;
+  static testing::TestScene* scene_;
+};
+SpanetFeaturizer* SpanetTest::spanet_ = nullptr;
+testing::TestScene* SpanetTest::scene_ = nullptr;
+
+TEST_F(SpanetTest, OutputsHaveSpanetsShape) {
+  const DecodedFrame frame = testing::ToDecoded(scene_->rendered);
+  absl::StatusOr<Features> f =
+      spanet_->Featurize(frame, Box(0), FoodLocation::kIsolated);
+  ASSERT_TRUE(f.ok()) << f.status();
+  EXPECT_EQ(spanet_->dimension(), 2048);
+  ASSERT_EQ(f->context.size(), 2048u);
+  ASSERT_EQ(f->skewer_points.size(), 2u);
+  ASSERT_EQ(f->action_scores.size(), 6u);
+  int positive = 0;
+  for (double c : f->context) {
+    ASSERT_TRUE(std::isfinite(c));
+    EXPECT_GE(c, 0.0);  // after ReLU
+    positive += c > 0;
+  }
+  // A live network, not a dead one: a good share of units fire.
+  EXPECT_GT(positive, 200);
+  for (double s : f->action_scores) {
+    EXPECT_GT(s, 0.0);
+    EXPECT_LT(s, 1.0);
+  }
+}
+
+TEST_F(SpanetTest, IsDeterministicAndSeesTheCropAndLocation) {
+  const DecodedFrame frame = testing::ToDecoded(scene_->rendered);
+  auto a = spanet_->Featurize(frame, Box(0), FoodLocation::kIsolated);
+  auto b = spanet_->Featurize(frame, Box(0), FoodLocation::kIsolated);
+  auto other = spanet_->Featurize(frame, Box(1), FoodLocation::kIsolated);
+  auto wall = spanet_->Featurize(frame, Box(0), FoodLocation::kWall);
+  ASSERT_TRUE(a.ok() && b.ok() && other.ok() && wall.ok());
+  EXPECT_EQ(a->context, b->context);
+  EXPECT_EQ(a->action_scores, b->action_scores);
+  double diff_item = 0, diff_wall = 0;
+  for (int i = 0; i < 2048; ++i) {
+    diff_item += std::abs(a->context[i] - other->context[i]);
+    diff_wall += std::abs(a->context[i] - wall->context[i]);
+  }
+  EXPECT_GT(diff_item, 1e-3);
+  EXPECT_GT(diff_wall, 1e-6);
+}
+
+TEST_F(SpanetTest, BadBoxesAreInvalidArgument) {
+  const DecodedFrame frame = testing::ToDecoded(scene_->rendered);
+  EXPECT_EQ(
+      spanet_->Featurize(frame, {630, 10, 20, 20}, FoodLocation::kIsolated)
+          .status()
+          .code(),
+      absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(spanet_->Featurize(frame, {10, 10, 0, 20}, FoodLocation::kIsolated)
+                .status()
+                .code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+std::string TempPath(const std::string& name) {
+  return ::testing::TempDir() + "/" + name;
+}
+
+TEST(SpanetLoadTest, MissingFileIsNotFound) {
+  auto loaded = SpanetFeaturizer::Load(TempPath("no_such_model.onnx"));
+  EXPECT_EQ(loaded.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(loaded.status().message(), HasSubstr("no_such_model.onnx"));
+}
+
+TEST(SpanetLoadTest, GarbageFileIsFailedPrecondition) {
+  const std::string path = TempPath("garbage.onnx");
+  std::ofstream(path) << "this is not a protobuf, let alone ONNX";
+  auto loaded = SpanetFeaturizer::Load(path);
+  EXPECT_EQ(loaded.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(loaded.status().message(), HasSubstr("garbage.onnx"));
+}
+
+TEST(SpanetLoadTest, TruncatedModelIsFailedPrecondition) {
+  std::ifstream in(BITEWISE_SPANET_MODEL, std::ios::binary);
+  std::string head(1 << 20, '\0');
+  in.read(head.data(), head.size());
+  const std::string path = TempPath("truncated.onnx");
+  std::ofstream(path, std::ios::binary) << head;
+  auto loaded = SpanetFeaturizer::Load(path);
+  EXPECT_EQ(loaded.status().code(), absl::StatusCode::kFailedPrecondition);
+}
+
+TEST(SpanetLoadTest, ModelWithAnotherInterfaceIsFailedPrecondition) {
+  const std::string path = TempPath("narrow.onnx");
+  SpanetOnnxOptions options;
+  options.hidden_features = 16;
+  ASSERT_TRUE(WriteSpanetOnnx(path, options).ok());
+  auto loaded = SpanetFeaturizer::Load(path);
+  EXPECT_EQ(loaded.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(loaded.status().message(), HasSubstr("16 features"));
+}
+
+TEST(SpanetOnnxTest, SameSeedWritesTheSameFile) {
+  SpanetOnnxOptions options;
+  options.hidden_features = 8;
+  options.seed = 5;
+  ASSERT_TRUE(WriteSpanetOnnx(TempPath("a.onnx"), options).ok());
+  ASSERT_TRUE(WriteSpanetOnnx(TempPath("b.onnx"), options).ok());
+  options.seed = 6;
+  ASSERT_TRUE(WriteSpanetOnnx(TempPath("c.onnx"), options).ok());
+  auto read = [](const std::string& p) {
+    std::ifstream in(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  EXPECT_EQ(read(TempPath("a.onnx")), read(TempPath("b.onnx")));
+  EXPECT_NE(read(TempPath("a.onnx")), read(TempPath("c.onnx")));
+  EXPECT_EQ(WriteSpanetOnnx("/nonexistent-dir/x.onnx", options).code(),
+            absl::StatusCode::kFailedPrecondition);
+}
+
+TEST(DefaultFeaturizerTest, DimensionDeterminismAndDiscrimination) {
+  testing::TestScene scene = testing::RenderTestScene(21, 8, false);
+  const DecodedFrame frame = testing::ToDecoded(scene.rendered);
+  const DefaultFeaturizer featurizer;
+  EXPECT_EQ(featurizer.dimension(), kDefaultFeatureDim);
+  std::vector<std::vector<double>> contexts;
+  for (const sim::ItemTruth& t : scene.rendered.truth) {
+    const PixelBox box{t.x, t.y, t.width, t.height};
+    auto a = featurizer.Featurize(frame, box, FoodLocation::kLettuce);
+    auto b = featurizer.Featurize(frame, box, FoodLocation::kLettuce);
+    ASSERT_TRUE(a.ok() && b.ok());
+    ASSERT_EQ(a->context.size(), 64u);
+    EXPECT_EQ(a->context, b->context);
+    EXPECT_TRUE(a->skewer_points.empty());
+    EXPECT_TRUE(a->action_scores.empty());
+    for (double c : a->context) EXPECT_TRUE(std::isfinite(c));
+    EXPECT_EQ(a->context[62], 1.0);  // lettuce
+    EXPECT_EQ(a->context[63], 1.0);  // intercept
+    double hue_sum = 0;
+    for (int i = 0; i < 16; ++i) hue_sum += a->context[i];
+    EXPECT_NEAR(hue_sum, 1.0, 1e-9);
+    contexts.push_back(a->context);
+  }
+  // Different foods get different descriptions.
+  for (size_t i = 0; i < contexts.size(); ++i) {
+    for (size_t j = i + 1; j < contexts.size(); ++j) {
+      double d = 0;
+      for (int k = 0; k < 64; ++k)
+        d += std::abs(contexts[i][k] - contexts[j][k]);
+      EXPECT_GT(d, 0.05) << i << " vs " << j;
+    }
+  }
+}
+
+TEST(DefaultFeaturizerTest, SizeAndHeightAreInMetres) {
+  testing::TestScene scene = testing::RenderTestScene(5, 1, false);
+  const DecodedFrame frame = testing::ToDecoded(scene.rendered);
+  const sim::ItemTruth& t = scene.rendered.truth[0];
+  const sim::SceneItem& item = scene.plate.items[0];
+  auto f = DefaultFeaturizer().Featurize(frame, {t.x, t.y, t.width, t.height},
+                                         FoodLocation::kIsolated);
+  ASSERT_TRUE(f.ok()) << f.status();
+  EXPECT_NEAR(f->context[48] * 0.1, item.length_m, 0.25 * item.length_m);
+  EXPECT_NEAR(f->context[49] * 0.1, item.width_m, 0.3 * item.width_m);
+  EXPECT_NEAR(f->context[56] * 0.05, item.height_m, 0.3 * item.height_m);
+}
+
+}  // namespace
+}  // namespace bitewise::perception

@@ -1,0 +1,156 @@
+// DecodeFrame and ValidateBox: every malformed field gets INVALID_ARGUMENT
+// naming it; good RGB8, PNG and JPEG frames decode to the same pixels.
+#include "services/perception/frame.h"
+
+#include <string>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "services/perception/converters.h"
+#include "tests/perception/test_frames.h"
+
+namespace bitewise::perception {
+namespace {
+
+using ::testing::HasSubstr;
+
+class FrameTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    scene_ = new testing::TestScene(testing::RenderTestScene(1, 3, false));
+  }
+  static void TearDownTestSuite() { delete scene_; }
+
+  v1::Frame Proto(v1::ImageEncoding encoding) {
+    return testing::ToProto(scene_->rendered, encoding);
+  }
+  static testing::TestScene* scene_;
+};
+testing::TestScene* FrameTest::scene_ = nullptr;
+
+absl::StatusOr<DecodedFrame> Decode(const v1::Frame& frame) {
+  return DecodeFrame(FrameBytesFromProto(frame));
+}
+
+TEST_F(FrameTest, Rgb8AndPngDecodeToTheRenderedPixels) {
+  for (auto encoding : {v1::IMAGE_ENCODING_RGB8, v1::IMAGE_ENCODING_PNG}) {
+    const v1::Frame proto = Proto(encoding);
+    absl::StatusOr<DecodedFrame> frame = Decode(proto);
+    ASSERT_TRUE(frame.ok()) << frame.status();
+    EXPECT_EQ(frame->width(), 640);
+    EXPECT_EQ(frame->height(), 480);
+    ASSERT_TRUE(frame->has_depth());
+    EXPECT_EQ(std::memcmp(frame->rgb.data, scene_->rendered.rgb.data(),
+                          scene_->rendered.rgb.size()),
+              0);
+    EXPECT_EQ(frame->depth_mm.at<uint16_t>(240, 320),
+              scene_->rendered.depth_mm[240 * 640 + 320]);
+  }
+}
+
+TEST_F(FrameTest, JpegDecodesCloseToTheRenderedPixels) {
+  absl::StatusOr<DecodedFrame> frame = Decode(Proto(v1::IMAGE_ENCODING_JPEG));
+  ASSERT_TRUE(frame.ok()) << frame.status();
+  const cv::Mat original(480, 640, CV_8UC3, scene_->rendered.rgb.data());
+  EXPECT_LT(cv::norm(frame->rgb, original, cv::NORM_L1) / original.total(),
+            3 * 4.0);
+}
+
+TEST_F(FrameTest, DepthMayBeAbsent) {
+  v1::Frame proto = Proto(v1::IMAGE_ENCODING_RGB8);
+  proto.clear_depth_mm();
+  absl::StatusOr<DecodedFrame> frame = Decode(proto);
+  ASSERT_TRUE(frame.ok()) << frame.status();
+  EXPECT_FALSE(frame->has_depth());
+}
+
+void ExpectInvalid(const v1::Frame& proto, const std::string& fragment) {
+  absl::StatusOr<DecodedFrame> frame = Decode(proto);
+  ASSERT_FALSE(frame.ok());
+  EXPECT_EQ(frame.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(frame.status().message(), HasSubstr(fragment));
+}
+
+TEST_F(FrameTest, CorruptPngIsInvalidArgument) {
+  v1::Frame proto = Proto(v1::IMAGE_ENCODING_PNG);
+  std::string bytes = proto.rgb();
+  // Keep the signature, destroy the chunks after it.
+  for (size_t i = 16; i < bytes.size(); i += 7) bytes[i] ^= 0x5A;
+  proto.set_rgb(bytes);
+  ExpectInvalid(proto, "corrupt IMAGE_ENCODING_PNG");
+}
+
+TEST_F(FrameTest, TruncatedJpegIsInvalidArgument) {
+  v1::Frame proto = Proto(v1::IMAGE_ENCODING_JPEG);
+  proto.set_rgb(proto.rgb().substr(0, 40));
+  ExpectInvalid(proto, "corrupt IMAGE_ENCODING_JPEG");
+}
+
+TEST_F(FrameTest, BytesOfAnotherFormatAreInvalidArgument) {
+  v1::Frame proto = Proto(v1::IMAGE_ENCODING_JPEG);
+  proto.set_rgb_encoding(v1::IMAGE_ENCODING_PNG);
+  ExpectInvalid(proto, "does not start with the PNG signature");
+  proto = Proto(v1::IMAGE_ENCODING_RGB8);
+  proto.set_rgb_encoding(v1::IMAGE_ENCODING_JPEG);
+  ExpectInvalid(proto, "JPEG signature");
+}
+
+TEST_F(FrameTest, PngOfAnotherSizeIsInvalidArgument) {
+  v1::Frame proto = Proto(v1::IMAGE_ENCODING_PNG);
+  proto.set_width(320);
+  proto.clear_depth_mm();
+  ExpectInvalid(proto, "decodes to 640x480");
+}
+
+TEST_F(FrameTest, WrongRgbLengthIsInvalidArgument) {
+  v1::Frame proto = Proto(v1::IMAGE_ENCODING_RGB8);
+  proto.mutable_rgb()->pop_back();
+  ExpectInvalid(proto, "frame.rgb has 921599 bytes");
+}
+
+TEST_F(FrameTest, DepthSizeMismatchIsInvalidArgument) {
+  v1::Frame proto = Proto(v1::IMAGE_ENCODING_RGB8);
+  proto.set_depth_mm(std::string(320 * 240 * 2, '\0'));
+  ExpectInvalid(proto, "frame.depth_mm has 153600 bytes");
+}
+
+TEST_F(FrameTest, BadSizesEncodingAndIntrinsicsAreInvalidArgument) {
+  v1::Frame proto = Proto(v1::IMAGE_ENCODING_RGB8);
+  proto.set_width(0);
+  ExpectInvalid(proto, "frame.width and frame.height must be > 0");
+  proto = Proto(v1::IMAGE_ENCODING_RGB8);
+  proto.set_height(100000);
+  ExpectInvalid(proto, "exceeds the limit");
+  proto = Proto(v1::IMAGE_ENCODING_RGB8);
+  proto.set_rgb_encoding(v1::IMAGE_ENCODING_UNSPECIFIED);
+  ExpectInvalid(proto, "frame.rgb_encoding");
+  proto = Proto(v1::IMAGE_ENCODING_RGB8);
+  proto.mutable_intrinsics()->set_fx(0);
+  ExpectInvalid(proto, "frame.intrinsics.fx");
+  proto = Proto(v1::IMAGE_ENCODING_RGB8);
+  proto.mutable_intrinsics()->set_cy(std::nan(""));
+  ExpectInvalid(proto, "frame.intrinsics.cx and cy");
+}
+
+TEST(ValidateBoxTest, AcceptsBoxesInsideAndRejectsOthers) {
+  EXPECT_TRUE(ValidateBox({0, 0, 640, 480}, 640, 480).ok());
+  EXPECT_TRUE(ValidateBox({600, 400, 40, 80}, 640, 480).ok());
+  for (const PixelBox& outside :
+       {PixelBox{-1, 0, 10, 10}, PixelBox{0, -5, 10, 10},
+        PixelBox{631, 0, 10, 10}, PixelBox{0, 471, 10, 10},
+        PixelBox{2147483000, 0, 2000, 10}}) {
+    const absl::Status status = ValidateBox(outside, 640, 480);
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_THAT(status.message(), HasSubstr("lies outside the 640x480 frame"));
+  }
+  for (const PixelBox& empty :
+       {PixelBox{10, 10, 0, 10}, PixelBox{10, 10, 10, 0},
+        PixelBox{10, 10, -3, 10}}) {
+    const absl::Status status = ValidateBox(empty, 640, 480);
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_THAT(status.message(), HasSubstr("empty crop"));
+  }
+}
+
+}  // namespace
+}  // namespace bitewise::perception
