@@ -1,0 +1,114 @@
+// HapticService latency: Classify on a 1 s trace at 1 kHz with the shipped
+// model, in-process (target < 1 ms) and over loopback gRPC, plus its
+// stages, so a regression points at the stage that caused it.
+#include <chrono>
+#include <memory>
+#include <random>
+#include <vector>
+
+#include "benchmark/benchmark.h"
+#include "bitewise/v1/haptic.grpc.pb.h"
+#include "services/common/channel.h"
+#include "services/common/server.h"
+#include "services/haptic/core/haptic_classifier.h"
+#include "services/haptic/default_model.h"
+#include "services/haptic/haptic_service.h"
+#include "services/haptic/training/labelled_traces.h"
+
+namespace bitewise::haptic {
+namespace {
+
+// One second at `rate_hz` of a hard-skin item (the shape with the most
+// structure), contact at 0.4 s.
+std::vector<WrenchSample> OneSecondTrace(double rate_hz) {
+  SimulationConditions conditions;
+  conditions.min_rate_hz = conditions.max_rate_hz = rate_hz;
+  conditions.min_contact_s = conditions.max_contact_s = 0.4;
+  conditions.after_contact_s = 0.6;
+  return SimulateLabelledTraces(1, conditions, 42)[3].samples;
+}
+
+std::unique_ptr<HapticClassifier> DefaultClassifier() {
+  auto net =
+      HapticNet::FromOnnxBytes(DefaultHapticNetOnnx(), kDefaultHapticNetSource);
+  if (!net.ok()) std::abort();
+  return std::make_unique<HapticClassifier>(std::move(net).value(),
+                                            HapticPipelineOptions());
+}
+
+void BM_Classify(benchmark::State& state) {
+  const auto trace = OneSecondTrace(static_cast<double>(state.range(0)));
+  const auto classifier = DefaultClassifier();
+  for (auto _ : state) {
+    auto result = classifier->Classify(trace);
+    if (!result.ok()) state.SkipWithError("classify failed");
+    benchmark::DoNotOptimize(result);
+  }
+  state.counters["samples"] = static_cast<double>(trace.size());
+}
+BENCHMARK(BM_Classify)
+    ->ArgName("rate_hz")
+    ->Arg(1000)
+    ->Arg(100)
+    ->Arg(7000)
+    ->Unit(benchmark::kMicrosecond);
+
+void BM_ContactAndWindow(benchmark::State& state) {
+  const auto trace = OneSecondTrace(1000.0);
+  const HapticPipelineOptions options;
+  for (auto _ : state) {
+    auto features = ExtractHapticFeatures(trace, options);
+    benchmark::DoNotOptimize(features);
+  }
+}
+BENCHMARK(BM_ContactAndWindow)->Unit(benchmark::kMicrosecond);
+
+void BM_HapticNetForward(benchmark::State& state) {
+  const auto classifier = DefaultClassifier();
+  const auto features =
+      ExtractHapticFeatures(OneSecondTrace(1000.0), HapticPipelineOptions());
+  for (auto _ : state) {
+    auto output = classifier->net().Run(features->window.inputs);
+    benchmark::DoNotOptimize(output);
+  }
+}
+BENCHMARK(BM_HapticNetForward)->Unit(benchmark::kMicrosecond);
+
+// The whole call over loopback gRPC: proto encoding of 1,000 samples, the
+// HTTP/2 round trip and the handler.
+void BM_ClassifyOverGrpc(benchmark::State& state) {
+  const auto classifier = DefaultClassifier();
+  HapticServiceImpl service(classifier.get());
+  auto server =
+      ServiceServer::Start(ServerOptions(), {&service}, {kHapticServiceName});
+  if (!server.ok()) std::abort();
+  auto channel = MakeChannel((*server)->address(), ChannelOptions());
+  auto stub = v1::HapticService::NewStub(*channel);
+  v1::ClassifyRequest request;
+  for (const WrenchSample& s : OneSecondTrace(1000.0)) {
+    v1::WrenchSample* out = request.add_samples();
+    out->set_t_s(s.t_s);
+    out->set_fx_n(s.values[0]);
+    out->set_fy_n(s.values[1]);
+    out->set_fz_n(s.values[2]);
+    out->set_tx_nm(s.values[3]);
+    out->set_ty_nm(s.values[4]);
+    out->set_tz_nm(s.values[5]);
+  }
+  for (auto _ : state) {
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() +
+                         std::chrono::seconds(10));
+    v1::ClassifyResponse response;
+    if (!stub->Classify(&context, request, &response).ok()) {
+      state.SkipWithError("rpc failed");
+    }
+  }
+  (*server)->Shutdown();
+}
+BENCHMARK(BM_ClassifyOverGrpc)->Unit(benchmark::kMicrosecond)->UseRealTime();
+
+}  // namespace
+}  // namespace bitewise::haptic
+
+BENCHMARK_MAIN();

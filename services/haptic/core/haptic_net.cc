@@ -1,0 +1,137 @@
+#include "services/haptic/core/haptic_net.h"
+
+#include <cmath>
+#include <cstdint>
+#include <fstream>
+#include <sstream>
+#include <utility>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+
+namespace bitewise::haptic {
+namespace {
+
+std::string Fingerprint(absl::string_view bytes) {
+  uint64_t hash = 14695981039346656037ull;
+  for (unsigned char byte : bytes) {
+    hash ^= byte;
+    hash *= 1099511628211ull;
+  }
+  return absl::StrFormat("fnv1a64:%016x", hash);
+}
+
+// One forward pass; `net` must be guarded by the caller.
+absl::StatusOr<HapticNetOutput> Forward(
+    cv::dnn::Net& net, const std::array<float, kHapticInputs>& inputs) {
+  std::vector<cv::Mat> outputs;
+  try {
+    cv::Mat blob(1, kHapticInputs, CV_32F, const_cast<float*>(inputs.data()));
+    net.setInput(blob, kHapticNetInputName);
+    net.forward(outputs, std::vector<std::string>{kHapticNetLogitsName,
+                                                  kHapticNetProbabilitiesName});
+  } catch (const cv::Exception& e) {
+    return absl::InternalError(
+        absl::StrCat("HapticNet forward pass failed: ", e.what()));
+  }
+  if (outputs.size() != 2 || outputs[0].total() != kHapticClasses ||
+      outputs[1].total() != kHapticClasses || outputs[0].type() != CV_32F ||
+      outputs[1].type() != CV_32F) {
+    return absl::InternalError(
+        absl::StrCat("HapticNet outputs \"", kHapticNetLogitsName, "\" and \"",
+                     kHapticNetProbabilitiesName, "\" must each hold ",
+                     kHapticClasses, " floats"));
+  }
+  const float* logits = outputs[0].ptr<float>();
+  const float* probabilities = outputs[1].ptr<float>();
+  double max_logit = logits[0];
+  for (int k = 0; k < kHapticClasses; ++k) {
+    if (!std::isfinite(logits[k]) || !std::isfinite(probabilities[k])) {
+      return absl::InternalError("HapticNet produced a non-finite output");
+    }
+    max_logit = std::max(max_logit, static_cast<double>(logits[k]));
+  }
+  double sum = 0.0;
+  for (int k = 0; k < kHapticClasses; ++k) {
+    sum += std::exp(logits[k] - max_logit);
+  }
+  const double log_normaliser = max_logit + std::log(sum);
+  HapticNetOutput out;
+  for (int k = 0; k < kHapticClasses; ++k) {
+    out.log_probabilities[k] = logits[k] - log_normaliser;
+    out.probabilities[k] = std::exp(out.log_probabilities[k]);
+    // The graph's float softmax must agree; a model whose "probabilities"
+    // output is not the softmax of its "logits" breaks the contract.
+    if (std::abs(out.probabilities[k] - probabilities[k]) > 1e-4) {
+      return absl::InternalError(absl::StrFormat(
+          "HapticNet output \"%s\" is not the softmax of \"%s\" (class %d: "
+          "%g vs %g)",
+          kHapticNetProbabilitiesName, kHapticNetLogitsName, k,
+          probabilities[k], out.probabilities[k]));
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<HapticNet>> HapticNet::FromOnnxBytes(
+    absl::string_view bytes, const std::string& source) {
+  if (bytes.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("HapticNet model ", source, " is empty"));
+  }
+  cv::dnn::Net net;
+  try {
+    net = cv::dnn::readNetFromONNX(bytes.data(), bytes.size());
+  } catch (const cv::Exception& e) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("HapticNet model ", source,
+                     " is not a loadable ONNX model: ", e.what()));
+  }
+  if (net.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("HapticNet model ", source, " has no layers"));
+  }
+  net.setPreferableBackend(cv::dnn::DNN_BACKEND_OPENCV);
+  net.setPreferableTarget(cv::dnn::DNN_TARGET_CPU);
+  // A model that parses but breaks the graph contract must fail here, at
+  // start-up, not on the first request.
+  std::array<float, kHapticInputs> zeros{};
+  absl::StatusOr<HapticNetOutput> probe = Forward(net, zeros);
+  if (!probe.ok()) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "HapticNet model ", source,
+        " does not match the graph contract (input \"", kHapticNetInputName,
+        "\" [1, ", kHapticInputs, "]; outputs \"", kHapticNetLogitsName,
+        "\", \"", kHapticNetProbabilitiesName, "\" [1, ", kHapticClasses,
+        "]): ", probe.status().message()));
+  }
+  return std::unique_ptr<HapticNet>(
+      new HapticNet(std::move(net), Fingerprint(bytes)));
+}
+
+absl::StatusOr<std::unique_ptr<HapticNet>> HapticNet::FromOnnxFile(
+    const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    return absl::NotFoundError(
+        absl::StrCat("cannot open HapticNet model file ", path));
+  }
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  if (in.bad()) {
+    return absl::NotFoundError(
+        absl::StrCat("cannot read HapticNet model file ", path));
+  }
+  return FromOnnxBytes(bytes.str(), path);
+}
+
+absl::StatusOr<HapticNetOutput> HapticNet::Run(
+    const std::array<float, kHapticInputs>& inputs) const {
+  absl::MutexLock lock(&mu_);
+  return Forward(net_, inputs);
+}
+
+}  // namespace bitewise::haptic

@@ -1,0 +1,58 @@
+#include "services/haptic/core/wrench_trace.h"
+
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+
+namespace bitewise::haptic {
+namespace {
+
+constexpr const char* kChannelNames[kWrenchChannels] = {
+    "fx_n", "fy_n", "fz_n", "tx_nm", "ty_nm", "tz_nm"};
+
+}  // namespace
+
+const char* HapticClassName(HapticClass haptic_class) {
+  switch (haptic_class) {
+    case HapticClass::kHard:
+      return "hard";
+    case HapticClass::kMedium:
+      return "medium";
+    case HapticClass::kSoft:
+      return "soft";
+    case HapticClass::kHardSkin:
+      return "hard_skin";
+  }
+  return "unknown";
+}
+
+absl::Status ValidateTrace(absl::Span<const WrenchSample> trace,
+                           int min_samples) {
+  if (static_cast<int>(trace.size()) < min_samples) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "samples: ", trace.size(), " samples, need at least ", min_samples));
+  }
+  for (size_t i = 0; i < trace.size(); ++i) {
+    const WrenchSample& sample = trace[i];
+    if (!std::isfinite(sample.t_s)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "samples[", i, "].t_s is not finite (", sample.t_s, ")"));
+    }
+    for (int c = 0; c < kWrenchChannels; ++c) {
+      if (!std::isfinite(sample.values[c])) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("samples[", i, "].", kChannelNames[c],
+                         " is not finite (", sample.values[c], ")"));
+      }
+    }
+    if (i > 0 && !(sample.t_s > trace[i - 1].t_s)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "samples[", i, "].t_s = ", sample.t_s,
+          " s does not increase (samples[", i - 1, "].t_s = ", trace[i - 1].t_s,
+          " s); timestamps must be strictly increasing"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace bitewise::haptic

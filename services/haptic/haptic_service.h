@@ -1,0 +1,31 @@
+// HapticServiceImpl: the gRPC face of the HapticClassifier. Classify
+// converts the samples, runs the classifier and converts the result; errors
+// become gRPC statuses through the one mapping in services/common.
+// Thread-safe (the classifier is).
+#ifndef BITEWISE_SERVICES_HAPTIC_HAPTIC_SERVICE_H_
+#define BITEWISE_SERVICES_HAPTIC_HAPTIC_SERVICE_H_
+
+#include "bitewise/v1/haptic.grpc.pb.h"
+#include "services/haptic/core/haptic_classifier.h"
+
+namespace bitewise::haptic {
+
+constexpr char kHapticServiceName[] = "bitewise.v1.HapticService";
+
+class HapticServiceImpl final : public v1::HapticService::Service {
+ public:
+  // `classifier` must outlive the service.
+  explicit HapticServiceImpl(const HapticClassifier* classifier)
+      : classifier_(classifier) {}
+
+  grpc::Status Classify(grpc::ServerContext* context,
+                        const v1::ClassifyRequest* request,
+                        v1::ClassifyResponse* response) override;
+
+ private:
+  const HapticClassifier* const classifier_;
+};
+
+}  // namespace bitewise::haptic
+
+#endif  // BITEWISE_SERVICES_HAPTIC_HAPTIC_SERVICE_H_

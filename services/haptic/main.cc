@@ -1,0 +1,92 @@
+// bitewise-haptic: the HapticService binary. Flags are parsed here and
+// nowhere else; everything below main takes Options structs. With no flags
+// it serves the model compiled into the binary on 127.0.0.1:50053.
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "services/common/server.h"
+#include "services/common/server_flags.h"
+#include "services/haptic/core/haptic_classifier.h"
+#include "services/haptic/core/haptic_net.h"
+#include "services/haptic/default_model.h"
+#include "services/haptic/haptic_service.h"
+
+ABSL_FLAG(std::string, model, "",
+          "HapticNet ONNX file. Empty: the model compiled into the binary "
+          "(models/hapticnet/hapticnet.onnx). A missing or malformed file "
+          "stops the start.");
+ABSL_FLAG(double, tare_s, 0.05,
+          "Leading free-motion span (s) whose median is the sensor offset.");
+ABSL_FLAG(double, contact_threshold_n, 1.0,
+          "Tared force magnitude (N) that starts contact.");
+ABSL_FLAG(double, contact_release_n, 0.5,
+          "Hysteresis: contact holds while the force stays above this (N).");
+ABSL_FLAG(double, min_contact_s, 0.003,
+          "Shortest excursion (s) above the threshold taken as contact.");
+ABSL_FLAG(double, window_s, 0.05, "HapticNet window after contact (s).");
+ABSL_FLAG(int, min_window_samples, 5,
+          "Samples after contact the window is stretched to hold at low "
+          "rates.");
+
+namespace {
+
+constexpr int kDefaultPort = 50053;
+
+int Die(const std::string& what, const absl::Status& status) {
+  std::fprintf(stderr, "bitewise-haptic: %s: %s\n", what.c_str(),
+               status.ToString().c_str());
+  return 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bitewise::BlockTerminationSignals();
+  absl::SetProgramUsageMessage(
+      "HapticService: classifies food from the fork's force/torque trace "
+      "(HapticNet) over gRPC.");
+  absl::ParseCommandLine(argc, argv);
+
+  bitewise::haptic::HapticPipelineOptions options;
+  options.contact.tare_s = absl::GetFlag(FLAGS_tare_s);
+  options.contact.threshold_n = absl::GetFlag(FLAGS_contact_threshold_n);
+  options.contact.release_n = absl::GetFlag(FLAGS_contact_release_n);
+  options.contact.min_contact_s = absl::GetFlag(FLAGS_min_contact_s);
+  options.window.window_s = absl::GetFlag(FLAGS_window_s);
+  options.window.min_window_samples = absl::GetFlag(FLAGS_min_window_samples);
+  absl::Status valid = bitewise::haptic::ValidatePipelineOptions(options);
+  if (!valid.ok()) return Die("bad flags", valid);
+
+  using bitewise::haptic::HapticNet;
+  const std::string model_path = absl::GetFlag(FLAGS_model);
+  absl::StatusOr<std::unique_ptr<HapticNet>> net =
+      model_path.empty()
+          ? HapticNet::FromOnnxBytes(bitewise::haptic::DefaultHapticNetOnnx(),
+                                     bitewise::haptic::kDefaultHapticNetSource)
+          : HapticNet::FromOnnxFile(model_path);
+  if (!net.ok()) return Die("cannot load the HapticNet model", net.status());
+  const std::string fingerprint = (*net)->fingerprint();
+  const bitewise::haptic::HapticClassifier classifier(std::move(net).value(),
+                                                      options);
+  bitewise::haptic::HapticServiceImpl service(&classifier);
+
+  auto server = bitewise::ServiceServer::Start(
+      bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
+      {bitewise::haptic::kHapticServiceName});
+  if (!server.ok()) return Die("cannot start the server", server.status());
+  // Ready: the model is loaded and checked, and the server accepts calls.
+  (*server)->SetServing(true);
+  std::fprintf(stderr, "bitewise-haptic: serving on %s (model %s, %s)\n",
+               (*server)->address().c_str(),
+               model_path.empty() ? bitewise::haptic::kDefaultHapticNetSource
+                                  : model_path.c_str(),
+               fingerprint.c_str());
+  std::fflush(stderr);
+  absl::Status status = bitewise::RunUntilSignal(**server);
+  if (!status.ok()) return Die("shutdown", status);
+  return 0;
+}

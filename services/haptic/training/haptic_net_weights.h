@@ -1,0 +1,63 @@
+// HapticNet's parameters as the trainer holds them, the double-precision
+// reference forward pass, and the export to ONNX (through the ONNX protobuf
+// classes of Debian's libonnx-dev). The reference pass is the independent
+// check that what OpenCV's DNN module computes from the exported file is
+// what the trainer learned.
+#ifndef BITEWISE_SERVICES_HAPTIC_TRAINING_HAPTIC_NET_WEIGHTS_H_
+#define BITEWISE_SERVICES_HAPTIC_TRAINING_HAPTIC_NET_WEIGHTS_H_
+
+#include <array>
+#include <map>
+#include <string>
+
+#include "Eigen/Dense"
+#include "services/haptic/core/haptic_window.h"
+#include "services/haptic/core/wrench_trace.h"
+
+namespace bitewise::haptic {
+
+using RowMatrix =
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+
+constexpr int kHapticHidden = 128;
+
+// Layer weights are stored input-major (fan_in x fan_out): y = x * w + b.
+// The ONNX file holds them transposed (see HapticNetToOnnx).
+struct HapticNetWeights {
+  // Per-input normalisation, x' = (x - mean) / stddev, each the statistic
+  // of the input's channel (so 64 equal values per channel).
+  Eigen::RowVectorXd input_mean = Eigen::RowVectorXd::Zero(kHapticInputs);
+  Eigen::RowVectorXd input_stddev = Eigen::RowVectorXd::Ones(kHapticInputs);
+  RowMatrix w1 = RowMatrix::Zero(kHapticInputs, kHapticHidden);
+  Eigen::RowVectorXd b1 = Eigen::RowVectorXd::Zero(kHapticHidden);
+  RowMatrix w2 = RowMatrix::Zero(kHapticHidden, kHapticHidden);
+  Eigen::RowVectorXd b2 = Eigen::RowVectorXd::Zero(kHapticHidden);
+  RowMatrix w3 = RowMatrix::Zero(kHapticHidden, kHapticClasses);
+  Eigen::RowVectorXd b3 = Eigen::RowVectorXd::Zero(kHapticClasses);
+};
+
+// Rounds every parameter to the nearest float, the precision of the ONNX
+// file, so that the reference pass and the exported model share weights.
+void RoundToFloat(HapticNetWeights& weights);
+
+// Logits of one window, computed in double with Eigen.
+std::array<double, kHapticClasses> ReferenceLogits(
+    const HapticNetWeights& weights,
+    const std::array<float, kHapticInputs>& inputs);
+
+// Softmax of ReferenceLogits.
+std::array<double, kHapticClasses> ReferenceProbabilities(
+    const HapticNetWeights& weights,
+    const std::array<float, kHapticInputs>& inputs);
+
+// The serialized ONNX model (opset 11, IR version 6): Sub and Div for the
+// normalisation, three Gemm layers with Relu between them ("logits"), and a
+// Softmax ("probabilities"). `metadata` goes into metadata_props (training
+// seed, accuracy, ...). Serialization is deterministic, so equal weights
+// give equal bytes.
+std::string HapticNetToOnnx(const HapticNetWeights& weights,
+                            const std::map<std::string, std::string>& metadata);
+
+}  // namespace bitewise::haptic
+
+#endif  // BITEWISE_SERVICES_HAPTIC_TRAINING_HAPTIC_NET_WEIGHTS_H_

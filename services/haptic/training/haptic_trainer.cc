@@ -1,0 +1,468 @@
+#include "services/haptic/training/haptic_trainer.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <random>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+
+namespace bitewise::haptic {
+namespace {
+
+// The loops below fix the order of every floating-point sum: C[i][j]
+// accumulates over p ascending whatever the vector width, so results do not
+// depend on the CPU. Eigen's products would pick their blocking from the
+// cache sizes at run time, and with it the rounding.
+
+// C (n x m) = A (n x k) * B (k x m).
+void MatMul(const double* a, const double* b, int n, int k, int m, double* c) {
+  std::fill(c, c + static_cast<size_t>(n) * m, 0.0);
+  for (int i = 0; i < n; ++i) {
+    double* c_row = c + static_cast<size_t>(i) * m;
+    for (int p = 0; p < k; ++p) {
+      const double a_ip = a[static_cast<size_t>(i) * k + p];
+      if (a_ip == 0.0) continue;  // ReLU zeros: a third of the work
+      const double* b_row = b + static_cast<size_t>(p) * m;
+      for (int j = 0; j < m; ++j) c_row[j] += a_ip * b_row[j];
+    }
+  }
+}
+
+// C (k x m) = A^T * B with A (n x k), B (n x m).
+void MatTMul(const double* a, const double* b, int n, int k, int m, double* c) {
+  std::fill(c, c + static_cast<size_t>(k) * m, 0.0);
+  for (int i = 0; i < n; ++i) {
+    const double* b_row = b + static_cast<size_t>(i) * m;
+    for (int p = 0; p < k; ++p) {
+      const double a_ip = a[static_cast<size_t>(i) * k + p];
+      if (a_ip == 0.0) continue;
+      double* c_row = c + static_cast<size_t>(p) * m;
+      for (int j = 0; j < m; ++j) c_row[j] += a_ip * b_row[j];
+    }
+  }
+}
+
+// C (n x k) = A (n x m) * B^T with B (k x m).
+void MatMulT(const double* a, const double* b, int n, int m, int k, double* c) {
+  for (int i = 0; i < n; ++i) {
+    const double* a_row = a + static_cast<size_t>(i) * m;
+    for (int p = 0; p < k; ++p) {
+      const double* b_row = b + static_cast<size_t>(p) * m;
+      double sum = 0.0;
+      for (int j = 0; j < m; ++j) sum += a_row[j] * b_row[j];
+      c[static_cast<size_t>(i) * k + p] = sum;
+    }
+  }
+}
+
+void AddBias(const std::vector<double>& bias, int n, double* z) {
+  const int m = static_cast<int>(bias.size());
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < m; ++j) z[static_cast<size_t>(i) * m + j] += bias[j];
+  }
+}
+
+void ColumnSums(const double* g, int n, int m, std::vector<double>& out) {
+  std::fill(out.begin(), out.end(), 0.0);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < m; ++j) out[j] += g[static_cast<size_t>(i) * m + j];
+  }
+}
+
+// Parameters in the order w1, b1, w2, b2, w3, b3, each row-major
+// fan_in x fan_out (biases 1 x fan_out).
+struct Parameters {
+  std::array<std::vector<double>, 6> blocks;
+  static constexpr std::array<int, 6> kRows = {
+      kHapticInputs, 1, kHapticHidden, 1, kHapticHidden, 1};
+  static constexpr std::array<int, 6> kCols = {kHapticHidden,  kHapticHidden,
+                                               kHapticHidden,  kHapticHidden,
+                                               kHapticClasses, kHapticClasses};
+
+  Parameters() {
+    for (int b = 0; b < 6; ++b) {
+      blocks[b].assign(static_cast<size_t>(kRows[b]) * kCols[b], 0.0);
+    }
+  }
+};
+
+// Activations of one batch.
+struct Activations {
+  int n = 0;
+  std::vector<double> x, z1, h1, z2, h2, z3;
+  void Resize(int rows) {
+    n = rows;
+    x.resize(static_cast<size_t>(rows) * kHapticInputs);
+    z1.resize(static_cast<size_t>(rows) * kHapticHidden);
+    h1.resize(z1.size());
+    z2.resize(z1.size());
+    h2.resize(z1.size());
+    z3.resize(static_cast<size_t>(rows) * kHapticClasses);
+  }
+};
+
+void Forward(const Parameters& params, Activations& act) {
+  const int n = act.n;
+  MatMul(act.x.data(), params.blocks[0].data(), n, kHapticInputs, kHapticHidden,
+         act.z1.data());
+  AddBias(params.blocks[1], n, act.z1.data());
+  for (size_t i = 0; i < act.z1.size(); ++i) {
+    act.h1[i] = std::max(act.z1[i], 0.0);
+  }
+  MatMul(act.h1.data(), params.blocks[2].data(), n, kHapticHidden,
+         kHapticHidden, act.z2.data());
+  AddBias(params.blocks[3], n, act.z2.data());
+  for (size_t i = 0; i < act.z2.size(); ++i) {
+    act.h2[i] = std::max(act.z2[i], 0.0);
+  }
+  MatMul(act.h2.data(), params.blocks[4].data(), n, kHapticHidden,
+         kHapticClasses, act.z3.data());
+  AddBias(params.blocks[5], n, act.z3.data());
+}
+
+// log-softmax of one row of logits scaled by 1 / temperature.
+std::array<double, kHapticClasses> LogSoftmax(const double* logits,
+                                              double temperature) {
+  std::array<double, kHapticClasses> out;
+  double max_logit = logits[0] / temperature;
+  for (int k = 0; k < kHapticClasses; ++k) {
+    out[k] = logits[k] / temperature;
+    max_logit = std::max(max_logit, out[k]);
+  }
+  double sum = 0.0;
+  for (int k = 0; k < kHapticClasses; ++k) sum += std::exp(out[k] - max_logit);
+  const double log_sum = max_logit + std::log(sum);
+  for (int k = 0; k < kHapticClasses; ++k) out[k] -= log_sum;
+  return out;
+}
+
+// Normalised inputs of `rows` windows into act.x.
+void LoadBatch(const LabelledWindows& data, const std::vector<int>& order,
+               int begin, int rows, const HapticNetWeights& norm,
+               Activations& act) {
+  act.Resize(rows);
+  for (int r = 0; r < rows; ++r) {
+    const auto& window = data.inputs[order[begin + r]];
+    double* x = act.x.data() + static_cast<size_t>(r) * kHapticInputs;
+    for (int i = 0; i < kHapticInputs; ++i) {
+      x[i] = (window[i] - norm.input_mean[i]) / norm.input_stddev[i];
+    }
+  }
+}
+
+// Logits of every window of `data`, in order.
+std::vector<double> AllLogits(const LabelledWindows& data,
+                              const Parameters& params,
+                              const HapticNetWeights& norm) {
+  const int total = static_cast<int>(data.inputs.size());
+  std::vector<int> order(total);
+  std::iota(order.begin(), order.end(), 0);
+  std::vector<double> logits(static_cast<size_t>(total) * kHapticClasses);
+  Activations act;
+  constexpr int kChunk = 256;
+  for (int begin = 0; begin < total; begin += kChunk) {
+    const int rows = std::min(kChunk, total - begin);
+    LoadBatch(data, order, begin, rows, norm, act);
+    Forward(params, act);
+    std::copy(act.z3.begin(), act.z3.end(),
+              logits.begin() + static_cast<size_t>(begin) * kHapticClasses);
+  }
+  return logits;
+}
+
+double MeanLogLoss(const std::vector<double>& logits,
+                   const std::vector<int>& labels, double temperature) {
+  double sum = 0.0;
+  for (size_t i = 0; i < labels.size(); ++i) {
+    sum -= LogSoftmax(&logits[i * kHapticClasses], temperature)[labels[i]];
+  }
+  return sum / labels.size();
+}
+
+double Accuracy(const std::vector<double>& logits,
+                const std::vector<int>& labels) {
+  int correct = 0;
+  for (size_t i = 0; i < labels.size(); ++i) {
+    const double* row = &logits[i * kHapticClasses];
+    correct += std::max_element(row, row + kHapticClasses) - row == labels[i];
+  }
+  return static_cast<double>(correct) / labels.size();
+}
+
+absl::Status CheckSet(const LabelledWindows& data, const char* name) {
+  if (data.inputs.empty()) {
+    return absl::InvalidArgumentError(absl::StrCat(name, ": no windows"));
+  }
+  if (data.inputs.size() != data.labels.size()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(name, ": ", data.inputs.size(), " windows but ",
+                     data.labels.size(), " labels"));
+  }
+  for (size_t i = 0; i < data.labels.size(); ++i) {
+    if (data.labels[i] < 0 || data.labels[i] >= kHapticClasses) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(name, ": label ", data.labels[i], " of window ", i,
+                       " is outside 0..", kHapticClasses - 1));
+    }
+  }
+  return absl::OkStatus();
+}
+
+// Per-channel mean and standard deviation over all training windows,
+// spread to the 64 inputs of each channel and rounded to float so that
+// training normalises exactly as the exported graph will.
+void FitNormalisation(const LabelledWindows& train, HapticNetWeights& norm) {
+  for (int c = 0; c < kWrenchChannels; ++c) {
+    double sum = 0.0;
+    for (const auto& window : train.inputs) {
+      for (int k = 0; k < kWindowPoints; ++k) {
+        sum += window[c * kWindowPoints + k];
+      }
+    }
+    const double count =
+        static_cast<double>(train.inputs.size()) * kWindowPoints;
+    const double mean = sum / count;
+    double squares = 0.0;
+    for (const auto& window : train.inputs) {
+      for (int k = 0; k < kWindowPoints; ++k) {
+        const double d = window[c * kWindowPoints + k] - mean;
+        squares += d * d;
+      }
+    }
+    // A constant channel would divide by zero; 1e-6 of a newton or
+    // newton-metre is far below the sensor's resolution.
+    const double stddev = std::max(std::sqrt(squares / count), 1e-6);
+    for (int k = 0; k < kWindowPoints; ++k) {
+      norm.input_mean[c * kWindowPoints + k] = static_cast<float>(mean);
+      norm.input_stddev[c * kWindowPoints + k] = static_cast<float>(stddev);
+    }
+  }
+}
+
+}  // namespace
+
+absl::StatusOr<TrainingResult> TrainHapticNet(
+    const LabelledWindows& train, const LabelledWindows& validation,
+    const TrainerOptions& options,
+    const std::function<void(const EpochLog&)>& on_epoch) {
+  if (absl::Status s = CheckSet(train, "training set"); !s.ok()) return s;
+  if (absl::Status s = CheckSet(validation, "validation set"); !s.ok()) {
+    return s;
+  }
+  if (options.batch_size < 1 || options.max_epochs < 1 ||
+      options.patience < 1 || !(options.learning_rate > 0.0) ||
+      !(options.weight_decay >= 0.0)) {
+    return absl::InvalidArgumentError(
+        "trainer options: batch_size, max_epochs and patience must be >= 1, "
+        "learning_rate > 0 and weight_decay >= 0");
+  }
+
+  TrainingResult result;
+  HapticNetWeights& norm = result.weights;
+  FitNormalisation(train, norm);
+
+  std::mt19937_64 rng(options.seed);
+  Parameters params;
+  {
+    // He initialisation for ReLU layers; biases start at zero.
+    std::normal_distribution<double> normal(0.0, 1.0);
+    for (int b = 0; b < 6; b += 2) {
+      const double scale = std::sqrt(2.0 / Parameters::kRows[b]);
+      for (double& w : params.blocks[b]) w = scale * normal(rng);
+    }
+  }
+  Parameters first_moment, second_moment, gradient;
+  Parameters best = params;
+  double best_loss = INFINITY;
+  int since_best = 0;
+
+  const int total = static_cast<int>(train.inputs.size());
+  std::vector<int> order(total);
+  std::iota(order.begin(), order.end(), 0);
+  Activations act;
+  std::vector<double> g3, dh2, dh1;
+  constexpr double kBeta1 = 0.9, kBeta2 = 0.999, kEpsilon = 1e-8;
+  int64_t step = 0;
+
+  for (int epoch = 1; epoch <= options.max_epochs; ++epoch) {
+    // Fisher-Yates with the raw engine, so the order does not depend on the
+    // standard library's distribution algorithms.
+    for (int i = total - 1; i > 0; --i) {
+      std::swap(order[i], order[rng() % static_cast<uint64_t>(i + 1)]);
+    }
+    double epoch_loss = 0.0;
+    for (int begin = 0; begin < total; begin += options.batch_size) {
+      const int n = std::min(options.batch_size, total - begin);
+      LoadBatch(train, order, begin, n, norm, act);
+      Forward(params, act);
+      // dLoss/dz3 = (softmax - onehot) / n.
+      g3.assign(static_cast<size_t>(n) * kHapticClasses, 0.0);
+      for (int r = 0; r < n; ++r) {
+        const int label = train.labels[order[begin + r]];
+        const auto log_p = LogSoftmax(&act.z3[r * kHapticClasses], 1.0);
+        epoch_loss -= log_p[label];
+        for (int k = 0; k < kHapticClasses; ++k) {
+          g3[r * kHapticClasses + k] =
+              (std::exp(log_p[k]) - (k == label ? 1.0 : 0.0)) / n;
+        }
+      }
+      MatTMul(act.h2.data(), g3.data(), n, kHapticHidden, kHapticClasses,
+              gradient.blocks[4].data());
+      ColumnSums(g3.data(), n, kHapticClasses, gradient.blocks[5]);
+      dh2.resize(static_cast<size_t>(n) * kHapticHidden);
+      MatMulT(g3.data(), params.blocks[4].data(), n, kHapticClasses,
+              kHapticHidden, dh2.data());
+      for (size_t i = 0; i < dh2.size(); ++i) {
+        if (act.z2[i] <= 0.0) dh2[i] = 0.0;
+      }
+      MatTMul(act.h1.data(), dh2.data(), n, kHapticHidden, kHapticHidden,
+              gradient.blocks[2].data());
+      ColumnSums(dh2.data(), n, kHapticHidden, gradient.blocks[3]);
+      dh1.resize(dh2.size());
+      MatMulT(dh2.data(), params.blocks[2].data(), n, kHapticHidden,
+              kHapticHidden, dh1.data());
+      for (size_t i = 0; i < dh1.size(); ++i) {
+        if (act.z1[i] <= 0.0) dh1[i] = 0.0;
+      }
+      MatTMul(act.x.data(), dh1.data(), n, kHapticInputs, kHapticHidden,
+              gradient.blocks[0].data());
+      ColumnSums(dh1.data(), n, kHapticHidden, gradient.blocks[1]);
+
+      ++step;
+      const double correction1 = 1.0 - std::pow(kBeta1, step);
+      const double correction2 = 1.0 - std::pow(kBeta2, step);
+      for (int b = 0; b < 6; ++b) {
+        const bool is_weight = b % 2 == 0;
+        std::vector<double>& w = params.blocks[b];
+        std::vector<double>& g = gradient.blocks[b];
+        std::vector<double>& m = first_moment.blocks[b];
+        std::vector<double>& v = second_moment.blocks[b];
+        for (size_t i = 0; i < w.size(); ++i) {
+          const double grad =
+              g[i] + (is_weight ? options.weight_decay * w[i] : 0.0);
+          m[i] = kBeta1 * m[i] + (1.0 - kBeta1) * grad;
+          v[i] = kBeta2 * v[i] + (1.0 - kBeta2) * grad * grad;
+          w[i] -= options.learning_rate * (m[i] / correction1) /
+                  (std::sqrt(v[i] / correction2) + kEpsilon);
+        }
+      }
+    }
+    const std::vector<double> logits = AllLogits(validation, params, norm);
+    EpochLog log;
+    log.epoch = epoch;
+    log.train_loss = epoch_loss / total;
+    log.validation_loss = MeanLogLoss(logits, validation.labels, 1.0);
+    log.validation_accuracy = Accuracy(logits, validation.labels);
+    result.epochs.push_back(log);
+    if (on_epoch) on_epoch(log);
+    if (log.validation_loss < best_loss) {
+      best_loss = log.validation_loss;
+      best = params;
+      result.best_epoch = epoch;
+      since_best = 0;
+    } else if (++since_best >= options.patience) {
+      break;
+    }
+  }
+
+  if (options.calibrate_temperature) {
+    // Grid search rather than an optimiser: a handful of exp() per window
+    // and point, and trivially reproducible.
+    const std::vector<double> logits = AllLogits(validation, best, norm);
+    double best_nll = MeanLogLoss(logits, validation.labels, 1.0);
+    for (int i = 25; i <= 500; ++i) {
+      const double temperature = i / 100.0;
+      const double nll = MeanLogLoss(logits, validation.labels, temperature);
+      if (nll < best_nll) {
+        best_nll = nll;
+        result.temperature = temperature;
+      }
+    }
+    for (double& w : best.blocks[4]) w /= result.temperature;
+    for (double& w : best.blocks[5]) w /= result.temperature;
+  }
+
+  auto copy = [](const std::vector<double>& from, auto& to) {
+    std::copy(from.begin(), from.end(), to.data());
+  };
+  copy(best.blocks[0], result.weights.w1);
+  copy(best.blocks[1], result.weights.b1);
+  copy(best.blocks[2], result.weights.w2);
+  copy(best.blocks[3], result.weights.b2);
+  copy(best.blocks[4], result.weights.w3);
+  copy(best.blocks[5], result.weights.b3);
+  RoundToFloat(result.weights);
+  return result;
+}
+
+int ConfusionMatrix::Total() const {
+  int total = 0;
+  for (const auto& row : counts) {
+    for (int c : row) total += c;
+  }
+  return total;
+}
+
+double ConfusionMatrix::Accuracy() const {
+  int correct = 0;
+  for (int k = 0; k < kHapticClasses; ++k) correct += counts[k][k];
+  const int total = Total();
+  return total == 0 ? 0.0 : static_cast<double>(correct) / total;
+}
+
+std::string ConfusionMatrix::ToString() const {
+  std::string out = absl::StrFormat("%-12s", "true\\pred");
+  for (int k = 0; k < kHapticClasses; ++k) {
+    absl::StrAppendFormat(&out, "%10s",
+                          HapticClassName(static_cast<HapticClass>(k)));
+  }
+  absl::StrAppend(&out, "    recall\n");
+  for (int t = 0; t < kHapticClasses; ++t) {
+    absl::StrAppendFormat(&out, "%-12s",
+                          HapticClassName(static_cast<HapticClass>(t)));
+    int row_total = 0;
+    for (int p = 0; p < kHapticClasses; ++p) {
+      absl::StrAppendFormat(&out, "%10d", counts[t][p]);
+      row_total += counts[t][p];
+    }
+    absl::StrAppendFormat(
+        &out, "%9.1f%%\n",
+        row_total == 0 ? 0.0 : 100.0 * counts[t][t] / row_total);
+  }
+  absl::StrAppendFormat(&out, "accuracy %.2f%% of %d\n", 100.0 * Accuracy(),
+                        Total());
+  return out;
+}
+
+ProbabilisticScore ScorePredictions(
+    const std::vector<std::array<double, kHapticClasses>>& probabilities,
+    const std::vector<int>& labels) {
+  ProbabilisticScore score;
+  constexpr int kBins = 10;
+  std::array<double, kBins> confidence{}, correct{};
+  std::array<int, kBins> count{};
+  for (size_t i = 0; i < labels.size(); ++i) {
+    const auto& p = probabilities[i];
+    const int predicted =
+        static_cast<int>(std::max_element(p.begin(), p.end()) - p.begin());
+    ++score.confusion.counts[labels[i]][predicted];
+    // Clamped so one impossible-looking miss does not make the mean infinite.
+    score.mean_log_loss -= std::log(std::max(p[labels[i]], 1e-12));
+    const int bin = std::min(static_cast<int>(p[predicted] * kBins), kBins - 1);
+    confidence[bin] += p[predicted];
+    correct[bin] += predicted == labels[i] ? 1.0 : 0.0;
+    ++count[bin];
+  }
+  if (!labels.empty()) {
+    score.mean_log_loss /= labels.size();
+    for (int b = 0; b < kBins; ++b) {
+      score.expected_calibration_error +=
+          std::abs(confidence[b] - correct[b]) / labels.size();
+    }
+  }
+  return score;
+}
+
+}  // namespace bitewise::haptic

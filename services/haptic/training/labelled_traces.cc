@@ -1,0 +1,187 @@
+#include "services/haptic/training/labelled_traces.h"
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <random>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_split.h"
+#include "services/robot/sim/force_trace.h"
+
+namespace bitewise::haptic {
+namespace {
+
+constexpr char kCsvHeader[] =
+    "trace,label,t_s,fx_n,fy_n,fz_n,tx_nm,ty_nm,tz_nm";
+
+double Uniform(std::mt19937_64& rng, double lo, double hi) {
+  if (lo == hi) return lo;
+  return std::uniform_real_distribution<double>(lo, hi)(rng);
+}
+
+bool ParseLabel(absl::string_view text, HapticClass* label) {
+  for (int k = 0; k < kHapticClasses; ++k) {
+    if (text == HapticClassName(static_cast<HapticClass>(k))) {
+      *label = static_cast<HapticClass>(k);
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+SimulationConditions TrainingConditions() {
+  SimulationConditions c;
+  c.min_rate_hz = 100.0;
+  c.max_rate_hz = 7000.0;
+  c.min_noise_scale = 0.5;
+  c.max_noise_scale = 2.5;
+  c.random_bias_n = 2.5;
+  c.jitter_fraction = 0.1;
+  c.min_contact_s = 0.1;
+  c.max_contact_s = 0.3;
+  c.after_contact_s = 0.2;
+  return c;
+}
+
+std::vector<LabelledTrace> SimulateLabelledTraces(
+    int per_class, const SimulationConditions& conditions, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::vector<LabelledTrace> traces;
+  traces.reserve(static_cast<size_t>(per_class) * kHapticClasses);
+  for (int i = 0; i < per_class; ++i) {
+    for (int k = 0; k < kHapticClasses; ++k) {
+      // HapticClass and sim::HapticCategory share HapticNet's class order.
+      const auto category = static_cast<sim::HapticCategory>(k);
+      const sim::ForceProfile profile =
+          sim::ForceProfile::Sample(category, rng);
+      sim::TraceOptions options;
+      options.rate_hz = std::exp(Uniform(rng, std::log(conditions.min_rate_hz),
+                                         std::log(conditions.max_rate_hz)));
+      options.contact_s =
+          Uniform(rng, conditions.min_contact_s, conditions.max_contact_s);
+      options.duration_s = options.contact_s + conditions.after_contact_s;
+      options.jitter_fraction = conditions.jitter_fraction;
+      const double noise_scale =
+          Uniform(rng, conditions.min_noise_scale, conditions.max_noise_scale);
+      options.noise.force_sd_n *= noise_scale;
+      options.noise.torque_sd_nm *= noise_scale;
+      options.noise.random_bias_n = conditions.random_bias_n;
+      for (int c = 0; c < 3; ++c) {
+        options.noise.bias.force_n[c] = conditions.fixed_bias_n;
+        options.noise.bias.torque_nm[c] = 0.02 * conditions.fixed_bias_n;
+      }
+      LabelledTrace trace;
+      trace.label = static_cast<HapticClass>(k);
+      for (const sim::TimedWrench& s :
+           sim::SimulateTrace(profile, options, rng)) {
+        trace.samples.push_back(
+            {s.t_s,
+             {s.wrench.force_n[0], s.wrench.force_n[1], s.wrench.force_n[2],
+              s.wrench.torque_nm[0], s.wrench.torque_nm[1],
+              s.wrench.torque_nm[2]}});
+      }
+      traces.push_back(std::move(trace));
+    }
+  }
+  return traces;
+}
+
+absl::Status WriteTraceCsv(const std::string& path,
+                           const std::vector<LabelledTrace>& traces) {
+  std::FILE* file = std::fopen(path.c_str(), "w");
+  if (file == nullptr) {
+    return absl::InternalError(absl::StrCat("cannot write ", path));
+  }
+  std::fprintf(file, "%s\n", kCsvHeader);
+  for (size_t i = 0; i < traces.size(); ++i) {
+    const char* label = HapticClassName(traces[i].label);
+    for (const WrenchSample& s : traces[i].samples) {
+      // %.17g: doubles survive the round trip exactly.
+      std::fprintf(file, "%zu,%s,%.17g", i, label, s.t_s);
+      for (double v : s.values) std::fprintf(file, ",%.17g", v);
+      std::fputc('\n', file);
+    }
+  }
+  const bool failed = std::ferror(file) != 0;
+  if (std::fclose(file) != 0 || failed) {
+    return absl::InternalError(absl::StrCat("error writing ", path));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<LabelledTrace>> ReadTraceCsv(
+    const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return absl::NotFoundError(absl::StrCat("cannot open ", path));
+  std::string line;
+  if (!std::getline(in, line) || absl::StripTrailingAsciiWhitespace(line) !=
+                                     absl::string_view(kCsvHeader)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(path, ":1: expected the header \"", kCsvHeader, "\""));
+  }
+  std::vector<LabelledTrace> traces;
+  std::string current_id;
+  int line_number = 1;
+  while (std::getline(in, line)) {
+    ++line_number;
+    const absl::string_view row = absl::StripTrailingAsciiWhitespace(line);
+    if (row.empty()) continue;
+    const std::vector<absl::string_view> fields = absl::StrSplit(row, ',');
+    if (fields.size() != 9) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          path, ":", line_number, ": expected 9 fields, got ", fields.size()));
+    }
+    HapticClass label;
+    if (!ParseLabel(fields[1], &label)) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(path, ":", line_number, ": unknown label \"", fields[1],
+                       "\" (hard, medium, soft, hard_skin)"));
+    }
+    WrenchSample sample;
+    bool ok = absl::SimpleAtod(fields[2], &sample.t_s);
+    for (int c = 0; c < kWrenchChannels && ok; ++c) {
+      ok = absl::SimpleAtod(fields[3 + c], &sample.values[c]);
+    }
+    if (!ok) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(path, ":", line_number, ": malformed number"));
+    }
+    if (traces.empty() || fields[0] != current_id) {
+      current_id = std::string(fields[0]);
+      traces.push_back({label, {}});
+    } else if (traces.back().label != label) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(path, ":", line_number, ": trace ", current_id,
+                       " changes its label to ", fields[1]));
+    }
+    traces.back().samples.push_back(sample);
+  }
+  return traces;
+}
+
+LabelledWindows WindowsFromTraces(const std::vector<LabelledTrace>& traces,
+                                  const HapticPipelineOptions& options,
+                                  int* skipped) {
+  LabelledWindows windows;
+  int rejected = 0;
+  for (const LabelledTrace& trace : traces) {
+    absl::StatusOr<HapticFeatures> features =
+        ExtractHapticFeatures(trace.samples, options);
+    if (!features.ok()) {
+      ++rejected;
+      continue;
+    }
+    windows.inputs.push_back(features->window.inputs);
+    windows.labels.push_back(static_cast<int>(trace.label));
+  }
+  if (skipped != nullptr) *skipped = rejected;
+  return windows;
+}
+
+}  // namespace bitewise::haptic

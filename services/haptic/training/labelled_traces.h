@@ -1,0 +1,85 @@
+// Labelled force/torque traces for HapticNet's trainer and its evaluation:
+// drawn from the simulated world's force-trace model under chosen sensor
+// conditions, or read from and written to the documented CSV format
+// (docs/haptic.md):
+//
+//   trace,label,t_s,fx_n,fy_n,fz_n,tx_nm,ty_nm,tz_nm
+//   0,hard,0,0.01,-0.02,0.3,0.001,0.0,-0.002
+//   ...
+//
+// one row per sample, rows of a trace contiguous and in time order, the
+// label (hard, medium, soft, hard_skin) repeated on every row of its trace.
+#ifndef BITEWISE_SERVICES_HAPTIC_TRAINING_LABELLED_TRACES_H_
+#define BITEWISE_SERVICES_HAPTIC_TRAINING_LABELLED_TRACES_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "services/haptic/core/haptic_classifier.h"
+#include "services/haptic/core/wrench_trace.h"
+#include "services/haptic/training/haptic_trainer.h"
+
+namespace bitewise::haptic {
+
+struct LabelledTrace {
+  HapticClass label = HapticClass::kHard;
+  std::vector<WrenchSample> samples;
+};
+
+// Sensor and timing conditions of simulated traces. Ranges are sampled
+// per trace; set min = max for a fixed condition.
+struct SimulationConditions {
+  // Sample rate, log-uniform in [min, max] (Hz).
+  double min_rate_hz = 1000.0;
+  double max_rate_hz = 1000.0;
+  // Multiplier of the Nano25's white noise (sim::SensorNoise defaults),
+  // uniform in [min, max].
+  double min_noise_scale = 1.0;
+  double max_noise_scale = 1.0;
+  // Untared sensor offset: every force channel gets fixed_bias_n plus a
+  // uniform draw in +-random_bias_n (torques 0.02 m times as much).
+  double fixed_bias_n = 0.0;
+  double random_bias_n = 0.5;
+  // Timestamp jitter as a fraction of the sample period.
+  double jitter_fraction = 0.0;
+  // First contact, uniform in [min, max] seconds after the trace starts;
+  // the trace goes on for after_contact_s more.
+  double min_contact_s = 0.3;
+  double max_contact_s = 0.3;
+  double after_contact_s = 0.3;
+};
+
+// The conditions the default model is trained on: 100 Hz to 7 kHz, half to
+// two and a half times the nominal noise, up to +-2.5 N of offset, 10 %
+// jitter, contact anywhere from 0.1 s to 0.3 s.
+SimulationConditions TrainingConditions();
+
+// `per_class` traces of each class, interleaved hard, medium, soft,
+// hard_skin, each from a new simulated food item. Deterministic in `seed`.
+std::vector<LabelledTrace> SimulateLabelledTraces(
+    int per_class, const SimulationConditions& conditions, uint64_t seed);
+
+// Writes `traces` in the CSV format above. INTERNAL if the file cannot be
+// written.
+absl::Status WriteTraceCsv(const std::string& path,
+                           const std::vector<LabelledTrace>& traces);
+
+// Reads the CSV format above. NOT_FOUND if the file cannot be opened;
+// INVALID_ARGUMENT naming the line for a bad header, a malformed row, an
+// unknown label or a label that changes within a trace.
+absl::StatusOr<std::vector<LabelledTrace>> ReadTraceCsv(
+    const std::string& path);
+
+// Network inputs of `traces` through the service's own feature pipeline.
+// Traces the pipeline rejects (no contact, too short) are skipped and
+// counted in `*skipped` if given.
+LabelledWindows WindowsFromTraces(const std::vector<LabelledTrace>& traces,
+                                  const HapticPipelineOptions& options,
+                                  int* skipped);
+
+}  // namespace bitewise::haptic
+
+#endif  // BITEWISE_SERVICES_HAPTIC_TRAINING_LABELLED_TRACES_H_

@@ -1,0 +1,204 @@
+// bitewise-haptic-train: trains HapticNet on labelled force/torque traces
+// (simulated by default, or a CSV file) and writes the ONNX model. Flags are
+// parsed here and nowhere else. The shipped model is regenerated, bit for
+// bit, by running this with its defaults (docs/haptic.md).
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <numeric>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "services/haptic/core/haptic_classifier.h"
+#include "services/haptic/core/haptic_net.h"
+#include "services/haptic/training/haptic_net_weights.h"
+#include "services/haptic/training/haptic_trainer.h"
+#include "services/haptic/training/labelled_traces.h"
+
+ABSL_FLAG(std::string, out, "hapticnet.onnx", "Where to write the model.");
+ABSL_FLAG(std::string, traces, "",
+          "Labelled traces in the CSV format of docs/haptic.md. Empty: draw "
+          "them from the simulated world's force-trace model.");
+ABSL_FLAG(std::string, write_traces, "",
+          "Also write the traces used (simulated or read) to this CSV file.");
+ABSL_FLAG(int, traces_per_class, 3000,
+          "Simulated traces per class (when --traces is empty).");
+ABSL_FLAG(uint64_t, seed, 1,
+          "Seed of the simulated traces, the split, the initial weights and "
+          "the batch order.");
+ABSL_FLAG(double, validation_fraction, 0.15,
+          "Share of traces for early stopping and temperature calibration.");
+ABSL_FLAG(double, test_fraction, 0.15,
+          "Share of traces held out for the reported accuracy.");
+ABSL_FLAG(int, batch_size, 64, "Windows per Adam step.");
+ABSL_FLAG(double, learning_rate, 1e-3, "Adam step size.");
+ABSL_FLAG(double, weight_decay, 1e-4, "L2 penalty on the weights.");
+ABSL_FLAG(int, max_epochs, 60, "Most passes over the training set.");
+ABSL_FLAG(int, patience, 8,
+          "Stop after this many epochs without a better validation loss.");
+
+namespace {
+
+using namespace bitewise::haptic;  // NOLINT: a main over one namespace
+
+int Die(const std::string& what) {
+  std::fprintf(stderr, "bitewise-haptic-train: %s\n", what.c_str());
+  return 1;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  absl::SetProgramUsageMessage(
+      "Trains HapticNet and writes it as ONNX. With no flags: 3000 simulated "
+      "traces per class, seed 1, model to ./hapticnet.onnx.");
+  absl::ParseCommandLine(argc, argv);
+  const uint64_t seed = absl::GetFlag(FLAGS_seed);
+
+  std::vector<LabelledTrace> traces;
+  std::string source;
+  if (absl::GetFlag(FLAGS_traces).empty()) {
+    traces = SimulateLabelledTraces(absl::GetFlag(FLAGS_traces_per_class),
+                                    TrainingConditions(), seed);
+    source = absl::StrCat("simulated (", absl::GetFlag(FLAGS_traces_per_class),
+                          " per class, seed ", seed, ")");
+  } else {
+    absl::StatusOr<std::vector<LabelledTrace>> read =
+        ReadTraceCsv(absl::GetFlag(FLAGS_traces));
+    if (!read.ok()) return Die(read.status().ToString());
+    traces = std::move(read).value();
+    source = absl::GetFlag(FLAGS_traces);
+  }
+  if (!absl::GetFlag(FLAGS_write_traces).empty()) {
+    absl::Status written =
+        WriteTraceCsv(absl::GetFlag(FLAGS_write_traces), traces);
+    if (!written.ok()) return Die(written.ToString());
+  }
+
+  // Split by trace, so no food item is in two sets.
+  const double validation_fraction = absl::GetFlag(FLAGS_validation_fraction);
+  const double test_fraction = absl::GetFlag(FLAGS_test_fraction);
+  if (!(validation_fraction > 0.0) || !(test_fraction > 0.0) ||
+      !(validation_fraction + test_fraction < 1.0)) {
+    return Die(
+        "--validation_fraction and --test_fraction must be > 0 with a sum "
+        "below 1");
+  }
+  std::vector<int> order(traces.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::mt19937_64 split_rng(seed ^ 0x5eed5eed5eed5eedull);
+  for (int i = static_cast<int>(order.size()) - 1; i > 0; --i) {
+    std::swap(order[i], order[split_rng() % static_cast<uint64_t>(i + 1)]);
+  }
+  const size_t test_count =
+      static_cast<size_t>(std::round(test_fraction * traces.size()));
+  const size_t validation_count =
+      static_cast<size_t>(std::round(validation_fraction * traces.size()));
+  std::vector<LabelledTrace> test, validation, train;
+  for (size_t i = 0; i < order.size(); ++i) {
+    auto& set = i < test_count                      ? test
+                : i < test_count + validation_count ? validation
+                                                    : train;
+    set.push_back(std::move(traces[order[i]]));
+  }
+
+  const HapticPipelineOptions pipeline;
+  int skipped_train = 0, skipped_validation = 0, skipped_test = 0;
+  const LabelledWindows train_windows =
+      WindowsFromTraces(train, pipeline, &skipped_train);
+  const LabelledWindows validation_windows =
+      WindowsFromTraces(validation, pipeline, &skipped_validation);
+  const LabelledWindows test_windows =
+      WindowsFromTraces(test, pipeline, &skipped_test);
+  std::printf(
+      "traces: %s\nwindows: train %zu, validation %zu, test %zu (no contact "
+      "or too short, skipped: %d, %d, %d)\n",
+      source.c_str(), train_windows.inputs.size(),
+      validation_windows.inputs.size(), test_windows.inputs.size(),
+      skipped_train, skipped_validation, skipped_test);
+
+  TrainerOptions options;
+  options.seed = seed;
+  options.batch_size = absl::GetFlag(FLAGS_batch_size);
+  options.learning_rate = absl::GetFlag(FLAGS_learning_rate);
+  options.weight_decay = absl::GetFlag(FLAGS_weight_decay);
+  options.max_epochs = absl::GetFlag(FLAGS_max_epochs);
+  options.patience = absl::GetFlag(FLAGS_patience);
+  absl::StatusOr<TrainingResult> result = TrainHapticNet(
+      train_windows, validation_windows, options, [](const EpochLog& log) {
+        std::printf(
+            "epoch %3d  train loss %.4f  validation loss %.4f  accuracy "
+            "%.2f%%\n",
+            log.epoch, log.train_loss, log.validation_loss,
+            100.0 * log.validation_accuracy);
+        std::fflush(stdout);
+      });
+  if (!result.ok()) return Die(result.status().ToString());
+  std::printf("best epoch %d, softmax temperature %.2f (folded into fc3)\n",
+              result->best_epoch, result->temperature);
+
+  std::vector<std::array<double, kHapticClasses>> reference;
+  for (const auto& window : test_windows.inputs) {
+    reference.push_back(ReferenceProbabilities(result->weights, window));
+  }
+  const ProbabilisticScore score =
+      ScorePredictions(reference, test_windows.labels);
+  std::printf(
+      "\nheld-out test set (trainer's reference pass): accuracy %.2f%%, log "
+      "loss %.4f, calibration error %.4f\n%s",
+      100.0 * score.confusion.Accuracy(), score.mean_log_loss,
+      score.expected_calibration_error, score.confusion.ToString().c_str());
+
+  const std::map<std::string, std::string> metadata = {
+      {"bitewise.classes", "hard,medium,soft,hard_skin"},
+      {"bitewise.input",
+       "tared fx,fy,fz (N), tx,ty,tz (N m) from first contact, each "
+       "resampled to 64 points over the window; channel-major"},
+      {"bitewise.window_s", absl::StrCat(pipeline.window.window_s)},
+      {"bitewise.traces", source},
+      {"bitewise.seed", absl::StrCat(seed)},
+      {"bitewise.best_epoch", absl::StrCat(result->best_epoch)},
+      {"bitewise.temperature", absl::StrFormat("%.2f", result->temperature)},
+      {"bitewise.test_accuracy",
+       absl::StrFormat("%.4f", score.confusion.Accuracy())},
+  };
+  const std::string bytes = HapticNetToOnnx(result->weights, metadata);
+  const std::string out = absl::GetFlag(FLAGS_out);
+  std::FILE* file = std::fopen(out.c_str(), "wb");
+  if (file == nullptr ||
+      std::fwrite(bytes.data(), 1, bytes.size(), file) != bytes.size() ||
+      std::fclose(file) != 0) {
+    return Die(absl::StrCat("cannot write ", out));
+  }
+
+  // The file as the service will load it: OpenCV must agree with the
+  // trainer on every held-out window.
+  absl::StatusOr<std::unique_ptr<HapticNet>> net = HapticNet::FromOnnxFile(out);
+  if (!net.ok()) return Die(net.status().ToString());
+  double max_difference = 0.0;
+  for (size_t i = 0; i < test_windows.inputs.size(); ++i) {
+    absl::StatusOr<HapticNetOutput> output =
+        (*net)->Run(test_windows.inputs[i]);
+    if (!output.ok()) return Die(output.status().ToString());
+    for (int k = 0; k < kHapticClasses; ++k) {
+      max_difference = std::max(
+          max_difference, std::abs(output->probabilities[k] - reference[i][k]));
+    }
+  }
+  std::printf(
+      "\nwrote %s (%zu bytes, %s); OpenCV DNN vs reference on the test set: "
+      "max |dp| = %.2e\n",
+      out.c_str(), bytes.size(), (*net)->fingerprint().c_str(), max_difference);
+  if (max_difference > 1e-5) {
+    return Die("the exported model disagrees with the trainer");
+  }
+  return 0;
+}

@@ -1,0 +1,136 @@
+// The whole pipeline with the shipped model: simulated traces of each
+// category come out right with consistent probabilities, and bad traces get
+// the documented statuses.
+#include "services/haptic/core/haptic_classifier.h"
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "services/haptic/default_model.h"
+#include "tests/haptic/haptic_test_traces.h"
+
+namespace bitewise::haptic {
+namespace {
+
+using ::testing::HasSubstr;
+
+class HapticClassifierTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    auto net = HapticNet::FromOnnxBytes(DefaultHapticNetOnnx(),
+                                        kDefaultHapticNetSource);
+    ASSERT_TRUE(net.ok()) << net.status();
+    classifier_ = std::make_unique<HapticClassifier>(std::move(net).value(),
+                                                     HapticPipelineOptions());
+  }
+  std::unique_ptr<HapticClassifier> classifier_;
+};
+
+TEST_F(HapticClassifierTest, ClassifiesSimulatedItemsOfEveryCategory) {
+  std::mt19937_64 rng(99);
+  int correct = 0, total = 0;
+  for (double rate_hz : {100.0, 1000.0}) {
+    for (int item = 0; item < 25; ++item) {
+      for (int k = 0; k < kHapticClasses; ++k) {
+        const auto trace =
+            SimulatedTrace(static_cast<HapticClass>(k), rng, rate_hz);
+        absl::StatusOr<HapticClassification> result =
+            classifier_->Classify(trace);
+        ASSERT_TRUE(result.ok()) << result.status();
+        double sum = 0.0;
+        for (int j = 0; j < kHapticClasses; ++j) {
+          sum += result->probabilities[j];
+          EXPECT_NEAR(std::log(result->probabilities[j]),
+                      result->log_probabilities[j],
+                      1e-4 + 1e-5 * std::abs(result->log_probabilities[j]));
+        }
+        EXPECT_NEAR(sum, 1.0, 1e-5);
+        EXPECT_NEAR(result->contact_time_s, 0.3, 3.5 / rate_hz + 0.012);
+        correct += static_cast<int>(result->category) == k;
+        ++total;
+      }
+    }
+  }
+  EXPECT_GE(correct, 0.95 * total) << correct << " of " << total;
+}
+
+TEST_F(HapticClassifierTest, TooFewSamplesIsInvalid) {
+  std::vector<WrenchSample> trace(7);
+  for (int i = 0; i < 7; ++i) trace[i].t_s = i * 0.001;
+  absl::StatusOr<HapticClassification> result = classifier_->Classify(trace);
+  ASSERT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(result.status().message(),
+              HasSubstr("7 samples, need at least 8"));
+  EXPECT_EQ(classifier_->Classify({}).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+TEST_F(HapticClassifierTest, NonIncreasingTimestampsAreInvalid) {
+  std::mt19937_64 rng(1);
+  auto trace = SimulatedTrace(HapticClass::kHard, rng);
+  trace[100].t_s = trace[99].t_s;
+  absl::StatusOr<HapticClassification> result = classifier_->Classify(trace);
+  ASSERT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(result.status().message(), HasSubstr("samples[100].t_s"));
+  EXPECT_THAT(result.status().message(), HasSubstr("strictly increasing"));
+}
+
+TEST_F(HapticClassifierTest, NanAndInfAreInvalidAndNamed) {
+  std::mt19937_64 rng(2);
+  auto trace = SimulatedTrace(HapticClass::kSoft, rng);
+  trace[42].values[4] = std::numeric_limits<double>::quiet_NaN();
+  absl::StatusOr<HapticClassification> result = classifier_->Classify(trace);
+  ASSERT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(result.status().message(), HasSubstr("samples[42].ty_nm"));
+  trace[42].values[4] = 0.0;
+  trace[7].t_s = std::numeric_limits<double>::infinity();
+  result = classifier_->Classify(trace);
+  ASSERT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(result.status().message(), HasSubstr("samples[7].t_s"));
+}
+
+TEST_F(HapticClassifierTest, NoContactIsFailedPreconditionWithPeakForce) {
+  // Free motion only: sensor noise around a 1.5 N offset.
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.08);
+  std::vector<WrenchSample> trace;
+  for (int i = 0; i < 500; ++i) {
+    trace.push_back(
+        {i * 0.001, {noise(rng), noise(rng), 1.5 + noise(rng), 0.0, 0.0, 0.0}});
+  }
+  absl::StatusOr<HapticClassification> result = classifier_->Classify(trace);
+  ASSERT_EQ(result.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(result.status().message(), HasSubstr("no contact"));
+  EXPECT_THAT(result.status().message(), HasSubstr("peak force 0."));
+}
+
+TEST(ExtractHapticFeaturesTest, TraceEndingAtContactIsInvalid) {
+  // A clean 5000 N/s ramp from t = 0.1 s at 1 kHz that stops at 0.104 s:
+  // contact is found, but only 4 samples follow it.
+  std::vector<WrenchSample> trace;
+  for (int i = 0; i <= 104; ++i) {
+    const double t = i * 0.001;
+    trace.push_back({t, {0.0, 0.0, 5000.0 * std::max(0.0, t - 0.1), 0, 0, 0}});
+  }
+  HapticPipelineOptions options;
+  options.contact.min_contact_s = 0.001;
+  absl::StatusOr<HapticFeatures> features =
+      ExtractHapticFeatures(trace, options);
+  ASSERT_EQ(features.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(features.status().message(),
+              HasSubstr("only 4 samples after the contact"));
+  // Two more samples and the window is there.
+  for (int i = 105; i <= 106; ++i) {
+    trace.push_back(
+        {i * 0.001, {0.0, 0.0, 5000.0 * (i * 0.001 - 0.1), 0, 0, 0}});
+  }
+  features = ExtractHapticFeatures(trace, options);
+  ASSERT_TRUE(features.ok()) << features.status();
+  EXPECT_NEAR(features->contact.contact_time_s, 0.1, 1e-9);
+}
+
+}  // namespace
+}  // namespace bitewise::haptic

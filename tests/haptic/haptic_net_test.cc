@@ -1,0 +1,158 @@
+// The ONNX round trip: weights written by the trainer's exporter and run by
+// OpenCV's DNN module give the outputs of the trainer's own double-precision
+// pass, to 1e-5. Plus load-time rejection of files that are not HapticNet
+// models, and the embedded default model being the one in the repository.
+#include "services/haptic/core/haptic_net.h"
+
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "onnx/onnx_pb.h"
+#include "services/haptic/default_model.h"
+#include "services/haptic/training/haptic_net_weights.h"
+#include "services/haptic/training/haptic_trainer.h"
+#include "services/haptic/training/labelled_traces.h"
+
+namespace bitewise::haptic {
+namespace {
+
+using ::testing::HasSubstr;
+
+// Seeded weights with non-trivial normalisation, so every node of the
+// graph matters.
+HapticNetWeights RandomWeights(uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  HapticNetWeights w;
+  for (int c = 0; c < kWrenchChannels; ++c) {
+    const double mean = 2.0 * normal(rng);
+    const double stddev = 0.5 + std::abs(normal(rng));
+    for (int k = 0; k < kWindowPoints; ++k) {
+      w.input_mean[c * kWindowPoints + k] = mean;
+      w.input_stddev[c * kWindowPoints + k] = stddev;
+    }
+  }
+  auto fill = [&](auto& m, double scale) {
+    for (Eigen::Index i = 0; i < m.size(); ++i) {
+      m.data()[i] = scale * normal(rng);
+    }
+  };
+  fill(w.w1, std::sqrt(2.0 / kHapticInputs));
+  fill(w.b1, 0.1);
+  fill(w.w2, std::sqrt(2.0 / kHapticHidden));
+  fill(w.b2, 0.1);
+  fill(w.w3, std::sqrt(2.0 / kHapticHidden));
+  fill(w.b3, 0.1);
+  RoundToFloat(w);
+  return w;
+}
+
+std::array<float, kHapticInputs> RandomInput(std::mt19937_64& rng) {
+  std::normal_distribution<double> normal(0.0, 3.0);
+  std::array<float, kHapticInputs> x;
+  for (float& v : x) v = static_cast<float>(normal(rng));
+  return x;
+}
+
+void ExpectSameOutputs(
+    const HapticNetWeights& weights, const HapticNet& net,
+    const std::vector<std::array<float, kHapticInputs>>& inputs) {
+  for (const auto& x : inputs) {
+    absl::StatusOr<HapticNetOutput> out = net.Run(x);
+    ASSERT_TRUE(out.ok()) << out.status();
+    const auto probabilities = ReferenceProbabilities(weights, x);
+    const auto logits = ReferenceLogits(weights, x);
+    double log_normaliser = 0.0;
+    for (double v : logits) log_normaliser += std::exp(v);
+    log_normaliser = std::log(log_normaliser);
+    for (int k = 0; k < kHapticClasses; ++k) {
+      EXPECT_NEAR(out->probabilities[k], probabilities[k], 1e-5);
+      EXPECT_NEAR(out->log_probabilities[k], logits[k] - log_normaliser,
+                  1e-5 * std::max(1.0, std::abs(logits[k])));
+    }
+  }
+}
+
+TEST(HapticNetTest, OnnxRoundTripOfSeededWeights) {
+  const HapticNetWeights weights = RandomWeights(11);
+  absl::StatusOr<std::unique_ptr<HapticNet>> net =
+      HapticNet::FromOnnxBytes(HapticNetToOnnx(weights, {}), "test");
+  ASSERT_TRUE(net.ok()) << net.status();
+  std::mt19937_64 rng(12);
+  std::vector<std::array<float, kHapticInputs>> inputs;
+  for (int i = 0; i < 50; ++i) inputs.push_back(RandomInput(rng));
+  ExpectSameOutputs(weights, **net, inputs);
+}
+
+TEST(HapticNetTest, OnnxRoundTripOfTrainedWeightsOnRealWindows) {
+  const HapticPipelineOptions pipeline;
+  const LabelledWindows train = WindowsFromTraces(
+      SimulateLabelledTraces(40, TrainingConditions(), 3), pipeline, nullptr);
+  const LabelledWindows validation = WindowsFromTraces(
+      SimulateLabelledTraces(10, TrainingConditions(), 4), pipeline, nullptr);
+  TrainerOptions options;
+  options.max_epochs = 3;
+  absl::StatusOr<TrainingResult> result =
+      TrainHapticNet(train, validation, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  absl::StatusOr<std::unique_ptr<HapticNet>> net =
+      HapticNet::FromOnnxBytes(HapticNetToOnnx(result->weights, {}), "test");
+  ASSERT_TRUE(net.ok()) << net.status();
+  ExpectSameOutputs(result->weights, **net, validation.inputs);
+}
+
+TEST(HapticNetTest, RejectsBytesThatAreNotOnnx) {
+  absl::StatusOr<std::unique_ptr<HapticNet>> net =
+      HapticNet::FromOnnxBytes("this is not a model", "garbage.onnx");
+  ASSERT_EQ(net.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(net.status().message(), HasSubstr("garbage.onnx"));
+  EXPECT_EQ(HapticNet::FromOnnxBytes("", "empty.onnx").status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+TEST(HapticNetTest, RejectsAModelThatBreaksTheGraphContract) {
+  onnx::ModelProto model;
+  ASSERT_TRUE(model.ParseFromString(HapticNetToOnnx(RandomWeights(5), {})));
+  // Rename the probabilities output: a valid ONNX graph, not HapticNet's.
+  onnx::GraphProto* graph = model.mutable_graph();
+  for (auto& node : *graph->mutable_node()) {
+    if (node.output(0) == kHapticNetProbabilitiesName) {
+      node.set_output(0, "scores");
+    }
+  }
+  graph->mutable_output(1)->set_name("scores");
+  absl::StatusOr<std::unique_ptr<HapticNet>> net =
+      HapticNet::FromOnnxBytes(model.SerializeAsString(), "renamed.onnx");
+  ASSERT_EQ(net.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(net.status().message(), HasSubstr("graph contract"));
+}
+
+TEST(HapticNetTest, MissingFileIsNotFound) {
+  absl::StatusOr<std::unique_ptr<HapticNet>> net =
+      HapticNet::FromOnnxFile(::testing::TempDir() + "/no_such_model.onnx");
+  ASSERT_EQ(net.status().code(), absl::StatusCode::kNotFound);
+  EXPECT_THAT(net.status().message(), HasSubstr("no_such_model.onnx"));
+}
+
+TEST(HapticNetTest, EmbeddedModelIsTheShippedFile) {
+  std::ifstream in(BITEWISE_HAPTIC_MODEL_FILE, std::ios::binary);
+  ASSERT_TRUE(in) << BITEWISE_HAPTIC_MODEL_FILE;
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  EXPECT_TRUE(bytes.str() == DefaultHapticNetOnnx());
+  absl::StatusOr<std::unique_ptr<HapticNet>> from_file =
+      HapticNet::FromOnnxFile(BITEWISE_HAPTIC_MODEL_FILE);
+  absl::StatusOr<std::unique_ptr<HapticNet>> embedded =
+      HapticNet::FromOnnxBytes(DefaultHapticNetOnnx(), kDefaultHapticNetSource);
+  ASSERT_TRUE(from_file.ok()) << from_file.status();
+  ASSERT_TRUE(embedded.ok()) << embedded.status();
+  EXPECT_EQ((*from_file)->fingerprint(), (*embedded)->fingerprint());
+}
+
+}  // namespace
+}  // namespace bitewise::haptic

@@ -1,0 +1,36 @@
+// Traces for the haptic tests: one simulated item of a category from the
+// force-trace model, converted to the haptic core's samples.
+#ifndef BITEWISE_TESTS_HAPTIC_HAPTIC_TEST_TRACES_H_
+#define BITEWISE_TESTS_HAPTIC_HAPTIC_TEST_TRACES_H_
+
+#include <random>
+#include <vector>
+
+#include "services/haptic/core/wrench_trace.h"
+#include "services/robot/sim/force_trace.h"
+
+namespace bitewise::haptic {
+
+inline std::vector<WrenchSample> SimulatedTrace(HapticClass haptic_class,
+                                                std::mt19937_64& rng,
+                                                double rate_hz = 1000.0,
+                                                double contact_s = 0.3) {
+  const auto profile = sim::ForceProfile::Sample(
+      static_cast<sim::HapticCategory>(haptic_class), rng);
+  sim::TraceOptions options;
+  options.rate_hz = rate_hz;
+  options.contact_s = contact_s;
+  options.duration_s = contact_s + 0.3;
+  std::vector<WrenchSample> trace;
+  for (const auto& s : sim::SimulateTrace(profile, options, rng)) {
+    trace.push_back({s.t_s,
+                     {s.wrench.force_n[0], s.wrench.force_n[1],
+                      s.wrench.force_n[2], s.wrench.torque_nm[0],
+                      s.wrench.torque_nm[1], s.wrench.torque_nm[2]}});
+  }
+  return trace;
+}
+
+}  // namespace bitewise::haptic
+
+#endif  // BITEWISE_TESTS_HAPTIC_HAPTIC_TEST_TRACES_H_

@@ -1,0 +1,159 @@
+// The trainer: bit-identical models from the same seed, a model that
+// actually learns the simulated categories, the CSV trace format, and
+// rejection of bad training sets.
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "services/haptic/training/haptic_net_weights.h"
+#include "services/haptic/training/haptic_trainer.h"
+#include "services/haptic/training/labelled_traces.h"
+
+namespace bitewise::haptic {
+namespace {
+
+using ::testing::HasSubstr;
+
+struct SmallData {
+  LabelledWindows train, validation, test;
+};
+
+SmallData MakeData(int per_class) {
+  const HapticPipelineOptions pipeline;
+  SmallData data;
+  data.train = WindowsFromTraces(
+      SimulateLabelledTraces(per_class, TrainingConditions(), 21), pipeline,
+      nullptr);
+  data.validation = WindowsFromTraces(
+      SimulateLabelledTraces(per_class / 4, TrainingConditions(), 22), pipeline,
+      nullptr);
+  data.test = WindowsFromTraces(
+      SimulateLabelledTraces(per_class / 2, SimulationConditions(), 23),
+      pipeline, nullptr);
+  return data;
+}
+
+TEST(TrainerTest, SameSeedGivesIdenticalModelBytes) {
+  const SmallData data = MakeData(40);
+  TrainerOptions options;
+  options.max_epochs = 3;
+  auto a = TrainHapticNet(data.train, data.validation, options);
+  auto b = TrainHapticNet(data.train, data.validation, options);
+  options.seed = 2;
+  auto c = TrainHapticNet(data.train, data.validation, options);
+  ASSERT_TRUE(a.ok() && b.ok() && c.ok());
+  const std::string bytes_a = HapticNetToOnnx(a->weights, {});
+  EXPECT_TRUE(bytes_a == HapticNetToOnnx(b->weights, {}));
+  EXPECT_FALSE(bytes_a == HapticNetToOnnx(c->weights, {}));
+}
+
+TEST(TrainerTest, LearnsTheSimulatedCategories) {
+  const SmallData data = MakeData(200);
+  ASSERT_EQ(data.train.inputs.size(), 800u);
+  TrainerOptions options;
+  options.max_epochs = 15;
+  std::vector<EpochLog> seen;
+  auto result =
+      TrainHapticNet(data.train, data.validation, options,
+                     [&](const EpochLog& log) { seen.push_back(log); });
+  ASSERT_TRUE(result.ok()) << result.status();
+  EXPECT_EQ(seen.size(), result->epochs.size());
+  EXPECT_GE(result->best_epoch, 1);
+  EXPECT_LE(result->best_epoch, static_cast<int>(result->epochs.size()));
+  EXPECT_LT(result->epochs[result->best_epoch - 1].validation_loss,
+            result->epochs[0].validation_loss);
+  std::vector<std::array<double, kHapticClasses>> probabilities;
+  for (const auto& x : data.test.inputs) {
+    probabilities.push_back(ReferenceProbabilities(result->weights, x));
+  }
+  const ProbabilisticScore score =
+      ScorePredictions(probabilities, data.test.labels);
+  // A chance-level model would score 25 %.
+  EXPECT_GT(score.confusion.Accuracy(), 0.9) << score.confusion.ToString();
+  EXPECT_LT(score.mean_log_loss, 0.4);
+}
+
+TEST(TrainerTest, RejectsBadTrainingSets) {
+  LabelledWindows empty;
+  LabelledWindows one;
+  one.inputs.resize(1);
+  one.labels = {0};
+  EXPECT_THAT(TrainHapticNet(empty, one, TrainerOptions()).status().message(),
+              HasSubstr("training set: no windows"));
+  LabelledWindows bad_label = one;
+  bad_label.labels = {7};
+  EXPECT_THAT(
+      TrainHapticNet(bad_label, one, TrainerOptions()).status().message(),
+      HasSubstr("label 7"));
+  TrainerOptions options;
+  options.batch_size = 0;
+  EXPECT_EQ(TrainHapticNet(one, one, options).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+TEST(ConfusionMatrixTest, AccuracyAndCalibrationByHand) {
+  // Two windows: class 0 predicted with 0.9 (right), class 1 predicted as 0
+  // with 0.6 (wrong).
+  const ProbabilisticScore score =
+      ScorePredictions({{0.9, 0.1, 0.0, 0.0}, {0.6, 0.4, 0.0, 0.0}}, {0, 1});
+  EXPECT_EQ(score.confusion.counts[0][0], 1);
+  EXPECT_EQ(score.confusion.counts[1][0], 1);
+  EXPECT_DOUBLE_EQ(score.confusion.Accuracy(), 0.5);
+  EXPECT_NEAR(score.mean_log_loss, -(std::log(0.9) + std::log(0.4)) / 2, 1e-12);
+  // Bins: 0.9 right (gap 0.1), 0.6 wrong (gap 0.6); ECE = (0.1 + 0.6) / 2.
+  EXPECT_NEAR(score.expected_calibration_error, 0.35, 1e-12);
+}
+
+class TraceCsvTest : public ::testing::Test {
+ protected:
+  std::string Path(const std::string& name) {
+    return ::testing::TempDir() + "/" + name;
+  }
+  void WriteText(const std::string& path, const std::string& text) {
+    std::ofstream(path) << text;
+  }
+};
+
+TEST_F(TraceCsvTest, RoundTripIsExact) {
+  SimulationConditions conditions = TrainingConditions();
+  const auto traces = SimulateLabelledTraces(2, conditions, 5);
+  const std::string path = Path("traces.csv");
+  ASSERT_TRUE(WriteTraceCsv(path, traces).ok());
+  absl::StatusOr<std::vector<LabelledTrace>> read = ReadTraceCsv(path);
+  ASSERT_TRUE(read.ok()) << read.status();
+  ASSERT_EQ(read->size(), traces.size());
+  for (size_t i = 0; i < traces.size(); ++i) {
+    EXPECT_EQ((*read)[i].label, traces[i].label);
+    ASSERT_EQ((*read)[i].samples.size(), traces[i].samples.size());
+    for (size_t j = 0; j < traces[i].samples.size(); ++j) {
+      EXPECT_EQ((*read)[i].samples[j].t_s, traces[i].samples[j].t_s);
+      EXPECT_EQ((*read)[i].samples[j].values, traces[i].samples[j].values);
+    }
+  }
+}
+
+TEST_F(TraceCsvTest, ReportsTheOffendingLine) {
+  const std::string header =
+      "trace,label,t_s,fx_n,fy_n,fz_n,tx_nm,ty_nm,tz_nm\n";
+  const std::string path = Path("bad.csv");
+  WriteText(path,
+            header + "0,hard,0,0,0,0,0,0,0\n0,crunchy,0.001,0,0,0,0,0,0\n");
+  EXPECT_THAT(ReadTraceCsv(path).status().message(),
+              HasSubstr(":3: unknown label \"crunchy\""));
+  WriteText(path, header + "0,hard,0,0,0,0,0,0,0\n0,soft,0.001,0,0,0,0,0,0\n");
+  EXPECT_THAT(ReadTraceCsv(path).status().message(),
+              HasSubstr(":3: trace 0 changes its label"));
+  WriteText(path, header + "0,hard,0,x,0,0,0,0,0\n");
+  EXPECT_THAT(ReadTraceCsv(path).status().message(),
+              HasSubstr(":2: malformed number"));
+  WriteText(path, "t,fx\n");
+  EXPECT_THAT(ReadTraceCsv(path).status().message(),
+              HasSubstr(":1: expected the header"));
+  EXPECT_EQ(ReadTraceCsv(Path("missing.csv")).status().code(),
+            absl::StatusCode::kNotFound);
+}
+
+}  // namespace
+}  // namespace bitewise::haptic
