@@ -1,0 +1,75 @@
+#include "services/robot/actions.h"
+
+#include <cmath>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+
+namespace bitewise::robot {
+
+const std::vector<ActionSpec>& SkeweringActions() {
+  static const auto* const kActions = new std::vector<ActionSpec>{
+      {0, "VS0", 0.0, 0.0, 25.0},  {1, "VS90", 0.0, M_PI / 2, 25.0},
+      {2, "TV0", -0.5, 0.0, 20.0}, {3, "TV90", -0.5, M_PI / 2, 20.0},
+      {4, "TA0", 0.4, 0.0, 10.0},  {5, "TA90", 0.4, M_PI / 2, 10.0},
+  };
+  return *kActions;
+}
+
+absl::StatusOr<ActionSpec> FindAction(int index) {
+  const auto& actions = SkeweringActions();
+  if (index < 0 || index >= static_cast<int>(actions.size())) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("action ", index, " is out of range: actions are 0..",
+                     actions.size() - 1, " (VS0, VS90, TV0, TV90, TA0, TA90)"));
+  }
+  return actions[index];
+}
+
+RigidTransform CameraLookingDown(double height_m) {
+  RigidTransform X;
+  X.R = Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal();
+  X.p = Eigen::Vector3d(0.0, 0.0, height_m);
+  return X;
+}
+
+TaskTarget ToTaskFrame(const AcquireTarget& target,
+                       const RigidTransform& X_TaskCamera) {
+  TaskTarget out;
+  out.p_TaskItem_m = X_TaskCamera * target.p_CameraItem_m;
+  // The axis is a direction in the camera's x-y plane; rotate it like one.
+  const Eigen::Vector3d axis_C(std::cos(target.major_axis_angle_rad),
+                               std::sin(target.major_axis_angle_rad), 0.0);
+  const Eigen::Vector3d axis_T = X_TaskCamera.R * axis_C;
+  out.major_axis_yaw_rad = std::atan2(axis_T.y(), axis_T.x());
+  return out;
+}
+
+absl::Status CheckInWorkspace(const TaskTarget& target,
+                              const Workspace& workspace) {
+  const Eigen::Vector3d& p = target.p_TaskItem_m;
+  if (!p.allFinite() || !std::isfinite(target.major_axis_yaw_rad)) {
+    return absl::InvalidArgumentError(
+        "target center_camera_m and major_axis_angle_rad must be finite");
+  }
+  const double r = std::hypot(p.x(), p.y());
+  if (r > workspace.radius_m) {
+    return absl::InvalidArgumentError(absl::StrFormat(
+        "target is outside the workspace: %.3f m from the plate centre "
+        "(task frame x %.3f, y %.3f), limit %.3f m",
+        r, p.x(), p.y(), workspace.radius_m));
+  }
+  if (p.z() < workspace.min_z_m || p.z() > workspace.max_z_m) {
+    return absl::InvalidArgumentError(absl::StrFormat(
+        "target is outside the workspace: %.3f m above the plate, allowed "
+        "%.3f..%.3f m",
+        p.z(), workspace.min_z_m, workspace.max_z_m));
+  }
+  return absl::OkStatus();
+}
+
+double ForkYaw(const ActionSpec& action, double major_axis_yaw_rad) {
+  return std::remainder(major_axis_yaw_rad + action.roll_rad, 2.0 * M_PI);
+}
+
+}  // namespace bitewise::robot

@@ -1,0 +1,135 @@
+#include "services/robot/backend.h"
+
+#include <random>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
+#include "services/common/status_macros.h"
+#include "services/robot/steady_time.h"
+
+namespace bitewise::robot {
+
+absl::StatusOr<std::unique_ptr<RobotBackend>> RobotBackend::Create(
+    const RobotBackendOptions& options) {
+  std::unique_ptr<RobotBackend> backend(new RobotBackend());
+  AcquisitionConfig acquisition = options.acquisition;
+  netft::NetFtRdtClientOptions ft_options = options.ft;
+  Arm* arm = nullptr;
+  SuccessJudge* judge = nullptr;
+  if (options.kind == BackendKind::kSim) {
+    const SimBackendOptions& sim_options = options.sim;
+    std::vector<const sim::FoodType*> foods;
+    if (sim_options.foods.empty()) {
+      foods = sim::UnseenFoods();
+    } else {
+      for (const std::string& name : sim_options.foods) {
+        const sim::FoodType* food = sim::FindFood(name);
+        if (food == nullptr) {
+          return absl::InvalidArgumentError(absl::StrCat(
+              "unknown food \"", name, "\" for the simulated plate"));
+        }
+        foods.push_back(food);
+      }
+    }
+    std::mt19937_64 plate_rng(sim_options.seed);
+    const sim::PlateScene scene =
+        sim::RandomPlate(foods, sim_options.allow_touching, plate_rng);
+    sim::SimArmOptions arm_options = sim_options.arm;
+    arm_options.control_period_s = acquisition.control_period_s;
+    backend->sim_arm_ = std::make_unique<sim::SimArm>(arm_options);
+    sim::SimWorldOptions world_options = sim_options.world;
+    world_options.seed = sim_options.seed;
+    backend->world_ = std::make_unique<sim::SimWorld>(
+        scene, backend->sim_arm_.get(), world_options);
+    sim::SimNetFtBoxOptions box_options = sim_options.box;
+    box_options.seed = sim_options.seed;
+    box_options.counts_per_force = ft_options.counts_per_force;
+    box_options.counts_per_torque = ft_options.counts_per_torque;
+    box_options.internal_rate_hz = ft_options.ft_sample_rate_hz;
+    ASSIGN_OR_RETURN(backend->box_, sim::SimNetFtBox::Start(
+                                        box_options, backend->world_.get()));
+    ft_options.host = box_options.host;
+    ft_options.port = backend->box_->port();
+    acquisition.X_TaskCamera = backend->world_->X_TaskCamera();
+    arm = backend->sim_arm_.get();
+    judge = backend->world_.get();
+    backend->render_seed_ = sim_options.seed;
+  } else {
+    ASSIGN_OR_RETURN(backend->jaco2_arm_,
+                     jaco2::Jaco2Arm::Open(options.hardware.arm));
+    if (options.hardware.static_load_threshold_n > 0.0) {
+      backend->hardware_judge_ = std::make_unique<StaticLoadJudge>(
+          options.hardware.static_load_threshold_n);
+    } else {
+      backend->hardware_judge_ = std::make_unique<OperatorJudge>();
+    }
+    arm = backend->jaco2_arm_.get();
+    judge = backend->hardware_judge_.get();
+  }
+  ASSIGN_OR_RETURN(backend->ft_, netft::NetFtRdtClient::Connect(ft_options));
+  if (options.kind == BackendKind::kSim) {
+    // Loopback: data must flow at once, or something is badly wrong.
+    const double deadline_s = SteadyNowS() + options.ft_start_timeout_s;
+    while (backend->ft_->Health().state != netft::StreamState::kStreaming) {
+      if (SteadyNowS() > deadline_s) {
+        return absl::UnavailableError(
+            absl::StrCat(backend->ft_->name(), " (simulated) sent no data in ",
+                         options.ft_start_timeout_s, " s"));
+      }
+      absl::SleepFor(absl::Milliseconds(5));
+    }
+  }
+  RETURN_IF_ERROR(arm->MoveHome());
+  backend->robot_ =
+      std::make_unique<Robot>(arm, backend->ft_.get(), judge, acquisition);
+  return backend;
+}
+
+RobotBackend::~RobotBackend() = default;
+
+int RobotBackend::items_left() const {
+  return world_ ? world_->items_left() : -1;
+}
+
+absl::StatusOr<sim::RenderedFrame> RobotBackend::CaptureFrame() {
+  if (!world_) {
+    return absl::UnimplementedError(
+        "CaptureFrame on hardware needs the RealSense D415 driver, which "
+        "bitewise does not have yet; use --backend=sim");
+  }
+  // Each frame its own noise, reproducibly.
+  const uint64_t noise_seed = render_seed_ * 1000003ULL + frames_++;
+  return sim::RenderPlate(world_->scene(), sim::D415Intrinsics(), noise_seed);
+}
+
+bool RobotBackend::FtLive() const { return ft_ && ft_->CheckLive().ok(); }
+
+ReadinessMonitor::ReadinessMonitor(std::function<bool()> live,
+                                   std::function<void(bool)> set_serving,
+                                   double period_s) {
+  thread_ = std::thread([this, live = std::move(live),
+                         set_serving = std::move(set_serving), period_s] {
+    bool first = true;
+    bool last = false;
+    absl::MutexLock lock(&mu_);
+    while (!stop_) {
+      const bool now = live();
+      if (first || now != last) set_serving(now);
+      first = false;
+      last = now;
+      mu_.AwaitWithTimeout(absl::Condition(&stop_), absl::Seconds(period_s));
+    }
+  });
+}
+
+ReadinessMonitor::~ReadinessMonitor() {
+  {
+    absl::MutexLock lock(&mu_);
+    stop_ = true;
+  }
+  thread_.join();
+}
+
+}  // namespace bitewise::robot

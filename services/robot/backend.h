@@ -1,0 +1,125 @@
+// RobotBackend: everything behind the Robot for one deployment, chosen by
+// configuration: the simulated world (a kinematic arm, a plate of food and
+// the simulated Net F/T box on loopback, read by the real NetFtRdtClient)
+// or the hardware (the JACO2 through its SDK and a real Net F/T box).
+// Also the camera (simulated frames only) and the readiness signal that the
+// service's health status follows: live only while F/T data streams.
+//
+// Thread-safe.
+#ifndef BITEWISE_SERVICES_ROBOT_BACKEND_H_
+#define BITEWISE_SERVICES_ROBOT_BACKEND_H_
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
+#include "services/robot/jaco2/jaco2_arm.h"
+#include "services/robot/netft/netft_rdt_client.h"
+#include "services/robot/robot.h"
+#include "services/robot/sim/render/scene.h"
+#include "services/robot/sim/sim_arm.h"
+#include "services/robot/sim/sim_netft_box.h"
+#include "services/robot/sim/sim_world.h"
+
+namespace bitewise::robot {
+
+enum class BackendKind { kSim, kJaco2 };
+
+struct SimBackendOptions {
+  // Seeds the plate, the world's outcomes, the box's noise and faults.
+  uint64_t seed = 1;
+  // Food names from sim::FoodCatalog(), one item each; empty means SPEC's
+  // eight unseen foods.
+  std::vector<std::string> foods;
+  bool allow_touching = false;
+  sim::SimNetFtBoxOptions box;  // host/port of the simulated box
+  sim::SimWorldOptions world;   // seed is overwritten with `seed`
+  sim::SimArmOptions arm;
+};
+
+struct HardwareBackendOptions {
+  jaco2::Jaco2Options arm;
+  // Success when the static load after extraction reaches this (N); 0 or
+  // less leaves the decision to the operator.
+  double static_load_threshold_n = 0.02;
+};
+
+struct RobotBackendOptions {
+  BackendKind kind = BackendKind::kSim;
+  SimBackendOptions sim;
+  HardwareBackendOptions hardware;
+  // The F/T client. For kSim, host and port are the simulated box's.
+  netft::NetFtRdtClientOptions ft;
+  AcquisitionConfig acquisition;
+  // kSim: how long to wait for the first F/T data at start.
+  double ft_start_timeout_s = 10.0;
+};
+
+class RobotBackend {
+ public:
+  // Errors: INVALID_ARGUMENT for unknown foods or bad rates; the errors of
+  // Jaco2Arm::Open, NetFtRdtClient::Connect and SimNetFtBox::Start;
+  // UNAVAILABLE if the simulated box sends nothing in ft_start_timeout_s.
+  static absl::StatusOr<std::unique_ptr<RobotBackend>> Create(
+      const RobotBackendOptions& options);
+  ~RobotBackend();
+
+  Robot& robot() { return *robot_; }
+  bool simulated() const { return world_ != nullptr; }
+  // -1 on hardware.
+  int items_left() const;
+  // Simulation only (nullptr on hardware): for tests and tools.
+  sim::SimWorld* world() { return world_.get(); }
+  sim::SimNetFtBox* box() { return box_.get(); }
+  sim::SimArm* sim_arm() { return sim_arm_.get(); }
+  netft::NetFtRdtClient* ft() { return ft_.get(); }
+
+  // One RGB-D frame of the plate. UNIMPLEMENTED on hardware: the D415
+  // driver is not part of bitewise yet.
+  absl::StatusOr<sim::RenderedFrame> CaptureFrame();
+
+  // True while the F/T stream is live (the health status follows this).
+  bool FtLive() const;
+
+ private:
+  RobotBackend() = default;
+
+  // Destroyed in reverse: the robot first, the arm last, the box (whose
+  // thread reads the world and the arm) before the world.
+  std::unique_ptr<sim::SimArm> sim_arm_;
+  std::unique_ptr<jaco2::Jaco2Arm> jaco2_arm_;
+  std::unique_ptr<sim::SimWorld> world_;
+  std::unique_ptr<sim::SimNetFtBox> box_;
+  std::unique_ptr<netft::NetFtRdtClient> ft_;
+  std::unique_ptr<SuccessJudge> hardware_judge_;
+  std::unique_ptr<Robot> robot_;
+  uint64_t render_seed_ = 0;
+  std::atomic<uint64_t> frames_{0};
+};
+
+// Polls `live` and reports changes to `set_serving` (first call at once),
+// so the gRPC health status follows the F/T stream. Stops on destruction.
+class ReadinessMonitor {
+ public:
+  ReadinessMonitor(std::function<bool()> live,
+                   std::function<void(bool)> set_serving,
+                   double period_s = 0.05);
+  ~ReadinessMonitor();
+  ReadinessMonitor(const ReadinessMonitor&) = delete;
+  ReadinessMonitor& operator=(const ReadinessMonitor&) = delete;
+
+ private:
+  absl::Mutex mu_;
+  bool stop_ ABSL_GUARDED_BY(mu_) = false;
+  std::thread thread_;
+};
+
+}  // namespace bitewise::robot
+
+#endif  // BITEWISE_SERVICES_ROBOT_BACKEND_H_

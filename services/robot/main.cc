@@ -1,0 +1,157 @@
+// bitewise-robot: the RobotService binary. Flags are parsed here and nowhere
+// else; everything below main takes Options structs.
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "services/common/server.h"
+#include "services/common/server_flags.h"
+#include "services/robot/backend.h"
+#include "services/robot/robot_service.h"
+
+ABSL_FLAG(std::string, backend, "sim",
+          "sim (simulated world, arm and Net F/T box on loopback) or jaco2 "
+          "(Kinova SDK and a real Net F/T box).");
+ABSL_FLAG(uint64_t, seed, 1,
+          "sim: seeds the plate, the outcomes and the sensor noise.");
+ABSL_FLAG(std::string, foods, "",
+          "sim: comma-separated foods on the plate (names from the food "
+          "catalog); empty means SPEC's eight unseen foods.");
+ABSL_FLAG(double, sim_ft_rate_hz, 1000.0,
+          "sim: records per second from the simulated Net F/T box (<= 7000).");
+ABSL_FLAG(int, sim_ft_port, 0,
+          "sim: UDP port of the simulated box on 127.0.0.1; 0 picks one.");
+ABSL_FLAG(std::string, ft_host, "192.168.1.1",
+          "jaco2: address of the Net F/T box.");
+ABSL_FLAG(int, ft_port, 49152, "jaco2: RDT port of the Net F/T box.");
+ABSL_FLAG(double, counts_per_force, 1e6,
+          "Net F/T counts per newton (the box's configuration page).");
+ABSL_FLAG(double, counts_per_torque, 1e6,
+          "Net F/T counts per newton-metre (the box's configuration page).");
+ABSL_FLAG(double, ft_silence_timeout_s, 0.1,
+          "No F/T sample for this long: the sensor is silent and health "
+          "reports NOT_SERVING.");
+ABSL_FLAG(double, watchdog_s, 0.1,
+          "The arm stops when the F/T stream is silent this long during an "
+          "Acquire.");
+ABSL_FLAG(std::string, jaco2_sdk, "",
+          "jaco2: path of the Kinova SDK library; empty means the vendor's "
+          "file name for --jaco2_transport, found by the dynamic loader.");
+ABSL_FLAG(std::string, jaco2_transport, "usb", "jaco2: usb or ethernet.");
+ABSL_FLAG(std::string, task_origin_in_base_m, "0,-0.45,-0.05",
+          "jaco2: the plate centre in the arm base frame, x,y,z metres.");
+ABSL_FLAG(double, camera_height_m, 0.35,
+          "jaco2: height of the wrist camera above the plate at capture.");
+ABSL_FLAG(double, static_load_threshold_n, 0.02,
+          "jaco2: success when the fork carries at least this load after "
+          "extraction; 0 leaves success to the operator.");
+
+namespace {
+
+constexpr int kDefaultPort = 50054;
+
+int Die(const std::string& what, const absl::Status& status) {
+  std::fprintf(stderr, "bitewise-robot: %s: %s\n", what.c_str(),
+               status.ToString().c_str());
+  return 1;
+}
+
+absl::StatusOr<bitewise::robot::RobotBackendOptions> OptionsFromFlags() {
+  using bitewise::robot::BackendKind;
+  bitewise::robot::RobotBackendOptions options;
+  const std::string backend = absl::GetFlag(FLAGS_backend);
+  if (backend == "sim") {
+    options.kind = BackendKind::kSim;
+  } else if (backend == "jaco2") {
+    options.kind = BackendKind::kJaco2;
+  } else {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--backend must be sim or jaco2, got \"", backend, "\""));
+  }
+  options.sim.seed = absl::GetFlag(FLAGS_seed);
+  const std::string foods = absl::GetFlag(FLAGS_foods);
+  if (!foods.empty()) {
+    options.sim.foods = absl::StrSplit(foods, ',', absl::SkipEmpty());
+  }
+  options.sim.box.rate_hz = absl::GetFlag(FLAGS_sim_ft_rate_hz);
+  const int sim_port = absl::GetFlag(FLAGS_sim_ft_port);
+  const int ft_port = absl::GetFlag(FLAGS_ft_port);
+  if (sim_port < 0 || sim_port > 65535 || ft_port <= 0 || ft_port > 65535) {
+    return absl::InvalidArgumentError(
+        "--sim_ft_port and --ft_port must be UDP ports");
+  }
+  options.sim.box.port = static_cast<uint16_t>(sim_port);
+  options.ft.host = absl::GetFlag(FLAGS_ft_host);
+  options.ft.port = static_cast<uint16_t>(ft_port);
+  options.ft.counts_per_force = absl::GetFlag(FLAGS_counts_per_force);
+  options.ft.counts_per_torque = absl::GetFlag(FLAGS_counts_per_torque);
+  options.ft.silence_timeout_s = absl::GetFlag(FLAGS_ft_silence_timeout_s);
+  options.acquisition.watchdog_timeout_s = absl::GetFlag(FLAGS_watchdog_s);
+  options.acquisition.X_TaskCamera =
+      bitewise::robot::CameraLookingDown(absl::GetFlag(FLAGS_camera_height_m));
+  options.hardware.arm.sdk_library = absl::GetFlag(FLAGS_jaco2_sdk);
+  const std::string transport = absl::GetFlag(FLAGS_jaco2_transport);
+  if (transport == "usb") {
+    options.hardware.arm.transport = bitewise::jaco2::Jaco2Transport::kUsb;
+  } else if (transport == "ethernet") {
+    options.hardware.arm.transport = bitewise::jaco2::Jaco2Transport::kEthernet;
+  } else {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--jaco2_transport must be usb or ethernet, got \"", transport, "\""));
+  }
+  const std::vector<std::string> origin =
+      absl::StrSplit(absl::GetFlag(FLAGS_task_origin_in_base_m), ',');
+  if (origin.size() != 3) {
+    return absl::InvalidArgumentError(
+        "--task_origin_in_base_m must be three comma-separated numbers");
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (!absl::SimpleAtod(origin[i], &options.hardware.arm.p_BaseTask_m[i])) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "--task_origin_in_base_m: \"", origin[i], "\" is not a number"));
+    }
+  }
+  options.hardware.static_load_threshold_n =
+      absl::GetFlag(FLAGS_static_load_threshold_n);
+  return options;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bitewise::BlockTerminationSignals();
+  absl::SetProgramUsageMessage(
+      "RobotService: the JACO2 with the Forque, or the simulated world.");
+  absl::ParseCommandLine(argc, argv);
+
+  absl::StatusOr<bitewise::robot::RobotBackendOptions> options =
+      OptionsFromFlags();
+  if (!options.ok()) return Die("bad flags", options.status());
+  auto backend = bitewise::robot::RobotBackend::Create(*options);
+  if (!backend.ok()) return Die("cannot start the robot", backend.status());
+  bitewise::robot::RobotServiceImpl service(backend->get());
+
+  auto server = bitewise::ServiceServer::Start(
+      bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
+      {"bitewise.v1.RobotService"});
+  if (!server.ok()) return Die("cannot start the server", server.status());
+  // Ready exactly while the F/T stream is live.
+  bitewise::robot::ReadinessMonitor readiness(
+      [b = backend->get()] { return b->FtLive(); },
+      [s = server->get()](bool serving) { s->SetServing(serving); });
+  std::fprintf(stderr, "bitewise-robot: serving on %s (backend %s, %s)\n",
+               (*server)->address().c_str(),
+               absl::GetFlag(FLAGS_backend).c_str(),
+               (*backend)->ft()->name().c_str());
+  std::fflush(stderr);
+  absl::Status status = bitewise::RunUntilSignal(**server);
+  if (!status.ok()) return Die("shutdown", status);
+  return 0;
+}

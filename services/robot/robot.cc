@@ -1,0 +1,426 @@
+#include "services/robot/robot.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "services/common/status_macros.h"
+#include "services/robot/steady_time.h"
+
+namespace bitewise::robot {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ForceMagnitude(const netft::Wrench& w, const netft::Wrench& baseline) {
+  const double dx = w.force_n[0] - baseline.force_n[0];
+  const double dy = w.force_n[1] - baseline.force_n[1];
+  const double dz = w.force_n[2] - baseline.force_n[2];
+  return std::sqrt(dx * dx + dy * dy + dz * dz);
+}
+
+ForkPose Interpolate(const ForkPose& a, const ForkPose& b, double s) {
+  ForkPose out;
+  out.p_TaskTip_m = a.p_TaskTip_m + s * (b.p_TaskTip_m - a.p_TaskTip_m);
+  out.yaw_rad = a.yaw_rad + s * (b.yaw_rad - a.yaw_rad);
+  out.pitch_rad = a.pitch_rad + s * (b.pitch_rad - a.pitch_rad);
+  return out;
+}
+
+}  // namespace
+
+const char* AcquirePhaseName(AcquirePhase phase) {
+  switch (phase) {
+    case AcquirePhase::kIdle:
+      return "idle";
+    case AcquirePhase::kApproach:
+      return "approach";
+    case AcquirePhase::kOrient:
+      return "orient";
+    case AcquirePhase::kDescend:
+      return "descend";
+    case AcquirePhase::kExtract:
+      return "extract";
+    case AcquirePhase::kDone:
+      return "done";
+  }
+  return "unknown";
+}
+
+// One acquisition: the 100 Hz loop and everything it records.
+class Robot::Run {
+ public:
+  Run(Robot* robot, const ActionSpec& action, const TaskTarget& target,
+      const AcquireProgressCallback& on_progress)
+      : robot_(robot),
+        config_(robot->config_),
+        action_(action),
+        target_(target),
+        on_progress_(on_progress) {}
+
+  absl::Status Execute() {
+    start_s_ = SteadyNowS();
+    MeasureBaseline();
+    ASSIGN_OR_RETURN(setpoint_, robot_->arm_->MeasuredPose());
+    lowest_z_ = setpoint_.p_TaskTip_m.z();
+    next_tick_ = Clock::now();
+
+    const Eigen::Vector3d& item = target_.p_TaskItem_m;
+    ForkPose standoff = setpoint_;
+    standoff.p_TaskTip_m =
+        Eigen::Vector3d(item.x(), item.y(), item.z() + config_.standoff_m);
+    bool force_stop = false;
+    RETURN_IF_ERROR(MoveTo(AcquirePhase::kApproach, standoff,
+                           config_.approach_speed_mps, &force_stop));
+
+    ForkPose oriented = standoff;
+    const double yaw = ForkYaw(action_, target_.major_axis_yaw_rad);
+    // The shortest way round: the same yaw modulo 2 pi.
+    oriented.yaw_rad =
+        setpoint_.yaw_rad + std::remainder(yaw - setpoint_.yaw_rad, 2 * M_PI);
+    oriented.pitch_rad = action_.pitch_rad;
+    RETURN_IF_ERROR(MoveTo(AcquirePhase::kOrient, oriented,
+                           config_.approach_speed_mps, &force_stop));
+
+    ForkPose bottom = oriented;
+    bottom.p_TaskTip_m.z() =
+        std::max(item.z() - config_.depth_limit_m, config_.floor_z_m);
+    RETURN_IF_ERROR(MoveTo(AcquirePhase::kDescend, bottom,
+                           config_.descend_speed_mps, &force_stop));
+    outcome_.force_limit_reached = force_stop;
+    if (force_stop) {
+      // Continue from where the arm actually stopped.
+      ASSIGN_OR_RETURN(setpoint_, robot_->arm_->MeasuredPose());
+    }
+    absl::StatusOr<ForkPose> measured = robot_->arm_->MeasuredPose();
+    lowest_z_ = std::min(lowest_z_, measured.ok() ? measured->p_TaskTip_m.z()
+                                                  : setpoint_.p_TaskTip_m.z());
+
+    ForkPose lifted = setpoint_;
+    lifted.p_TaskTip_m.z() = item.z() + config_.standoff_m + config_.lift_m;
+    RETURN_IF_ERROR(MoveTo(AcquirePhase::kExtract, lifted,
+                           config_.extract_speed_mps, &force_stop));
+    const double settle_start_s = SteadyNowS() - start_s_;
+    RETURN_IF_ERROR(Hold(AcquirePhase::kExtract, config_.settle_s));
+
+    outcome_.duration_s = SteadyNowS() - start_s_;
+    outcome_.static_load_n = StaticLoad(std::max(
+        settle_start_s, outcome_.duration_s - config_.static_window_s));
+    outcome_.attempt = robot_->judge_->EndAttempt(outcome_.static_load_n);
+    outcome_.lowest_tip_z_m = lowest_z_;
+    Report(AcquirePhase::kDone, /*force=*/true);
+    return absl::OkStatus();
+  }
+
+  AcquireOutcome TakeOutcome() { return std::move(outcome_); }
+
+ private:
+  // Moves in a straight line (and a linear change of yaw and pitch) at
+  // `speed_mps` or orient_rate_radps, whichever takes longer. In the
+  // descent, reaching the action's force limit halts the arm and ends the
+  // motion early with *force_stop set.
+  absl::Status MoveTo(AcquirePhase phase, const ForkPose& goal,
+                      double speed_mps, bool* force_stop) {
+    SetPhase(phase);
+    const ForkPose start = setpoint_;
+    const double distance_m = (goal.p_TaskTip_m - start.p_TaskTip_m).norm();
+    const double angle_rad =
+        std::max(std::abs(goal.yaw_rad - start.yaw_rad),
+                 std::abs(goal.pitch_rad - start.pitch_rad));
+    const double duration_s =
+        std::max({distance_m / speed_mps, angle_rad / config_.orient_rate_radps,
+                  config_.control_period_s});
+    const int ticks = static_cast<int>(
+        std::ceil(duration_s / config_.control_period_s - 1e-9));
+    ForkVelocity velocity;
+    velocity.v_TaskTip_mps =
+        (goal.p_TaskTip_m - start.p_TaskTip_m) / duration_s;
+    velocity.yaw_rate_radps = (goal.yaw_rad - start.yaw_rad) / duration_s;
+    velocity.pitch_rate_radps = (goal.pitch_rad - start.pitch_rad) / duration_s;
+    for (int k = 1; k <= ticks; ++k) {
+      bool over_limit = false;
+      RETURN_IF_ERROR(AwaitTick(phase, &over_limit));
+      // Extraction moves the tines out of the food, which unloads them: the
+      // limit guards the pushing phases only.
+      if (over_limit && phase != AcquirePhase::kExtract) {
+        if (phase != AcquirePhase::kDescend) {
+          RETURN_IF_ERROR(HaltArm());
+          return absl::AbortedError(absl::StrFormat(
+              "force %.1f N exceeded the %s limit of %.1f N during %s "
+              "(a collision?); arm halted",
+              last_force_n_, action_.name, action_.max_force_n,
+              AcquirePhaseName(phase)));
+        }
+        RETURN_IF_ERROR(HaltArm());
+        *force_stop = true;
+        return absl::OkStatus();
+      }
+      ForkPose next = Interpolate(start, goal, static_cast<double>(k) / ticks);
+      RETURN_IF_ERROR(Send(next, velocity));
+    }
+    // One more period so the arm reaches the last set point.
+    bool over_limit = false;
+    RETURN_IF_ERROR(AwaitTick(phase, &over_limit));
+    if (over_limit && phase == AcquirePhase::kDescend) {
+      RETURN_IF_ERROR(HaltArm());
+      *force_stop = true;
+    }
+    return absl::OkStatus();
+  }
+
+  absl::Status Hold(AcquirePhase phase, double duration_s) {
+    const int ticks = static_cast<int>(
+        std::ceil(duration_s / config_.control_period_s - 1e-9));
+    for (int k = 0; k < ticks; ++k) {
+      bool over_limit = false;
+      RETURN_IF_ERROR(AwaitTick(phase, &over_limit));
+      RETURN_IF_ERROR(Send(setpoint_, ForkVelocity()));
+    }
+    return absl::OkStatus();
+  }
+
+  // Waits for the next control period (waking at once on Stop), then reads
+  // the new F/T samples and applies the watchdog, the force limit and the
+  // progress report.
+  absl::Status AwaitTick(AcquirePhase phase, bool* over_limit) {
+    const auto period = std::chrono::duration_cast<Clock::duration>(
+        std::chrono::duration<double>(config_.control_period_s));
+    next_tick_ += period;
+    // A late tick (a loaded machine) starts a new schedule rather than
+    // firing a burst of catch-up commands.
+    if (Clock::now() > next_tick_ + period) next_tick_ = Clock::now();
+    {
+      std::unique_lock<std::mutex> lock(robot_->mu_);
+      robot_->stop_cv_.wait_until(lock, next_tick_,
+                                  [this] { return robot_->stop_requested_; });
+      if (robot_->stop_requested_) return StoppedError();
+    }
+    Ingest();
+    const netft::StreamHealth health = robot_->ft_->Health();
+    if (health.silent_for_s > config_.watchdog_timeout_s) {
+      RETURN_IF_ERROR(HaltArm());
+      return absl::UnavailableError(absl::StrFormat(
+          "%s: no F/T data for %.0f ms during %s (watchdog %.0f ms); arm "
+          "stopped",
+          robot_->ft_->name(), 1e3 * health.silent_for_s,
+          AcquirePhaseName(phase), 1e3 * config_.watchdog_timeout_s));
+    }
+    *over_limit = max_force_since_tick_ >= action_.max_force_n;
+    max_force_since_tick_ = 0.0;
+    if (!Report(phase, /*force=*/false)) {
+      RETURN_IF_ERROR(HaltArm());
+      return absl::CancelledError("Acquire cancelled by the caller");
+    }
+    return absl::OkStatus();
+  }
+
+  absl::Status Send(const ForkPose& setpoint, const ForkVelocity& velocity) {
+    std::lock_guard<std::mutex> lock(robot_->mu_);
+    if (robot_->stop_requested_) return StoppedError();
+    setpoint_ = setpoint;
+    lowest_z_ = std::min(lowest_z_, setpoint.p_TaskTip_m.z());
+    return robot_->arm_->Command(setpoint, velocity);
+  }
+
+  absl::Status HaltArm() {
+    std::lock_guard<std::mutex> lock(robot_->mu_);
+    return robot_->arm_->Halt();
+  }
+
+  absl::Status StoppedError() const {
+    return absl::AbortedError(absl::StrFormat(
+        "Acquire stopped by a Stop request during %s, %.2f s in; arm halted",
+        AcquirePhaseName(phase_), SteadyNowS() - start_s_));
+  }
+
+  void SetPhase(AcquirePhase phase) {
+    phase_ = phase;
+    {
+      std::lock_guard<std::mutex> lock(robot_->mu_);
+      robot_->phase_ = phase;
+    }
+    Report(phase, /*force=*/true);
+  }
+
+  // Returns false if the caller cancelled.
+  bool Report(AcquirePhase phase, bool force) {
+    const double now_s = SteadyNowS();
+    if (!force && now_s - last_report_s_ < 1.0 / config_.progress_rate_hz) {
+      return true;
+    }
+    last_report_s_ = now_s;
+    outcome_.duration_s = now_s - start_s_;
+    if (!on_progress_) return true;
+    AcquireProgressEvent event;
+    event.phase = phase;
+    event.elapsed_s = now_s - start_s_;
+    event.force_n = last_force_n_;
+    return on_progress_(event);
+  }
+
+  void MeasureBaseline() {
+    std::optional<netft::FtSample> latest = robot_->ft_->Latest();
+    if (!latest) return;
+    const uint64_t back = 8192;
+    std::vector<netft::FtSample> recent;
+    next_index_ = robot_->ft_->SamplesSince(
+        latest->index >= back ? latest->index - back : 0, &recent);
+    int n = 0;
+    netft::Wrench sum;
+    for (const netft::FtSample& s : recent) {
+      if (s.host_time_s < start_s_ - config_.baseline_s) continue;
+      for (int i = 0; i < 3; ++i) {
+        sum.force_n[i] += s.wrench.force_n[i];
+        sum.torque_nm[i] += s.wrench.torque_nm[i];
+      }
+      ++n;
+    }
+    if (n == 0) {
+      baseline_ = latest->wrench;
+      return;
+    }
+    for (int i = 0; i < 3; ++i) {
+      baseline_.force_n[i] = sum.force_n[i] / n;
+      baseline_.torque_nm[i] = sum.torque_nm[i] / n;
+    }
+  }
+
+  void Ingest() {
+    std::vector<netft::FtSample> fresh;
+    next_index_ = robot_->ft_->SamplesSince(next_index_, &fresh);
+    for (const netft::FtSample& s : fresh) {
+      const double t_s = s.host_time_s - start_s_;
+      if (t_s < 0.0) continue;
+      outcome_.trace.push_back({t_s, s.wrench});
+      const double force = ForceMagnitude(s.wrench, baseline_);
+      last_force_n_ = force;
+      max_force_since_tick_ = std::max(max_force_since_tick_, force);
+      outcome_.peak_force_n = std::max(outcome_.peak_force_n, force);
+      if (outcome_.contact_time_s < 0.0 &&
+          force > config_.contact_threshold_n) {
+        outcome_.contact_time_s = t_s;
+      }
+    }
+  }
+
+  // Weight on the fork: the drop of Fz below the baseline, averaged over
+  // the trace from `from_s` on.
+  double StaticLoad(double from_s) const {
+    double sum = 0.0;
+    int n = 0;
+    for (const TraceSample& s : outcome_.trace) {
+      if (s.t_s < from_s) continue;
+      sum += s.wrench.force_n[2];
+      ++n;
+    }
+    if (n == 0) return 0.0;
+    return baseline_.force_n[2] - sum / n;
+  }
+
+  Robot* const robot_;
+  const AcquisitionConfig& config_;
+  const ActionSpec action_;
+  const TaskTarget target_;
+  const AcquireProgressCallback& on_progress_;
+
+  AcquireOutcome outcome_;
+  AcquirePhase phase_ = AcquirePhase::kIdle;
+  ForkPose setpoint_;
+  double lowest_z_ = 0.0;
+  double start_s_ = 0.0;
+  Clock::time_point next_tick_;
+  netft::Wrench baseline_;
+  uint64_t next_index_ = 0;
+  double last_force_n_ = 0.0;
+  double max_force_since_tick_ = 0.0;
+  double last_report_s_ = -1e9;
+};
+
+Robot::Robot(Arm* arm, netft::NetFtRdtClient* ft, SuccessJudge* judge,
+             const AcquisitionConfig& config)
+    : arm_(arm), ft_(ft), judge_(judge), config_(config) {}
+
+absl::StatusOr<AcquireOutcome> Robot::Acquire(
+    const AcquireTarget& target, int action_index,
+    const AcquireProgressCallback& on_progress) {
+  ASSIGN_OR_RETURN(const ActionSpec action, FindAction(action_index));
+  const TaskTarget task_target = ToTaskFrame(target, config_.X_TaskCamera);
+  RETURN_IF_ERROR(CheckInWorkspace(task_target, config_.workspace));
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (busy_) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("another Acquire is running (phase ",
+                       AcquirePhaseName(phase_), "); Stop it or wait"));
+    }
+    busy_ = true;
+    // A Stop sent while idle must not cancel the next acquisition.
+    stop_requested_ = false;
+    phase_ = AcquirePhase::kApproach;
+  }
+  absl::Status live = ft_->CheckLive();
+  absl::StatusOr<AcquireOutcome> result;
+  if (!live.ok()) {
+    result = live;
+  } else {
+    judge_->BeginAttempt(action_index);
+    Run run(this, action, task_target, on_progress);
+    absl::Status status = run.Execute();
+    if (status.ok()) {
+      result = run.TakeOutcome();
+    } else {
+      {
+        std::lock_guard<std::mutex> lock(mu_);
+        arm_->Halt().IgnoreError();  // the error being returned says more
+      }
+      judge_->AbortAttempt();
+      result = status;
+    }
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  busy_ = false;
+  phase_ = AcquirePhase::kIdle;
+  return result;
+}
+
+absl::StatusOr<bool> Robot::Stop() {
+  bool was_running = false;
+  absl::Status halted;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    was_running = busy_;
+    if (busy_) stop_requested_ = true;
+    halted = arm_->Halt();
+  }
+  stop_cv_.notify_all();
+  if (!halted.ok()) return halted;
+  return was_running;
+}
+
+absl::Status Robot::Tare() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (busy_) {
+      return absl::FailedPreconditionError(
+          "cannot tare during an Acquire: the baseline would jump mid-trace");
+    }
+  }
+  return ft_->Bias();
+}
+
+RobotStatusInfo Robot::Status() {
+  RobotStatusInfo info;
+  info.arm_name = arm_->name();
+  info.arm_ready = arm_->MeasuredPose().ok();
+  info.ft_health = ft_->Health();
+  info.ft_stats = ft_->stats();
+  info.ft_name = ft_->name();
+  std::lock_guard<std::mutex> lock(mu_);
+  info.busy_with = phase_;
+  return info;
+}
+
+}  // namespace bitewise::robot

@@ -1,0 +1,164 @@
+// Robot: executes the six skewering actions as parameterised motions on an
+// Arm at the control rate (100 Hz) while recording the Forque's F/T stream,
+// and enforces the safety rules: the action's force limit ends the descent
+// (and, reached while approaching or orienting, a collision, aborts),
+// Stop() halts the arm within one control period, and a watchdog halts it
+// when the F/T stream goes silent. One acquisition at a time.
+//
+// Backend-independent: the same code drives the JACO2 with a real Net F/T
+// box and the simulated arm with the simulated box. No gRPC here.
+//
+// Thread-safe. Acquire() blocks for the whole motion (seconds); Stop(),
+// Tare() and Status() may be called concurrently from other threads.
+#ifndef BITEWISE_SERVICES_ROBOT_ROBOT_H_
+#define BITEWISE_SERVICES_ROBOT_ROBOT_H_
+
+#include <condition_variable>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "services/robot/actions.h"
+#include "services/robot/arm.h"
+#include "services/robot/netft/netft_rdt_client.h"
+#include "services/robot/success_judge.h"
+
+namespace bitewise::robot {
+
+struct AcquisitionConfig {
+  double control_period_s = 0.01;  // 100 Hz, the JACO2's command rate
+  // Pose of the camera frame (scene.h convention) in the task frame at
+  // capture time.
+  RigidTransform X_TaskCamera = CameraLookingDown(0.35);
+  Workspace workspace;
+  // Approach: to this height above the item's top surface.
+  double standoff_m = 0.03;
+  double approach_speed_mps = 0.15;
+  double orient_rate_radps = 1.5;
+  // Descent: straight down at this speed (the force-trace model's reference
+  // insertion speed in simulation), to depth_limit_m below the item's top
+  // but never below floor_z_m in the task frame.
+  double descend_speed_mps = 0.05;
+  double depth_limit_m = 0.015;
+  double floor_z_m = 0.002;
+  // Extraction: straight up to this height above the standoff.
+  double extract_speed_mps = 0.08;
+  double lift_m = 0.05;
+  // Held still after the lift; the static load is averaged over the last
+  // static_window_s of it.
+  double settle_s = 0.3;
+  double static_window_s = 0.2;
+  // The unloaded reading is averaged over this long before moving.
+  double baseline_s = 0.1;
+  // |F - baseline| above this is contact (for contact_time_s).
+  double contact_threshold_n = 0.5;
+  // The arm stops when no F/T sample arrived for this long.
+  double watchdog_timeout_s = 0.1;
+  // Progress reports per second while moving.
+  double progress_rate_hz = 10.0;
+};
+
+enum class AcquirePhase {
+  kIdle,
+  kApproach,
+  kOrient,
+  kDescend,
+  kExtract,
+  kDone
+};
+const char* AcquirePhaseName(AcquirePhase phase);
+
+struct AcquireProgressEvent {
+  AcquirePhase phase = AcquirePhase::kIdle;
+  double elapsed_s = 0.0;
+  double force_n = 0.0;  // |F - baseline| of the latest sample
+};
+
+// Return false to cancel the acquisition (e.g. the caller went away).
+using AcquireProgressCallback =
+    std::function<bool(const AcquireProgressEvent& event)>;
+
+struct TraceSample {
+  double t_s = 0.0;  // since the acquisition started
+  netft::Wrench wrench;
+};
+
+struct AcquireOutcome {
+  AttemptOutcome attempt;
+  std::vector<TraceSample> trace;  // every sample, raw (not baseline-removed)
+  double peak_force_n = 0.0;       // max |F - baseline|
+  bool force_limit_reached = false;
+  double contact_time_s = -1.0;  // -1: never touched anything
+  double static_load_n = 0.0;
+  double duration_s = 0.0;
+  // Lowest tip height reached, task frame.
+  double lowest_tip_z_m = 0.0;
+};
+
+struct RobotStatusInfo {
+  bool arm_ready = false;
+  std::string arm_name;
+  netft::StreamHealth ft_health;
+  netft::RdtStats ft_stats;
+  std::string ft_name;
+  AcquirePhase busy_with = AcquirePhase::kIdle;
+};
+
+class Robot {
+ public:
+  // `arm`, `ft` and `judge` must outlive the Robot.
+  Robot(Arm* arm, netft::NetFtRdtClient* ft, SuccessJudge* judge,
+        const AcquisitionConfig& config);
+
+  // Runs `action_index` on `target`; `on_progress` (may be empty) hears
+  // each phase start and progress_rate_hz reports. Errors, all leaving the
+  // arm halted if it had moved:
+  //  - INVALID_ARGUMENT: action out of range, target not finite or outside
+  //    the workspace (nothing moves);
+  //  - FAILED_PRECONDITION: another acquisition is running (nothing moves);
+  //  - UNAVAILABLE naming the F/T sensor: no live F/T stream at the start,
+  //    or silent for longer than the watchdog during the motion;
+  //  - ABORTED: Stop() was called, or the force limit was exceeded outside
+  //    the descent (a collision);
+  //  - CANCELLED: `on_progress` returned false;
+  //  - errors of the Arm, passed through.
+  absl::StatusOr<AcquireOutcome> Acquire(
+      const AcquireTarget& target, int action_index,
+      const AcquireProgressCallback& on_progress);
+
+  // Halts the arm now (within the control period in which it is called: no
+  // further command is sent after it returns) and ends a running
+  // acquisition with ABORTED. Returns whether an acquisition was running.
+  absl::StatusOr<bool> Stop();
+
+  // Software bias of the F/T sensor. FAILED_PRECONDITION during an
+  // acquisition (the baseline would jump mid-trace).
+  absl::Status Tare();
+
+  RobotStatusInfo Status();
+
+  const AcquisitionConfig& config() const { return config_; }
+
+ private:
+  class Run;
+
+  Arm* const arm_;
+  netft::NetFtRdtClient* const ft_;
+  SuccessJudge* const judge_;
+  const AcquisitionConfig config_;
+
+  // Guards the busy flag and the stop request; held while commanding the arm
+  // so that no command can follow a Halt() issued by Stop().
+  std::mutex mu_;
+  std::condition_variable stop_cv_;
+  bool busy_ = false;
+  bool stop_requested_ = false;
+  AcquirePhase phase_ = AcquirePhase::kIdle;
+};
+
+}  // namespace bitewise::robot
+
+#endif  // BITEWISE_SERVICES_ROBOT_ROBOT_H_

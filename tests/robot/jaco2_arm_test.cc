@@ -1,0 +1,169 @@
+// Jaco2Arm against a fake Kinova SDK built by these tests (the hardware
+// boundary): the USB and Ethernet variants are told apart by the symbol
+// prefix alone, every mapped call reaches the SDK in the right order with
+// the right data, and a missing or broken SDK gives a clear error.
+#include "services/robot/jaco2/jaco2_arm.h"
+
+#include <dlfcn.h>
+
+#include <cmath>
+#include <string>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+
+namespace bitewise::jaco2 {
+namespace {
+
+using ::testing::HasSubstr;
+using ::testing::StartsWith;
+
+// The fake SDK's test hooks, resolved in the already loaded library.
+class FakeSdk {
+ public:
+  explicit FakeSdk(const std::string& path) {
+    // RTLD_NOLOAD: only a handle on the copy Jaco2Arm loaded; shares state.
+    handle_ = dlopen(path.c_str(), RTLD_NOW | RTLD_NOLOAD);
+    if (handle_ == nullptr) handle_ = dlopen(path.c_str(), RTLD_NOW);
+    calls_ = reinterpret_cast<void (*)(char*, int)>(
+        dlsym(handle_, "FakeKinova_Calls"));
+    reset_ = reinterpret_cast<void (*)(const char*)>(
+        dlsym(handle_, "FakeKinova_Reset"));
+    last_point_ = reinterpret_cast<int (*)(kinova::TrajectoryPoint*)>(
+        dlsym(handle_, "FakeKinova_LastPoint"));
+  }
+  ~FakeSdk() {
+    if (handle_ != nullptr) dlclose(handle_);
+  }
+  bool ok() const { return calls_ && reset_ && last_point_; }
+  std::string Calls() {
+    char buffer[8192];
+    calls_(buffer, sizeof(buffer));
+    return buffer;
+  }
+  void Reset(const char* failing = "") { reset_(failing); }
+  int LastPoint(kinova::TrajectoryPoint* point) { return last_point_(point); }
+
+ private:
+  void* handle_ = nullptr;
+  void (*calls_)(char*, int) = nullptr;
+  void (*reset_)(const char*) = nullptr;
+  int (*last_point_)(kinova::TrajectoryPoint*) = nullptr;
+};
+
+Jaco2Options UsbOptions() {
+  Jaco2Options options;
+  options.sdk_library = BITEWISE_FAKE_KINOVA_USB;
+  options.transport = Jaco2Transport::kUsb;
+  options.p_BaseTask_m = Eigen::Vector3d(0.0, -0.45, -0.05);
+  return options;
+}
+
+TEST(Jaco2ArmTest, UsbVariantMapsEveryCall) {
+  FakeSdk sdk(BITEWISE_FAKE_KINOVA_USB);
+  ASSERT_TRUE(sdk.ok());
+  sdk.Reset();
+  {
+    auto arm = Jaco2Arm::Open(UsbOptions());
+    ASSERT_TRUE(arm.ok()) << arm.status();
+    EXPECT_EQ((*arm)->prefix(), "");
+    EXPECT_EQ((*arm)->name(), "JACO2 (USB)");
+    EXPECT_EQ(sdk.Calls(), "InitAPI;StartControlAPI;SetCartesianControl;");
+    ASSERT_TRUE((*arm)->MoveHome().ok());
+
+    // Home is (0, -0.45, 0.10) in the base frame: 0.15 m above the plate.
+    absl::StatusOr<robot::ForkPose> pose = (*arm)->MeasuredPose();
+    ASSERT_TRUE(pose.ok()) << pose.status();
+    EXPECT_NEAR(pose->p_TaskTip_m.x(), 0.0, 1e-6);
+    EXPECT_NEAR(pose->p_TaskTip_m.y(), 0.0, 1e-6);
+    EXPECT_NEAR(pose->p_TaskTip_m.z(), 0.15, 1e-6);
+    EXPECT_NEAR(pose->pitch_rad, 0.0, 1e-6);
+
+    // One 100 Hz command: straight down at 5 cm/s, feed-forward only.
+    robot::ForkPose setpoint = *pose;
+    setpoint.p_TaskTip_m.z() -= 0.0005;
+    robot::ForkVelocity velocity;
+    velocity.v_TaskTip_mps = Eigen::Vector3d(0.0, 0.0, -0.05);
+    ASSERT_TRUE((*arm)->Command(setpoint, velocity).ok());
+    kinova::TrajectoryPoint point{};
+    EXPECT_EQ(sdk.LastPoint(&point), 1);
+    EXPECT_EQ(point.Position.Type, kinova::kCartesianVelocity);
+    // -0.05 feed-forward plus 5/s x -0.0005 m of position error.
+    EXPECT_NEAR(point.Position.CartesianPosition.Z, -0.0525, 1e-6);
+    EXPECT_NEAR(point.Position.CartesianPosition.X, 0.0, 1e-6);
+
+    // Halt: erase the FIFO, then command zero velocity.
+    ASSERT_TRUE((*arm)->Halt().ok());
+    EXPECT_EQ(sdk.LastPoint(&point), 2);
+    EXPECT_EQ(point.Position.CartesianPosition.Z, 0.0f);
+
+    absl::StatusOr<ArmWrench> wrench = (*arm)->EstimatedWrench();
+    ASSERT_TRUE(wrench.ok());
+    EXPECT_NEAR(wrench->force_n.z(), 3.5, 1e-6);
+    EXPECT_NEAR(wrench->torque_nm.z(), -0.5, 1e-6);
+  }
+  EXPECT_EQ(sdk.Calls(),
+            "InitAPI;StartControlAPI;SetCartesianControl;MoveHome;"
+            "GetCartesianPosition;GetCartesianPosition;SendBasicTrajectory;"
+            "EraseAllTrajectories;SendBasicTrajectory;GetCartesianForce;"
+            "EraseAllTrajectories;CloseAPI;");
+}
+
+TEST(Jaco2ArmTest, EthernetVariantUsesThePrefixedNames) {
+  FakeSdk sdk(BITEWISE_FAKE_KINOVA_ETHERNET);
+  ASSERT_TRUE(sdk.ok());
+  sdk.Reset();
+  Jaco2Options options = UsbOptions();
+  options.sdk_library = BITEWISE_FAKE_KINOVA_ETHERNET;
+  options.transport = Jaco2Transport::kEthernet;
+  auto arm = Jaco2Arm::Open(options);
+  ASSERT_TRUE(arm.ok()) << arm.status();
+  EXPECT_EQ((*arm)->prefix(), "Ethernet_");
+  EXPECT_EQ((*arm)->name(), "JACO2 (Ethernet)");
+  ASSERT_TRUE((*arm)->MoveHome().ok());
+  EXPECT_EQ(sdk.Calls(),
+            "InitAPI;StartControlAPI;SetCartesianControl;MoveHome;");
+}
+
+TEST(Jaco2ArmTest, WrongVariantNamesTheMissingFunction) {
+  // The USB library has no Ethernet_ functions.
+  Jaco2Options options = UsbOptions();
+  options.transport = Jaco2Transport::kEthernet;
+  absl::Status status = Jaco2Arm::Open(options).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(status.message(), HasSubstr("has no function Ethernet_InitAPI"));
+  EXPECT_THAT(status.message(), HasSubstr("USB variant"));
+}
+
+TEST(Jaco2ArmTest, MissingSdkIsAClearError) {
+  Jaco2Options options;
+  options.sdk_library = "/nonexistent/Kinova.API.USBCommandLayerUbuntu.so";
+  absl::Status status = Jaco2Arm::Open(options).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(status.message()),
+              StartsWith("cannot load the Kinova JACO2 SDK "
+                         "\"/nonexistent/Kinova.API.USBCommandLayerUbuntu.so"));
+  EXPECT_THAT(status.message(), HasSubstr("--jaco2_sdk"));
+  // The default name when none is given.
+  Jaco2Options defaults;
+  defaults.transport = Jaco2Transport::kEthernet;
+  status = Jaco2Arm::Open(defaults).status();
+  EXPECT_THAT(status.message(),
+              HasSubstr("\"Kinova.API.EthCommandLayerUbuntu.so\""));
+}
+
+TEST(Jaco2ArmTest, SdkErrorCodesNameTheCall) {
+  FakeSdk sdk(BITEWISE_FAKE_KINOVA_USB);
+  ASSERT_TRUE(sdk.ok());
+  sdk.Reset("StartControlAPI");
+  absl::Status status = Jaco2Arm::Open(UsbOptions()).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(status.message(),
+              HasSubstr("StartControlAPI failed with error 1015"));
+  // The API was opened, so it is closed again.
+  EXPECT_THAT(sdk.Calls(), HasSubstr("CloseAPI;"));
+  sdk.Reset();
+}
+
+}  // namespace
+}  // namespace bitewise::jaco2

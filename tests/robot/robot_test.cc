@@ -1,0 +1,283 @@
+// The acquisition loop (Robot) on the simulated backend, no gRPC: the real
+// NetFtRdtClient reads the simulated box over loopback while the simulated
+// arm moves. Covers a whole acquisition, the force-limit stop, Stop during
+// an action, the F/T watchdog, and bad requests that must change nothing.
+#include "services/robot/robot.h"
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <future>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "services/robot/backend.h"
+#include "services/robot/steady_time.h"
+
+namespace bitewise::robot {
+namespace {
+
+using ::testing::HasSubstr;
+
+bool WaitFor(const std::function<bool()>& done, double timeout_s = 30.0) {
+  const double deadline = SteadyNowS() + timeout_s;
+  while (SteadyNowS() < deadline) {
+    if (done()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+  return done();
+}
+
+RobotBackendOptions SimOptions(std::vector<std::string> foods, uint64_t seed) {
+  RobotBackendOptions options;
+  options.kind = BackendKind::kSim;
+  options.sim.seed = seed;
+  options.sim.foods = std::move(foods);
+  options.sim.box.rate_hz = 1000.0;
+  options.ft.silence_timeout_s = 0.3;
+  // Generous on a loaded 2-core machine; the watchdog test sets silence
+  // that lasts until the arm has stopped anyway.
+  options.acquisition.watchdog_timeout_s = 0.5;
+  return options;
+}
+
+class RobotTest : public ::testing::Test {
+ protected:
+  void Start(std::vector<std::string> foods, uint64_t seed = 3) {
+    auto backend = RobotBackend::Create(SimOptions(std::move(foods), seed));
+    ASSERT_TRUE(backend.ok()) << backend.status();
+    backend_ = std::move(backend).value();
+  }
+
+  AcquireTarget TargetOfItem(size_t i) {
+    const sim::PlateScene scene = backend_->world()->scene();
+    auto target = backend_->world()->TargetOf(scene.items.at(i).id);
+    EXPECT_TRUE(target.has_value());
+    return *target;
+  }
+
+  // Runs Acquire on another thread; `on_phase` is called (on that thread)
+  // once when `phase` starts.
+  std::future<absl::StatusOr<AcquireOutcome>> AcquireAsync(
+      const AcquireTarget& target, int action, AcquirePhase phase,
+      std::atomic<bool>* reached) {
+    return std::async(std::launch::async, [=] {
+      return backend_->robot().Acquire(target, action,
+                                       [=](const AcquireProgressEvent& event) {
+                                         if (event.phase == phase)
+                                           *reached = true;
+                                         return true;
+                                       });
+    });
+  }
+
+  bool ArmFrozen() {
+    const ForkPose a = *backend_->sim_arm()->MeasuredPose();
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    const ForkPose b = *backend_->sim_arm()->MeasuredPose();
+    return (a.p_TaskTip_m - b.p_TaskTip_m).norm() == 0.0;
+  }
+
+  std::unique_ptr<RobotBackend> backend_;
+};
+
+TEST_F(RobotTest, AcquireRunsEveryPhaseAndRecordsTheTrace) {
+  Start({"strawberry", "banana"});
+  const AcquireTarget target = TargetOfItem(0);
+  const int items_before = backend_->items_left();
+  std::vector<AcquirePhase> phases;
+  absl::StatusOr<AcquireOutcome> outcome = backend_->robot().Acquire(
+      target, /*action_index=*/0, [&](const AcquireProgressEvent& event) {
+        if (phases.empty() || phases.back() != event.phase) {
+          phases.push_back(event.phase);
+        }
+        return true;
+      });
+  ASSERT_TRUE(outcome.ok()) << outcome.status();
+  EXPECT_EQ(phases, (std::vector<AcquirePhase>{
+                        AcquirePhase::kApproach, AcquirePhase::kOrient,
+                        AcquirePhase::kDescend, AcquirePhase::kExtract,
+                        AcquirePhase::kDone}));
+  EXPECT_EQ(outcome->attempt.true_food_type, "strawberry");
+  EXPECT_FALSE(outcome->attempt.decided_by_operator);
+  // About a thousand samples a second throughout, in time order.
+  ASSERT_GT(outcome->trace.size(), 0.7 * 1000 * outcome->duration_s);
+  for (size_t i = 1; i < outcome->trace.size(); ++i) {
+    ASSERT_GT(outcome->trace[i].t_s, outcome->trace[i - 1].t_s);
+  }
+  // Contact comes from the arm's motion: after the approach and the orient
+  // (at least the standoff of 3 cm at 5 cm/s into the run), not before.
+  EXPECT_GT(outcome->contact_time_s, 0.6);
+  EXPECT_LT(outcome->contact_time_s, outcome->duration_s);
+  EXPECT_FALSE(outcome->force_limit_reached);  // medium foods: < 5 N
+  EXPECT_GT(outcome->peak_force_n, 1.5);
+  EXPECT_LT(outcome->peak_force_n, 8.0);
+  // The world decided; the plate agrees with the verdict.
+  EXPECT_EQ(backend_->items_left(),
+            items_before - (outcome->attempt.success ? 1 : 0));
+  if (outcome->attempt.success) {
+    // The strawberry hangs from the fork: grams, a few hundredths of a N.
+    EXPECT_GT(outcome->static_load_n, 0.01);
+  } else {
+    EXPECT_NEAR(outcome->static_load_n, 0.0, 0.02);
+  }
+}
+
+TEST_F(RobotTest, TheSeedDecidesTheOutcome) {
+  std::vector<bool> first, second;
+  for (std::vector<bool>* run : {&first, &second}) {
+    Start({"banana", "carrot"}, /*seed=*/11);
+    for (size_t i = 0; i < 2; ++i) {
+      absl::StatusOr<AcquireOutcome> outcome =
+          backend_->robot().Acquire(TargetOfItem(0), 5, nullptr);
+      ASSERT_TRUE(outcome.ok()) << outcome.status();
+      run->push_back(outcome->attempt.success);
+      if (backend_->items_left() == 0) break;
+    }
+    backend_.reset();
+  }
+  EXPECT_EQ(first, second);
+}
+
+TEST_F(RobotTest, ForceLimitStopsTheDescent) {
+  // TA0 allows 10 N; hard foods push back with 10-18 N.
+  Start({"carrot", "celery", "apple"}, /*seed=*/5);
+  const sim::PlateScene scene = backend_->world()->scene();
+  size_t hardest = 0;
+  double hardest_n = 0.0;
+  for (size_t i = 0; i < scene.items.size(); ++i) {
+    const double peak =
+        backend_->world()->ProfileOf(scene.items[i].id)->PeakForce();
+    if (peak > hardest_n) {
+      hardest_n = peak;
+      hardest = i;
+    }
+  }
+  ASSERT_GT(hardest_n, 12.0) << "seed 5 should give a stiff item";
+  const double item_top_m = scene.items[hardest].height_m;
+  absl::StatusOr<AcquireOutcome> outcome =
+      backend_->robot().Acquire(TargetOfItem(hardest), 4, nullptr);
+  ASSERT_TRUE(outcome.ok()) << outcome.status();
+  EXPECT_TRUE(outcome->force_limit_reached);
+  EXPECT_GE(outcome->peak_force_n, 10.0);
+  // Stopped within a control period or two of crossing the limit.
+  EXPECT_LT(outcome->peak_force_n, 15.0);
+  // The arm stopped well short of the depth limit.
+  const double depth_bottom_m =
+      std::max(item_top_m - backend_->robot().config().depth_limit_m,
+               backend_->robot().config().floor_z_m);
+  EXPECT_GT(outcome->lowest_tip_z_m, depth_bottom_m + 0.002);
+  EXPECT_LT(outcome->lowest_tip_z_m, item_top_m);
+}
+
+TEST_F(RobotTest, StopHaltsWithinOneControlPeriod) {
+  Start({"banana"});
+  std::atomic<bool> descending{false};
+  auto running =
+      AcquireAsync(TargetOfItem(0), 4, AcquirePhase::kDescend, &descending);
+  ASSERT_TRUE(WaitFor([&] { return descending.load(); }));
+  const int commands_before = backend_->sim_arm()->commands();
+  const double before_s = SteadyNowS();
+  absl::StatusOr<bool> was_moving = backend_->robot().Stop();
+  const double after_s = SteadyNowS();
+  ASSERT_TRUE(was_moving.ok());
+  EXPECT_TRUE(*was_moving);
+  // Halted inside the Stop call, and not a single command after it.
+  const double halt_s = backend_->sim_arm()->last_halt_s();
+  EXPECT_GE(halt_s, before_s);
+  EXPECT_LE(halt_s, after_s);
+  const int commands_at_stop = backend_->sim_arm()->commands();
+  EXPECT_LE(commands_at_stop - commands_before, 1);
+  absl::StatusOr<AcquireOutcome> outcome = running.get();
+  EXPECT_EQ(outcome.status().code(), absl::StatusCode::kAborted);
+  EXPECT_THAT(outcome.status().message(),
+              HasSubstr("stopped by a Stop request during descend"));
+  EXPECT_EQ(backend_->sim_arm()->commands(), commands_at_stop);
+  EXPECT_TRUE(ArmFrozen());
+  // A Stop while idle changes nothing for the next acquisition.
+  ASSERT_FALSE(*backend_->robot().Stop());
+  EXPECT_TRUE(backend_->robot().Acquire(TargetOfItem(0), 4, nullptr).ok());
+}
+
+TEST_F(RobotTest, WatchdogStopsTheArmWhenTheSensorGoesSilent) {
+  Start({"cantaloupe"});
+  std::atomic<bool> descending{false};
+  auto running =
+      AcquireAsync(TargetOfItem(0), 0, AcquirePhase::kDescend, &descending);
+  ASSERT_TRUE(WaitFor([&] { return descending.load(); }));
+  sim::SimNetFtFaults faults;
+  faults.silent = true;
+  backend_->box()->SetFaults(faults);
+  absl::StatusOr<AcquireOutcome> outcome = running.get();
+  EXPECT_EQ(outcome.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(outcome.status().message(),
+              HasSubstr("Net F/T sensor at 127.0.0.1:" +
+                        std::to_string(backend_->box()->port())));
+  EXPECT_THAT(outcome.status().message(), HasSubstr("watchdog 500 ms"));
+  EXPECT_GE(backend_->sim_arm()->halts(), 1);
+  EXPECT_TRUE(ArmFrozen());
+  // No live stream: the next Acquire refuses before moving.
+  const int commands = backend_->sim_arm()->commands();
+  absl::Status refused =
+      backend_->robot().Acquire(TargetOfItem(0), 0, nullptr).status();
+  EXPECT_EQ(refused.code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(refused.message(), HasSubstr("is silent"));
+  EXPECT_EQ(backend_->sim_arm()->commands(), commands);
+  backend_->box()->SetFaults(sim::SimNetFtFaults());
+  ASSERT_TRUE(WaitFor([&] { return backend_->FtLive(); }));
+  EXPECT_TRUE(backend_->robot().Acquire(TargetOfItem(0), 0, nullptr).ok());
+}
+
+TEST_F(RobotTest, OneAcquisitionAtATime) {
+  Start({"kiwi"});
+  std::atomic<bool> approaching{false};
+  auto running =
+      AcquireAsync(TargetOfItem(0), 4, AcquirePhase::kApproach, &approaching);
+  ASSERT_TRUE(WaitFor([&] { return approaching.load(); }));
+  absl::Status second =
+      backend_->robot().Acquire(TargetOfItem(0), 4, nullptr).status();
+  EXPECT_EQ(second.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(second.message(), HasSubstr("another Acquire is running"));
+  absl::Status tare = backend_->robot().Tare();
+  EXPECT_EQ(tare.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_TRUE(running.get().ok());
+  EXPECT_EQ(backend_->box()->counters().bias_commands, 0u);
+  EXPECT_TRUE(backend_->robot().Tare().ok());
+  EXPECT_TRUE(
+      WaitFor([&] { return backend_->box()->counters().bias_commands == 1; }));
+}
+
+TEST_F(RobotTest, BadRequestsAreRejectedAndMoveNothing) {
+  Start({"grape"});
+  const int commands = backend_->sim_arm()->commands();
+  const AcquireTarget good = TargetOfItem(0);
+  for (int action : {-1, 6, 100}) {
+    absl::Status status =
+        backend_->robot().Acquire(good, action, nullptr).status();
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_THAT(status.message(), HasSubstr("out of range"));
+  }
+  AcquireTarget far = good;
+  far.p_CameraItem_m.x() = 0.4;
+  absl::Status status = backend_->robot().Acquire(far, 0, nullptr).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(status.message(), HasSubstr("outside the workspace"));
+  AcquireTarget deep = good;
+  deep.p_CameraItem_m.z() = 0.5;  // 15 cm below the plate
+  status = backend_->robot().Acquire(deep, 0, nullptr).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  AcquireTarget nan = good;
+  nan.major_axis_angle_rad = std::nan("");
+  status = backend_->robot().Acquire(nan, 0, nullptr).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(status.message(), HasSubstr("finite"));
+  EXPECT_EQ(backend_->sim_arm()->commands(), commands);
+  EXPECT_EQ(backend_->items_left(), 1);
+}
+
+}  // namespace
+}  // namespace bitewise::robot
