@@ -5,6 +5,8 @@
 // Acquire with streamed progress (RobotService), classify the force trace
 // (HapticService) and Update the bandit. An Update that cannot be delivered
 // goes to a local journal and is delivered at the start of the next run.
+#include <unistd.h>
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -19,6 +21,7 @@
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
+#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "bitewise/v1/bandit.grpc.pb.h"
@@ -267,7 +270,8 @@ class MealRunner {
       return false;
     }
     bool success = result.success();
-    if (absl::GetFlag(FLAGS_confirm) == "operator") {
+    if (absl::GetFlag(FLAGS_confirm) == "operator" ||
+        result.success_decided_by_operator()) {
       success = AskOperator();
     }
 
@@ -376,18 +380,23 @@ class MealRunner {
     v1::AcquireProgress progress;
     bool have_result = false;
     int last_phase = -1;
+    // On a terminal, one line that follows the phases as they stream in.
+    const bool show = isatty(STDOUT_FILENO) != 0;
     while (reader->Read(&progress)) {
-      if (progress.phase() != last_phase) {
+      if (show && (progress.phase() != last_phase || progress.has_result())) {
         last_phase = progress.phase();
-        std::fprintf(stderr, "  ... %s (%.2f s, %.1f N)\n",
-                     v1::AcquirePhase_Name(progress.phase()).c_str(),
-                     progress.elapsed_s(), progress.force_n());
+        std::string phase = v1::AcquirePhase_Name(progress.phase());
+        phase = absl::AsciiStrToLower(phase.substr(phase.rfind('_') + 1));
+        std::printf("\r  acquiring: %-9s %5.2f s %5.1f N", phase.c_str(),
+                    progress.elapsed_s(), progress.force_n());
+        std::fflush(stdout);
       }
       if (progress.has_result()) {
         *result = progress.result();
         have_result = true;
       }
     }
+    if (show) std::printf("\r%60s\r", "");
     grpc::Status status = reader->Finish();
     if (status.ok() && !have_result) {
       return grpc::Status(grpc::StatusCode::INTERNAL,
