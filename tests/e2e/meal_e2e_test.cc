@@ -1,0 +1,258 @@
+// End-to-end: the four real service binaries on free loopback ports and the
+// real orchestrator running meals through them, as scripts/meal.sh does.
+#include <signal.h>
+#include <stdlib.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <chrono>
+#include <memory>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "absl/time/time.h"
+#include "bitewise/v1/bandit.grpc.pb.h"
+#include "gtest/gtest.h"
+#include "services/common/channel.h"
+#include "tests/common/child_process.h"
+
+namespace bitewise {
+namespace {
+
+namespace v1 = bitewise::v1;
+using testing::ChildProcess;
+
+constexpr absl::Duration kServingTimeout = absl::Seconds(90);
+
+struct ServiceSpec {
+  const char* name;     // log file stem
+  const char* service;  // health name
+  const char* binary;
+};
+
+const ServiceSpec kBandit = {"bandit", "bitewise.v1.BanditService",
+                             BITEWISE_BANDIT_BINARY};
+const ServiceSpec kPerception = {"perception", "bitewise.v1.PerceptionService",
+                                 BITEWISE_PERCEPTION_BINARY};
+const ServiceSpec kHaptic = {"haptic", "bitewise.v1.HapticService",
+                             BITEWISE_HAPTIC_BINARY};
+const ServiceSpec kRobot = {"robot", "bitewise.v1.RobotService",
+                            BITEWISE_ROBOT_BINARY};
+
+// One service binary, restartable on the same port.
+struct RunningService {
+  ServiceSpec spec;
+  int port = 0;
+  std::vector<std::string> extra_args;
+  ChildProcess process;
+  std::string address() const { return absl::StrCat("127.0.0.1:", port); }
+};
+
+class MealEndToEndTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = ::testing::TempDir() + "/e2e_XXXXXX";
+    ASSERT_NE(mkdtemp(dir_.data()), nullptr);
+    services_[0].spec = kBandit;
+    services_[0].extra_args = {absl::StrCat("--db=", dir_, "/bandit.db")};
+    services_[1].spec = kPerception;
+    services_[2].spec = kHaptic;
+    services_[3].spec = kRobot;
+    services_[3].extra_args = {"--backend=sim", "--seed=3"};
+    for (RunningService& s : services_) {
+      ASSERT_TRUE(StartOnFreePort(s).ok()) << s.spec.name;
+    }
+  }
+
+  void TearDown() override {
+    for (RunningService& s : services_) s.process.Kill();
+  }
+
+  absl::Status Start(RunningService& s) {
+    std::vector<std::string> argv = {s.spec.binary,
+                                     absl::StrCat("--listen=", s.address()),
+                                     "--drain_timeout_s=5"};
+    argv.insert(argv.end(), s.extra_args.begin(), s.extra_args.end());
+    absl::Status started =
+        s.process.Start(argv, absl::StrCat(dir_, "/", s.spec.name, ".log"));
+    if (!started.ok()) return started;
+    auto channel = MakeChannel(s.address(), ChannelOptions());
+    if (!channel.ok()) return channel.status();
+    absl::Status serving =
+        WaitForServing(*channel, s.spec.service, kServingTimeout);
+    if (!serving.ok()) {
+      return absl::Status(
+          serving.code(),
+          absl::StrCat(serving.message(), "; log:\n", s.process.log()));
+    }
+    return absl::OkStatus();
+  }
+
+  absl::Status StartOnFreePort(RunningService& s) {
+    absl::Status last;
+    for (int attempt = 0; attempt < 4; ++attempt) {
+      absl::StatusOr<int> port = testing::PickFreePort();
+      if (!port.ok()) return port.status();
+      s.port = *port;
+      last = Start(s);
+      if (last.ok()) return last;
+      s.process.Kill();
+    }
+    return last;
+  }
+
+  std::vector<std::string> OrchestratorArgs(const std::string& user,
+                                            const std::string& meal,
+                                            int bites) {
+    return {BITEWISE_ORCHESTRATOR_BINARY,
+            absl::StrCat("--user=", user),
+            absl::StrCat("--meal=", meal),
+            absl::StrCat("--bites=", bites),
+            absl::StrCat("--bandit=", services_[0].address()),
+            absl::StrCat("--perception=", services_[1].address()),
+            absl::StrCat("--haptic=", services_[2].address()),
+            absl::StrCat("--robot=", services_[3].address()),
+            absl::StrCat("--journal=", dir_, "/orchestrator.journal"),
+            "--retries=1"};
+  }
+
+  // Runs the orchestrator to its end; returns its output and wait status.
+  std::string RunOrchestrator(const std::vector<std::string>& args,
+                              const std::string& log_name, int* status) {
+    ChildProcess orchestrator;
+    const std::string log = absl::StrCat(dir_, "/", log_name);
+    EXPECT_TRUE(orchestrator.Start(args, log).ok());
+    absl::StatusOr<int> waited = orchestrator.Wait(absl::Seconds(240));
+    EXPECT_TRUE(waited.ok()) << waited.status();
+    *status = waited.ok() ? *waited : -1;
+    return orchestrator.log();
+  }
+
+  std::vector<v1::Event> Events(const std::string& user) {
+    auto channel = MakeChannel(services_[0].address(), ChannelOptions());
+    auto stub = v1::BanditService::NewStub(*channel);
+    v1::ListEventsRequest request;
+    request.set_user_id(user);
+    request.set_page_size(1000);
+    v1::ListEventsResponse response;
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() +
+                         std::chrono::seconds(20));
+    grpc::Status status = stub->ListEvents(&context, request, &response);
+    EXPECT_TRUE(status.ok()) << status.error_message();
+    return {response.events().begin(), response.events().end()};
+  }
+
+  static int CountLines(const std::string& text, const std::string& needle) {
+    int n = 0;
+    for (absl::string_view line : absl::StrSplit(text, '\n')) {
+      if (absl::StartsWith(line, "bite ") && absl::StrContains(line, needle)) {
+        ++n;
+      }
+    }
+    return n;
+  }
+
+  std::string dir_;
+  std::array<RunningService, 4> services_;
+};
+
+TEST_F(MealEndToEndTest, ShortMealIsPersistedAndServicesStopCleanly) {
+  int status = 0;
+  const std::string out =
+      RunOrchestrator(OrchestratorArgs("e2e", "m1", 3), "meal1.log", &status);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << testing::DescribeWaitStatus(status) << "\n"
+      << out;
+  EXPECT_EQ(CountLines(out, "learned"), 3) << out;
+  EXPECT_TRUE(absl::StrContains(out, "meal m1: 3 attempts")) << out;
+
+  // Every bite is a completed event with the context and haptic class.
+  const std::vector<v1::Event> events = Events("e2e");
+  ASSERT_EQ(events.size(), 3u);
+  for (const v1::Event& e : events) {
+    EXPECT_TRUE(e.completed());
+    EXPECT_EQ(e.meal_id(), "m1");
+    EXPECT_GT(e.context_size(), 0);
+    EXPECT_EQ(e.posthoc_size(), 4);
+    EXPECT_TRUE(e.loss() == 0.0 || e.loss() == 1.0);
+  }
+
+  // A second meal for the same user starts from the first meal's model.
+  const std::string out2 =
+      RunOrchestrator(OrchestratorArgs("e2e", "m2", 2), "meal2.log", &status);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << out2;
+  EXPECT_TRUE(absl::StrContains(out2, "continues from model version 3"))
+      << out2;
+  EXPECT_EQ(Events("e2e").size(), 5u);
+
+  // Every service is still healthy, then drains and exits 0 on SIGTERM.
+  for (RunningService& s : services_) {
+    auto channel = MakeChannel(s.address(), ChannelOptions());
+    EXPECT_TRUE(
+        WaitForServing(*channel, s.spec.service, absl::Seconds(10)).ok())
+        << s.spec.name;
+  }
+  for (RunningService& s : services_) {
+    absl::StatusOr<int> exited =
+        s.process.SignalAndWait(SIGTERM, absl::Seconds(30));
+    ASSERT_TRUE(exited.ok()) << s.spec.name << ": " << exited.status();
+    EXPECT_TRUE(WIFEXITED(*exited) && WEXITSTATUS(*exited) == 0)
+        << s.spec.name << ": " << testing::DescribeWaitStatus(*exited) << "\n"
+        << s.process.log();
+  }
+}
+
+TEST_F(MealEndToEndTest, KilledBanditMidMealLosesNoAcknowledgedUpdate) {
+  ChildProcess orchestrator;
+  ASSERT_TRUE(orchestrator
+                  .Start(OrchestratorArgs("crash", "m1", 8),
+                         absl::StrCat(dir_, "/crash1.log"))
+                  .ok());
+  // Let two bites finish, then kill the BanditService while the third is
+  // being acquired, so its Update has nowhere to go.
+  ASSERT_TRUE(orchestrator.WaitForLog("bite  2", absl::Seconds(180)).ok())
+      << orchestrator.log();
+  absl::SleepFor(absl::Milliseconds(1500));
+  services_[0].process.Kill();
+  absl::StatusOr<int> ended = orchestrator.Wait(absl::Seconds(120));
+  ASSERT_TRUE(ended.ok()) << ended.status();
+  const std::string out = orchestrator.log();
+  // The orchestrator says what failed and stops the meal.
+  EXPECT_TRUE(WIFEXITED(*ended) && WEXITSTATUS(*ended) == 1) << out;
+  EXPECT_TRUE(absl::StrContains(out, "stopping the meal: BanditService."))
+      << out;
+  EXPECT_TRUE(absl::StrContains(out, "UNAVAILABLE")) << out;
+  const int learned = CountLines(out, "learned");
+  const int journaled = CountLines(out, "journaled");
+  EXPECT_GE(learned, 2) << out;
+
+  // Restart on the same database and port; the next run delivers the
+  // journal first and the meal goes on.
+  ASSERT_TRUE(Start(services_[0]).ok());
+  int status = 0;
+  const std::string out2 = RunOrchestrator(OrchestratorArgs("crash", "m1", 2),
+                                           "crash2.log", &status);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << out2;
+  if (journaled > 0) {
+    EXPECT_TRUE(absl::StrContains(
+        out2, absl::StrCat("journal: delivered ", journaled, " update(s)")))
+        << out2;
+  }
+  const int learned2 = CountLines(out2, "learned");
+  EXPECT_EQ(learned2, 2) << out2;
+
+  int completed = 0;
+  for (const v1::Event& e : Events("crash")) completed += e.completed();
+  EXPECT_EQ(completed, learned + journaled + learned2)
+      << "first run:\n"
+      << out << "\nsecond run:\n"
+      << out2;
+}
+
+}  // namespace
+}  // namespace bitewise
