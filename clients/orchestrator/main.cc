@@ -24,6 +24,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_split.h"
 #include "bitewise/v1/bandit.grpc.pb.h"
 #include "bitewise/v1/haptic.grpc.pb.h"
 #include "bitewise/v1/perception.grpc.pb.h"
@@ -44,6 +45,10 @@ ABSL_FLAG(std::string, robot, "127.0.0.1:50054", "RobotService address.");
 ABSL_FLAG(std::string, tls_ca, "", "CA bundle of the servers (turns on TLS).");
 ABSL_FLAG(std::string, tls_cert, "", "Client certificate (mutual TLS).");
 ABSL_FLAG(std::string, tls_key, "", "Client key (mutual TLS).");
+ABSL_FLAG(std::string, tls_for, "all",
+          "Which links use the TLS flags: all, or a comma-separated subset of "
+          "bandit, perception, haptic, robot (e.g. the workstation's services "
+          "while the robot computer's own stay plaintext on loopback).");
 ABSL_FLAG(std::string, confirm, "robot",
           "Who decides success: robot (the RobotService reports it) or "
           "operator (answer y/n at the terminal).");
@@ -451,8 +456,28 @@ int main(int argc, char** argv) {
   tls.tls_cert_file = absl::GetFlag(FLAGS_tls_cert);
   tls.tls_key_file = absl::GetFlag(FLAGS_tls_key);
   tls.max_message_bytes = 64 << 20;  // frames and long traces
-  auto channel = [&](const std::string& address) {
-    auto made = bitewise::MakeChannel(address, tls);
+  const std::string tls_for = absl::GetFlag(FLAGS_tls_for);
+  const std::vector<std::string> tls_links = absl::StrSplit(tls_for, ',');
+  for (const std::string& link : tls_links) {
+    if (link != "all" && link != "bandit" && link != "perception" &&
+        link != "haptic" && link != "robot") {
+      std::fprintf(stderr, "--tls_for: unknown link \"%s\"\n", link.c_str());
+      return 2;
+    }
+  }
+  auto channel = [&](const std::string& link) {
+    const std::string address = link == "bandit" ? absl::GetFlag(FLAGS_bandit)
+                                : link == "perception"
+                                    ? absl::GetFlag(FLAGS_perception)
+                                : link == "haptic" ? absl::GetFlag(FLAGS_haptic)
+                                                   : absl::GetFlag(FLAGS_robot);
+    const bool use_tls =
+        tls_for == "all" ||
+        std::find(tls_links.begin(), tls_links.end(), link) != tls_links.end();
+    bitewise::ChannelOptions options = tls;
+    if (!use_tls) options = bitewise::ChannelOptions{};
+    options.max_message_bytes = tls.max_message_bytes;
+    auto made = bitewise::MakeChannel(address, options);
     if (!made.ok()) {
       std::fprintf(stderr, "%s: %s\n", address.c_str(),
                    made.status().ToString().c_str());
@@ -461,13 +486,10 @@ int main(int argc, char** argv) {
     return *made;
   };
   Stubs stubs;
-  stubs.bandit =
-      v1::BanditService::NewStub(channel(absl::GetFlag(FLAGS_bandit)));
-  stubs.perception =
-      v1::PerceptionService::NewStub(channel(absl::GetFlag(FLAGS_perception)));
-  stubs.haptic =
-      v1::HapticService::NewStub(channel(absl::GetFlag(FLAGS_haptic)));
-  stubs.robot = v1::RobotService::NewStub(channel(absl::GetFlag(FLAGS_robot)));
+  stubs.bandit = v1::BanditService::NewStub(channel("bandit"));
+  stubs.perception = v1::PerceptionService::NewStub(channel("perception"));
+  stubs.haptic = v1::HapticService::NewStub(channel("haptic"));
+  stubs.robot = v1::RobotService::NewStub(channel("robot"));
 
   UpdateJournal journal(absl::GetFlag(FLAGS_journal));
   const std::string user_id = absl::GetFlag(FLAGS_user);
