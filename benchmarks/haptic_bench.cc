@@ -10,6 +10,7 @@
 #include "bitewise/v1/haptic.grpc.pb.h"
 #include "services/common/channel.h"
 #include "services/common/server.h"
+#include "services/haptic/converters.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/default_model.h"
 #include "services/haptic/haptic_service.h"
@@ -85,16 +86,7 @@ void BM_ClassifyOverGrpc(benchmark::State& state) {
   auto channel = MakeChannel((*server)->address(), ChannelOptions());
   auto stub = v1::HapticService::NewStub(*channel);
   v1::ClassifyRequest request;
-  for (const WrenchSample& s : OneSecondTrace(1000.0)) {
-    v1::WrenchSample* out = request.add_samples();
-    out->set_t_s(s.t_s);
-    out->set_fx_n(s.values[0]);
-    out->set_fy_n(s.values[1]);
-    out->set_fz_n(s.values[2]);
-    out->set_tx_nm(s.values[3]);
-    out->set_ty_nm(s.values[4]);
-    out->set_tz_nm(s.values[5]);
-  }
+  TraceToProto(OneSecondTrace(1000.0), &request);
   for (auto _ : state) {
     grpc::ClientContext context;
     context.set_deadline(std::chrono::system_clock::now() +

@@ -1,10 +1,11 @@
 // bitewise-bandit-demo: simulated bites against a running BanditService.
 //
 // Until the perception, haptic and robot services exist, this client stands
-// in for them with a small simulated plate: eight unseen foods whose visual
-// context is a noisy, food-specific feature vector, whose haptic class is
-// observed by a noisy classifier, and whose success probability per action
-// follows the known optima of SPEC section 1. Every bite goes through the
+// in for them with a small simulated plate: the eight unseen foods of the
+// simulated world's food catalog, whose visual context is a noisy,
+// food-specific feature vector, whose haptic category is observed by a noisy
+// classifier, and whose success probability per action is the catalog's
+// (the known optima of SPEC section 1). Every bite goes through the
 // real BanditService (Select, then Update) so that learning persists per
 // user across meals.
 #include <algorithm>
@@ -26,6 +27,7 @@
 #include "bitewise/v1/bandit.grpc.pb.h"
 #include "services/common/channel.h"
 #include "services/common/grpc_status.h"
+#include "services/robot/sim/food_catalog.h"
 
 ABSL_FLAG(std::string, bandit, "127.0.0.1:50051", "BanditService address.");
 ABSL_FLAG(std::string, user, "demo-user", "User whose model learns.");
@@ -48,37 +50,18 @@ namespace {
 
 namespace v1 = bitewise::v1;
 
-const char* const kHapticNames[] = {"hard", "medium", "soft", "hard-skin"};
-
-struct Food {
-  const char* name;
-  int haptic;  // index into kHapticNames
-  // Success probability per action VS0, VS90, TV0, TV90, TA0, TA90: the
-  // known optima of SPEC section 1 succeed most often.
-  double success[6];
-};
-
-const Food kUnseenFoods[] = {
-    {"carrot", 0, {0.55, 0.90, 0.40, 0.50, 0.10, 0.10}},
-    {"celery", 0, {0.55, 0.85, 0.40, 0.45, 0.10, 0.10}},
-    {"strawberry", 1, {0.90, 0.70, 0.90, 0.70, 0.45, 0.40}},
-    {"cantaloupe", 1, {0.85, 0.70, 0.85, 0.65, 0.50, 0.45}},
-    {"banana", 2, {0.30, 0.30, 0.40, 0.35, 0.90, 0.90}},
-    {"kiwi", 2, {0.35, 0.35, 0.45, 0.40, 0.85, 0.85}},
-    {"cherry_tomato", 3, {0.35, 0.45, 0.60, 0.90, 0.15, 0.15}},
-    {"grape", 3, {0.35, 0.45, 0.60, 0.90, 0.15, 0.15}},
-};
-constexpr int kFoods = 8;
+using bitewise::sim::FoodType;
+using bitewise::sim::HapticCategory;
 
 // Visual features: each food has a base appearance; each item adds
 // within-type variation, and the features are non-negative like SPANet's
 // post-ReLU activations.
 class VisualModel {
  public:
-  VisualModel(int dim, uint64_t seed) : dim_(dim) {
+  VisualModel(int foods, int dim, uint64_t seed) : dim_(dim) {
     std::mt19937_64 rng(seed);
     std::normal_distribution<double> normal(0.0, 1.0);
-    for (int f = 0; f < kFoods; ++f) {
+    for (int f = 0; f < foods; ++f) {
       std::vector<double> base(dim);
       for (double& x : base) x = 0.5 * normal(rng);
       bases_.push_back(base);
@@ -100,11 +83,12 @@ class VisualModel {
 };
 
 // A noisy haptic classifier: softmax of a boosted true class plus noise.
-std::vector<double> HapticProbabilities(int category, std::mt19937_64& rng) {
+std::vector<double> HapticProbabilities(HapticCategory category,
+                                        std::mt19937_64& rng) {
   std::normal_distribution<double> normal(0.0, 0.8);
-  std::vector<double> logits(4);
-  for (int k = 0; k < 4; ++k)
-    logits[k] = (k == category ? 3.0 : 0.0) + normal(rng);
+  std::vector<double> logits(bitewise::sim::kHapticCategories);
+  for (int k = 0; k < bitewise::sim::kHapticCategories; ++k)
+    logits[k] = (k == static_cast<int>(category) ? 3.0 : 0.0) + normal(rng);
   const double top = *std::max_element(logits.begin(), logits.end());
   double sum = 0.0;
   for (double& l : logits) sum += (l = std::exp(l - top));
@@ -197,13 +181,16 @@ int main(int argc, char** argv) {
     }
   }
   const int dim = static_cast<int>(user.config().context_dim());
-  const VisualModel visual(dim, 7);  // appearance is fixed across meals
+  const std::vector<const FoodType*> foods = bitewise::sim::UnseenFoods();
+  const int num_foods = static_cast<int>(foods.size());
+  // Appearance is fixed across meals.
+  const VisualModel visual(num_foods, dim, 7);
   std::mt19937_64 rng(absl::GetFlag(FLAGS_seed) ^
                       std::hash<std::string>()(meal_id));
   std::uniform_real_distribution<double> coin(0.0, 1.0);
 
-  std::vector<int> plate(kFoods);
-  for (int f = 0; f < kFoods; ++f) plate[f] = f;
+  std::vector<int> plate(num_foods);
+  for (int f = 0; f < num_foods; ++f) plate[f] = f;
   std::shuffle(plate.begin(), plate.end(), rng);
 
   struct Tally {
@@ -213,10 +200,10 @@ int main(int argc, char** argv) {
   std::map<std::string, Tally> per_food;
   int attempts = 0, failures = 0;
   const int max_bites = absl::GetFlag(FLAGS_bites);
-  std::printf("meal %s: %d items on the plate\n", meal_id.c_str(), kFoods);
+  std::printf("meal %s: %d items on the plate\n", meal_id.c_str(), num_foods);
   while (!plate.empty() && attempts < max_bites) {
     const int food = plate.back();
-    const Food& spec = kUnseenFoods[food];
+    const FoodType& spec = *foods[food];
     v1::SelectRequest select;
     select.set_user_id(user_id);
     select.set_meal_id(meal_id);
@@ -229,7 +216,7 @@ int main(int argc, char** argv) {
     if (!status.ok()) return Fail("Select", status);
 
     const bool success = coin(rng) < spec.success[chosen.action()];
-    const std::vector<double> probs = HapticProbabilities(spec.haptic, rng);
+    const std::vector<double> probs = HapticProbabilities(spec.category, rng);
     const int sensed = static_cast<int>(
         std::max_element(probs.begin(), probs.end()) - probs.begin());
     v1::UpdateRequest update;
@@ -257,10 +244,12 @@ int main(int argc, char** argv) {
       absl::StrAppend(&lcbs,
                       absl::StrFormat(" %s=%+.3f", e.action_name(), e.lcb()));
     }
-    std::printf("bite %2d  %-14s %-5s lcb[%s ]  %-7s haptic %s %.2f\n",
-                attempts, spec.name, chosen.action_name().c_str(), lcbs.c_str(),
-                success ? "success" : "FAILED", kHapticNames[sensed],
-                probs[sensed]);
+    std::printf(
+        "bite %2d  %-14s %-5s lcb[%s ]  %-7s haptic %s %.2f\n", attempts,
+        spec.name.c_str(), chosen.action_name().c_str(), lcbs.c_str(),
+        success ? "success" : "FAILED",
+        bitewise::sim::HapticCategoryName(static_cast<HapticCategory>(sensed)),
+        probs[sensed]);
     std::fflush(stdout);
   }
 

@@ -38,13 +38,8 @@ ABSL_FLAG(int, default_posthoc_dim, 4,
 
 namespace {
 
+constexpr char kProgram[] = "bitewise-bandit";
 constexpr int kDefaultPort = 50051;
-
-int Die(const std::string& what, const absl::Status& status) {
-  std::fprintf(stderr, "bitewise-bandit: %s: %s\n", what.c_str(),
-               status.ToString().c_str());
-  return 1;
-}
 
 absl::StatusOr<bitewise::bandit::BanditConfig> DefaultsFromFlags() {
   using bitewise::bandit::BanditConfig;
@@ -94,13 +89,18 @@ int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
 
   absl::StatusOr<bitewise::bandit::BanditConfig> defaults = DefaultsFromFlags();
-  if (!defaults.ok()) return Die("bad flags", defaults.status());
+  if (!defaults.ok()) {
+    return bitewise::ReportFatal(kProgram, "bad flags", defaults.status());
+  }
 
   bitewise::bandit::SqliteStoreOptions store_options;
   store_options.path = absl::GetFlag(FLAGS_db);
   store_options.synchronous_full = absl::GetFlag(FLAGS_sqlite_fsync);
   auto store = bitewise::bandit::SqliteEventStore::Open(store_options);
-  if (!store.ok()) return Die("cannot open the event store", store.status());
+  if (!store.ok()) {
+    return bitewise::ReportFatal(kProgram, "cannot open the event store",
+                                 store.status());
+  }
 
   bitewise::bandit::EngineOptions engine_options;
   engine_options.cache_budget_bytes =
@@ -111,13 +111,16 @@ int main(int argc, char** argv) {
   auto server = bitewise::ServiceServer::Start(
       bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
       {"bitewise.v1.BanditService"});
-  if (!server.ok()) return Die("cannot start the server", server.status());
+  if (!server.ok()) {
+    return bitewise::ReportFatal(kProgram, "cannot start the server",
+                                 server.status());
+  }
   // Ready: the store is open and the server accepts calls.
   (*server)->SetServing(true);
   std::fprintf(stderr, "bitewise-bandit: serving on %s (db %s)\n",
                (*server)->address().c_str(), store_options.path.c_str());
   std::fflush(stderr);
   absl::Status status = bitewise::RunUntilSignal(**server);
-  if (!status.ok()) return Die("shutdown", status);
+  if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);
   return 0;
 }

@@ -183,4 +183,11 @@ absl::Status RunUntilSignal(ServiceServer& server) {
   return absl::OkStatus();
 }
 
+int ReportFatal(const char* program, const std::string& what,
+                const absl::Status& status) {
+  std::fprintf(stderr, "%s: %s: %s\n", program, what.c_str(),
+               status.ToString().c_str());
+  return 1;
+}
+
 }  // namespace bitewise

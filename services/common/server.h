@@ -116,6 +116,14 @@ void BlockTerminationSignals();
 // for the signal fails.
 absl::Status RunUntilSignal(ServiceServer& server);
 
+// Prints "<program>: <what>: <status>" to stderr and returns 1, the exit
+// code of a service main that cannot go on (bad flags, a model or database
+// that does not load, an address that cannot be bound). `program` is the
+// binary's name, for example "bitewise-bandit"; tests and operators grep for
+// these lines. Usage: `if (!s.ok()) return ReportFatal(kProgram, "...", s);`
+int ReportFatal(const char* program, const std::string& what,
+                const absl::Status& status);
+
 }  // namespace bitewise
 
 #endif  // BITEWISE_SERVICES_COMMON_SERVER_H_

@@ -13,6 +13,20 @@ std::vector<WrenchSample> TraceFromProto(const v1::ClassifyRequest& request) {
   return trace;
 }
 
+void TraceToProto(const std::vector<WrenchSample>& trace,
+                  v1::ClassifyRequest* request) {
+  for (const WrenchSample& s : trace) {
+    v1::WrenchSample* out = request->add_samples();
+    out->set_t_s(s.t_s);
+    out->set_fx_n(s.values[0]);
+    out->set_fy_n(s.values[1]);
+    out->set_fz_n(s.values[2]);
+    out->set_tx_nm(s.values[3]);
+    out->set_ty_nm(s.values[4]);
+    out->set_tz_nm(s.values[5]);
+  }
+}
+
 v1::HapticCategory CategoryToProto(HapticClass haptic_class) {
   switch (haptic_class) {
     case HapticClass::kHard:

@@ -15,6 +15,11 @@ namespace bitewise::haptic {
 
 std::vector<WrenchSample> TraceFromProto(const v1::ClassifyRequest& request);
 
+// The inverse of TraceFromProto, for callers that hold a trace in the core's
+// types (tests, benchmarks): appends `trace` to `request`'s samples.
+void TraceToProto(const std::vector<WrenchSample>& trace,
+                  v1::ClassifyRequest* request);
+
 v1::HapticCategory CategoryToProto(HapticClass haptic_class);
 
 void ClassificationToProto(const HapticClassification& result,

@@ -34,13 +34,8 @@ ABSL_FLAG(int, min_window_samples, 5,
 
 namespace {
 
+constexpr char kProgram[] = "bitewise-haptic";
 constexpr int kDefaultPort = 50053;
-
-int Die(const std::string& what, const absl::Status& status) {
-  std::fprintf(stderr, "bitewise-haptic: %s: %s\n", what.c_str(),
-               status.ToString().c_str());
-  return 1;
-}
 
 }  // namespace
 
@@ -59,7 +54,7 @@ int main(int argc, char** argv) {
   options.window.window_s = absl::GetFlag(FLAGS_window_s);
   options.window.min_window_samples = absl::GetFlag(FLAGS_min_window_samples);
   absl::Status valid = bitewise::haptic::ValidatePipelineOptions(options);
-  if (!valid.ok()) return Die("bad flags", valid);
+  if (!valid.ok()) return bitewise::ReportFatal(kProgram, "bad flags", valid);
 
   using bitewise::haptic::HapticNet;
   const std::string model_path = absl::GetFlag(FLAGS_model);
@@ -68,7 +63,10 @@ int main(int argc, char** argv) {
           ? HapticNet::FromOnnxBytes(bitewise::haptic::DefaultHapticNetOnnx(),
                                      bitewise::haptic::kDefaultHapticNetSource)
           : HapticNet::FromOnnxFile(model_path);
-  if (!net.ok()) return Die("cannot load the HapticNet model", net.status());
+  if (!net.ok()) {
+    return bitewise::ReportFatal(kProgram, "cannot load the HapticNet model",
+                                 net.status());
+  }
   const std::string fingerprint = (*net)->fingerprint();
   const bitewise::haptic::HapticClassifier classifier(std::move(net).value(),
                                                       options);
@@ -77,7 +75,10 @@ int main(int argc, char** argv) {
   auto server = bitewise::ServiceServer::Start(
       bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
       {bitewise::haptic::kHapticServiceName});
-  if (!server.ok()) return Die("cannot start the server", server.status());
+  if (!server.ok()) {
+    return bitewise::ReportFatal(kProgram, "cannot start the server",
+                                 server.status());
+  }
   // Ready: the model is loaded and checked, and the server accepts calls.
   (*server)->SetServing(true);
   std::fprintf(stderr, "bitewise-haptic: serving on %s (model %s, %s)\n",
@@ -87,6 +88,6 @@ int main(int argc, char** argv) {
                fingerprint.c_str());
   std::fflush(stderr);
   absl::Status status = bitewise::RunUntilSignal(**server);
-  if (!status.ok()) return Die("shutdown", status);
+  if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);
   return 0;
 }

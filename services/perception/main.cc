@@ -27,13 +27,8 @@ ABSL_FLAG(double, min_food_height_mm, 4.0,
 
 namespace {
 
+constexpr char kProgram[] = "bitewise-perception";
 constexpr int kDefaultPort = 50052;
-
-int Die(const std::string& what, const absl::Status& status) {
-  std::fprintf(stderr, "bitewise-perception: %s: %s\n", what.c_str(),
-               status.ToString().c_str());
-  return 1;
-}
 
 }  // namespace
 
@@ -50,16 +45,22 @@ int main(int argc, char** argv) {
   } else if (which == "spanet") {
     const std::string model = absl::GetFlag(FLAGS_spanet_model);
     if (model.empty()) {
-      return Die("bad flags", absl::InvalidArgumentError(
-                                  "--featurizer=spanet needs --spanet_model"));
+      return bitewise::ReportFatal(
+          kProgram, "bad flags",
+          absl::InvalidArgumentError(
+              "--featurizer=spanet needs --spanet_model"));
     }
     auto spanet = bitewise::perception::SpanetFeaturizer::Load(model);
-    if (!spanet.ok()) return Die("cannot load SPANet", spanet.status());
+    if (!spanet.ok()) {
+      return bitewise::ReportFatal(kProgram, "cannot load SPANet",
+                                   spanet.status());
+    }
     featurizer = *std::move(spanet);
   } else {
-    return Die("bad flags", absl::InvalidArgumentError(absl::StrCat(
-                                "--featurizer: unknown featurizer \"", which,
-                                "\" (default or spanet)")));
+    return bitewise::ReportFatal(kProgram, "bad flags",
+                                 absl::InvalidArgumentError(absl::StrCat(
+                                     "--featurizer: unknown featurizer \"",
+                                     which, "\" (default or spanet)")));
   }
   bitewise::perception::FoodDetectorOptions detector_options;
   detector_options.min_height_mm = absl::GetFlag(FLAGS_min_food_height_mm);
@@ -70,13 +71,16 @@ int main(int argc, char** argv) {
   auto server = bitewise::ServiceServer::Start(
       bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
       {"bitewise.v1.PerceptionService"});
-  if (!server.ok()) return Die("cannot start the server", server.status());
+  if (!server.ok()) {
+    return bitewise::ReportFatal(kProgram, "cannot start the server",
+                                 server.status());
+  }
   // Ready: the featurizer (and its model, if any) is loaded and checked.
   (*server)->SetServing(true);
   std::fprintf(stderr, "bitewise-perception: serving on %s (featurizer %s)\n",
                (*server)->address().c_str(), featurizer->name().c_str());
   std::fflush(stderr);
   absl::Status status = bitewise::RunUntilSignal(**server);
-  if (!status.ok()) return Die("shutdown", status);
+  if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);
   return 0;
 }

@@ -55,13 +55,8 @@ ABSL_FLAG(double, static_load_threshold_n, 0.02,
 
 namespace {
 
+constexpr char kProgram[] = "bitewise-robot";
 constexpr int kDefaultPort = 50054;
-
-int Die(const std::string& what, const absl::Status& status) {
-  std::fprintf(stderr, "bitewise-robot: %s: %s\n", what.c_str(),
-               status.ToString().c_str());
-  return 1;
-}
 
 absl::StatusOr<bitewise::robot::RobotBackendOptions> OptionsFromFlags() {
   using bitewise::robot::BackendKind;
@@ -133,15 +128,23 @@ int main(int argc, char** argv) {
 
   absl::StatusOr<bitewise::robot::RobotBackendOptions> options =
       OptionsFromFlags();
-  if (!options.ok()) return Die("bad flags", options.status());
+  if (!options.ok()) {
+    return bitewise::ReportFatal(kProgram, "bad flags", options.status());
+  }
   auto backend = bitewise::robot::RobotBackend::Create(*options);
-  if (!backend.ok()) return Die("cannot start the robot", backend.status());
+  if (!backend.ok()) {
+    return bitewise::ReportFatal(kProgram, "cannot start the robot",
+                                 backend.status());
+  }
   bitewise::robot::RobotServiceImpl service(backend->get());
 
   auto server = bitewise::ServiceServer::Start(
       bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
       {"bitewise.v1.RobotService"});
-  if (!server.ok()) return Die("cannot start the server", server.status());
+  if (!server.ok()) {
+    return bitewise::ReportFatal(kProgram, "cannot start the server",
+                                 server.status());
+  }
   // Ready exactly while the F/T stream is live.
   bitewise::robot::ReadinessMonitor readiness(
       [b = backend->get()] { return b->FtLive(); },
@@ -152,6 +155,6 @@ int main(int argc, char** argv) {
                (*backend)->ft()->name().c_str());
   std::fflush(stderr);
   absl::Status status = bitewise::RunUntilSignal(**server);
-  if (!status.ok()) return Die("shutdown", status);
+  if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);
   return 0;
 }

@@ -11,6 +11,7 @@
 #include "gtest/gtest.h"
 #include "services/haptic/training/labelled_traces.h"
 #include "services/robot/sim/force_trace.h"
+#include "tests/haptic/haptic_test_traces.h"
 
 namespace bitewise::haptic {
 namespace {
@@ -141,13 +142,8 @@ TEST(ContactDetectorTest, SimulatedTracesOfEveryCategory) {
         options.contact_s = 0.2 + 0.0013 * item;  // off the sample grid
         options.duration_s = 0.5;
         options.noise.random_bias_n = 2.0;
-        std::vector<WrenchSample> trace;
-        for (const auto& s : sim::SimulateTrace(profile, options, rng)) {
-          trace.push_back({s.t_s,
-                           {s.wrench.force_n[0], s.wrench.force_n[1],
-                            s.wrench.force_n[2], s.wrench.torque_nm[0],
-                            s.wrench.torque_nm[1], s.wrench.torque_nm[2]}});
-        }
+        const std::vector<WrenchSample> trace =
+            ToWrenchSamples(sim::SimulateTrace(profile, options, rng));
         absl::StatusOr<ContactResult> contact =
             ContactDetector(ContactDetectorOptions()).Detect(trace);
         ASSERT_TRUE(contact.ok()) << contact.status();

@@ -20,20 +20,6 @@ namespace {
 
 using ::testing::HasSubstr;
 
-void AddSamples(const std::vector<WrenchSample>& trace,
-                v1::ClassifyRequest* request) {
-  for (const WrenchSample& s : trace) {
-    v1::WrenchSample* out = request->add_samples();
-    out->set_t_s(s.t_s);
-    out->set_fx_n(s.values[0]);
-    out->set_fy_n(s.values[1]);
-    out->set_fz_n(s.values[2]);
-    out->set_tx_nm(s.values[3]);
-    out->set_ty_nm(s.values[4]);
-    out->set_tz_nm(s.values[5]);
-  }
-}
-
 class HapticServiceTest : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -78,7 +64,7 @@ TEST_F(HapticServiceTest, ClassifiesOverTheWireAsInProcess) {
   for (int k = 0; k < kHapticClasses; ++k) {
     const auto trace = SimulatedTrace(static_cast<HapticClass>(k), rng);
     v1::ClassifyRequest request;
-    AddSamples(trace, &request);
+    TraceToProto(trace, &request);
     v1::ClassifyResponse response;
     grpc::Status status = Classify(request, &response);
     ASSERT_TRUE(status.ok()) << status.error_message();
@@ -109,7 +95,7 @@ TEST_F(HapticServiceTest, BadSamplesAreInvalidArgumentNamingTheSample) {
   std::mt19937_64 rng(6);
   const auto trace = SimulatedTrace(HapticClass::kMedium, rng);
   v1::ClassifyRequest request;
-  AddSamples(trace, &request);
+  TraceToProto(trace, &request);
   v1::ClassifyResponse response;
 
   v1::ClassifyRequest nan = request;

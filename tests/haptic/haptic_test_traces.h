@@ -1,5 +1,5 @@
-// Traces for the haptic tests: one simulated item of a category from the
-// force-trace model, converted to the haptic core's samples.
+// Traces for the haptic tests: the force-trace model's samples converted to
+// the haptic core's, and one simulated item of a category.
 #ifndef BITEWISE_TESTS_HAPTIC_HAPTIC_TEST_TRACES_H_
 #define BITEWISE_TESTS_HAPTIC_HAPTIC_TEST_TRACES_H_
 
@@ -11,6 +11,18 @@
 
 namespace bitewise::haptic {
 
+inline std::vector<WrenchSample> ToWrenchSamples(
+    const std::vector<sim::TimedWrench>& simulated) {
+  std::vector<WrenchSample> trace;
+  for (const sim::TimedWrench& s : simulated) {
+    trace.push_back({s.t_s,
+                     {s.wrench.force_n[0], s.wrench.force_n[1],
+                      s.wrench.force_n[2], s.wrench.torque_nm[0],
+                      s.wrench.torque_nm[1], s.wrench.torque_nm[2]}});
+  }
+  return trace;
+}
+
 inline std::vector<WrenchSample> SimulatedTrace(HapticClass haptic_class,
                                                 std::mt19937_64& rng,
                                                 double rate_hz = 1000.0,
@@ -21,14 +33,7 @@ inline std::vector<WrenchSample> SimulatedTrace(HapticClass haptic_class,
   options.rate_hz = rate_hz;
   options.contact_s = contact_s;
   options.duration_s = contact_s + 0.3;
-  std::vector<WrenchSample> trace;
-  for (const auto& s : sim::SimulateTrace(profile, options, rng)) {
-    trace.push_back({s.t_s,
-                     {s.wrench.force_n[0], s.wrench.force_n[1],
-                      s.wrench.force_n[2], s.wrench.torque_nm[0],
-                      s.wrench.torque_nm[1], s.wrench.torque_nm[2]}});
-  }
-  return trace;
+  return ToWrenchSamples(sim::SimulateTrace(profile, options, rng));
 }
 
 }  // namespace bitewise::haptic

@@ -2,103 +2,74 @@
 // malformed SPANet model stops the start (non-zero exit, message naming the
 // file, health never SERVING); with the generated model it serves 2048-long
 // SPANet contexts and DetectFood over gRPC, and drains on SIGTERM.
-#include <arpa/inet.h>
-#include <netinet/in.h>
+#include <grpcpp/client_context.h>
 #include <signal.h>
-#include <sys/prctl.h>
-#include <sys/socket.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <cerrno>
 #include <chrono>
-#include <cstring>
 #include <fstream>
-#include <sstream>
 #include <string>
 #include <vector>
 
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
-#include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "bitewise/v1/perception.grpc.pb.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/common/channel.h"
+#include "tests/common/child_process.h"
 #include "tests/perception/test_frames.h"
 
 namespace bitewise::perception {
 namespace {
 
+using ::bitewise::testing::ChildProcess;
+using ::bitewise::testing::DescribeWaitStatus;
 using ::testing::HasSubstr;
 
 constexpr char kBinary[] = BITEWISE_PERCEPTION_BINARY;
 constexpr char kService[] = "bitewise.v1.PerceptionService";
 
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream contents;
-  contents << in.rdbuf();
-  return contents.str();
+// The running test's own log file: ctest runs the cases in parallel, and
+// ChildProcess appends, so no two runs may share one.
+std::string LogPath() {
+  return absl::StrCat(
+      ::testing::TempDir(), "/perception_binary_test.",
+      ::testing::UnitTest::GetInstance()->current_test_info()->name(), ".log");
 }
 
-int FreePort() {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  socklen_t len = sizeof(addr);
-  bind(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr));
-  getsockname(fd, reinterpret_cast<sockaddr*>(&addr), &len);
-  close(fd);
-  return ntohs(addr.sin_port);
-}
-
-// Runs the binary with `args`, output to `log`; returns its pid.
-pid_t Spawn(const std::vector<std::string>& args, const std::string& log) {
-  const pid_t pid = fork();
-  if (pid == 0) {
-    prctl(PR_SET_PDEATHSIG, SIGKILL);
-    FILE* out = std::fopen(log.c_str(), "w");
-    dup2(fileno(out), STDOUT_FILENO);
-    dup2(fileno(out), STDERR_FILENO);
-    std::vector<char*> argv{const_cast<char*>(kBinary)};
-    for (const std::string& a : args)
-      argv.push_back(const_cast<char*>(a.c_str()));
-    argv.push_back(nullptr);
-    execv(kBinary, argv.data());
-    _exit(127);
-  }
-  return pid;
-}
-
-// Waits up to `timeout` for `pid` to exit; its wait status or -1.
-int WaitExit(pid_t pid, absl::Duration timeout) {
-  const absl::Time deadline = absl::Now() + timeout;
-  while (absl::Now() < deadline) {
-    int status = 0;
-    if (waitpid(pid, &status, WNOHANG) == pid) return status;
-    absl::SleepFor(absl::Milliseconds(10));
-  }
-  kill(pid, SIGKILL);
-  waitpid(pid, nullptr, 0);
-  return -1;
+// Starts the binary with `args` on a fresh log file `log`.
+void Spawn(ChildProcess& child, const std::vector<std::string>& args,
+           const std::string& log) {
+  std::vector<std::string> argv = {kBinary};
+  argv.insert(argv.end(), args.begin(), args.end());
+  // ChildProcess appends; each run starts with an empty log.
+  unlink(log.c_str());
+  const absl::Status started = child.Start(argv, log);
+  ASSERT_TRUE(started.ok()) << started;
 }
 
 void ExpectStartFails(const std::string& model, const std::string& fragment) {
-  const int port = FreePort();
-  const std::string log = ::testing::TempDir() + "/perception_fail.log";
-  const pid_t pid =
-      Spawn({"--featurizer=spanet", absl::StrCat("--spanet_model=", model),
-             absl::StrCat("--listen=127.0.0.1:", port)},
-            log);
-  const int status = WaitExit(pid, absl::Seconds(60));
-  ASSERT_NE(status, -1) << "still running; log:\n" << ReadFile(log);
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_NE(WEXITSTATUS(status), 0);
-  EXPECT_THAT(ReadFile(log), HasSubstr(fragment));
+  const absl::StatusOr<int> port = bitewise::testing::PickFreePort();
+  ASSERT_TRUE(port.ok()) << port.status();
+  const std::string log = LogPath();
+  ChildProcess child;
+  ASSERT_NO_FATAL_FAILURE(
+      Spawn(child,
+            {"--featurizer=spanet", absl::StrCat("--spanet_model=", model),
+             absl::StrCat("--listen=127.0.0.1:", *port)},
+            log));
+  const absl::StatusOr<int> status = child.Wait(absl::Seconds(60));
+  ASSERT_TRUE(status.ok()) << status.status() << "; still running; log:\n"
+                           << child.log();
+  ASSERT_TRUE(WIFEXITED(*status)) << DescribeWaitStatus(*status);
+  EXPECT_NE(WEXITSTATUS(*status), 0);
+  EXPECT_THAT(child.log(), HasSubstr(fragment));
   // Nothing ever answered health on that port.
-  auto channel = MakeChannel(absl::StrCat("127.0.0.1:", port), {});
+  auto channel = MakeChannel(absl::StrCat("127.0.0.1:", *port), {});
   ASSERT_TRUE(channel.ok());
   EXPECT_FALSE(CheckHealth(*channel, kService, absl::Milliseconds(300)).ok());
 }
@@ -115,27 +86,32 @@ TEST(PerceptionBinaryTest, MalformedModelStopsTheStart) {
 }
 
 TEST(PerceptionBinaryTest, UnknownFeaturizerStopsTheStart) {
-  const std::string log = ::testing::TempDir() + "/perception_flag.log";
-  const pid_t pid = Spawn({"--featurizer=resnet"}, log);
-  const int status = WaitExit(pid, absl::Seconds(30));
-  ASSERT_TRUE(WIFEXITED(status));
-  EXPECT_NE(WEXITSTATUS(status), 0);
-  EXPECT_THAT(ReadFile(log), HasSubstr("unknown featurizer \"resnet\""));
+  const std::string log = LogPath();
+  ChildProcess child;
+  ASSERT_NO_FATAL_FAILURE(Spawn(child, {"--featurizer=resnet"}, log));
+  const absl::StatusOr<int> status = child.Wait(absl::Seconds(30));
+  ASSERT_TRUE(status.ok()) << status.status() << "; log:\n" << child.log();
+  ASSERT_TRUE(WIFEXITED(*status)) << DescribeWaitStatus(*status);
+  EXPECT_NE(WEXITSTATUS(*status), 0);
+  EXPECT_THAT(child.log(), HasSubstr("unknown featurizer \"resnet\""));
 }
 
 TEST(PerceptionBinaryTest, ServesSpanetFeaturesAndDrainsOnSigterm) {
-  const int port = FreePort();
-  const std::string log = ::testing::TempDir() + "/perception_ok.log";
-  const pid_t pid =
-      Spawn({"--featurizer=spanet",
+  const absl::StatusOr<int> port = bitewise::testing::PickFreePort();
+  ASSERT_TRUE(port.ok()) << port.status();
+  const std::string log = LogPath();
+  ChildProcess child;
+  ASSERT_NO_FATAL_FAILURE(
+      Spawn(child,
+            {"--featurizer=spanet",
              absl::StrCat("--spanet_model=", BITEWISE_SPANET_MODEL),
-             absl::StrCat("--listen=127.0.0.1:", port)},
-            log);
-  auto channel = MakeChannel(absl::StrCat("127.0.0.1:", port), {});
+             absl::StrCat("--listen=127.0.0.1:", *port)},
+            log));
+  auto channel = MakeChannel(absl::StrCat("127.0.0.1:", *port), {});
   ASSERT_TRUE(channel.ok());
   const absl::Status serving =
       WaitForServing(*channel, kService, absl::Seconds(60));
-  ASSERT_TRUE(serving.ok()) << serving << "; log:\n" << ReadFile(log);
+  ASSERT_TRUE(serving.ok()) << serving << "; log:\n" << child.log();
   auto stub = v1::PerceptionService::NewStub(*channel);
 
   testing::TestScene scene = testing::RenderTestScene(77, 4, true);
@@ -158,10 +134,12 @@ TEST(PerceptionBinaryTest, ServesSpanetFeaturesAndDrainsOnSigterm) {
   EXPECT_EQ(features.context_size(), 2048);
   EXPECT_EQ(features.featurizer(), "spanet");
 
-  ASSERT_EQ(kill(pid, SIGTERM), 0);
-  const int status = WaitExit(pid, absl::Seconds(30));
-  ASSERT_TRUE(WIFEXITED(status)) << ReadFile(log);
-  EXPECT_EQ(WEXITSTATUS(status), 0);
+  const absl::StatusOr<int> status =
+      child.SignalAndWait(SIGTERM, absl::Seconds(30));
+  ASSERT_TRUE(status.ok()) << status.status() << "; log:\n" << child.log();
+  ASSERT_TRUE(WIFEXITED(*status)) << DescribeWaitStatus(*status) << "; log:\n"
+                                  << child.log();
+  EXPECT_EQ(WEXITSTATUS(*status), 0);
 }
 
 }  // namespace

@@ -16,6 +16,7 @@
 #include "services/robot/sim/sim_netft_box.h"
 #include "services/robot/steady_time.h"
 #include "tests/robot/udp_test_peer.h"
+#include "tests/robot/wait_for.h"
 
 namespace bitewise::netft {
 namespace {
@@ -29,12 +30,7 @@ constexpr auto kReceiveTimeout = std::chrono::milliseconds(10000);
 
 // Polls `done` for up to 20 s (the machine may be loaded).
 bool WaitFor(const std::function<bool()>& done) {
-  const double deadline = robot::SteadyNowS() + 20.0;
-  while (robot::SteadyNowS() < deadline) {
-    if (done()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
-  return done();
+  return ::bitewise::testing::WaitFor(done, 20.0);
 }
 
 class HandWrittenBoxTest : public ::testing::Test {

@@ -8,30 +8,21 @@
 #include <functional>
 #include <future>
 #include <memory>
-#include <thread>
 #include <vector>
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/common/channel.h"
 #include "services/common/server.h"
-#include "services/robot/steady_time.h"
+#include "tests/robot/wait_for.h"
 
 namespace bitewise::robot {
 namespace {
 
+using ::bitewise::testing::WaitFor;
 using ::testing::HasSubstr;
 
 constexpr char kService[] = "bitewise.v1.RobotService";
-
-bool WaitFor(const std::function<bool()>& done, double timeout_s = 30.0) {
-  const double deadline = SteadyNowS() + timeout_s;
-  while (SteadyNowS() < deadline) {
-    if (done()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
-  return done();
-}
 
 class RobotServiceTest : public ::testing::Test {
  protected:

@@ -17,20 +17,13 @@
 #include "gtest/gtest.h"
 #include "services/robot/backend.h"
 #include "services/robot/steady_time.h"
+#include "tests/robot/wait_for.h"
 
 namespace bitewise::robot {
 namespace {
 
+using ::bitewise::testing::WaitFor;
 using ::testing::HasSubstr;
-
-bool WaitFor(const std::function<bool()>& done, double timeout_s = 30.0) {
-  const double deadline = SteadyNowS() + timeout_s;
-  while (SteadyNowS() < deadline) {
-    if (done()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(2));
-  }
-  return done();
-}
 
 RobotBackendOptions SimOptions(std::vector<std::string> foods, uint64_t seed) {
   RobotBackendOptions options;
