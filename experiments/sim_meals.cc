@@ -1,0 +1,323 @@
+#include "experiments/sim_meals.h"
+
+#include <algorithm>
+#include <random>
+#include <utility>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "experiments/random.h"
+#include "opencv2/core.hpp"
+#include "services/bandit/core/linucb.h"
+#include "services/bandit/core/policy.h"
+#include "services/common/status_macros.h"
+#include "services/haptic/default_model.h"
+#include "services/robot/sim/force_trace.h"
+#include "services/robot/sim/render/scene.h"
+
+namespace bitewise::experiments {
+namespace {
+
+// Independent random streams of one trial, so that changing how one part
+// draws (say, more plates) leaves the others' draws alone.
+enum Stream : uint64_t {
+  kPlateStream = 1,
+  kOrderStream = 2,
+  kProfileStream = 3,
+  kTraceStream = 4,
+  kCoinStream = 5,
+  kRenderNoiseStream = 100,  // + plate index
+};
+
+// Draws of a plate before giving up on fitting every food on it.
+constexpr int kMaxPlateDraws = 20;
+
+// A view of `rendered` as perception's frame; `rendered` must outlive it.
+perception::DecodedFrame ToDecodedFrame(sim::RenderedFrame& rendered) {
+  const sim::PinholeIntrinsics& k = rendered.intrinsics;
+  perception::DecodedFrame frame;
+  frame.rgb = cv::Mat(k.height, k.width, CV_8UC3, rendered.rgb.data());
+  frame.depth_mm =
+      cv::Mat(k.height, k.width, CV_16UC1, rendered.depth_mm.data());
+  frame.intrinsics = {k.fx, k.fy, k.cx, k.cy};
+  return frame;
+}
+
+// The haptic core's samples for a simulated trace (same channel order).
+std::vector<haptic::WrenchSample> ToWrenchSamples(
+    const std::vector<sim::TimedWrench>& trace) {
+  std::vector<haptic::WrenchSample> samples;
+  samples.reserve(trace.size());
+  for (const sim::TimedWrench& s : trace) {
+    samples.push_back({s.t_s,
+                       {s.wrench.force_n[0], s.wrench.force_n[1],
+                        s.wrench.force_n[2], s.wrench.torque_nm[0],
+                        s.wrench.torque_nm[1], s.wrench.torque_nm[2]}});
+  }
+  return samples;
+}
+
+// Fisher-Yates through our own UniformIndex (std::shuffle's algorithm is
+// left to the library).
+void Shuffle(std::vector<int>& values, std::mt19937_64& rng) {
+  for (int i = static_cast<int>(values.size()) - 1; i > 0; --i) {
+    std::swap(values[i], values[UniformIndex(rng, i + 1)]);
+  }
+}
+
+int FoodIndex(const std::vector<const sim::FoodType*>& foods,
+              const sim::FoodType* food) {
+  for (size_t i = 0; i < foods.size(); ++i) {
+    if (foods[i] == food) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+}  // namespace
+
+const char* HapticContextName(HapticContext kind) {
+  switch (kind) {
+    case HapticContext::kLogProbabilities:
+      return "logprob";
+    case HapticContext::kProbabilities:
+      return "prob";
+    case HapticContext::kOneHot:
+      return "onehot";
+  }
+  return "unknown";
+}
+
+std::vector<double> PosthocContext(
+    const haptic::HapticClassification& classification, HapticContext kind) {
+  switch (kind) {
+    case HapticContext::kLogProbabilities:
+      return {classification.log_probabilities.begin(),
+              classification.log_probabilities.end()};
+    case HapticContext::kProbabilities:
+      return {classification.probabilities.begin(),
+              classification.probabilities.end()};
+    case HapticContext::kOneHot:
+      break;
+  }
+  std::vector<double> one_hot(haptic::kHapticClasses, 0.0);
+  one_hot[static_cast<int>(classification.category)] = 1.0;
+  return one_hot;
+}
+
+absl::Status ValidateSimMealsConfig(const SimMealsConfig& config) {
+  if (config.attempts_per_food < 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "attempts_per_food must be positive, got ", config.attempts_per_food));
+  }
+  if (config.plates_per_trial < 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "plates_per_trial must be positive, got ", config.plates_per_trial));
+  }
+  return absl::OkStatus();
+}
+
+SimMealsSimulator::SimMealsSimulator(
+    std::unique_ptr<haptic::HapticClassifier> classifier)
+    : classifier_(std::move(classifier)) {}
+
+absl::StatusOr<std::unique_ptr<SimMealsSimulator>> SimMealsSimulator::Create(
+    const std::string& onnx_path) {
+  ASSIGN_OR_RETURN(
+      std::unique_ptr<haptic::HapticNet> net,
+      onnx_path.empty()
+          ? haptic::HapticNet::FromOnnxBytes(haptic::DefaultHapticNetOnnx(),
+                                             haptic::kDefaultHapticNetSource)
+          : haptic::HapticNet::FromOnnxFile(onnx_path));
+  const haptic::HapticPipelineOptions options;  // the service's defaults
+  RETURN_IF_ERROR(haptic::ValidatePipelineOptions(options));
+  return std::make_unique<SimMealsSimulator>(
+      std::make_unique<haptic::HapticClassifier>(std::move(net), options));
+}
+
+absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
+    const SimMealsConfig& config, uint64_t seed) const {
+  RETURN_IF_ERROR(ValidateSimMealsConfig(config));
+  const std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
+  const int num_foods = static_cast<int>(foods.size());
+
+  // Plates: render each once and featurize every item's ground-truth box;
+  // each food's force profile is drawn per item, as the simulated robot
+  // does (the same item feels the same on every attempt).
+  std::mt19937_64 plate_rng(MixSeed(seed, kPlateStream));
+  std::mt19937_64 profile_rng(MixSeed(seed, kProfileStream));
+  // [plate][food]
+  std::vector<std::vector<std::vector<double>>> contexts(
+      config.plates_per_trial, std::vector<std::vector<double>>(num_foods));
+  std::vector<std::vector<sim::ForceProfile>> profiles(config.plates_per_trial);
+  SimMealWorld world;
+  for (int plate = 0; plate < config.plates_per_trial; ++plate) {
+    // RandomPlate leaves an item off a plate it cannot fit on, and an item
+    // can end up with no visible pixel; such plates are drawn again (from
+    // the same stream) so that every food is on every plate.
+    for (int draw = 0;; ++draw) {
+      if (draw == kMaxPlateDraws) {
+        return absl::InternalError(
+            absl::StrCat("no plate with all ", num_foods, " foods visible in ",
+                         kMaxPlateDraws, " draws (plate ", plate, ")"));
+      }
+      const sim::PlateScene scene =
+          sim::RandomPlate(foods, config.allow_touching, plate_rng);
+      sim::RenderedFrame rendered =
+          sim::RenderPlate(scene, sim::D415Intrinsics(),
+                           MixSeed(seed, kRenderNoiseStream + plate));
+      const perception::DecodedFrame frame = ToDecodedFrame(rendered);
+      std::vector<std::vector<double>> plate_contexts(num_foods);
+      for (const sim::SceneItem& item : scene.items) {
+        const int food = FoodIndex(foods, item.food);
+        const auto truth = std::find_if(
+            rendered.truth.begin(), rendered.truth.end(),
+            [&](const sim::ItemTruth& t) { return t.id == item.id; });
+        if (food < 0 || truth == rendered.truth.end() ||
+            truth->visible_pixels == 0) {
+          continue;
+        }
+        const perception::PixelBox box{truth->x, truth->y, truth->width,
+                                       truth->height};
+        absl::StatusOr<perception::Features> features = featurizer_.Featurize(
+            frame, box, perception::FoodLocation::kIsolated);
+        if (!features.ok()) {
+          return absl::InternalError(
+              absl::StrCat("featurizing ", item.food->name, " on plate ", plate,
+                           ": ", features.status().ToString()));
+        }
+        plate_contexts[food] = std::move(features->context);
+      }
+      if (std::all_of(plate_contexts.begin(), plate_contexts.end(),
+                      [](const auto& c) { return !c.empty(); })) {
+        contexts[plate] = std::move(plate_contexts);
+        break;
+      }
+      ++world.plate_redraws;
+    }
+    for (int food = 0; food < num_foods; ++food) {
+      profiles[plate].push_back(
+          sim::ForceProfile::Sample(foods[food]->category, profile_rng));
+    }
+  }
+
+  // The meal's order of foods.
+  std::mt19937_64 order_rng(MixSeed(seed, kOrderStream));
+  std::vector<int> order;
+  if (config.order == MealOrder::kShuffled) {
+    for (int food = 0; food < num_foods; ++food) {
+      order.insert(order.end(), config.attempts_per_food, food);
+    }
+    Shuffle(order, order_rng);
+  } else {
+    std::vector<int> food_order(num_foods);
+    for (int food = 0; food < num_foods; ++food) food_order[food] = food;
+    Shuffle(food_order, order_rng);
+    for (int food : food_order) {
+      order.insert(order.end(), config.attempts_per_food, food);
+    }
+  }
+
+  // Attempts: a fresh trace of the item per attempt (sensor noise and bias
+  // differ), classified by the HapticService's pipeline; one outcome coin.
+  std::mt19937_64 trace_rng(MixSeed(seed, kTraceStream));
+  std::mt19937_64 coin_rng(MixSeed(seed, kCoinStream));
+  std::vector<int> attempts_so_far(num_foods, 0);
+  world.attempts.reserve(order.size());
+  const sim::TraceOptions trace_options;  // 1 kHz, as the simulated Net F/T
+  for (int food : order) {
+    SimAttempt attempt;
+    attempt.food = food;
+    attempt.plate = attempts_so_far[food]++ % config.plates_per_trial;
+    attempt.context = contexts[attempt.plate][food];
+    const std::vector<haptic::WrenchSample> trace =
+        ToWrenchSamples(sim::SimulateTrace(profiles[attempt.plate][food],
+                                           trace_options, trace_rng));
+    absl::StatusOr<haptic::HapticClassification> classified =
+        classifier_->Classify(trace);
+    if (!classified.ok()) {
+      return absl::InternalError(absl::StrCat(
+          "classifying the trace of attempt ", world.attempts.size(), " (",
+          foods[food]->name, "): ", classified.status().ToString()));
+    }
+    attempt.haptic = *classified;
+    attempt.coin = Uniform01(coin_rng);
+    world.attempts.push_back(std::move(attempt));
+  }
+  return world;
+}
+
+absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
+                                           const SimMealWorld& world,
+                                           bandit::Learner learner,
+                                           HapticContext kind, uint64_t seed) {
+  if (world.attempts.empty()) {
+    return absl::InvalidArgumentError("the world has no attempts");
+  }
+  const std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
+  bandit::BanditConfig bandit_config;
+  bandit_config.learner = learner;
+  bandit_config.strategy = bandit::Strategy::kLinUcb;
+  bandit_config.alpha = config.alpha;
+  bandit_config.lambda_c = config.lambda_c;
+  bandit_config.lambda_p = config.lambda_p;
+  bandit_config.context_dim =
+      static_cast<int>(world.attempts.front().context.size());
+  bandit_config.posthoc_dim = haptic::kHapticClasses;
+  bandit_config.seed = seed;
+  ASSIGN_OR_RETURN(bandit::LinUcbModel model,
+                   bandit::LinUcbModel::Create(bandit_config));
+
+  SimMealRun run;
+  double failures = 0.0;
+  for (size_t t = 0; t < world.attempts.size(); ++t) {
+    const SimAttempt& attempt = world.attempts[t];
+    RETURN_IF_ERROR(model.ValidateContext(attempt.context));
+    std::mt19937_64 rng =
+        bandit::SelectRng(seed, static_cast<int64_t>(run.actions.size()));
+    const bandit::Choice choice = bandit::ChooseAction(
+        bandit_config, model.Estimate(attempt.context), rng);
+    const bool failed =
+        !(attempt.coin < foods[attempt.food]->success[choice.action]);
+    bandit::Round round;
+    round.context = attempt.context;
+    round.action = choice.action;
+    round.loss = failed ? 1.0 : 0.0;
+    if (learner == bandit::Learner::kPostHoc) {
+      round.posthoc = PosthocContext(attempt.haptic, kind);
+    }
+    RETURN_IF_ERROR(model.ValidateRound(round));
+    model.Update(round);
+    failures += round.loss;
+    run.actions.push_back(choice.action);
+    run.failed.push_back(failed ? 1 : 0);
+    run.cumulative_failures.push_back(failures);
+  }
+  return run;
+}
+
+std::vector<double> OracleExpectedFailures(const SimMealWorld& world) {
+  const std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
+  std::vector<double> out;
+  double sum = 0.0;
+  for (const SimAttempt& attempt : world.attempts) {
+    const auto& success = foods[attempt.food]->success;
+    sum += 1.0 - *std::max_element(success.begin(), success.end());
+    out.push_back(sum);
+  }
+  return out;
+}
+
+std::vector<double> UniformExpectedFailures(const SimMealWorld& world) {
+  const std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
+  std::vector<double> out;
+  double sum = 0.0;
+  for (const SimAttempt& attempt : world.attempts) {
+    for (double p : foods[attempt.food]->success) {
+      sum += (1.0 - p) / sim::kNumActions;
+    }
+    out.push_back(sum);
+  }
+  return out;
+}
+
+}  // namespace bitewise::experiments

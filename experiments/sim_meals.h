@@ -1,0 +1,151 @@
+// The simulated-meals experiment of SPEC section 5 (Gordon et al. 2021,
+// Sec. VI): a user's bandit meets the eight unseen foods of SPEC section 1,
+// eight attempts each, and we count how many attempts fail with context-only
+// LinUCB and with post hoc LinUCB fed three forms of the haptic context.
+//
+// Everything comes from the project's own components, in-process and without
+// gRPC: the foods and their per-action success probabilities from
+// services/robot/sim/food_catalog.h; the visual context from a rendered
+// plate (services/robot/sim/render/scene.h) through the PerceptionService's
+// weight-free DefaultFeaturizer on each item's ground-truth box; the post hoc
+// context from a simulated force trace of the item's category
+// (services/robot/sim/force_trace.h) through the HapticService's
+// HapticClassifier; the learners and LinUCB selection from
+// services/bandit/core.
+//
+// A trial is drawn once (SimMealWorld) and then played by every learner, so
+// all of them see the same plates, crops, traces and outcome draws and their
+// failure counts can be compared pair by pair.
+#ifndef BITEWISE_EXPERIMENTS_SIM_MEALS_H_
+#define BITEWISE_EXPERIMENTS_SIM_MEALS_H_
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "services/bandit/core/config.h"
+#include "services/haptic/core/haptic_classifier.h"
+#include "services/perception/default_featurizer.h"
+#include "services/robot/sim/food_catalog.h"
+
+namespace bitewise::experiments {
+
+// What the post hoc learner is told about the haptic classification.
+enum class HapticContext {
+  kLogProbabilities,  // HapticNet's log-softmax (what the orchestrator sends)
+  kProbabilities,     // its softmax
+  kOneHot,            // 1 at the predicted class, 0 elsewhere
+};
+// "logprob", "prob", "onehot".
+const char* HapticContextName(HapticContext kind);
+// The 4-vector p for `classification` in the form `kind`.
+std::vector<double> PosthocContext(
+    const haptic::HapticClassification& classification, HapticContext kind);
+
+// In which order a trial's attempts visit the foods.
+enum class MealOrder {
+  // Every food attempts_per_food times, in a random order (a meal in which
+  // the user asks for any item at any time).
+  kShuffled,
+  // One food after another, attempts_per_food consecutive attempts each,
+  // foods in a random order.
+  kBlocked,
+};
+
+struct SimMealsConfig {
+  int attempts_per_food = 8;
+  // Rendered plates per trial. Each plate holds every unseen food once; the
+  // j-th attempt on a food uses its item on plate j mod plates_per_trial, so
+  // the learner sees plates_per_trial appearances of each food per trial.
+  int plates_per_trial = 1;
+  MealOrder order = MealOrder::kShuffled;
+  // Whether neighbouring items on a plate may touch (touching items widen
+  // each other's ground-truth box context ring).
+  bool allow_touching = false;
+  // Learner hyperparameters (SPEC section 2 defaults).
+  double alpha = 0.01;
+  double lambda_c = 1000.0;
+  double lambda_p = 1.0;
+};
+
+// INVALID_ARGUMENT naming the field when a count is not positive.
+absl::Status ValidateSimMealsConfig(const SimMealsConfig& config);
+
+// One attempt of a trial as every learner sees it.
+struct SimAttempt {
+  int food = 0;   // index into sim::UnseenFoods()
+  int plate = 0;  // which of the trial's plates the item lies on
+  // DefaultFeaturizer's 64 numbers for the item's ground-truth box on that
+  // plate (location: isolated). Identical for all attempts on the same item.
+  std::vector<double> context;
+  // HapticClassifier's answer for this attempt's simulated force trace.
+  haptic::HapticClassification haptic;
+  // Outcome draw: the attempt succeeds iff coin < success[action], whatever
+  // learner chose the action.
+  double coin = 0.0;
+};
+
+struct SimMealWorld {
+  std::vector<SimAttempt> attempts;  // in the order they are made
+  // Plates drawn again because an item did not fit or was not visible.
+  int plate_redraws = 0;
+};
+
+// The project's components the experiment runs on. Thread-compatible (the
+// classifier and featurizer are thread-safe; the world draws are not).
+class SimMealsSimulator {
+ public:
+  // `classifier` is used as the HapticService would use it.
+  explicit SimMealsSimulator(
+      std::unique_ptr<haptic::HapticClassifier> classifier);
+
+  // The HapticService's classifier with its default pipeline options and the
+  // model in `onnx_path`, or the embedded models/hapticnet/hapticnet.onnx
+  // when `onnx_path` is empty. Errors from loading the model.
+  static absl::StatusOr<std::unique_ptr<SimMealsSimulator>> Create(
+      const std::string& onnx_path);
+
+  // Draws trial `seed`: the plates (rendered and featurized; a plate on
+  // which some food is missing or invisible is drawn again), the meal's
+  // order, one force profile per item and one trace per attempt (classified),
+  // and the outcome coins. Errors: INVALID_ARGUMENT for a bad config;
+  // INTERNAL when featurizing or classifying fails (the message names the
+  // food and the attempt) or no full plate comes up in 20 draws.
+  absl::StatusOr<SimMealWorld> DrawWorld(const SimMealsConfig& config,
+                                         uint64_t seed) const;
+
+  const haptic::HapticClassifier& classifier() const { return *classifier_; }
+
+ private:
+  std::unique_ptr<haptic::HapticClassifier> classifier_;
+  perception::DefaultFeaturizer featurizer_;
+};
+
+// One learner's play of a world.
+struct SimMealRun {
+  std::vector<int> actions;  // chosen action per attempt
+  std::vector<int> failed;   // 1 if the attempt failed
+  // failed summed up to and including each attempt.
+  std::vector<double> cumulative_failures;
+};
+
+// Plays `world` with LinUCB on `learner` (the post hoc learner is given the
+// haptic context as `kind`; the context-only learner ignores it), updating
+// after every attempt with loss 1 for a failure. `seed` seeds the user's
+// Select generator (unused by deterministic LinUCB; kept for parity with the
+// BanditService). Errors: from the bandit core if a round is invalid.
+absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
+                                           const SimMealWorld& world,
+                                           bandit::Learner learner,
+                                           HapticContext kind, uint64_t seed);
+
+// Expected cumulative failures of an oracle that always plays each food's
+// best action, and of uniformly random actions, per attempt of `world`.
+std::vector<double> OracleExpectedFailures(const SimMealWorld& world);
+std::vector<double> UniformExpectedFailures(const SimMealWorld& world);
+
+}  // namespace bitewise::experiments
+
+#endif  // BITEWISE_EXPERIMENTS_SIM_MEALS_H_
