@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -292,8 +293,15 @@ class Robot::Run {
     std::vector<netft::FtSample> fresh;
     next_index_ = robot_->ft_->SamplesSince(next_index_, &fresh);
     for (const netft::FtSample& s : fresh) {
-      const double t_s = s.host_time_s - start_s_;
-      if (t_s < 0.0) continue;
+      if (s.host_time_s - start_s_ < 0.0) continue;
+      // The client's host-time offset can still shrink as less delayed
+      // packets arrive; fixing it at the first sample keeps the trace on
+      // the sensor's own clock, strictly increasing, as HapticNet needs.
+      if (std::isnan(trace_offset_s_)) {
+        trace_offset_s_ = s.host_time_s - s.sensor_time_s - start_s_;
+      }
+      const double t_s = s.sensor_time_s + trace_offset_s_;
+      if (!outcome_.trace.empty() && t_s <= outcome_.trace.back().t_s) continue;
       outcome_.trace.push_back({t_s, s.wrench});
       const double force = ForceMagnitude(s.wrench, baseline_);
       last_force_n_ = force;
@@ -334,6 +342,7 @@ class Robot::Run {
   Clock::time_point next_tick_;
   netft::Wrench baseline_;
   uint64_t next_index_ = 0;
+  double trace_offset_s_ = std::numeric_limits<double>::quiet_NaN();
   double last_force_n_ = 0.0;
   double max_force_since_tick_ = 0.0;
   double last_report_s_ = -1e9;
