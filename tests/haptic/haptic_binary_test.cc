@@ -152,7 +152,7 @@ void ExpectStartFails(HapticProcess& process, const std::string& message) {
 }
 
 TEST(HapticBinaryTest, MalformedModelFileStopsTheStart) {
-  const std::string path = ::testing::TempDir() + "/malformed.onnx";
+  const std::string path = ::testing::TempDir() + "/haptic_malformed.onnx";
   std::ofstream(path) << "\x08\x06 definitely not an ONNX graph";
   HapticProcess process("malformed");
   ASSERT_NO_FATAL_FAILURE(process.Spawn({"--model=" + path}));

@@ -80,9 +80,10 @@ TEST(PerceptionBinaryTest, MissingModelStopsTheStart) {
 }
 
 TEST(PerceptionBinaryTest, MalformedModelStopsTheStart) {
-  const std::string path = ::testing::TempDir() + "/malformed.onnx";
+  const std::string path = ::testing::TempDir() + "/perception_malformed.onnx";
   std::ofstream(path) << "\x08\x07garbage that is no ONNX graph";
-  ExpectStartFails(path, "malformed.onnx\" is not a loadable ONNX model");
+  ExpectStartFails(path,
+                   "perception_malformed.onnx\" is not a loadable ONNX model");
 }
 
 TEST(PerceptionBinaryTest, UnknownFeaturizerStopsTheStart) {
