@@ -61,6 +61,13 @@ ABSL_FLAG(std::string, journal, "bitewise-orchestrator.journal",
 ABSL_FLAG(int, deadline_ms, 10000, "Deadline of every unary call.");
 ABSL_FLAG(int, acquire_deadline_ms, 60000, "Deadline of one Acquire.");
 ABSL_FLAG(int, retries, 4, "Retries with backoff on UNAVAILABLE.");
+ABSL_FLAG(double, lambda_c, 0.0,
+          "Context ridge for a NEW user; 0 keeps the BanditService's default "
+          "(1000, tuned for SPANet's 2048 features; the 64 default features "
+          "learn faster with ~10, see docs/experiments.md).");
+ABSL_FLAG(double, alpha, -1.0,
+          "Exploration weight for a NEW user; negative keeps the "
+          "BanditService's default.");
 
 namespace {
 
@@ -176,6 +183,12 @@ class MealRunner {
     create.mutable_config()->set_context_dim(context_dim);
     create.mutable_config()->set_learner(vision_only ? v1::LEARNER_CONTEXT_ONLY
                                                      : v1::LEARNER_POSTHOC);
+    if (absl::GetFlag(FLAGS_lambda_c) > 0.0) {
+      create.mutable_config()->set_lambda_c(absl::GetFlag(FLAGS_lambda_c));
+    }
+    if (absl::GetFlag(FLAGS_alpha) >= 0.0) {
+      create.mutable_config()->set_alpha(absl::GetFlag(FLAGS_alpha));
+    }
     status = WithRetries([&] {
       return stubs_.bandit->CreateUser(Context(Deadline()).get(), create,
                                        &user_);
