@@ -1,6 +1,9 @@
 // The trainer: bit-identical models from the same seed, a model that
 // actually learns the simulated categories, the CSV trace format, and
 // rejection of bad training sets.
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -73,6 +76,95 @@ TEST(TrainerTest, LearnsTheSimulatedCategories) {
   // A chance-level model would score 25 %.
   EXPECT_GT(score.confusion.Accuracy(), 0.9) << score.confusion.ToString();
   EXPECT_LT(score.mean_log_loss, 0.4);
+  // The temperature may only soften the label-smoothed model.
+  EXPECT_GE(result->temperature, TrainerOptions().min_temperature);
+}
+
+// Mean over windows of the smallest log-probability (the least likely
+// class) of a model trained with `label_smoothing`.
+double MeanSmallestLogProbability(const SmallData& data,
+                                  double label_smoothing) {
+  TrainerOptions options;
+  options.max_epochs = 15;
+  options.label_smoothing = label_smoothing;
+  auto result = TrainHapticNet(data.train, data.validation, options);
+  EXPECT_TRUE(result.ok()) << result.status();
+  if (!result.ok()) return 0.0;
+  double sum = 0.0;
+  for (const auto& x : data.test.inputs) {
+    const auto p = ReferenceProbabilities(result->weights, x);
+    sum += std::log(*std::min_element(p.begin(), p.end()));
+  }
+  return sum / data.test.inputs.size();
+}
+
+TEST(TrainerTest, LabelSmoothingKeepsUnlikelyClassesAwayFromZero) {
+  const SmallData data = MakeData(200);
+  const double smoothed = MeanSmallestLogProbability(data, 0.04);
+  const double sharp = MeanSmallestLogProbability(data, 0.0);
+  // Smoothing 0.04 targets 0.01 (log -4.6) for the other classes.
+  EXPECT_GT(smoothed, -7.0);
+  EXPECT_GT(smoothed, sharp + 2.0)
+      << "smoothed " << smoothed << ", sharp " << sharp;
+}
+
+TEST(TrainerTest, RejectsBadSmoothingAndTemperatureBounds) {
+  LabelledWindows one;
+  one.inputs.resize(1);
+  one.labels = {0};
+  TrainerOptions options;
+  options.label_smoothing = 1.0;
+  EXPECT_EQ(TrainHapticNet(one, one, options).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  options = TrainerOptions();
+  options.min_temperature = 2.0;
+  options.max_temperature = 1.0;
+  EXPECT_EQ(TrainHapticNet(one, one, options).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+TEST(LabelledTracesTest, AugmentationIsSeededAndOffByDefault) {
+  EXPECT_FALSE(SimulationConditions().Augmented());
+  EXPECT_TRUE(TrainingConditions().Augmented());
+  const auto a = SimulateLabelledTraces(3, TrainingConditions(), 7);
+  const auto b = SimulateLabelledTraces(3, TrainingConditions(), 7);
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    EXPECT_EQ(a[i].label, b[i].label);
+    ASSERT_EQ(a[i].samples.size(), b[i].samples.size());
+    for (size_t j = 0; j < a[i].samples.size(); ++j) {
+      EXPECT_EQ(a[i].samples[j].t_s, b[i].samples[j].t_s);
+      EXPECT_EQ(a[i].samples[j].values, b[i].samples[j].values);
+    }
+  }
+}
+
+TEST(LabelledTracesTest, AugmentedClassesKeepTheirSignatures) {
+  // Peak tared Fz in the first 50 ms after the true contact, over many
+  // augmented items: hard stays the highest, soft the lowest.
+  SimulationConditions conditions = TrainingConditions();
+  conditions.min_rate_hz = conditions.max_rate_hz = 7000.0;
+  conditions.random_bias_n = 0.0;
+  conditions.min_noise_scale = conditions.max_noise_scale = 0.0;
+  conditions.min_contact_s = conditions.max_contact_s = 0.1;
+  std::array<double, kHapticClasses> lowest, highest;
+  lowest.fill(1e9);
+  highest.fill(0.0);
+  for (const LabelledTrace& trace :
+       SimulateLabelledTraces(200, conditions, 11)) {
+    double peak = 0.0;
+    for (const WrenchSample& s : trace.samples) {
+      if (s.t_s <= 0.15) peak = std::max(peak, s.values[2]);
+    }
+    const int k = static_cast<int>(trace.label);
+    lowest[k] = std::min(lowest[k], peak);
+    highest[k] = std::max(highest[k], peak);
+  }
+  const int hard = static_cast<int>(HapticClass::kHard);
+  const int soft = static_cast<int>(HapticClass::kSoft);
+  EXPECT_GT(lowest[hard], 6.0);
+  EXPECT_LT(highest[soft], 3.5);
+  EXPECT_GT(lowest[hard], highest[soft]);
 }
 
 TEST(TrainerTest, RejectsBadTrainingSets) {

@@ -253,10 +253,13 @@ absl::StatusOr<TrainingResult> TrainHapticNet(
   }
   if (options.batch_size < 1 || options.max_epochs < 1 ||
       options.patience < 1 || !(options.learning_rate > 0.0) ||
-      !(options.weight_decay >= 0.0)) {
+      !(options.weight_decay >= 0.0) || !(options.label_smoothing >= 0.0) ||
+      !(options.label_smoothing < 1.0) || !(options.min_temperature > 0.0) ||
+      !(options.max_temperature >= options.min_temperature)) {
     return absl::InvalidArgumentError(
         "trainer options: batch_size, max_epochs and patience must be >= 1, "
-        "learning_rate > 0 and weight_decay >= 0");
+        "learning_rate > 0, weight_decay >= 0, label_smoothing in [0, 1) and "
+        "0 < min_temperature <= max_temperature");
   }
 
   TrainingResult result;
@@ -285,6 +288,7 @@ absl::StatusOr<TrainingResult> TrainHapticNet(
   std::vector<double> g3, dh2, dh1;
   constexpr double kBeta1 = 0.9, kBeta2 = 0.999, kEpsilon = 1e-8;
   int64_t step = 0;
+  const double smoothing = options.label_smoothing;
 
   for (int epoch = 1; epoch <= options.max_epochs; ++epoch) {
     // Fisher-Yates with the raw engine, so the order does not depend on the
@@ -297,15 +301,17 @@ absl::StatusOr<TrainingResult> TrainHapticNet(
       const int n = std::min(options.batch_size, total - begin);
       LoadBatch(train, order, begin, n, norm, act);
       Forward(params, act);
-      // dLoss/dz3 = (softmax - onehot) / n.
+      // dLoss/dz3 = (softmax - target) / n, the target being the smoothed
+      // one-hot vector.
       g3.assign(static_cast<size_t>(n) * kHapticClasses, 0.0);
       for (int r = 0; r < n; ++r) {
         const int label = train.labels[order[begin + r]];
         const auto log_p = LogSoftmax(&act.z3[r * kHapticClasses], 1.0);
-        epoch_loss -= log_p[label];
         for (int k = 0; k < kHapticClasses; ++k) {
-          g3[r * kHapticClasses + k] =
-              (std::exp(log_p[k]) - (k == label ? 1.0 : 0.0)) / n;
+          const double target =
+              (k == label ? 1.0 - smoothing : 0.0) + smoothing / kHapticClasses;
+          epoch_loss -= target * log_p[k];
+          g3[r * kHapticClasses + k] = (std::exp(log_p[k]) - target) / n;
         }
       }
       MatTMul(act.h2.data(), g3.data(), n, kHapticHidden, kHapticClasses,
@@ -368,11 +374,16 @@ absl::StatusOr<TrainingResult> TrainHapticNet(
   }
 
   if (options.calibrate_temperature) {
-    // Grid search rather than an optimiser: a handful of exp() per window
-    // and point, and trivially reproducible.
+    // Grid search in steps of 0.01 rather than an optimiser: a handful of
+    // exp() per window and point, and trivially reproducible.
     const std::vector<double> logits = AllLogits(validation, best, norm);
-    double best_nll = MeanLogLoss(logits, validation.labels, 1.0);
-    for (int i = 25; i <= 500; ++i) {
+    const int first =
+        static_cast<int>(std::ceil(options.min_temperature * 100));
+    const int last =
+        static_cast<int>(std::floor(options.max_temperature * 100));
+    double best_nll = INFINITY;
+    result.temperature = first / 100.0;
+    for (int i = first; i <= last; ++i) {
       const double temperature = i / 100.0;
       const double nll = MeanLogLoss(logits, validation.labels, temperature);
       if (nll < best_nll) {

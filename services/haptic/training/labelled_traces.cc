@@ -1,5 +1,6 @@
 #include "services/haptic/training/labelled_traces.h"
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -23,6 +24,96 @@ double Uniform(std::mt19937_64& rng, double lo, double hi) {
   return std::uniform_real_distribution<double>(lo, hi)(rng);
 }
 
+double LogUniform(std::mt19937_64& rng, double lo, double hi) {
+  return std::exp(Uniform(rng, std::log(lo), std::log(hi)));
+}
+
+// One trace of `profile` under `options` (rate, contact, duration, jitter,
+// noise and bias as sim::SimulateTrace) with the augmentation of
+// `conditions` drawn from `rng`.
+std::vector<WrenchSample> AugmentedTrace(const sim::ForceProfile& profile,
+                                         const sim::TraceOptions& options,
+                                         const SimulationConditions& conditions,
+                                         std::mt19937_64& rng) {
+  const int k = static_cast<int>(profile.category());
+  const double amplitude = LogUniform(rng, conditions.min_amplitude_scale[k],
+                                      conditions.max_amplitude_scale[k]);
+  const double time_scale = LogUniform(rng, conditions.min_time_scale[k],
+                                       conditions.max_time_scale[k]);
+  const double drop_scale = LogUniform(rng, conditions.min_drop_time_scale,
+                                       conditions.max_drop_time_scale);
+  const double lateral =
+      Uniform(rng, conditions.min_lateral_scale, conditions.max_lateral_scale);
+  const double twist_m =
+      Uniform(rng, -conditions.max_twist_m, conditions.max_twist_m);
+  const double touch_n = Uniform(rng, 0.0, conditions.max_touch_n);
+  const double touch_s = Uniform(rng, 0.0, conditions.max_touch_s);
+  std::array<double, kWrenchChannels> bias{};
+  for (int c = 0; c < 3; ++c) {
+    bias[c] = options.noise.bias.force_n[c];
+    bias[3 + c] = options.noise.bias.torque_nm[c];
+  }
+  if (options.noise.random_bias_n > 0.0) {
+    const double b = options.noise.random_bias_n;
+    for (int c = 0; c < 3; ++c) {
+      bias[c] += Uniform(rng, -b, b);
+      bias[3 + c] += Uniform(rng, -0.02 * b, 0.02 * b);
+    }
+  }
+  // The profile's force peak in its first 100 ms (0.1 ms steps): the skin
+  // break or puncture; for hard and soft items, which only rise, the end.
+  double peak_s = 0.0, peak_n = -1.0;
+  for (int i = 1; i <= 1000; ++i) {
+    const double fz = profile.At(i * 1e-4).force_n[2];
+    if (fz > peak_n) {
+      peak_n = fz;
+      peak_s = i * 1e-4;
+    }
+  }
+  const double dt = 1.0 / options.rate_hz;
+  const int n =
+      static_cast<int>(std::floor(options.duration_s * options.rate_hz));
+  std::normal_distribution<double> normal(0.0, 1.0);
+  std::vector<WrenchSample> samples;
+  samples.reserve(n);
+  for (int i = 0; i < n; ++i) {
+    double t = i * dt;
+    if (options.jitter_fraction > 0.0 && i > 0) {
+      t += Uniform(rng, -0.5, 0.5) * options.jitter_fraction * dt;
+    }
+    const double tau = t - options.contact_s;
+    // Profile time: stretched by time_scale, and after the peak by
+    // drop_scale as well.
+    double profile_tau = tau / time_scale;
+    if (profile_tau > peak_s) {
+      profile_tau = peak_s + (profile_tau - peak_s) / drop_scale;
+    }
+    const sim::Wrench w = profile.At(profile_tau);
+    double touch = 0.0;
+    if (tau > 0.0) {
+      touch = touch_n;
+    } else if (touch_s > 0.0 && tau > -touch_s) {
+      touch = touch_n * (tau + touch_s) / touch_s;
+    }
+    const double fz = amplitude * w.force_n[2] + touch;
+    WrenchSample s;
+    s.t_s = t;
+    s.values = {amplitude * lateral * w.force_n[0],
+                amplitude * lateral * w.force_n[1],
+                fz,
+                amplitude * lateral * w.torque_nm[0],
+                amplitude * lateral * w.torque_nm[1],
+                twist_m * fz};
+    for (int c = 0; c < kWrenchChannels; ++c) {
+      const double sd =
+          c < 3 ? options.noise.force_sd_n : options.noise.torque_sd_nm;
+      s.values[c] += bias[c] + sd * normal(rng);
+    }
+    samples.push_back(s);
+  }
+  return samples;
+}
+
 bool ParseLabel(absl::string_view text, HapticClass* label) {
   for (int k = 0; k < kHapticClasses; ++k) {
     if (text == HapticClassName(static_cast<HapticClass>(k))) {
@@ -35,17 +126,43 @@ bool ParseLabel(absl::string_view text, HapticClass* label) {
 
 }  // namespace
 
+bool SimulationConditions::Augmented() const {
+  for (int k = 0; k < kHapticClasses; ++k) {
+    if (min_amplitude_scale[k] != 1.0 || max_amplitude_scale[k] != 1.0 ||
+        min_time_scale[k] != 1.0 || max_time_scale[k] != 1.0) {
+      return true;
+    }
+  }
+  return min_drop_time_scale != 1.0 || max_drop_time_scale != 1.0 ||
+         min_lateral_scale != 1.0 || max_lateral_scale != 1.0 ||
+         max_twist_m != 0.0 || max_touch_n != 0.0 || max_touch_s != 0.0;
+}
+
 SimulationConditions TrainingConditions() {
   SimulationConditions c;
   c.min_rate_hz = 100.0;
   c.max_rate_hz = 7000.0;
   c.min_noise_scale = 0.5;
-  c.max_noise_scale = 2.5;
+  c.max_noise_scale = 3.0;
   c.random_bias_n = 2.5;
   c.jitter_fraction = 0.1;
   c.min_contact_s = 0.1;
   c.max_contact_s = 0.3;
   c.after_contact_s = 0.2;
+  // Per class: hard, medium, soft, hard_skin. Hard 7-29 N; medium 2-8 N,
+  // its puncture still inside the 50 ms window; soft at most 1.2x (it must
+  // stay low and slow); hard-skin 3.5-13.5 N.
+  c.min_amplitude_scale = {0.7, 0.8, 0.6, 0.7};
+  c.max_amplitude_scale = {1.6, 1.6, 1.2, 1.5};
+  c.min_time_scale = {0.7, 0.7, 0.7, 0.7};
+  c.max_time_scale = {1.4, 1.2, 1.4, 1.4};
+  c.min_drop_time_scale = 0.5;
+  c.max_drop_time_scale = 1.5;
+  c.min_lateral_scale = 0.5;
+  c.max_lateral_scale = 2.0;
+  c.max_twist_m = 0.003;
+  c.max_touch_n = 0.6;
+  c.max_touch_s = 0.008;
   return c;
 }
 
@@ -78,6 +195,11 @@ std::vector<LabelledTrace> SimulateLabelledTraces(
       }
       LabelledTrace trace;
       trace.label = static_cast<HapticClass>(k);
+      if (conditions.Augmented()) {
+        trace.samples = AugmentedTrace(profile, options, conditions, rng);
+        traces.push_back(std::move(trace));
+        continue;
+      }
       for (const sim::TimedWrench& s :
            sim::SimulateTrace(profile, options, rng)) {
         trace.samples.push_back(

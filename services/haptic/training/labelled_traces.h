@@ -12,6 +12,7 @@
 #ifndef BITEWISE_SERVICES_HAPTIC_TRAINING_LABELLED_TRACES_H_
 #define BITEWISE_SERVICES_HAPTIC_TRAINING_LABELLED_TRACES_H_
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -50,11 +51,51 @@ struct SimulationConditions {
   double min_contact_s = 0.3;
   double max_contact_s = 0.3;
   double after_contact_s = 0.3;
+
+  // Augmentation beyond the force-trace model (training only; all off by
+  // default). Each is drawn per trace, so every item is a new variant:
+  //  - the whole wrench scaled by a factor log-uniform in
+  //    [min, max]_amplitude_scale[class] (stiffer or weaker items);
+  //  - the profile's time axis stretched by a factor log-uniform in
+  //    [min, max]_time_scale[class] (faster or slower fork, other sizes);
+  //  - after the force peak (the skin break or puncture), time stretched
+  //    again by a factor log-uniform in [min, max]_drop_time_scale, so a
+  //    puncture may be as fast as a skin break: only its depth tells them
+  //    apart;
+  //  - Fx, Fy and the torques they cause scaled by a factor uniform in
+  //    [min, max]_lateral_scale, plus a twist Tz = twist * Fz with twist
+  //    uniform in +-max_twist_m;
+  //  - a gentle touch before the fork bites: Fz ramps linearly to a level
+  //    uniform in [0, max_touch_n] over a time uniform in [0, max_touch_s]
+  //    before the profile starts and stays, which moves the detected
+  //    contact time.
+  // The ranges are per class (index HapticClass) so that the class
+  // signatures survive every draw: hard stays the steepest and highest,
+  // soft slow and low, hard-skin peaks then drops by more than half, medium
+  // is moderate with a small puncture drop.
+  std::array<double, kHapticClasses> min_amplitude_scale{1.0, 1.0, 1.0, 1.0};
+  std::array<double, kHapticClasses> max_amplitude_scale{1.0, 1.0, 1.0, 1.0};
+  std::array<double, kHapticClasses> min_time_scale{1.0, 1.0, 1.0, 1.0};
+  std::array<double, kHapticClasses> max_time_scale{1.0, 1.0, 1.0, 1.0};
+  double min_drop_time_scale = 1.0;
+  double max_drop_time_scale = 1.0;
+  double min_lateral_scale = 1.0;
+  double max_lateral_scale = 1.0;
+  double max_twist_m = 0.0;
+  double max_touch_n = 0.0;
+  double max_touch_s = 0.0;
+
+  // True if any augmentation above is on. Without augmentation the traces
+  // are exactly sim::SimulateTrace's, as the simulated Net F/T box streams.
+  bool Augmented() const;
 };
 
 // The conditions the default model is trained on: 100 Hz to 7 kHz, half to
-// two and a half times the nominal noise, up to +-2.5 N of offset, 10 %
-// jitter, contact anywhere from 0.1 s to 0.3 s.
+// three times the nominal noise, up to +-2.5 N of offset, 10 % timestamp
+// jitter, contact anywhere from 0.1 s to 0.3 s, and the augmentation above
+// (amplitude and time scales per class in labelled_traces.cc; drops x0.5-1.5
+// as fast, lateral x0.5-2 with +-3 mm twist, a touch of up to 0.6 N over up
+// to 8 ms).
 SimulationConditions TrainingConditions();
 
 // `per_class` traces of each class, interleaved hard, medium, soft,

@@ -42,6 +42,11 @@ ABSL_FLAG(int, batch_size, 64, "Windows per Adam step.");
 ABSL_FLAG(double, learning_rate, 1e-3, "Adam step size.");
 ABSL_FLAG(double, weight_decay, 1e-4, "L2 penalty on the weights.");
 ABSL_FLAG(int, max_epochs, 60, "Most passes over the training set.");
+ABSL_FLAG(double, label_smoothing, 0.04,
+          "Share of each training target spread evenly over the 4 classes.");
+ABSL_FLAG(double, min_temperature, 1.0,
+          "Floor of the softmax temperature fitted on the validation split "
+          "(1: the fit may soften the model, never sharpen it).");
 ABSL_FLAG(int, patience, 8,
           "Stop after this many epochs without a better validation loss.");
 
@@ -69,7 +74,9 @@ int main(int argc, char** argv) {
     traces = SimulateLabelledTraces(absl::GetFlag(FLAGS_traces_per_class),
                                     TrainingConditions(), seed);
     source = absl::StrCat("simulated (", absl::GetFlag(FLAGS_traces_per_class),
-                          " per class, seed ", seed, ")");
+                          " per class, seed ", seed,
+                          ", augmented: amplitude, time scale, noise, bias, "
+                          "rate, lateral, touch)");
   } else {
     absl::StatusOr<std::vector<LabelledTrace>> read =
         ReadTraceCsv(absl::GetFlag(FLAGS_traces));
@@ -132,6 +139,8 @@ int main(int argc, char** argv) {
   options.weight_decay = absl::GetFlag(FLAGS_weight_decay);
   options.max_epochs = absl::GetFlag(FLAGS_max_epochs);
   options.patience = absl::GetFlag(FLAGS_patience);
+  options.label_smoothing = absl::GetFlag(FLAGS_label_smoothing);
+  options.min_temperature = absl::GetFlag(FLAGS_min_temperature);
   absl::StatusOr<TrainingResult> result = TrainHapticNet(
       train_windows, validation_windows, options, [](const EpochLog& log) {
         std::printf(
@@ -166,6 +175,8 @@ int main(int argc, char** argv) {
       {"bitewise.traces", source},
       {"bitewise.seed", absl::StrCat(seed)},
       {"bitewise.best_epoch", absl::StrCat(result->best_epoch)},
+      {"bitewise.label_smoothing",
+       absl::StrFormat("%.3f", options.label_smoothing)},
       {"bitewise.temperature", absl::StrFormat("%.2f", result->temperature)},
       {"bitewise.test_accuracy",
        absl::StrFormat("%.4f", score.confusion.Accuracy())},
