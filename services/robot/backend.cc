@@ -47,7 +47,6 @@ absl::StatusOr<std::unique_ptr<RobotBackend>> RobotBackend::Create(
     box_options.seed = sim_options.seed;
     box_options.counts_per_force = ft_options.counts_per_force;
     box_options.counts_per_torque = ft_options.counts_per_torque;
-    box_options.internal_rate_hz = ft_options.ft_sample_rate_hz;
     ASSIGN_OR_RETURN(backend->box_, sim::SimNetFtBox::Start(
                                         box_options, backend->world_.get()));
     ft_options.host = box_options.host;
@@ -77,6 +76,19 @@ absl::StatusOr<std::unique_ptr<RobotBackend>> RobotBackend::Create(
         return absl::UnavailableError(
             absl::StrCat(backend->ft_->name(), " (simulated) sent no data in ",
                          options.ft_start_timeout_s, " s"));
+      }
+      absl::SleepFor(absl::Milliseconds(5));
+    }
+    // And until the counter has a verdict (ok or fault: a box whose counter
+    // disagrees with the configured rate must still come up, refusing to
+    // move, so that the fault is visible).
+    while (backend->ft_->Health().counter.state ==
+           netft::CounterClockState::kVerifying) {
+      if (SteadyNowS() > deadline_s) {
+        return absl::UnavailableError(absl::StrCat(
+            backend->ft_->name(),
+            " (simulated): ", backend->ft_->Health().counter.problem, " after ",
+            options.ft_start_timeout_s, " s"));
       }
       absl::SleepFor(absl::Milliseconds(5));
     }

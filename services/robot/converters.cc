@@ -87,6 +87,11 @@ void StatusToProto(const RobotStatusInfo& info, bool simulated, int items_left,
   proto->set_ft_stale_dropped(info.ft_stats.stale_dropped);
   proto->set_ft_malformed(info.ft_stats.malformed);
   proto->set_ft_status_word(info.ft_stats.last_status);
+  proto->set_ft_counter_state(
+      netft::CounterClockStateName(info.ft_health.counter.state));
+  proto->set_ft_counter_rate_hz(info.ft_health.counter.rate_hz);
+  proto->set_ft_counter_measured_hz(info.ft_health.counter.measured_rate_hz);
+  proto->set_ft_counter_problem(info.ft_health.counter.problem);
   proto->set_busy_with(info.busy_with == AcquirePhase::kIdle
                            ? ""
                            : AcquirePhaseName(info.busy_with));

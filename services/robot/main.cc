@@ -1,5 +1,8 @@
 // bitewise-robot: the RobotService binary. Flags are parsed here and nowhere
 // else; everything below main takes Options structs.
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -11,10 +14,14 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
 #include "services/robot/backend.h"
 #include "services/robot/robot_service.h"
+#include "services/robot/sim/sim_netft_box.h"
+#include "services/robot/steady_time.h"
 
 ABSL_FLAG(std::string, backend, "sim",
           "sim (simulated world, arm and Net F/T box on loopback) or jaco2 "
@@ -31,6 +38,20 @@ ABSL_FLAG(int, sim_ft_port, 0,
 ABSL_FLAG(std::string, ft_host, "192.168.1.1",
           "jaco2: address of the Net F/T box.");
 ABSL_FLAG(int, ft_port, 49152, "jaco2: RDT port of the Net F/T box.");
+ABSL_FLAG(double, ft_counter_rate_hz, 7000.0,
+          "Rate at which the Net F/T box's ft_sequence counter advances (its "
+          "internal sample rate; 7000 on a factory box). 0 learns it from "
+          "arrival times. Checked continuously: a counter that disagrees, "
+          "stalls or jumps stops the arm and drops health.");
+ABSL_FLAG(double, sim_ft_counter_rate_hz, 7000.0,
+          "sim: the rate at which the simulated box's ft_sequence advances; "
+          "equal to --sim_ft_rate_hz it counts once per record.");
+ABSL_FLAG(bool, check_sensor, false,
+          "Connect to the F/T sensor only (the simulated box with "
+          "--backend=sim), watch it for --check_sensor_s, print record rate, "
+          "counter rate, noise and bias, and exit: 0 if the stream is fit to "
+          "move the arm, 1 if not.");
+ABSL_FLAG(double, check_sensor_s, 3.0, "How long --check_sensor watches.");
 ABSL_FLAG(double, counts_per_force, 1e6,
           "Net F/T counts per newton (the box's configuration page).");
 ABSL_FLAG(double, counts_per_torque, 1e6,
@@ -76,6 +97,9 @@ absl::StatusOr<bitewise::robot::RobotBackendOptions> OptionsFromFlags() {
     options.sim.foods = absl::StrSplit(foods, ',', absl::SkipEmpty());
   }
   options.sim.box.rate_hz = absl::GetFlag(FLAGS_sim_ft_rate_hz);
+  options.sim.box.internal_rate_hz =
+      absl::GetFlag(FLAGS_sim_ft_counter_rate_hz);
+  options.ft.counter.expected_rate_hz = absl::GetFlag(FLAGS_ft_counter_rate_hz);
   const int sim_port = absl::GetFlag(FLAGS_sim_ft_port);
   const int ft_port = absl::GetFlag(FLAGS_ft_port);
   if (sim_port < 0 || sim_port > 65535 || ft_port <= 0 || ft_port > 65535) {
@@ -130,6 +154,77 @@ absl::StatusOr<bitewise::robot::RobotBackendOptions> OptionsFromFlags() {
   return options;
 }
 
+// --check_sensor: the F/T stream alone, summarised for a person at the
+// robot (docs/hardware.md walks through reading it).
+int CheckSensor(const bitewise::robot::RobotBackendOptions& options) {
+  namespace netft = bitewise::netft;
+  std::unique_ptr<bitewise::sim::SimNetFtBox> box;
+  netft::NetFtRdtClientOptions ft = options.ft;
+  if (options.kind == bitewise::robot::BackendKind::kSim) {
+    auto started = bitewise::sim::SimNetFtBox::Start(options.sim.box, nullptr);
+    if (!started.ok()) {
+      return bitewise::ReportFatal(kProgram, "cannot start the simulated box",
+                                   started.status());
+    }
+    box = std::move(started).value();
+    ft.host = options.sim.box.host;
+    ft.port = box->port();
+  }
+  auto client = netft::NetFtRdtClient::Connect(ft);
+  if (!client.ok()) {
+    return bitewise::ReportFatal(kProgram, "cannot reach the F/T sensor",
+                                 client.status());
+  }
+  const double watch_s = std::max(1.0, absl::GetFlag(FLAGS_check_sensor_s));
+  absl::SleepFor(absl::Seconds(watch_s));
+  std::vector<netft::FtSample> samples;
+  (*client)->SamplesSince(0, &samples);
+  // Noise and bias over the second half of the watch (after any start-up).
+  const double from_s = bitewise::robot::SteadyNowS() - watch_s / 2;
+  std::array<double, 6> sum{}, sum_sq{};
+  int n = 0;
+  for (const netft::FtSample& s : samples) {
+    if (s.arrival_s < from_s) continue;
+    for (int i = 0; i < 6; ++i) {
+      const double v = i < 3 ? s.wrench.force_n[i] : s.wrench.torque_nm[i - 3];
+      sum[i] += v;
+      sum_sq[i] += v * v;
+    }
+    ++n;
+  }
+  const netft::StreamHealth health = (*client)->Health();
+  const netft::RdtStats stats = (*client)->stats();
+  std::printf("%s\n", (*client)->name().c_str());
+  std::printf(
+      "  stream          %s, %.0f records/s, %llu received, %llu lost, "
+      "%llu out of order, %llu malformed, status word 0x%08x\n",
+      netft::StreamStateName(health.state), health.rate_hz,
+      static_cast<unsigned long long>(stats.samples_accepted),
+      static_cast<unsigned long long>(stats.packets_lost),
+      static_cast<unsigned long long>(stats.out_of_order),
+      static_cast<unsigned long long>(stats.malformed), stats.last_status);
+  std::printf("  counter         %s: measured %.0f Hz, in use %.0f Hz%s%s\n",
+              netft::CounterClockStateName(health.counter.state),
+              health.counter.measured_rate_hz, health.counter.rate_hz,
+              health.counter.problem.empty() ? "" : "; ",
+              health.counter.problem.c_str());
+  static constexpr const char* kAxes[6] = {"Fx N",  "Fy N",  "Fz N",
+                                           "Tx Nm", "Ty Nm", "Tz Nm"};
+  std::printf("  %-6s %12s %12s   (over the last %.1f s, %d samples)\n", "axis",
+              "bias", "noise sd", watch_s / 2, n);
+  for (int i = 0; i < 6 && n > 1; ++i) {
+    const double mean = sum[i] / n;
+    const double var = std::max(0.0, sum_sq[i] / n - mean * mean);
+    std::printf("  %-6s %12.4f %12.5f\n", kAxes[i], mean, std::sqrt(var));
+  }
+  const absl::Status live = (*client)->CheckLive();
+  std::printf(
+      "  verdict         %s\n",
+      live.ok() ? "fit to move the arm" : std::string(live.message()).c_str());
+  std::fflush(stdout);
+  return live.ok() ? 0 : 1;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -143,6 +238,7 @@ int main(int argc, char** argv) {
   if (!options.ok()) {
     return bitewise::ReportFatal(kProgram, "bad flags", options.status());
   }
+  if (absl::GetFlag(FLAGS_check_sensor)) return CheckSensor(*options);
   auto backend = bitewise::robot::RobotBackend::Create(*options);
   if (!backend.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot start the robot",

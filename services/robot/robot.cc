@@ -200,6 +200,10 @@ class Robot::Run {
       if (robot_->stop_requested_) return StoppedError();
     }
     Ingest();
+    // The force limit first: it acts on every sample received, whatever
+    // the state of the sensor's clock.
+    *over_limit = max_force_since_tick_ >= action_.max_force_n;
+    max_force_since_tick_ = 0.0;
     const netft::StreamHealth health = robot_->ft_->Health();
     if (health.silent_for_s > config_.watchdog_timeout_s) {
       RETURN_IF_ERROR(HaltArm());
@@ -209,8 +213,14 @@ class Robot::Run {
           robot_->ft_->name(), 1e3 * health.silent_for_s,
           AcquirePhaseName(phase), 1e3 * config_.watchdog_timeout_s));
     }
-    *over_limit = max_force_since_tick_ >= action_.max_force_n;
-    max_force_since_tick_ = 0.0;
+    if (health.counter.state == netft::CounterClockState::kFault) {
+      RETURN_IF_ERROR(HaltArm());
+      return absl::UnavailableError(absl::StrCat(robot_->ft_->name(), ": ",
+                                                 health.counter.problem,
+                                                 "; arm stopped "
+                                                 "during ",
+                                                 AcquirePhaseName(phase)));
+    }
     if (!Report(phase, /*force=*/false)) {
       RETURN_IF_ERROR(HaltArm());
       return absl::CancelledError("Acquire cancelled by the caller");
@@ -262,6 +272,9 @@ class Robot::Run {
     return on_progress_(event);
   }
 
+  // The unloaded reading: the mean of the samples received in the last
+  // baseline_s (arrival times: independent of the sensor's counter).
+  // Every sample after these belongs to the acquisition.
   void MeasureBaseline() {
     std::optional<netft::FtSample> latest = robot_->ft_->Latest();
     if (!latest) return;
@@ -272,7 +285,7 @@ class Robot::Run {
     int n = 0;
     netft::Wrench sum;
     for (const netft::FtSample& s : recent) {
-      if (s.host_time_s < start_s_ - config_.baseline_s) continue;
+      if (s.arrival_s < start_s_ - config_.baseline_s) continue;
       for (int i = 0; i < 3; ++i) {
         sum.force_n[i] += s.wrench.force_n[i];
         sum.torque_nm[i] += s.wrench.torque_nm[i];
@@ -289,11 +302,19 @@ class Robot::Run {
     }
   }
 
+  // Every sample received since the baseline counts for the force limit,
+  // the peak and contact, whatever its timestamp: safety never depends on
+  // the sensor's counter. Only the trace (for HapticNet) needs times that
+  // strictly increase; a sample whose counter time does not is left out of
+  // it (the counter check faults on that anyway).
   void Ingest() {
     std::vector<netft::FtSample> fresh;
     next_index_ = robot_->ft_->SamplesSince(next_index_, &fresh);
     for (const netft::FtSample& s : fresh) {
-      if (s.host_time_s - start_s_ < 0.0) continue;
+      const double force = ForceMagnitude(s.wrench, baseline_);
+      last_force_n_ = force;
+      max_force_since_tick_ = std::max(max_force_since_tick_, force);
+      outcome_.peak_force_n = std::max(outcome_.peak_force_n, force);
       // The client's host-time offset can still shrink as less delayed
       // packets arrive; fixing it at the first sample keeps the trace on
       // the sensor's own clock, strictly increasing, as HapticNet needs.
@@ -301,16 +322,12 @@ class Robot::Run {
         trace_offset_s_ = s.host_time_s - s.sensor_time_s - start_s_;
       }
       const double t_s = s.sensor_time_s + trace_offset_s_;
-      if (!outcome_.trace.empty() && t_s <= outcome_.trace.back().t_s) continue;
-      outcome_.trace.push_back({t_s, s.wrench});
-      const double force = ForceMagnitude(s.wrench, baseline_);
-      last_force_n_ = force;
-      max_force_since_tick_ = std::max(max_force_since_tick_, force);
-      outcome_.peak_force_n = std::max(outcome_.peak_force_n, force);
       if (outcome_.contact_time_s < 0.0 &&
           force > config_.contact_threshold_n) {
         outcome_.contact_time_s = t_s;
       }
+      if (!outcome_.trace.empty() && t_s <= outcome_.trace.back().t_s) continue;
+      outcome_.trace.push_back({t_s, s.wrench});
     }
   }
 

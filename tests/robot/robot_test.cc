@@ -23,6 +23,8 @@ namespace bitewise::robot {
 namespace {
 
 using ::bitewise::testing::WaitFor;
+using ::testing::AllOf;
+using ::testing::ContainsRegex;
 using ::testing::HasSubstr;
 
 RobotBackendOptions SimOptions(std::vector<std::string> foods, uint64_t seed) {
@@ -41,9 +43,17 @@ RobotBackendOptions SimOptions(std::vector<std::string> foods, uint64_t seed) {
 class RobotTest : public ::testing::Test {
  protected:
   void Start(std::vector<std::string> foods, uint64_t seed = 3) {
-    auto backend = RobotBackend::Create(SimOptions(std::move(foods), seed));
+    StartWith(SimOptions(std::move(foods), seed));
+  }
+  void StartWith(const RobotBackendOptions& options) {
+    auto backend = RobotBackend::Create(options);
     ASSERT_TRUE(backend.ok()) << backend.status();
     backend_ = std::move(backend).value();
+  }
+  void SetFault(const std::function<void(sim::SimNetFtFaults*)>& change) {
+    sim::SimNetFtFaults faults = backend_->box()->faults();
+    change(&faults);
+    backend_->box()->SetFaults(faults);
   }
 
   AcquireTarget TargetOfItem(size_t i) {
@@ -223,6 +233,141 @@ TEST_F(RobotTest, WatchdogStopsTheArmWhenTheSensorGoesSilent) {
   backend_->box()->SetFaults(sim::SimNetFtFaults());
   ASSERT_TRUE(WaitFor([&] { return backend_->FtLive(); }));
   EXPECT_TRUE(backend_->robot().Acquire(TargetOfItem(0), 0, nullptr).ok());
+}
+
+// The force limit and the F/T counter: the safety cases, each asserting what
+// the arm did. A box whose ft_sequence counts at another rate than the one
+// configured once made every sample look stale, so the limit never saw a
+// force; now the limit reads every sample received, and a counter that
+// cannot be trusted stops the arm or keeps it from moving.
+
+// A box counting once per record (1 kHz) against the configured 7 kHz.
+RobotBackendOptions OncePerRecordBox(double expected_rate_hz) {
+  RobotBackendOptions options = SimOptions({"banana"}, 3);
+  options.sim.box.rate_hz = 1000.0;
+  options.sim.box.internal_rate_hz = 1000.0;
+  options.ft.counter.expected_rate_hz = expected_rate_hz;
+  return options;
+}
+
+TEST_F(RobotTest, ACounterAtAnotherRateThanConfiguredNeverMovesTheArm) {
+  StartWith(OncePerRecordBox(/*expected_rate_hz=*/7000.0));
+  EXPECT_FALSE(backend_->FtLive());  // health: NOT_SERVING
+  const RobotStatusInfo status = backend_->robot().Status();
+  EXPECT_EQ(status.ft_health.counter.state, netft::CounterClockState::kFault);
+  EXPECT_NEAR(status.ft_health.counter.measured_rate_hz, 1000.0, 100.0);
+  const int commands = backend_->sim_arm()->commands();
+  absl::Status refused =
+      backend_->robot().Acquire(TargetOfItem(0), 0, nullptr).status();
+  EXPECT_EQ(refused.code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(std::string(refused.message()),
+              AllOf(HasSubstr("Net F/T sensor at 127.0.0.1:" +
+                              std::to_string(backend_->box()->port())),
+                    ContainsRegex("advances at (9[0-9][0-9]|1[01][0-9][0-9]) "
+                                  "Hz but 7000 Hz is configured")));
+  EXPECT_EQ(backend_->sim_arm()->commands(), commands);
+  EXPECT_TRUE(ArmFrozen());
+}
+
+// Presses the fork with 40 N as the descent starts (VS0 allows 25 N) and
+// checks that the arm went no further than one control period, two at most
+// with the tick in flight, of descent past that point.
+void ExpectAStepOfFortyNewtonsStopsTheDescent(RobotBackend* backend) {
+  const AcquisitionConfig& config = backend->robot().config();
+  double z_at_step_m = NAN;
+  const auto target =
+      backend->world()->TargetOf(backend->world()->scene().items.at(0).id);
+  ASSERT_TRUE(target.has_value());
+  absl::StatusOr<AcquireOutcome> outcome = backend->robot().Acquire(
+      *target, /*VS0*/ 0, [&](const AcquireProgressEvent& event) {
+        if (event.phase == AcquirePhase::kDescend && std::isnan(z_at_step_m)) {
+          z_at_step_m = backend->sim_arm()->MeasuredPose()->p_TaskTip_m.z();
+          sim::SimNetFtFaults faults = backend->box()->faults();
+          faults.press_n = 40.0;
+          backend->box()->SetFaults(faults);
+        }
+        return true;
+      });
+  backend->box()->SetFaults(sim::SimNetFtFaults());
+  ASSERT_TRUE(outcome.ok()) << outcome.status();
+  EXPECT_TRUE(outcome->force_limit_reached);
+  EXPECT_GT(outcome->peak_force_n, 35.0);
+  ASSERT_FALSE(std::isnan(z_at_step_m));
+  EXPECT_GE(outcome->lowest_tip_z_m,
+            z_at_step_m -
+                2 * config.control_period_s * config.descend_speed_mps - 1e-9);
+}
+
+TEST_F(RobotTest, AFortyNewtonStepStopsTheDescentWithASevenKilohertzCounter) {
+  Start({"banana"});
+  ASSERT_TRUE(backend_->FtLive());
+  ExpectAStepOfFortyNewtonsStopsTheDescent(backend_.get());
+}
+
+TEST_F(RobotTest, AFortyNewtonStepStopsTheDescentWithALearnedCounterRate) {
+  StartWith(OncePerRecordBox(/*expected_rate_hz=*/0.0));  // learn it
+  ASSERT_TRUE(WaitFor([&] { return backend_->FtLive(); }));
+  EXPECT_NEAR(backend_->robot().Status().ft_health.counter.rate_hz, 1000.0,
+              50.0);
+  ExpectAStepOfFortyNewtonsStopsTheDescent(backend_.get());
+}
+
+TEST_F(RobotTest, ACounterThatJumpsMidDescentStopsTheArm) {
+  Start({"banana"});
+  std::atomic<bool> descending{false};
+  auto running =
+      AcquireAsync(TargetOfItem(0), 0, AcquirePhase::kDescend, &descending);
+  ASSERT_TRUE(WaitFor([&] { return descending.load(); }));
+  SetFault([](sim::SimNetFtFaults* f) { f->counter_offset_counts = 70000; });
+  absl::StatusOr<AcquireOutcome> outcome = running.get();
+  EXPECT_EQ(outcome.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(outcome.status().message(),
+              AllOf(HasSubstr("Net F/T sensor at 127.0.0.1"),
+                    HasSubstr("ft_sequence jumped by 70"),
+                    HasSubstr("arm stopped during descend")));
+  EXPECT_GE(backend_->sim_arm()->halts(), 1);
+  EXPECT_TRUE(ArmFrozen());
+  // Health drops, and comes back once a window of records is sane again
+  // (the counter keeps its new offset and counts on at the right rate).
+  EXPECT_FALSE(backend_->FtLive());
+  ASSERT_TRUE(WaitFor([&] { return backend_->FtLive(); }));
+  EXPECT_TRUE(backend_->robot().Acquire(TargetOfItem(0), 0, nullptr).ok());
+}
+
+TEST_F(RobotTest, ACounterThatStallsMidDescentStopsTheArm) {
+  Start({"banana"});
+  std::atomic<bool> descending{false};
+  auto running =
+      AcquireAsync(TargetOfItem(0), 0, AcquirePhase::kDescend, &descending);
+  ASSERT_TRUE(WaitFor([&] { return descending.load(); }));
+  SetFault([](sim::SimNetFtFaults* f) { f->counter_frozen = true; });
+  absl::StatusOr<AcquireOutcome> outcome = running.get();
+  EXPECT_EQ(outcome.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(outcome.status().message(), HasSubstr("ft_sequence stalled"));
+  EXPECT_GE(backend_->sim_arm()->halts(), 1);
+  EXPECT_TRUE(ArmFrozen());
+  const int commands = backend_->sim_arm()->commands();
+  EXPECT_FALSE(backend_->robot().Acquire(TargetOfItem(0), 0, nullptr).ok());
+  EXPECT_EQ(backend_->sim_arm()->commands(), commands);
+}
+
+TEST_F(RobotTest, ACounterThatWrapsIsNotAFault) {
+  RobotBackendOptions options = SimOptions({"banana", "kiwi"}, 3);
+  // 2^32 is reached about a second after the box boots: mid-acquisition.
+  options.sim.box.ft_sequence_at_boot = 0xFFFFFFFFu - 7000u;
+  StartWith(options);
+  for (int i = 0; i < 2; ++i) {
+    absl::StatusOr<AcquireOutcome> outcome =
+        backend_->robot().Acquire(TargetOfItem(0), 0, nullptr);
+    ASSERT_TRUE(outcome.ok()) << outcome.status();
+    ASSERT_GT(outcome->trace.size(), 0.7 * 1000 * outcome->duration_s);
+    for (size_t k = 1; k < outcome->trace.size(); ++k) {
+      ASSERT_GT(outcome->trace[k].t_s, outcome->trace[k - 1].t_s);
+    }
+    if (backend_->items_left() == 0) break;
+  }
+  EXPECT_EQ(backend_->robot().Status().ft_health.counter.state,
+            netft::CounterClockState::kOk);
 }
 
 TEST_F(RobotTest, OneAcquisitionAtATime) {

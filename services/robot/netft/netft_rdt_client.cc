@@ -59,9 +59,9 @@ absl::StatusOr<std::unique_ptr<NetFtRdtClient>> NetFtRdtClient::Connect(
         "counts_per_force and counts_per_torque must be positive, got ",
         options.counts_per_force, " and ", options.counts_per_torque));
   }
-  if (!(options.ft_sample_rate_hz > 0.0)) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "ft_sample_rate_hz must be positive, got ", options.ft_sample_rate_hz));
+  if (absl::Status valid = CounterClock::Validate(options.counter);
+      !valid.ok()) {
+    return valid;
   }
   if (!(options.silence_timeout_s > 0.0) || options.history_capacity == 0) {
     return absl::InvalidArgumentError(
@@ -101,7 +101,8 @@ NetFtRdtClient::NetFtRdtClient(const NetFtRdtClientOptions& options, int fd,
     : options_(options),
       fd_(fd),
       name_(std::move(name)),
-      connect_time_s_(robot::SteadyNowS()) {
+      connect_time_s_(robot::SteadyNowS()),
+      clock_(options.counter) {
   last_restart_s_ = connect_time_s_;
 }
 
@@ -175,6 +176,8 @@ void NetFtRdtClient::HandleDatagram(const uint8_t* data, size_t size,
     last_ft_sequence_ = record->ft_sequence;
     ft_ticks_ = 0;
     host_offset_s_ = now_s;
+    clock_.Restart();
+    clock_.Observe(now_s, 0);
   } else {
     const int32_t ahead =
         static_cast<int32_t>(record->rdt_sequence - last_rdt_sequence_);
@@ -196,17 +199,23 @@ void NetFtRdtClient::HandleDatagram(const uint8_t* data, size_t size,
     seen_mask_ = ahead >= kWindow ? 0 : seen_mask_ << ahead;
     seen_mask_ |= 1;
     last_rdt_sequence_ = record->rdt_sequence;
-    ft_ticks_ += static_cast<int32_t>(record->ft_sequence - last_ft_sequence_);
+    // A signed difference, so the u32 counter may wrap.
+    const int32_t delta =
+        static_cast<int32_t>(record->ft_sequence - last_ft_sequence_);
+    ft_ticks_ += delta;
     last_ft_sequence_ = record->ft_sequence;
+    clock_.Observe(now_s, delta);
   }
   if (record->status != 0) ++stats_.status_errors;
   stats_.last_status = record->status;
 
   FtSample sample;
   sample.index = next_index_++;
-  sample.sensor_time_s =
-      static_cast<double>(ft_ticks_) / options_.ft_sample_rate_hz;
-  host_offset_s_ = std::min(host_offset_s_, now_s - sample.sensor_time_s);
+  sample.arrival_s = now_s;
+  sample.ticks = ft_ticks_;
+  host_offset_s_ =
+      std::min(host_offset_s_, now_s - static_cast<double>(ft_ticks_) /
+                                           clock_.rate_in_use_hz());
   sample.rdt_sequence = record->rdt_sequence;
   sample.ft_sequence = record->ft_sequence;
   sample.status = record->status;
@@ -224,7 +233,9 @@ void NetFtRdtClient::HandleDatagram(const uint8_t* data, size_t size,
 FtSample NetFtRdtClient::Stamped(const FtSample& sample) const {
   FtSample out = sample;
   if (sample.index >= first_index_of_stream_) {
-    out.host_time_s = sample.sensor_time_s + host_offset_s_;
+    out.sensor_time_s =
+        static_cast<double>(sample.ticks) / clock_.rate_in_use_hz();
+    out.host_time_s = out.sensor_time_s + host_offset_s_;
   }
   return out;
 }
@@ -244,10 +255,11 @@ StreamHealth NetFtRdtClient::Health() const {
   }
   int in_window = 0;
   for (auto it = history_.rbegin(); it != history_.rend(); ++it) {
-    if (Stamped(*it).host_time_s < now_s - kRateWindowS) break;
+    if (it->arrival_s < now_s - kRateWindowS) break;
     ++in_window;
   }
   health.rate_hz = in_window / kRateWindowS;
+  health.counter = clock_.Report();
   return health;
 }
 
@@ -265,10 +277,28 @@ absl::Status NetFtRdtClient::CheckLive() const {
     case StreamState::kStreaming:
       break;
   }
-  absl::MutexLock lock(&mu_);
-  if (stats_.last_status != 0) {
-    return absl::UnavailableError(absl::StrFormat(
-        "%s reports fault status 0x%08x", name_, stats_.last_status));
+  {
+    absl::MutexLock lock(&mu_);
+    if (stats_.last_status != 0) {
+      return absl::UnavailableError(absl::StrFormat(
+          "%s reports fault status 0x%08x", name_, stats_.last_status));
+    }
+  }
+  const CounterClockReport& counter = health.counter;
+  if (counter.state != CounterClockState::kOk) {
+    return absl::UnavailableError(absl::StrCat(name_, ": ", counter.problem));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status NetFtRdtClient::CheckCounter() const {
+  CounterClockReport counter;
+  {
+    absl::MutexLock lock(&mu_);
+    counter = clock_.Report();
+  }
+  if (counter.state == CounterClockState::kFault) {
+    return absl::UnavailableError(absl::StrCat(name_, ": ", counter.problem));
   }
   return absl::OkStatus();
 }

@@ -3,8 +3,10 @@
 // box to stream, converts counts to newtons and newton-metres with the
 // box's counts-per-force and counts-per-torque, tracks RDT sequence numbers
 // (lost, out-of-order, duplicate and stale packets are counted; stale ones
-// are dropped), stamps each sample with sensor time from ft_sequence, and
-// tells a silent sensor apart from merely stale data. Safety code (the
+// are dropped), stamps each sample with sensor time from ft_sequence,
+// checks that counter against the host's clock (CounterClock: a wrong rate,
+// a stalled, jumping or backwards counter is a fault, never a quiet skew),
+// and tells a silent sensor apart from merely stale data. Safety code (the
 // acquisition watchdog) builds on CheckLive().
 //
 // Thread-safe. One background thread receives; every accessor may be called
@@ -26,6 +28,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
+#include "services/robot/netft/counter_clock.h"
 #include "services/robot/netft/rdt_protocol.h"
 
 namespace bitewise::netft {
@@ -39,8 +42,14 @@ struct Wrench {
 struct FtSample {
   // Monotonic index over the client's lifetime (see SamplesSince()).
   uint64_t index = 0;
-  // ft_sequence turned into seconds since the first record of this stream,
-  // so samples keep the sensor's own spacing whatever the network did.
+  // When the datagram was received, on SteadyNowS(). Independent of the
+  // counter, so safety code never depends on the counter's rate.
+  double arrival_s = 0.0;
+  // ft_sequence unwrapped, relative to the first record of this stream.
+  int64_t ticks = 0;
+  // `ticks` turned into seconds at the counter's rate (configured or
+  // learned), so samples keep the sensor's own spacing whatever the
+  // network did.
   double sensor_time_s = 0.0;
   // The same instant on SteadyNowS(): sensor time plus the smallest
   // receive-time offset seen in this stream (the least delayed packet), as
@@ -60,9 +69,10 @@ struct NetFtRdtClientOptions {
   // counts per N and per N·m. 1e6 is the factory setting for a Nano25.
   double counts_per_force = 1e6;
   double counts_per_torque = 1e6;
-  // The rate at which ft_sequence advances (the box's internal sample rate),
-  // used to time samples: 7000 Hz on the Net F/T.
-  double ft_sample_rate_hz = 7000.0;
+  // The rate at which ft_sequence advances (the box's internal sample rate,
+  // 7000 Hz by default on the Net F/T; 0 learns it) and how it is checked
+  // against arrival times. See CounterClockOptions.
+  CounterClockOptions counter;
   // No accepted sample for this long means the sensor is silent.
   double silence_timeout_s = 0.05;
   // While silent, the start request is sent again this often, so a box that
@@ -99,8 +109,10 @@ struct StreamHealth {
   StreamState state = StreamState::kWaitingForData;
   // Since the last accepted sample (or since Connect() when none).
   double silent_for_s = 0.0;
-  // Accepted samples per second over the last half second.
+  // Accepted samples per second over the last half second (arrival times).
   double rate_hz = 0.0;
+  // The ft_sequence counter checked against arrival times.
+  CounterClockReport counter;
 };
 
 class NetFtRdtClient {
@@ -131,9 +143,16 @@ class NetFtRdtClient {
   // count). UNAVAILABLE if the send fails.
   absl::Status Send(const RdtRequest& request);
 
-  // OK while samples arrive; UNAVAILABLE naming the sensor when it is
-  // silent, has not sent anything yet, or reports a non-zero status word.
+  // OK while samples arrive with a trustworthy counter; UNAVAILABLE naming
+  // the sensor when it is silent, has not sent anything yet, reports a
+  // non-zero status word, or its ft_sequence counter is still being
+  // verified or in fault (the message gives measured and expected rates).
   absl::Status CheckLive() const;
+
+  // Only the counter part of CheckLive(): UNAVAILABLE naming the sensor
+  // while the counter is in fault. For the control loop, which checks
+  // silence with its own watchdog.
+  absl::Status CheckCounter() const;
 
   StreamHealth Health() const;
   RdtStats stats() const;
@@ -174,6 +193,7 @@ class NetFtRdtClient {
   uint32_t last_ft_sequence_ ABSL_GUARDED_BY(mu_) = 0;
   int64_t ft_ticks_ ABSL_GUARDED_BY(mu_) = 0;
   double host_offset_s_ ABSL_GUARDED_BY(mu_) = 0.0;
+  CounterClock clock_ ABSL_GUARDED_BY(mu_);
   // Samples of earlier streams (before a restart) have their host time
   // fixed; those with index >= first_index_of_stream_ use host_offset_s_.
   uint64_t first_index_of_stream_ ABSL_GUARDED_BY(mu_) = 0;

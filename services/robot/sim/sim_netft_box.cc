@@ -209,12 +209,19 @@ void SimNetFtBox::Stream(double now_s) {
     last_clean_ = source_ != nullptr ? source_->WrenchAt(t_s) : Wrench();
     netft::RdtRecord record;
     record.rdt_sequence = ++rdt_sequence_;
-    record.ft_sequence = static_cast<uint32_t>(static_cast<uint64_t>(
-        std::llround((t_s - boot_time_s_) * options_.internal_rate_hz)));
+    if (!faults_.counter_frozen) {
+      last_ft_sequence_ = static_cast<uint32_t>(
+          options_.ft_sequence_at_boot +
+          static_cast<uint64_t>(
+              std::llround((t_s - boot_time_s_) * options_.internal_rate_hz) +
+              faults_.counter_offset_counts));
+    }
+    record.ft_sequence = last_ft_sequence_;
     record.status = 0;
     for (int i = 0; i < 3; ++i) {
       const double f = last_clean_.force_n[i] + bias_.force_n[i] +
                        drift_.force_n[i] - tare_.force_n[i] +
+                       (i == 2 ? faults_.press_n : 0.0) +
                        options_.noise.force_sd_n * normal(noise_rng_);
       const double tq = last_clean_.torque_nm[i] + bias_.torque_nm[i] -
                         tare_.torque_nm[i] +

@@ -40,8 +40,11 @@ struct SimNetFtBoxOptions {
   uint16_t port = 0;
   // Records per second, at most the internal rate.
   double rate_hz = 1000.0;
-  // The rate at which ft_sequence advances, as on the real box.
+  // The rate at which ft_sequence advances, as on the real box. Equal to
+  // rate_hz, it advances once per record (as some firmware does).
   double internal_rate_hz = 7000.0;
+  // ft_sequence at boot: near 2^32 to test the counter's wrap.
+  uint32_t ft_sequence_at_boot = 0;
   double counts_per_force = 1e6;
   double counts_per_torque = 1e6;
   // White noise and a constant bias (SensorNoise::bias, plus a random one
@@ -56,6 +59,14 @@ struct SimNetFtFaults {
   bool silent = false;  // sends nothing; rdt_sequence does not advance
   // Added to Fz (and, scaled, Fx, Fy) per second while set.
   double bias_drift_n_per_s = 0.0;
+  // Counter faults: ft_sequence stops advancing while records still flow;
+  // or is shifted by this many counts (set mid-stream: a jump; negative:
+  // backwards).
+  bool counter_frozen = false;
+  int64_t counter_offset_counts = 0;
+  // A load on the fork (N, along the sensor's z) that the world does not
+  // know of: someone pressing the fork, or an unexpected obstacle.
+  double press_n = 0.0;
 };
 
 struct SimNetFtCounters {
@@ -120,6 +131,7 @@ class SimNetFtBox {
   uint64_t next_k_ = 0;       // index of the next record in time
   double boot_time_s_ = 0.0;  // ft_sequence counts from here
   double last_drift_s_ = 0.0;
+  uint32_t last_ft_sequence_ = 0;
   Wrench last_clean_;  // the last noise-free reading (for bias)
   Wrench bias_;
   std::vector<uint8_t> held_;  // a record held back for reordering
