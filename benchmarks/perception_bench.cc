@@ -13,7 +13,7 @@
 #include "services/perception/food_detector.h"
 #include "services/perception/frame.h"
 #include "services/perception/spanet_featurizer.h"
-#include "services/robot/sim/render/scene.h"
+#include "services/sim/scene.h"
 
 namespace bitewise::perception {
 namespace {

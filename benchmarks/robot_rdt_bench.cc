@@ -5,7 +5,7 @@
 
 #include "benchmark/benchmark.h"
 #include "services/robot/netft/rdt_protocol.h"
-#include "services/robot/sim/contact_force.h"
+#include "services/sim/contact_force.h"
 
 namespace {
 

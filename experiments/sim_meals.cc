@@ -12,8 +12,8 @@
 #include "services/bandit/core/policy.h"
 #include "services/common/status_macros.h"
 #include "services/haptic/default_model.h"
-#include "services/robot/sim/force_trace.h"
-#include "services/robot/sim/render/scene.h"
+#include "services/sim/force_trace.h"
+#include "services/sim/scene.h"
 
 namespace bitewise::experiments {
 namespace {

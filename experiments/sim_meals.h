@@ -5,11 +5,11 @@
 //
 // Everything comes from the project's own components, in-process and without
 // gRPC: the foods and their per-action success probabilities from
-// services/robot/sim/food_catalog.h; the visual context from a rendered
-// plate (services/robot/sim/render/scene.h) through the PerceptionService's
+// services/sim/food_catalog.h; the visual context from a rendered
+// plate (services/sim/scene.h) through the PerceptionService's
 // weight-free DefaultFeaturizer on each item's ground-truth box; the post hoc
 // context from a simulated force trace of the item's category
-// (services/robot/sim/force_trace.h) through the HapticService's
+// (services/sim/force_trace.h) through the HapticService's
 // HapticClassifier; the learners and LinUCB selection from
 // services/bandit/core.
 //
@@ -28,7 +28,7 @@
 #include "services/bandit/core/config.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/perception/default_featurizer.h"
-#include "services/robot/sim/food_catalog.h"
+#include "services/sim/food_catalog.h"
 
 namespace bitewise::experiments {
 

@@ -20,7 +20,7 @@
 #include "experiments/random.h"
 #include "experiments/sim_meals.h"
 #include "experiments/trial_stats.h"
-#include "services/robot/sim/food_catalog.h"
+#include "services/sim/food_catalog.h"
 
 ABSL_FLAG(int, trials, 200, "Seeded trials (simulated meals).");
 ABSL_FLAG(int, attempts_per_food, 8, "Attempts on each of the 8 foods.");

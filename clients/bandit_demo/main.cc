@@ -27,7 +27,7 @@
 #include "bitewise/v1/bandit.grpc.pb.h"
 #include "services/common/channel.h"
 #include "services/common/grpc_status.h"
-#include "services/robot/sim/food_catalog.h"
+#include "services/sim/food_catalog.h"
 
 ABSL_FLAG(std::string, bandit, "127.0.0.1:50051", "BanditService address.");
 ABSL_FLAG(std::string, user, "demo-user", "User whose model learns.");

@@ -38,7 +38,7 @@ struct RigidTransform {
 
 // The wrist camera looking straight down from `height_m` above the task
 // origin: camera x right, y down, z forward (the convention of
-// services/robot/sim/render/scene.h), so R = diag(1, -1, -1).
+// services/sim/scene.h), so R = diag(1, -1, -1).
 RigidTransform CameraLookingDown(double height_m);
 
 // A food item as PerceptionService reports it: the centre of its visible

@@ -22,7 +22,7 @@
 #include "services/robot/jaco2/jaco2_arm.h"
 #include "services/robot/netft/netft_rdt_client.h"
 #include "services/robot/robot.h"
-#include "services/robot/sim/render/scene.h"
+#include "services/sim/scene.h"
 #include "services/robot/sim/sim_arm.h"
 #include "services/robot/sim/sim_netft_box.h"
 #include "services/robot/sim/sim_world.h"

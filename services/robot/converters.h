@@ -7,7 +7,7 @@
 #include "bitewise/v1/robot.pb.h"
 #include "services/robot/actions.h"
 #include "services/robot/robot.h"
-#include "services/robot/sim/render/scene.h"
+#include "services/sim/scene.h"
 
 namespace bitewise::robot {
 

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "gtest/gtest.h"
-#include "services/robot/sim/food_catalog.h"
+#include "services/sim/food_catalog.h"
 
 namespace bitewise::experiments {
 namespace {

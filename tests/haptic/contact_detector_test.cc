@@ -10,7 +10,7 @@
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/haptic/training/labelled_traces.h"
-#include "services/robot/sim/force_trace.h"
+#include "services/sim/force_trace.h"
 #include "tests/haptic/haptic_test_traces.h"
 
 namespace bitewise::haptic {

@@ -7,7 +7,7 @@
 #include <vector>
 
 #include "services/haptic/core/wrench_trace.h"
-#include "services/robot/sim/force_trace.h"
+#include "services/sim/force_trace.h"
 
 namespace bitewise::haptic {
 

@@ -14,7 +14,7 @@
 #include "opencv2/imgcodecs.hpp"
 #include "opencv2/imgproc.hpp"
 #include "services/perception/frame.h"
-#include "services/robot/sim/render/scene.h"
+#include "services/sim/scene.h"
 
 namespace bitewise::perception::testing {
 

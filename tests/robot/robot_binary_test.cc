@@ -23,7 +23,7 @@
 #include "google/protobuf/util/json_util.h"
 #include "gtest/gtest.h"
 #include "services/common/channel.h"
-#include "services/robot/sim/render/scene.h"
+#include "services/sim/scene.h"
 #include "tests/common/child_process.h"
 
 namespace bitewise {

@@ -9,7 +9,7 @@
 #include <thread>
 
 #include "gtest/gtest.h"
-#include "services/robot/sim/contact_force.h"
+#include "services/sim/contact_force.h"
 #include "services/robot/steady_time.h"
 
 namespace bitewise::sim {

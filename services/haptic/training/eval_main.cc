@@ -50,7 +50,7 @@ double Uniform(std::mt19937_64& rng, double lo, double hi) {
 
 // Fz (N) of one item of the out-of-distribution generator: piecewise-linear
 // segments through (time after contact, force) knots, flat after the last.
-// It shares nothing with the force-trace model (services/robot/sim), whose
+// It shares nothing with the force-trace model (services/sim), whose
 // rises are exponential: only the physical idea of each category is the
 // same, with its own, wider ranges.
 struct PiecewiseLinear {

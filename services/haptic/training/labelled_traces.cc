@@ -11,7 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
-#include "services/robot/sim/force_trace.h"
+#include "services/sim/force_trace.h"
 
 namespace bitewise::haptic {
 namespace {

@@ -21,7 +21,7 @@
 #include "absl/base/thread_annotations.h"
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
-#include "services/robot/sim/force_trace.h"
+#include "services/sim/force_trace.h"
 
 namespace bitewise::sim {
 

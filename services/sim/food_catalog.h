@@ -9,8 +9,8 @@
 // vertical skewer across the fibres, soft foods need the tilted angled
 // scoop, hard-skinned foods need the tines-vertical approach across the
 // skin, and medium foods take any vertical skewer. See docs/simulation.md.
-#ifndef BITEWISE_SERVICES_ROBOT_SIM_FOOD_CATALOG_H_
-#define BITEWISE_SERVICES_ROBOT_SIM_FOOD_CATALOG_H_
+#ifndef BITEWISE_SERVICES_SIM_FOOD_CATALOG_H_
+#define BITEWISE_SERVICES_SIM_FOOD_CATALOG_H_
 
 #include <array>
 #include <string>
@@ -51,4 +51,4 @@ const FoodType* FindFood(const std::string& name);
 
 }  // namespace bitewise::sim
 
-#endif  // BITEWISE_SERVICES_ROBOT_SIM_FOOD_CATALOG_H_
+#endif  // BITEWISE_SERVICES_SIM_FOOD_CATALOG_H_

@@ -4,10 +4,10 @@
 // reproduces ForceProfile::At exactly, a fork stopped at the force limit
 // holds its force, and a fork pulled back unloads. Also the plate under the
 // food, as a stiff spring, so a fork that misses the food hits the plate.
-#ifndef BITEWISE_SERVICES_ROBOT_SIM_CONTACT_FORCE_H_
-#define BITEWISE_SERVICES_ROBOT_SIM_CONTACT_FORCE_H_
+#ifndef BITEWISE_SERVICES_SIM_CONTACT_FORCE_H_
+#define BITEWISE_SERVICES_SIM_CONTACT_FORCE_H_
 
-#include "services/robot/sim/force_trace.h"
+#include "services/sim/force_trace.h"
 
 namespace bitewise::sim {
 
@@ -49,4 +49,4 @@ Wrench PlateContactWrench(double below_m, const ContactModelOptions& options);
 
 }  // namespace bitewise::sim
 
-#endif  // BITEWISE_SERVICES_ROBOT_SIM_CONTACT_FORCE_H_
+#endif  // BITEWISE_SERVICES_SIM_CONTACT_FORCE_H_

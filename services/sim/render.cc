@@ -11,7 +11,7 @@
 #include <random>
 #include <vector>
 
-#include "services/robot/sim/render/scene.h"
+#include "services/sim/scene.h"
 
 namespace bitewise::sim {
 namespace {

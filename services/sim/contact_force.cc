@@ -1,4 +1,4 @@
-#include "services/robot/sim/contact_force.h"
+#include "services/sim/contact_force.h"
 
 #include <algorithm>
 

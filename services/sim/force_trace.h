@@ -12,14 +12,14 @@
 //  - soft: a slow, low rise.
 // Every item draws its own parameters (food-to-food variation), and the
 // sensor adds white noise and a constant bias.
-#ifndef BITEWISE_SERVICES_ROBOT_SIM_FORCE_TRACE_H_
-#define BITEWISE_SERVICES_ROBOT_SIM_FORCE_TRACE_H_
+#ifndef BITEWISE_SERVICES_SIM_FORCE_TRACE_H_
+#define BITEWISE_SERVICES_SIM_FORCE_TRACE_H_
 
 #include <array>
 #include <random>
 #include <vector>
 
-#include "services/robot/sim/food_catalog.h"
+#include "services/sim/food_catalog.h"
 
 namespace bitewise::sim {
 
@@ -91,4 +91,4 @@ std::vector<TimedWrench> SimulateTrace(const ForceProfile& profile,
 
 }  // namespace bitewise::sim
 
-#endif  // BITEWISE_SERVICES_ROBOT_SIM_FORCE_TRACE_H_
+#endif  // BITEWISE_SERVICES_SIM_FORCE_TRACE_H_

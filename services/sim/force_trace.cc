@@ -1,4 +1,4 @@
-#include "services/robot/sim/force_trace.h"
+#include "services/sim/force_trace.h"
 
 #include <cmath>
 

@@ -1,4 +1,4 @@
-#include "services/robot/sim/food_catalog.h"
+#include "services/sim/food_catalog.h"
 
 namespace bitewise::sim {
 

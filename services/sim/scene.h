@@ -10,15 +10,15 @@
 // centre; camera frame x right, y down, z forward (into the plate), so a
 // point (x, y, 0) on the plate is at (x, y, camera_height_m) in the camera
 // frame.
-#ifndef BITEWISE_SERVICES_ROBOT_SIM_RENDER_SCENE_H_
-#define BITEWISE_SERVICES_ROBOT_SIM_RENDER_SCENE_H_
+#ifndef BITEWISE_SERVICES_SIM_SCENE_H_
+#define BITEWISE_SERVICES_SIM_SCENE_H_
 
 #include <array>
 #include <cstdint>
 #include <random>
 #include <vector>
 
-#include "services/robot/sim/food_catalog.h"
+#include "services/sim/food_catalog.h"
 
 namespace bitewise::sim {
 
@@ -83,4 +83,4 @@ PlateScene RandomPlate(const std::vector<const FoodType*>& foods,
 
 }  // namespace bitewise::sim
 
-#endif  // BITEWISE_SERVICES_ROBOT_SIM_RENDER_SCENE_H_
+#endif  // BITEWISE_SERVICES_SIM_SCENE_H_
