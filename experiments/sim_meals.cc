@@ -32,17 +32,6 @@ enum Stream : uint64_t {
 // Draws of a plate before giving up on fitting every food on it.
 constexpr int kMaxPlateDraws = 20;
 
-// A view of `rendered` as perception's frame; `rendered` must outlive it.
-perception::DecodedFrame ToDecodedFrame(sim::RenderedFrame& rendered) {
-  const sim::PinholeIntrinsics& k = rendered.intrinsics;
-  perception::DecodedFrame frame;
-  frame.rgb = cv::Mat(k.height, k.width, CV_8UC3, rendered.rgb.data());
-  frame.depth_mm =
-      cv::Mat(k.height, k.width, CV_16UC1, rendered.depth_mm.data());
-  frame.intrinsics = {k.fx, k.fy, k.cx, k.cy};
-  return frame;
-}
-
 // The haptic core's samples for a simulated trace (same channel order).
 std::vector<haptic::WrenchSample> ToWrenchSamples(
     const std::vector<sim::TimedWrench>& trace) {
@@ -74,6 +63,42 @@ int FoodIndex(const std::vector<const sim::FoodType*>& foods,
 }
 
 }  // namespace
+
+perception::DecodedFrame ToDecodedFrame(sim::RenderedFrame& rendered) {
+  const sim::PinholeIntrinsics& k = rendered.intrinsics;
+  perception::DecodedFrame frame;
+  frame.rgb = cv::Mat(k.height, k.width, CV_8UC3, rendered.rgb.data());
+  frame.depth_mm =
+      cv::Mat(k.height, k.width, CV_16UC1, rendered.depth_mm.data());
+  frame.intrinsics = {k.fx, k.fy, k.cx, k.cy};
+  return frame;
+}
+
+absl::StatusOr<std::vector<std::vector<double>>> FeaturizeScene(
+    const sim::PlateScene& scene, uint64_t render_seed,
+    const perception::Featurizer& featurizer) {
+  sim::RenderedFrame rendered =
+      sim::RenderPlate(scene, sim::D415Intrinsics(), render_seed);
+  const perception::DecodedFrame frame = ToDecodedFrame(rendered);
+  std::vector<std::vector<double>> contexts(scene.items.size());
+  for (size_t i = 0; i < scene.items.size(); ++i) {
+    const sim::SceneItem& item = scene.items[i];
+    const auto truth =
+        std::find_if(rendered.truth.begin(), rendered.truth.end(),
+                     [&](const sim::ItemTruth& t) { return t.id == item.id; });
+    if (truth == rendered.truth.end() || truth->visible_pixels == 0) continue;
+    const perception::PixelBox box{truth->x, truth->y, truth->width,
+                                   truth->height};
+    absl::StatusOr<perception::Features> features =
+        featurizer.Featurize(frame, box, perception::FoodLocation::kIsolated);
+    if (!features.ok()) {
+      return absl::InternalError(absl::StrCat(
+          "featurizing ", item.food->name, ": ", features.status().ToString()));
+    }
+    contexts[i] = std::move(features->context);
+  }
+  return contexts;
+}
 
 const char* HapticContextName(HapticContext kind) {
   switch (kind) {
@@ -109,11 +134,29 @@ absl::Status ValidateSimMealsConfig(const SimMealsConfig& config) {
     return absl::InvalidArgumentError(absl::StrCat(
         "attempts_per_food must be positive, got ", config.attempts_per_food));
   }
-  if (config.plates_per_trial < 1) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "plates_per_trial must be positive, got ", config.plates_per_trial));
+  if (config.plates_per_trial < 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("plates_per_trial must be positive (or 0: one per "
+                     "attempt), got ",
+                     config.plates_per_trial));
+  }
+  if (config.lambda_c < 0.0 || !(config.rho_c > 0.0)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("lambda_c must be >= 0 and rho_c positive, got ",
+                     config.lambda_c, " and ", config.rho_c));
   }
   return absl::OkStatus();
+}
+
+double ResolvedLambdaC(const SimMealsConfig& config) {
+  if (config.lambda_c > 0.0) return config.lambda_c;
+  return config.rho_c *
+         perception::DefaultFeaturizer().context_mean_squared_norm();
+}
+
+int ResolvedPlatesPerTrial(const SimMealsConfig& config) {
+  return config.plates_per_trial > 0 ? config.plates_per_trial
+                                     : config.attempts_per_food;
 }
 
 SimMealsSimulator::SimMealsSimulator(
@@ -139,6 +182,7 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
   RETURN_IF_ERROR(ValidateSimMealsConfig(config));
   const std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
   const int num_foods = static_cast<int>(foods.size());
+  const int plates_per_trial = ResolvedPlatesPerTrial(config);
 
   // Plates: render each once and featurize every item's ground-truth box;
   // each food's force profile is drawn per item, as the simulated robot
@@ -147,10 +191,10 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
   std::mt19937_64 profile_rng(MixSeed(seed, kProfileStream));
   // [plate][food]
   std::vector<std::vector<std::vector<double>>> contexts(
-      config.plates_per_trial, std::vector<std::vector<double>>(num_foods));
-  std::vector<std::vector<sim::ForceProfile>> profiles(config.plates_per_trial);
+      plates_per_trial, std::vector<std::vector<double>>(num_foods));
+  std::vector<std::vector<sim::ForceProfile>> profiles(plates_per_trial);
   SimMealWorld world;
-  for (int plate = 0; plate < config.plates_per_trial; ++plate) {
+  for (int plate = 0; plate < plates_per_trial; ++plate) {
     // RandomPlate leaves an item off a plate it cannot fit on, and an item
     // can end up with no visible pixel; such plates are drawn again (from
     // the same stream) so that every food is on every plate.
@@ -162,30 +206,14 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
       }
       const sim::PlateScene scene =
           sim::RandomPlate(foods, config.allow_touching, plate_rng);
-      sim::RenderedFrame rendered =
-          sim::RenderPlate(scene, sim::D415Intrinsics(),
-                           MixSeed(seed, kRenderNoiseStream + plate));
-      const perception::DecodedFrame frame = ToDecodedFrame(rendered);
+      ASSIGN_OR_RETURN(
+          std::vector<std::vector<double>> item_contexts,
+          FeaturizeScene(scene, MixSeed(seed, kRenderNoiseStream + plate),
+                         featurizer_));
       std::vector<std::vector<double>> plate_contexts(num_foods);
-      for (const sim::SceneItem& item : scene.items) {
-        const int food = FoodIndex(foods, item.food);
-        const auto truth = std::find_if(
-            rendered.truth.begin(), rendered.truth.end(),
-            [&](const sim::ItemTruth& t) { return t.id == item.id; });
-        if (food < 0 || truth == rendered.truth.end() ||
-            truth->visible_pixels == 0) {
-          continue;
-        }
-        const perception::PixelBox box{truth->x, truth->y, truth->width,
-                                       truth->height};
-        absl::StatusOr<perception::Features> features = featurizer_.Featurize(
-            frame, box, perception::FoodLocation::kIsolated);
-        if (!features.ok()) {
-          return absl::InternalError(
-              absl::StrCat("featurizing ", item.food->name, " on plate ", plate,
-                           ": ", features.status().ToString()));
-        }
-        plate_contexts[food] = std::move(features->context);
+      for (size_t i = 0; i < scene.items.size(); ++i) {
+        const int food = FoodIndex(foods, scene.items[i].food);
+        if (food >= 0) plate_contexts[food] = std::move(item_contexts[i]);
       }
       if (std::all_of(plate_contexts.begin(), plate_contexts.end(),
                       [](const auto& c) { return !c.empty(); })) {
@@ -227,7 +255,7 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
   for (int food : order) {
     SimAttempt attempt;
     attempt.food = food;
-    attempt.plate = attempts_so_far[food]++ % config.plates_per_trial;
+    attempt.plate = attempts_so_far[food]++ % plates_per_trial;
     attempt.context = contexts[attempt.plate][food];
     const std::vector<haptic::WrenchSample> trace =
         ToWrenchSamples(sim::SimulateTrace(profiles[attempt.plate][food],
@@ -258,7 +286,7 @@ absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
   bandit_config.learner = learner;
   bandit_config.strategy = bandit::Strategy::kLinUcb;
   bandit_config.alpha = config.alpha;
-  bandit_config.lambda_c = config.lambda_c;
+  bandit_config.lambda_c = ResolvedLambdaC(config);
   bandit_config.lambda_p = config.lambda_p;
   bandit_config.context_dim =
       static_cast<int>(world.attempts.front().context.size());

@@ -29,8 +29,20 @@
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/perception/default_featurizer.h"
 #include "services/sim/food_catalog.h"
+#include "services/sim/scene.h"
 
 namespace bitewise::experiments {
+
+// A view of `rendered` as perception's frame; `rendered` must outlive it.
+perception::DecodedFrame ToDecodedFrame(sim::RenderedFrame& rendered);
+
+// Renders `scene` (noise from `render_seed`) and featurizes every visible
+// item on its ground-truth box (location: isolated) with `featurizer`.
+// Returns one context per scene item, empty for items with no visible
+// pixel. INTERNAL naming the food if featurizing fails.
+absl::StatusOr<std::vector<std::vector<double>>> FeaturizeScene(
+    const sim::PlateScene& scene, uint64_t render_seed,
+    const perception::Featurizer& featurizer);
 
 // What the post hoc learner is told about the haptic classification.
 enum class HapticContext {
@@ -59,16 +71,27 @@ struct SimMealsConfig {
   // Rendered plates per trial. Each plate holds every unseen food once; the
   // j-th attempt on a food uses its item on plate j mod plates_per_trial, so
   // the learner sees plates_per_trial appearances of each food per trial.
-  int plates_per_trial = 1;
+  // 0 (the default) means attempts_per_food: a new piece, with its own
+  // size, shape, orientation, shade and force profile, at every attempt, as
+  // on a real plate.
+  int plates_per_trial = 0;
   MealOrder order = MealOrder::kShuffled;
   // Whether neighbouring items on a plate may touch (touching items widen
   // each other's ground-truth box context ring).
   bool allow_touching = false;
-  // Learner hyperparameters (SPEC section 2 defaults).
+  // Learner hyperparameters: the product's defaults. lambda_c 0 means
+  // rho_c times the default featurizer's E||c||^2 on seen foods, as the
+  // orchestrator gives new users; a positive lambda_c is used as given.
   double alpha = 0.01;
-  double lambda_c = 1000.0;
+  double rho_c = 1.0;
+  double lambda_c = 0.0;
   double lambda_p = 1.0;
 };
+
+// The lambda_c the learners use under `config` (see SimMealsConfig).
+double ResolvedLambdaC(const SimMealsConfig& config);
+// The plates per trial under `config` (see SimMealsConfig).
+int ResolvedPlatesPerTrial(const SimMealsConfig& config);
 
 // INVALID_ARGUMENT naming the field when a count is not positive.
 absl::Status ValidateSimMealsConfig(const SimMealsConfig& config);

@@ -24,15 +24,19 @@
 
 ABSL_FLAG(int, trials, 200, "Seeded trials (simulated meals).");
 ABSL_FLAG(int, attempts_per_food, 8, "Attempts on each of the 8 foods.");
-ABSL_FLAG(int, plates_per_trial, 1,
+ABSL_FLAG(int, plates_per_trial, 0,
           "Rendered plates per trial; a food's j-th attempt uses its item on "
-          "plate j mod this.");
+          "plate j mod this. 0: one per attempt (a new piece every time).");
 ABSL_FLAG(std::string, order, "shuffled",
           "shuffled: the 8 x attempts_per_food attempts in a random order; "
           "blocked: all attempts on one food, then the next.");
 ABSL_FLAG(bool, allow_touching, false, "Let items on a plate touch.");
 ABSL_FLAG(double, alpha, 0.01, "LinUCB exploration weight.");
-ABSL_FLAG(double, lambda_c, 1000.0, "Ridge on the context model.");
+ABSL_FLAG(double, rho_c, 1.0,
+          "Context ridge in observations: lambda_c = rho_c * E||c||^2 of the "
+          "default featurizer on seen foods (the shipped default).");
+ABSL_FLAG(double, lambda_c, 0.0,
+          "Ridge on the context model, used as given; 0: from --rho_c.");
 ABSL_FLAG(double, lambda_p, 1.0, "Ridge on the post hoc terms.");
 ABSL_FLAG(uint64_t, seed, 1,
           "Base seed; trial i uses a seed mixed from (seed, i).");
@@ -64,6 +68,7 @@ int Run() {
   config.allow_touching = absl::GetFlag(FLAGS_allow_touching);
   config.alpha = absl::GetFlag(FLAGS_alpha);
   config.lambda_c = absl::GetFlag(FLAGS_lambda_c);
+  config.rho_c = absl::GetFlag(FLAGS_rho_c);
   config.lambda_p = absl::GetFlag(FLAGS_lambda_p);
   const std::string order = absl::GetFlag(FLAGS_order);
   if (order == "shuffled") {
@@ -207,14 +212,17 @@ int Run() {
   const int last = attempts - 1;
   absl::PrintF(
       "simulated meals: %d trials x %d attempts (8 foods x %d, %s order, %d "
-      "plate(s) per trial), alpha=%g lambda_c=%g lambda_p=%g, seed %d\n",
+      "plate(s) per trial), alpha=%g lambda_c=%g (rho_c %g) lambda_p=%g, "
+      "seed %d\n",
       trials, attempts, config.attempts_per_food, order,
-      config.plates_per_trial, config.alpha, config.lambda_c, config.lambda_p,
-      absl::GetFlag(FLAGS_seed));
+      ResolvedPlatesPerTrial(config), config.alpha, ResolvedLambdaC(config),
+      ResolvedLambdaC(config) /
+          perception::DefaultFeaturizer().context_mean_squared_norm(),
+      config.lambda_p, absl::GetFlag(FLAGS_seed));
   absl::PrintF(
       "plates drawn again because a food did not fit or was not visible: "
       "%d of %d\n",
-      plate_redraws, plate_redraws + trials * config.plates_per_trial);
+      plate_redraws, plate_redraws + trials * ResolvedPlatesPerTrial(config));
   absl::PrintF("HapticNet category accuracy on the attempts' traces: %.2f%%\n",
                100.0 * haptic_correct / haptic_total);
   absl::PrintF(
@@ -227,18 +235,24 @@ int Run() {
       "expected failures over the meal: best action every time %.2f, uniform "
       "random %.2f\n",
       columns[columns.size() - 2][last], columns.back()[last]);
-  absl::PrintF("cumulative failures after %d attempts (mean +- s.e.):\n",
-               attempts);
+  absl::PrintF(
+      "cumulative failures after %d attempts (mean, 95%% interval = mean +- "
+      "1.96 s.e.):\n",
+      attempts);
+  const double uniform_last = columns.back()[last];
   for (int learner = 0; learner < kLearners; ++learner) {
-    absl::PrintF("  %-22s %6.2f +- %.2f", LearnerLabel(learner),
-                 summaries[learner].mean[last],
-                 summaries[learner].standard_error[last]);
+    const double m = summaries[learner].mean[last];
+    const double h = 1.96 * summaries[learner].standard_error[last];
+    absl::PrintF("  %-22s %6.2f [%.2f, %.2f] (%+.1f%% vs uniform)",
+                 LearnerLabel(learner), m, m - h, m + h,
+                 100.0 * (m - uniform_last) / uniform_last);
     if (learner > 0) {
       const CurveSummary& d = diff_summaries[learner - 1];
+      const double dh = 1.96 * d.standard_error[last];
       absl::PrintF(
-          "   context-only minus this: %+.2f +- %.2f (%+.1f%% of "
-          "context-only)",
-          d.mean[last], d.standard_error[last],
+          "   paired context-only minus this: %+.2f [%+.2f, %+.2f] (%+.1f%% "
+          "of context-only)",
+          d.mean[last], d.mean[last] - dh, d.mean[last] + dh,
           100.0 * d.mean[last] / summaries[0].mean[last]);
     }
     absl::PrintF("\n");

@@ -62,9 +62,14 @@ ABSL_FLAG(int, deadline_ms, 10000, "Deadline of every unary call.");
 ABSL_FLAG(int, acquire_deadline_ms, 60000, "Deadline of one Acquire.");
 ABSL_FLAG(int, retries, 4, "Retries with backoff on UNAVAILABLE.");
 ABSL_FLAG(double, lambda_c, 0.0,
-          "Context ridge for a NEW user; 0 keeps the BanditService's default "
-          "(1000, tuned for SPANet's 2048 features; the 64 default features "
-          "learn faster with ~10, see docs/experiments.md).");
+          "Context ridge for a NEW user, honoured exactly; 0 derives it from "
+          "--rho_c and the featurizer's E||c||^2.");
+ABSL_FLAG(double, rho_c, 1.0,
+          "For a NEW user without --lambda_c: lambda_c = rho_c * E||c||^2 of "
+          "the featurizer's contexts on seen foods (what PerceptionService "
+          "reports), the number of observations the ridge is worth "
+          "(docs/algorithms.md). A featurizer that does not report it keeps "
+          "the BanditService's default.");
 ABSL_FLAG(double, alpha, -1.0,
           "Exploration weight for a NEW user; negative keeps the "
           "BanditService's default.");
@@ -154,7 +159,7 @@ class MealRunner {
   // Finds or creates the user for contexts of `context_dim` values;
   // returns false with a message on failure.
   bool EnsureUser(const std::string& user_id, bool vision_only, int context_dim,
-                  std::string* error) {
+                  double context_mean_squared_norm, std::string* error) {
     v1::GetUserRequest get;
     get.set_user_id(user_id);
     grpc::Status status = WithRetries([&] {
@@ -185,6 +190,17 @@ class MealRunner {
                                                      : v1::LEARNER_POSTHOC);
     if (absl::GetFlag(FLAGS_lambda_c) > 0.0) {
       create.mutable_config()->set_lambda_c(absl::GetFlag(FLAGS_lambda_c));
+    } else if (context_mean_squared_norm > 0.0) {
+      const double rho_c = absl::GetFlag(FLAGS_rho_c);
+      create.mutable_config()->set_lambda_c(rho_c * context_mean_squared_norm);
+      std::printf(
+          "context ridge lambda_c = %.4g (rho_c %.3g x E||c||^2 %.4g "
+          "of the featurizer on seen foods)\n",
+          rho_c * context_mean_squared_norm, rho_c, context_mean_squared_norm);
+    } else {
+      std::printf(
+          "the featurizer reports no E||c||^2: the BanditService's "
+          "default lambda_c applies (--lambda_c sets it)\n");
     }
     if (absl::GetFlag(FLAGS_alpha) >= 0.0) {
       create.mutable_config()->set_alpha(absl::GetFlag(FLAGS_alpha));
@@ -252,7 +268,8 @@ class MealRunner {
     }
 
     if (!user_ready_) {
-      if (!EnsureUser(user_id_, vision_only_, features.context_size(), error)) {
+      if (!EnsureUser(user_id_, vision_only_, features.context_size(),
+                      features.context_mean_squared_norm(), error)) {
         return false;
       }
       user_ready_ = true;
@@ -456,6 +473,11 @@ int main(int argc, char** argv) {
   if (confirm != "robot" && confirm != "operator") {
     std::fprintf(stderr, "--confirm: expected robot or operator, got %s\n",
                  confirm.c_str());
+    return 2;
+  }
+  if (!(absl::GetFlag(FLAGS_rho_c) > 0.0)) {
+    std::fprintf(stderr, "--rho_c must be positive, got %g\n",
+                 absl::GetFlag(FLAGS_rho_c));
     return 2;
   }
   if (posthoc != "logprob" && posthoc != "prob" && posthoc != "none") {

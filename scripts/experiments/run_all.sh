@@ -29,15 +29,7 @@ run "$build/experiments/bitewise-mnist" \
   --test_labels="$mnist/test-labels-idx1-ubyte" \
   --lambda_c=10 --trials=10 --regret_trials=10 --seed=1 --out_dir="$out" \
   2>/dev/null
-run "$build/experiments/bitewise-sim-meals" --trials=500 --seed=1 \
-  --out="$out/sim_meals.csv" 2>/dev/null
-run "$build/experiments/bitewise-sim-meals" --trials=500 --seed=2 \
-  --lambda_c=10 --out="$out/sim_meals_lambda_c10.csv" 2>/dev/null
 gnuplot -e "dir='$out'; out='$out'" "$root/scripts/experiments/plot_synthetic.gp"
 gnuplot -e "dir='$out'; out='$out'" "$root/scripts/experiments/plot_mnist.gp"
-gnuplot -e "dir='$out'; out='$out'; name='sim_meals'" \
-  "$root/scripts/experiments/plot_sim_meals.gp"
-gnuplot -e "dir='$out'; out='$out'; name='sim_meals_lambda_c10'; \
-  label='TUNED lambda_c = 10, alpha = 0.01, lambda_p = 1'" \
-  "$root/scripts/experiments/plot_sim_meals.gp"
+"$root/scripts/experiments/sim_meals_all.sh" "$build" "$out"
 echo "CSV and PNG files in $out"

@@ -2,10 +2,17 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <vector>
 
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "absl/strings/strip.h"
 #include "opencv2/imgproc.hpp"
 #include "services/common/status_macros.h"
+#include "services/perception/default_featurizer_stats_data.h"
 
 namespace bitewise::perception {
 namespace {
@@ -29,7 +36,99 @@ double Percentile(std::vector<double> values, double p) {
   return values[k];
 }
 
+// Standard deviations below this are treated as this: features that barely
+// vary among seen foods are not blown up.
+constexpr double kMinSd = 1e-3;
+// Features [0, kStandardised) are standardised.
+constexpr int kStandardised = 60;
+
 }  // namespace
+
+absl::StatusOr<DefaultFeaturizerStats> ParseDefaultFeaturizerStats(
+    const std::string& text) {
+  DefaultFeaturizerStats stats;
+  stats.mean.assign(kDefaultFeatureDim, std::nan(""));
+  stats.sd.assign(kDefaultFeatureDim, std::nan(""));
+  int line_number = 0;
+  for (absl::string_view line : absl::StrSplit(text, '\n')) {
+    ++line_number;
+    line = absl::StripAsciiWhitespace(line);
+    if (line.empty() || line.front() == '#') continue;
+    const std::vector<absl::string_view> fields =
+        absl::StrSplit(line, ' ', absl::SkipEmpty());
+    auto bad = [&](absl::string_view why) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("featurizer statistics line ", line_number, ": ", why,
+                       ": \"", line, "\""));
+    };
+    if (fields[0] == "version" && fields.size() == 2) {
+      if (!absl::SimpleAtoi(fields[1], &stats.version)) {
+        return bad("version is not an integer");
+      }
+    } else if (fields[0] == "mean_squared_norm" && fields.size() == 2) {
+      if (!absl::SimpleAtod(fields[1], &stats.mean_squared_norm) ||
+          !(stats.mean_squared_norm > 0.0)) {
+        return bad("mean_squared_norm must be a positive number");
+      }
+    } else if (fields[0] == "feature" && fields.size() == 4) {
+      int k = -1;
+      double mean = 0.0, sd = 0.0;
+      if (!absl::SimpleAtoi(fields[1], &k) || k < 0 ||
+          k >= kDefaultFeatureDim || !absl::SimpleAtod(fields[2], &mean) ||
+          !absl::SimpleAtod(fields[3], &sd) || !std::isfinite(mean) ||
+          !std::isfinite(sd) || sd < 0.0) {
+        return bad("expected: feature <0-63> <mean> <sd >= 0>");
+      }
+      stats.mean[k] = mean;
+      stats.sd[k] = sd;
+    } else {
+      return bad("unknown entry");
+    }
+  }
+  if (stats.version < 1) {
+    return absl::InvalidArgumentError("featurizer statistics: no version line");
+  }
+  for (int k = 0; k < kDefaultFeatureDim; ++k) {
+    if (std::isnan(stats.mean[k])) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("featurizer statistics: feature ", k, " is missing"));
+    }
+  }
+  if (!(stats.mean_squared_norm > 0.0)) {
+    return absl::InvalidArgumentError(
+        "featurizer statistics: no mean_squared_norm line");
+  }
+  return stats;
+}
+
+void StandardizeDefaultFeatures(const DefaultFeaturizerStats& stats,
+                                std::vector<double>* features) {
+  std::vector<double>& f = *features;
+  for (int k = 0; k < kStandardised; ++k) {
+    const double z = (f[k] - stats.mean[k]) / std::max(stats.sd[k], kMinSd);
+    f[k] = std::clamp(z, -kStandardClip, kStandardClip);
+  }
+}
+
+const DefaultFeaturizerStats& ShippedDefaultFeaturizerStats() {
+  static const DefaultFeaturizerStats* const stats = [] {
+    absl::StatusOr<DefaultFeaturizerStats> parsed =
+        ParseDefaultFeaturizerStats(kDefaultFeaturizerStatsText);
+    if (!parsed.ok()) {
+      std::fprintf(stderr, "embedded %s: %s\n", kDefaultFeaturizerStatsSource,
+                   parsed.status().ToString().c_str());
+      std::abort();
+    }
+    return new DefaultFeaturizerStats(*std::move(parsed));
+  }();
+  return *stats;
+}
+
+double DefaultFeaturizer::context_mean_squared_norm() const {
+  return options_.standardize
+             ? ShippedDefaultFeaturizerStats().mean_squared_norm
+             : 0.0;
+}
 
 DefaultFeaturizer::DefaultFeaturizer(const DefaultFeaturizerOptions& options)
     : options_(options) {}
@@ -225,6 +324,9 @@ absl::StatusOr<Features> DefaultFeaturizer::Featurize(
   f[59] = depths.size() / area_px;
   f[60 + static_cast<int>(location)] = 1.0;
   f[63] = 1.0;
+  if (options_.standardize) {
+    StandardizeDefaultFeatures(ShippedDefaultFeaturizerStats(), &f);
+  }
   return features;
 }
 

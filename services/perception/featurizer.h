@@ -44,6 +44,11 @@ class Featurizer {
   virtual std::string name() const = 0;
   // Length of Features::context.
   virtual int dimension() const = 0;
+  // E||c||^2 of this featurizer's contexts on the simulated world's seen
+  // foods (never the unseen evaluation foods), shipped with it; 0 when
+  // unknown. The bandit's context ridge only means something relative to
+  // it: new users get lambda_c = rho_c * this (docs/algorithms.md).
+  virtual double context_mean_squared_norm() const { return 0.0; }
 
   // Features of the item inside `box`. Errors: INVALID_ARGUMENT when the
   // box is empty or leaves the frame (see ValidateBox); INTERNAL when the

@@ -52,6 +52,8 @@ grpc::Status PerceptionServiceImpl::Featurize(
       featurizer_->Featurize(*frame, BoxFromProto(request->bbox()), *location);
   if (!features.ok()) return Fail(features.status());
   FeaturesToProto(*features, featurizer_->name(), response);
+  response->set_context_mean_squared_norm(
+      featurizer_->context_mean_squared_norm());
   return grpc::Status::OK;
 }
 

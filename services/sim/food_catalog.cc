@@ -139,6 +139,44 @@ const std::vector<FoodType>& FoodCatalog() {
        {0.020, 0.030},
        {0.012, 0.018},
        false},
+      // More seen foods, one or more per category, so that statistics and
+      // models built on seen foods see every category more than once.
+      {"cucumber",
+       C::kHard,
+       {0.55, 0.85, 0.40, 0.50, 0.10, 0.10},
+       {0.70, 0.85, 0.55},
+       0.05,
+       {0.025, 0.040},
+       {0.015, 0.025},
+       {0.010, 0.015},
+       false},
+      {"pear",
+       C::kMedium,
+       {0.85, 0.70, 0.85, 0.65, 0.45, 0.40},
+       {0.93, 0.90, 0.70},
+       0.04,
+       {0.025, 0.040},
+       {0.020, 0.030},
+       {0.015, 0.025},
+       false},
+      {"mango",
+       C::kSoft,
+       {0.35, 0.30, 0.45, 0.40, 0.85, 0.85},
+       {0.98, 0.68, 0.18},
+       0.05,
+       {0.020, 0.035},
+       {0.020, 0.030},
+       {0.010, 0.018},
+       false},
+      {"olive",
+       C::kHardSkin,
+       {0.35, 0.45, 0.60, 0.85, 0.15, 0.15},
+       {0.30, 0.35, 0.12},
+       0.05,
+       {0.018, 0.025},
+       {0.014, 0.018},
+       {0.014, 0.018},
+       false},
   };
   return *kFoods;
 }
@@ -147,6 +185,14 @@ std::vector<const FoodType*> UnseenFoods() {
   std::vector<const FoodType*> out;
   for (const FoodType& food : FoodCatalog()) {
     if (food.unseen) out.push_back(&food);
+  }
+  return out;
+}
+
+std::vector<const FoodType*> SeenFoods() {
+  std::vector<const FoodType*> out;
+  for (const FoodType& food : FoodCatalog()) {
+    if (!food.unseen) out.push_back(&food);
   }
   return out;
 }

@@ -46,6 +46,9 @@ const std::vector<FoodType>& FoodCatalog();
 // The eight unseen foods of SPEC: carrot, celery, strawberry, cantaloupe,
 // banana, kiwi, cherry_tomato, grape.
 std::vector<const FoodType*> UnseenFoods();
+// The other foods (nine): what featurizer statistics, HapticNet and any
+// model meant for unseen foods are built from, never the unseen ones.
+std::vector<const FoodType*> SeenFoods();
 // nullptr if no food has this name.
 const FoodType* FindFood(const std::string& name);
 

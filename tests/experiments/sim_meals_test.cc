@@ -7,9 +7,11 @@
 
 #include <cmath>
 #include <memory>
+#include <random>
 #include <vector>
 
 #include "gtest/gtest.h"
+#include "services/perception/default_featurizer.h"
 #include "services/sim/food_catalog.h"
 
 namespace bitewise::experiments {
@@ -195,9 +197,57 @@ TEST(SimMealsConfigTest, RejectsNonPositiveCounts) {
   EXPECT_EQ(ValidateSimMealsConfig(config).code(),
             absl::StatusCode::kInvalidArgument);
   config.attempts_per_food = 1;
-  config.plates_per_trial = 0;
+  config.plates_per_trial = -1;
   EXPECT_EQ(ValidateSimMealsConfig(config).code(),
             absl::StatusCode::kInvalidArgument);
+  config.plates_per_trial = 0;  // one per attempt
+  EXPECT_TRUE(ValidateSimMealsConfig(config).ok());
+  config.attempts_per_food = 5;
+  EXPECT_EQ(ResolvedPlatesPerTrial(config), 5);
+  config.rho_c = 0.0;
+  EXPECT_EQ(ValidateSimMealsConfig(config).code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+// The shipped statistics must describe what the featurizer computes now:
+// on fresh seen-food plates (seeds apart from the file's), standardised
+// features are centred and E||c||^2 is near the declared value. Fails when
+// the featurizer changes without bitewise-featurizer-stats being rerun.
+TEST(SimMealsConfigTest, ShippedFeaturizerStatisticsMatchTheFeaturizer) {
+  const perception::DefaultFeaturizer featurizer;
+  std::mt19937_64 rng(424242);
+  std::vector<double> mean(perception::kDefaultFeatureDim, 0.0);
+  double msn = 0.0;
+  int n = 0;
+  for (int plate = 0; plate < 30; ++plate) {
+    const sim::PlateScene scene =
+        sim::RandomPlate(sim::SeenFoods(), /*allow_touching=*/false, rng);
+    auto contexts = FeaturizeScene(scene, 5000 + plate, featurizer);
+    ASSERT_TRUE(contexts.ok()) << contexts.status();
+    for (const std::vector<double>& c : *contexts) {
+      if (c.empty()) continue;
+      for (size_t k = 0; k < c.size(); ++k) {
+        mean[k] += c[k];
+        msn += c[k] * c[k];
+      }
+      ++n;
+    }
+  }
+  ASSERT_GT(n, 200);
+  for (int k = 0; k < 60; ++k) EXPECT_NEAR(mean[k] / n, 0.0, 0.35) << k;
+  EXPECT_NEAR(msn / n / featurizer.context_mean_squared_norm(), 1.0, 0.2);
+}
+
+TEST(SimMealsConfigTest, TheContextRidgeFollowsTheFeatureScale) {
+  SimMealsConfig config;  // the shipped defaults
+  const double msn =
+      perception::DefaultFeaturizer().context_mean_squared_norm();
+  ASSERT_GT(msn, 0.0);
+  EXPECT_EQ(ResolvedLambdaC(config), msn);
+  config.rho_c = 3.0;
+  EXPECT_EQ(ResolvedLambdaC(config), 3.0 * msn);
+  config.lambda_c = 1000.0;  // explicit: honoured exactly
+  EXPECT_EQ(ResolvedLambdaC(config), 1000.0);
 }
 
 }  // namespace

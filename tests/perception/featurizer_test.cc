@@ -196,7 +196,9 @@ TEST(SpanetOnnxTest, SameSeedWritesTheSameFile) {
 TEST(DefaultFeaturizerTest, DimensionDeterminismAndDiscrimination) {
   testing::TestScene scene = testing::RenderTestScene(21, 8, false);
   const DecodedFrame frame = testing::ToDecoded(scene.rendered);
-  const DefaultFeaturizer featurizer;
+  DefaultFeaturizerOptions raw;
+  raw.standardize = false;  // the layout of the raw features
+  const DefaultFeaturizer featurizer(raw);
   EXPECT_EQ(featurizer.dimension(), kDefaultFeatureDim);
   std::vector<std::vector<double>> contexts;
   for (const sim::ItemTruth& t : scene.rendered.truth) {
@@ -232,12 +234,67 @@ TEST(DefaultFeaturizerTest, SizeAndHeightAreInMetres) {
   const DecodedFrame frame = testing::ToDecoded(scene.rendered);
   const sim::ItemTruth& t = scene.rendered.truth[0];
   const sim::SceneItem& item = scene.plate.items[0];
-  auto f = DefaultFeaturizer().Featurize(frame, {t.x, t.y, t.width, t.height},
-                                         FoodLocation::kIsolated);
+  DefaultFeaturizerOptions raw;
+  raw.standardize = false;
+  auto f = DefaultFeaturizer(raw).Featurize(
+      frame, {t.x, t.y, t.width, t.height}, FoodLocation::kIsolated);
   ASSERT_TRUE(f.ok()) << f.status();
   EXPECT_NEAR(f->context[48] * 0.1, item.length_m, 0.25 * item.length_m);
   EXPECT_NEAR(f->context[49] * 0.1, item.width_m, 0.3 * item.width_m);
   EXPECT_NEAR(f->context[56] * 0.05, item.height_m, 0.3 * item.height_m);
+}
+
+TEST(DefaultFeaturizerTest, StandardisedIsTheRawThroughTheShippedStatistics) {
+  testing::TestScene scene = testing::RenderTestScene(21, 8, false);
+  const DecodedFrame frame = testing::ToDecoded(scene.rendered);
+  DefaultFeaturizerOptions raw_options;
+  raw_options.standardize = false;
+  const DefaultFeaturizer raw(raw_options);
+  const DefaultFeaturizer standardised;
+  const DefaultFeaturizerStats& stats = ShippedDefaultFeaturizerStats();
+  EXPECT_GE(stats.version, 1);
+  EXPECT_EQ(standardised.context_mean_squared_norm(), stats.mean_squared_norm);
+  EXPECT_EQ(raw.context_mean_squared_norm(), 0.0);  // unknown for raw
+  for (const sim::ItemTruth& t : scene.rendered.truth) {
+    const PixelBox box{t.x, t.y, t.width, t.height};
+    auto r = raw.Featurize(frame, box, FoodLocation::kWall);
+    auto z = standardised.Featurize(frame, box, FoodLocation::kWall);
+    ASSERT_TRUE(r.ok() && z.ok());
+    std::vector<double> expected = r->context;
+    StandardizeDefaultFeatures(stats, &expected);
+    EXPECT_EQ(z->context, expected);
+    for (int k = 0; k < 60; ++k) {
+      EXPECT_LE(std::abs(z->context[k]), kStandardClip);
+    }
+    EXPECT_EQ(z->context[61], 1.0);  // wall, unchanged
+    EXPECT_EQ(z->context[63], 1.0);  // intercept, unchanged
+  }
+}
+
+TEST(DefaultFeaturizerTest, MalformedStatisticsAreRejectedNamingTheLine) {
+  std::string good = "version 1\nmean_squared_norm 40\n";
+  for (int k = 0; k < kDefaultFeatureDim; ++k) {
+    good += "feature " + std::to_string(k) + " 0.5 0.25\n";
+  }
+  ASSERT_TRUE(ParseDefaultFeaturizerStats(good).ok());
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"version 1\nmean_squared_norm 40\n", "feature 0 is missing"},
+      {good + "feature 64 0 1\n", "line 67"},
+      {good + "feature 3 nan 1\n", "feature <0-63>"},
+      {good + "feature 3 0 -1\n", "sd >= 0"},
+      {good + "bogus\n", "unknown entry"},
+      {good.substr(10), "no version line"},
+      {"version 1\n" + good.substr(good.find("feature")),
+       "no mean_squared_norm"},
+  };
+  for (const auto& [text, expected] : cases) {
+    absl::StatusOr<DefaultFeaturizerStats> parsed =
+        ParseDefaultFeaturizerStats(text);
+    EXPECT_EQ(parsed.status().code(), absl::StatusCode::kInvalidArgument)
+        << expected;
+    EXPECT_THAT(std::string(parsed.status().message()),
+                ::testing::HasSubstr(expected));
+  }
 }
 
 }  // namespace
