@@ -1,10 +1,13 @@
 // bitewise-featurizer-stats: regenerates models/featurizer/
 // default_featurizer_stats.txt, the fixed statistics the default featurizer
-// is standardised with. Renders plates of the simulated world's SEEN foods
-// only (never the eight unseen evaluation foods), featurizes every visible
-// item on its ground-truth box with the raw featurizer, and writes each
-// feature's mean and standard deviation, then E||c||^2 of the standardised
-// contexts on the same items (what new users' context ridge is scaled by).
+// is standardised with; with --featurizer=spanet, writes "<model>.stats",
+// the E||c||^2 of a SPANet model's contexts on seen foods
+// (services/perception/context_scale.h). Renders plates of the simulated
+// world's SEEN foods only (never the eight unseen evaluation foods), featurizes
+// every visible item on its ground-truth box with the raw featurizer, and
+// writes each feature's mean and standard deviation, then E||c||^2 of the
+// standardised contexts on the same items (what new users' context ridge is
+// scaled by).
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -14,18 +17,25 @@
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
+#include "absl/status/statusor.h"
 #include "absl/strings/str_format.h"
 #include "experiments/random.h"
 #include "experiments/sim_meals.h"
+#include "services/perception/context_scale.h"
 #include "services/perception/default_featurizer.h"
+#include "services/perception/spanet_featurizer.h"
 #include "services/sim/food_catalog.h"
 #include "services/sim/scene.h"
 
 ABSL_FLAG(int, plates, 400, "Plates of seen foods to render.");
 ABSL_FLAG(uint64_t, seed, 7001,
           "Seeds the plates (a seed range apart from the experiments').");
-ABSL_FLAG(std::string, out, "models/featurizer/default_featurizer_stats.txt",
-          "File to write.");
+ABSL_FLAG(
+    std::string, out, "",
+    "File to write; empty: models/featurizer/default_featurizer_stats.txt "
+    "(default) or <spanet_model>.stats (spanet).");
+ABSL_FLAG(std::string, featurizer, "default", "default or spanet.");
+ABSL_FLAG(std::string, spanet_model, "", "spanet: the ONNX model.");
 
 namespace {
 
@@ -39,6 +49,59 @@ int Fail(const std::string& what) {
   return 1;
 }
 
+// Contexts of every visible item on `plates` plates of seen foods.
+absl::StatusOr<std::vector<std::vector<double>>> SeenFoodContexts(
+    const perception::Featurizer& featurizer, int plates, uint64_t seed) {
+  const std::vector<const sim::FoodType*> seen = sim::SeenFoods();
+  std::mt19937_64 plate_rng(MixSeed(seed, 1));
+  std::vector<std::vector<double>> contexts;
+  for (int plate = 0; plate < plates; ++plate) {
+    const sim::PlateScene scene =
+        sim::RandomPlate(seen, /*allow_touching=*/false, plate_rng);
+    auto featurized =
+        FeaturizeScene(scene, MixSeed(seed, 100 + plate), featurizer);
+    if (!featurized.ok()) return featurized.status();
+    for (std::vector<double>& c : *featurized) {
+      if (!c.empty()) contexts.push_back(std::move(c));
+    }
+  }
+  return contexts;
+}
+
+bool WriteFile(const std::string& path, const std::string& text) {
+  FILE* f = std::fopen(path.c_str(), "w");
+  if (f == nullptr) return false;
+  std::fputs(text.c_str(), f);
+  return std::fclose(f) == 0;
+}
+
+int SpanetStats(int plates, uint64_t seed) {
+  const std::string model = absl::GetFlag(FLAGS_spanet_model);
+  if (model.empty()) return Fail("--featurizer=spanet needs --spanet_model");
+  auto spanet = perception::SpanetFeaturizer::Load(model);
+  if (!spanet.ok()) return Fail(spanet.status().ToString());
+  auto contexts = SeenFoodContexts(**spanet, plates, seed);
+  if (!contexts.ok()) return Fail(contexts.status().ToString());
+  double msn = 0.0;
+  for (const auto& c : *contexts) {
+    for (double v : c) msn += v * v / contexts->size();
+  }
+  std::string out = absl::GetFlag(FLAGS_out);
+  if (out.empty()) out = perception::ContextScalePathFor(model);
+  const std::string text = perception::FormatContextScale(
+      msn, absl::StrFormat(
+               "E||c||^2 of this SPANet's contexts on %d items of the "
+               "simulated world's seen foods\n(never the unseen evaluation "
+               "foods): %d plates, seed %d.\nRegenerate: "
+               "bitewise-featurizer-stats --featurizer=spanet "
+               "--spanet_model=MODEL --plates=%d --seed=%d",
+               contexts->size(), plates, seed, plates, seed));
+  if (!WriteFile(out, text)) return Fail("cannot write " + out);
+  std::printf("%zu seen-food items; E||c||^2 = %.4g; wrote %s\n",
+              contexts->size(), msn, out.c_str());
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -49,21 +112,18 @@ int main(int argc, char** argv) {
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
   if (plates < 10) return Fail("--plates must be at least 10");
 
+  if (absl::GetFlag(FLAGS_featurizer) == "spanet") {
+    return SpanetStats(plates, seed);
+  }
+  if (absl::GetFlag(FLAGS_featurizer) != "default") {
+    return Fail("--featurizer must be default or spanet");
+  }
   perception::DefaultFeaturizerOptions raw_options;
   raw_options.standardize = false;
   const perception::DefaultFeaturizer raw(raw_options);
-  const std::vector<const sim::FoodType*> seen = sim::SeenFoods();
-  std::mt19937_64 plate_rng(MixSeed(seed, 1));
-  std::vector<std::vector<double>> contexts;
-  for (int plate = 0; plate < plates; ++plate) {
-    const sim::PlateScene scene =
-        sim::RandomPlate(seen, /*allow_touching=*/false, plate_rng);
-    auto featurized = FeaturizeScene(scene, MixSeed(seed, 100 + plate), raw);
-    if (!featurized.ok()) return Fail(featurized.status().ToString());
-    for (std::vector<double>& c : *featurized) {
-      if (!c.empty()) contexts.push_back(std::move(c));
-    }
-  }
+  auto seen_contexts = SeenFoodContexts(raw, plates, seed);
+  if (!seen_contexts.ok()) return Fail(seen_contexts.status().ToString());
+  const std::vector<std::vector<double>>& contexts = *seen_contexts;
   const int d = perception::kDefaultFeatureDim;
   std::vector<double> mean(d, 0.0), sd(d, 0.0);
   for (const auto& c : contexts) {
@@ -100,11 +160,10 @@ int main(int argc, char** argv) {
     msn += norm2 / contexts.size();
   }
   text += absl::StrFormat("mean_squared_norm %.6g\n", msn);
-  FILE* f = std::fopen(absl::GetFlag(FLAGS_out).c_str(), "w");
-  if (f == nullptr) return Fail("cannot write " + absl::GetFlag(FLAGS_out));
-  std::fputs(text.c_str(), f);
-  std::fclose(f);
+  std::string out = absl::GetFlag(FLAGS_out);
+  if (out.empty()) out = "models/featurizer/default_featurizer_stats.txt";
+  if (!WriteFile(out, text)) return Fail("cannot write " + out);
   std::printf("%zu seen-food items; E||c||^2 standardised = %.3f; wrote %s\n",
-              contexts.size(), msn, absl::GetFlag(FLAGS_out).c_str());
+              contexts.size(), msn, out.c_str());
   return 0;
 }

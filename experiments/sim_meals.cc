@@ -26,6 +26,7 @@ enum Stream : uint64_t {
   kProfileStream = 3,
   kTraceStream = 4,
   kCoinStream = 5,
+  kHapticErrorStream = 6,
   kRenderNoiseStream = 100,  // + plate index
 };
 
@@ -140,6 +141,12 @@ absl::Status ValidateSimMealsConfig(const SimMealsConfig& config) {
                      "attempt), got ",
                      config.plates_per_trial));
   }
+  if (config.haptic_accuracy < 0.0 || config.haptic_accuracy >= 1.0 ||
+      !(config.thompson_v > 0.0)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "haptic_accuracy must be in [0, 1) and thompson_v positive, got ",
+        config.haptic_accuracy, " and ", config.thompson_v));
+  }
   if (config.lambda_c < 0.0 || !(config.rho_c > 0.0)) {
     return absl::InvalidArgumentError(
         absl::StrCat("lambda_c must be >= 0 and rho_c positive, got ",
@@ -249,6 +256,7 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
   // differ), classified by the HapticService's pipeline; one outcome coin.
   std::mt19937_64 trace_rng(MixSeed(seed, kTraceStream));
   std::mt19937_64 coin_rng(MixSeed(seed, kCoinStream));
+  std::mt19937_64 haptic_error_rng(MixSeed(seed, kHapticErrorStream));
   std::vector<int> attempts_so_far(num_foods, 0);
   world.attempts.reserve(order.size());
   const sim::TraceOptions trace_options;  // 1 kHz, as the simulated Net F/T
@@ -268,6 +276,19 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
           foods[food]->name, "): ", classified.status().ToString()));
     }
     attempt.haptic = *classified;
+    if (config.haptic_accuracy > 0.0 &&
+        Uniform01(haptic_error_rng) >= config.haptic_accuracy) {
+      // A confident wrong answer: the top probability moves to another
+      // class, drawn uniformly.
+      const int top = static_cast<int>(attempt.haptic.category);
+      int wrong = UniformIndex(haptic_error_rng, haptic::kHapticClasses - 1);
+      if (wrong >= top) ++wrong;
+      std::swap(attempt.haptic.probabilities[top],
+                attempt.haptic.probabilities[wrong]);
+      std::swap(attempt.haptic.log_probabilities[top],
+                attempt.haptic.log_probabilities[wrong]);
+      attempt.haptic.category = static_cast<haptic::HapticClass>(wrong);
+    }
     attempt.coin = Uniform01(coin_rng);
     world.attempts.push_back(std::move(attempt));
   }
@@ -277,15 +298,18 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
 absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
                                            const SimMealWorld& world,
                                            bandit::Learner learner,
-                                           HapticContext kind, uint64_t seed) {
+                                           HapticContext kind, uint64_t seed,
+                                           bandit::Strategy strategy) {
   if (world.attempts.empty()) {
     return absl::InvalidArgumentError("the world has no attempts");
   }
   const std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
   bandit::BanditConfig bandit_config;
   bandit_config.learner = learner;
-  bandit_config.strategy = bandit::Strategy::kLinUcb;
-  bandit_config.alpha = config.alpha;
+  bandit_config.strategy = strategy;
+  bandit_config.alpha = strategy == bandit::Strategy::kThompson
+                            ? config.thompson_v
+                            : config.alpha;
   bandit_config.lambda_c = ResolvedLambdaC(config);
   bandit_config.lambda_p = config.lambda_p;
   bandit_config.context_dim =

@@ -86,6 +86,15 @@ struct SimMealsConfig {
   double rho_c = 1.0;
   double lambda_c = 0.0;
   double lambda_p = 1.0;
+  // Thompson sampling's scale v (theta ~ N(theta_a, v^2 Sigma_a)): 0.5, the
+  // largest standard deviation a 0/1 loss can have; not tuned.
+  double thompson_v = 0.5;
+  // HapticNet accuracy for sensitivity runs: 0 uses the shipped model's
+  // answers as they are; a value in (0, 1) makes each attempt's
+  // classification wrong with probability 1 - haptic_accuracy (a confident
+  // wrong answer: the top probability moves to a random other class), on
+  // a random stream of its own.
+  double haptic_accuracy = 0.0;
 };
 
 // The lambda_c the learners use under `config` (see SimMealsConfig).
@@ -154,15 +163,17 @@ struct SimMealRun {
   std::vector<double> cumulative_failures;
 };
 
-// Plays `world` with LinUCB on `learner` (the post hoc learner is given the
-// haptic context as `kind`; the context-only learner ignores it), updating
-// after every attempt with loss 1 for a failure. `seed` seeds the user's
-// Select generator (unused by deterministic LinUCB; kept for parity with the
-// BanditService). Errors: from the bandit core if a round is invalid.
-absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
-                                           const SimMealWorld& world,
-                                           bandit::Learner learner,
-                                           HapticContext kind, uint64_t seed);
+// Plays `world` with `strategy` (LinUCB with config.alpha, or Thompson
+// sampling with v = config.thompson_v) on `learner` (the post hoc learner is
+// given the haptic context as `kind`; the context-only learner ignores it),
+// updating after every attempt with loss 1 for a failure. `seed` seeds the
+// user's Select generator as the BanditService does (Thompson draws from it;
+// LinUCB is deterministic). Errors: from the bandit core if a round is
+// invalid.
+absl::StatusOr<SimMealRun> RunSimMealTrial(
+    const SimMealsConfig& config, const SimMealWorld& world,
+    bandit::Learner learner, HapticContext kind, uint64_t seed,
+    bandit::Strategy strategy = bandit::Strategy::kLinUcb);
 
 // Expected cumulative failures of an oracle that always plays each food's
 // best action, and of uniformly random actions, per attempt of `world`.

@@ -38,6 +38,11 @@ ABSL_FLAG(double, rho_c, 1.0,
 ABSL_FLAG(double, lambda_c, 0.0,
           "Ridge on the context model, used as given; 0: from --rho_c.");
 ABSL_FLAG(double, lambda_p, 1.0, "Ridge on the post hoc terms.");
+ABSL_FLAG(double, thompson_v, 0.5,
+          "Thompson sampling's v (theta ~ N(theta_a, v^2 Sigma_a)).");
+ABSL_FLAG(double, haptic_accuracy, 0.0,
+          "Sensitivity: make HapticNet right with this probability (confident "
+          "wrong answers otherwise); 0 uses the shipped model as it is.");
 ABSL_FLAG(uint64_t, seed, 1,
           "Base seed; trial i uses a seed mixed from (seed, i).");
 ABSL_FLAG(std::string, haptic_model, "",
@@ -51,15 +56,38 @@ namespace {
 constexpr std::array<HapticContext, 3> kHapticContexts = {
     HapticContext::kLogProbabilities, HapticContext::kProbabilities,
     HapticContext::kOneHot};
-constexpr int kLearners = 1 + kHapticContexts.size();  // context-only first
 
-std::string LearnerLabel(int learner) {
-  return learner == 0
-             ? std::string("context-only")
-             : absl::StrCat("post hoc (",
-                            HapticContextName(kHapticContexts[learner - 1]),
-                            ")");
+// One learner of the comparison. The first four (LinUCB) keep the CSV
+// columns the plots read; the Thompson pair follows the expected curves.
+struct LearnerSpec {
+  std::string label;   // printed
+  std::string column;  // CSV prefix
+  bandit::Learner learner;
+  HapticContext kind;  // ignored by context-only learners
+  bandit::Strategy strategy;
+  int baseline;  // the context-only spec it is paired with; -1: none
+};
+
+std::vector<LearnerSpec> Learners() {
+  std::vector<LearnerSpec> specs = {
+      {"context-only", "context_only", bandit::Learner::kContextOnly,
+       HapticContext::kLogProbabilities, bandit::Strategy::kLinUcb, -1}};
+  for (HapticContext kind : kHapticContexts) {
+    specs.push_back({absl::StrCat("post hoc (", HapticContextName(kind), ")"),
+                     absl::StrCat("posthoc_", HapticContextName(kind)),
+                     bandit::Learner::kPostHoc, kind, bandit::Strategy::kLinUcb,
+                     0});
+  }
+  specs.push_back(
+      {"context-only TS", "context_only_ts", bandit::Learner::kContextOnly,
+       HapticContext::kLogProbabilities, bandit::Strategy::kThompson, -1});
+  const int ts_baseline = static_cast<int>(specs.size()) - 1;
+  specs.push_back({"post hoc (logprob) TS", "posthoc_logprob_ts",
+                   bandit::Learner::kPostHoc, HapticContext::kLogProbabilities,
+                   bandit::Strategy::kThompson, ts_baseline});
+  return specs;
 }
+constexpr int kLinUcbLearners = 1 + kHapticContexts.size();
 
 int Run() {
   SimMealsConfig config;
@@ -69,6 +97,8 @@ int Run() {
   config.alpha = absl::GetFlag(FLAGS_alpha);
   config.lambda_c = absl::GetFlag(FLAGS_lambda_c);
   config.rho_c = absl::GetFlag(FLAGS_rho_c);
+  config.thompson_v = absl::GetFlag(FLAGS_thompson_v);
+  config.haptic_accuracy = absl::GetFlag(FLAGS_haptic_accuracy);
   config.lambda_p = absl::GetFlag(FLAGS_lambda_p);
   const std::string order = absl::GetFlag(FLAGS_order);
   if (order == "shuffled") {
@@ -96,11 +126,14 @@ int Run() {
 
   const std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
   const int num_foods = static_cast<int>(foods.size());
+  const std::vector<LearnerSpec> learners = Learners();
+  const int kLearners = static_cast<int>(learners.size());
   const auto start = std::chrono::steady_clock::now();
   double world_seconds = 0.0;
-  // curves[learner][trial]; diffs[variant][trial] = context-only - post hoc.
+  // curves[learner][trial]; diffs[learner][trial] = its context-only
+  // baseline minus it (post hoc learners only).
   std::vector<std::vector<std::vector<double>>> curves(kLearners);
-  std::vector<std::vector<std::vector<double>>> diffs(kHapticContexts.size());
+  std::vector<std::vector<std::vector<double>>> diffs(kLearners);
   std::vector<std::vector<double>> oracle, uniform;
   // failures_by_food[learner][food], summed over trials.
   std::vector<std::vector<double>> failures_by_food(
@@ -137,15 +170,12 @@ int Run() {
     oracle.push_back(OracleExpectedFailures(*world));
     uniform.push_back(UniformExpectedFailures(*world));
     for (int learner = 0; learner < kLearners; ++learner) {
-      absl::StatusOr<SimMealRun> run =
-          learner == 0
-              ? RunSimMealTrial(config, *world, bandit::Learner::kContextOnly,
-                                HapticContext::kLogProbabilities, seed)
-              : RunSimMealTrial(config, *world, bandit::Learner::kPostHoc,
-                                kHapticContexts[learner - 1], seed);
+      const LearnerSpec& spec = learners[learner];
+      absl::StatusOr<SimMealRun> run = RunSimMealTrial(
+          config, *world, spec.learner, spec.kind, seed, spec.strategy);
       if (!run.ok()) {
-        absl::FPrintF(stderr, "trial %d, %s: %s\n", trial,
-                      LearnerLabel(learner), run.status().ToString());
+        absl::FPrintF(stderr, "trial %d, %s: %s\n", trial, spec.label,
+                      run.status().ToString());
         return 1;
       }
       for (size_t t = 0; t < run->failed.size(); ++t) {
@@ -153,8 +183,11 @@ int Run() {
       }
       curves[learner].push_back(std::move(run->cumulative_failures));
     }
-    for (size_t v = 0; v < kHapticContexts.size(); ++v) {
-      diffs[v].push_back(Difference(curves[0].back(), curves[v + 1].back()));
+    for (int learner = 0; learner < kLearners; ++learner) {
+      const int baseline = learners[learner].baseline;
+      if (baseline < 0) continue;
+      diffs[learner].push_back(
+          Difference(curves[baseline].back(), curves[learner].back()));
     }
     const double secs =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
@@ -172,33 +205,41 @@ int Run() {
   for (int t = 0; t < attempts; ++t) attempt_index[t] = t + 1;
   std::vector<std::string> header = {"attempt"};
   std::vector<std::vector<double>> columns = {attempt_index};
-  std::vector<CurveSummary> summaries;
+  std::vector<CurveSummary> summaries(kLearners);
+  std::vector<CurveSummary> diff_summaries(kLearners);
   for (int learner = 0; learner < kLearners; ++learner) {
-    const std::string name =
-        learner == 0
-            ? std::string("context_only")
-            : absl::StrCat("posthoc_",
-                           HapticContextName(kHapticContexts[learner - 1]));
-    summaries.push_back(SummarizeCurves(curves[learner]));
-    header.push_back(name + "_mean");
-    header.push_back(name + "_se");
-    columns.push_back(summaries.back().mean);
-    columns.push_back(summaries.back().standard_error);
+    summaries[learner] = SummarizeCurves(curves[learner]);
+    if (learners[learner].baseline >= 0) {
+      diff_summaries[learner] = SummarizeCurves(diffs[learner]);
+    }
   }
-  std::vector<CurveSummary> diff_summaries;
-  for (size_t v = 0; v < kHapticContexts.size(); ++v) {
-    diff_summaries.push_back(SummarizeCurves(diffs[v]));
-    const std::string name =
-        absl::StrCat("diff_", HapticContextName(kHapticContexts[v]));
+  auto add_column = [&](const std::string& name, const CurveSummary& curve) {
     header.push_back(name + "_mean");
     header.push_back(name + "_se");
-    columns.push_back(diff_summaries.back().mean);
-    columns.push_back(diff_summaries.back().standard_error);
+    columns.push_back(curve.mean);
+    columns.push_back(curve.standard_error);
+  };
+  // LinUCB learners, their differences, the expected curves, then the rest
+  // (the plot scripts read columns by position).
+  for (int learner = 0; learner < kLinUcbLearners; ++learner) {
+    add_column(learners[learner].column, summaries[learner]);
+  }
+  for (int learner = 1; learner < kLinUcbLearners; ++learner) {
+    add_column(absl::StrCat("diff_", HapticContextName(learners[learner].kind)),
+               diff_summaries[learner]);
   }
   header.push_back("oracle_expected");
-  columns.push_back(SummarizeCurves(oracle).mean);
+  const std::vector<double> oracle_mean = SummarizeCurves(oracle).mean;
+  columns.push_back(oracle_mean);
   header.push_back("uniform_expected");
-  columns.push_back(SummarizeCurves(uniform).mean);
+  const std::vector<double> uniform_mean = SummarizeCurves(uniform).mean;
+  columns.push_back(uniform_mean);
+  for (int learner = kLinUcbLearners; learner < kLearners; ++learner) {
+    add_column(learners[learner].column, summaries[learner]);
+    if (learners[learner].baseline >= 0) {
+      add_column("diff_" + learners[learner].column, diff_summaries[learner]);
+    }
+  }
   const std::string path = absl::GetFlag(FLAGS_out);
   const absl::Status written = WriteCsvColumns(path, header, columns);
   if (!written.ok()) {
@@ -213,12 +254,12 @@ int Run() {
   absl::PrintF(
       "simulated meals: %d trials x %d attempts (8 foods x %d, %s order, %d "
       "plate(s) per trial), alpha=%g lambda_c=%g (rho_c %g) lambda_p=%g, "
-      "seed %d\n",
+      "Thompson v=%g, seed %d\n",
       trials, attempts, config.attempts_per_food, order,
       ResolvedPlatesPerTrial(config), config.alpha, ResolvedLambdaC(config),
       ResolvedLambdaC(config) /
           perception::DefaultFeaturizer().context_mean_squared_norm(),
-      config.lambda_p, absl::GetFlag(FLAGS_seed));
+      config.lambda_p, config.thompson_v, absl::GetFlag(FLAGS_seed));
   absl::PrintF(
       "plates drawn again because a food did not fit or was not visible: "
       "%d of %d\n",
@@ -234,26 +275,27 @@ int Run() {
   absl::PrintF(
       "expected failures over the meal: best action every time %.2f, uniform "
       "random %.2f\n",
-      columns[columns.size() - 2][last], columns.back()[last]);
+      oracle_mean[last], uniform_mean[last]);
   absl::PrintF(
       "cumulative failures after %d attempts (mean, 95%% interval = mean +- "
       "1.96 s.e.):\n",
       attempts);
-  const double uniform_last = columns.back()[last];
+  const double uniform_last = uniform_mean[last];
   for (int learner = 0; learner < kLearners; ++learner) {
     const double m = summaries[learner].mean[last];
     const double h = 1.96 * summaries[learner].standard_error[last];
     absl::PrintF("  %-22s %6.2f [%.2f, %.2f] (%+.1f%% vs uniform)",
-                 LearnerLabel(learner), m, m - h, m + h,
+                 learners[learner].label, m, m - h, m + h,
                  100.0 * (m - uniform_last) / uniform_last);
-    if (learner > 0) {
-      const CurveSummary& d = diff_summaries[learner - 1];
+    if (learners[learner].baseline >= 0) {
+      const CurveSummary& d = diff_summaries[learner];
       const double dh = 1.96 * d.standard_error[last];
       absl::PrintF(
           "   paired context-only minus this: %+.2f [%+.2f, %+.2f] (%+.1f%% "
           "of context-only)",
           d.mean[last], d.mean[last] - dh, d.mean[last] + dh,
-          100.0 * d.mean[last] / summaries[0].mean[last]);
+          100.0 * d.mean[last] /
+              summaries[learners[learner].baseline].mean[last]);
     }
     absl::PrintF("\n");
   }
@@ -261,7 +303,7 @@ int Run() {
                config.attempts_per_food);
   absl::PrintF("  %-14s", "food");
   for (int learner = 0; learner < kLearners; ++learner) {
-    absl::PrintF(" %22s", LearnerLabel(learner));
+    absl::PrintF(" %22s", learners[learner].label);
   }
   absl::PrintF("\n");
   for (int food = 0; food < num_foods; ++food) {

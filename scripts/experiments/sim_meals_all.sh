@@ -2,7 +2,10 @@
 # The simulated-meals runs of docs/experiments.md: the shipped defaults
 # (exactly what scripts/meal.sh uses: rho_c = 1 on the default featurizer's
 # seen-food E||c||^2, alpha 0.01, lambda_p 1, a new piece at every attempt),
-# 400 paired trials on seed 1, and the sensitivity cells on the same seed.
+# 400 paired trials on seed 1 (context-only and post hoc LinUCB with three
+# haptic encodings, and Thompson sampling for both learners), and the
+# sensitivity cells on the same seed: rho_c 0.3 and 3, blocked order,
+# HapticNet degraded to 95% and 80%.
 # Nothing here was chosen by looking at these seeds' results.
 # Usage: scripts/experiments/sim_meals_all.sh [build dir] [output dir]
 set -euo pipefail
@@ -18,10 +21,17 @@ meals() {
   nice -n 10 "$build/experiments/bitewise-sim-meals" --trials=400 --seed=1 \
     --out="$out/$name.csv" "$@" 2>/dev/null | tee "$out/$name.txt"
 }
-meals sim_meals
+# Two lanes, one per core.
+(
+  meals sim_meals
+  meals sim_meals_rho3 --rho_c=3
+  meals sim_meals_haptic95 --haptic_accuracy=0.95
+) &
+lane=$!
 meals sim_meals_rho0.3 --rho_c=0.3
-meals sim_meals_rho3 --rho_c=3
 meals sim_meals_blocked --order=blocked
+meals sim_meals_haptic80 --haptic_accuracy=0.8
+wait "$lane"
 if command -v gnuplot >/dev/null; then
   gnuplot -e "dir='$out'; out='$out'; name='sim_meals'" \
     "$root/scripts/experiments/plot_sim_meals.gp"

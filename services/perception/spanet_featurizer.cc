@@ -8,6 +8,7 @@
 #include "absl/strings/str_cat.h"
 #include "opencv2/imgproc.hpp"
 #include "services/common/status_macros.h"
+#include "services/perception/context_scale.h"
 
 namespace bitewise::perception {
 namespace {
@@ -46,7 +47,8 @@ cv::Mat SpanetCanvas(const cv::Mat& rgb_crop) {
   return canvas;
 }
 
-SpanetFeaturizer::SpanetFeaturizer(cv::dnn::Net net) : net_(std::move(net)) {}
+SpanetFeaturizer::SpanetFeaturizer(cv::dnn::Net net, double context_msn)
+    : context_msn_(context_msn), net_(std::move(net)) {}
 
 absl::StatusOr<std::unique_ptr<SpanetFeaturizer>> SpanetFeaturizer::Load(
     const std::string& model_path) {
@@ -72,8 +74,17 @@ absl::StatusOr<std::unique_ptr<SpanetFeaturizer>> SpanetFeaturizer::Load(
   }
   net.setPreferableBackend(cv::dnn::DNN_BACKEND_OPENCV);
   net.setPreferableTarget(cv::dnn::DNN_TARGET_CPU);
-  auto featurizer =
-      std::unique_ptr<SpanetFeaturizer>(new SpanetFeaturizer(std::move(net)));
+  // E||c||^2 on seen foods, shipped beside the model; unknown without it.
+  double context_msn = 0.0;
+  absl::StatusOr<double> scale =
+      ReadContextScaleFile(ContextScalePathFor(model_path));
+  if (scale.ok()) {
+    context_msn = *scale;
+  } else if (!absl::IsNotFound(scale.status())) {
+    return absl::FailedPreconditionError(scale.status().message());
+  }
+  auto featurizer = std::unique_ptr<SpanetFeaturizer>(
+      new SpanetFeaturizer(std::move(net), context_msn));
   // One run on a black image proves the interface before the service
   // reports SERVING.
   const cv::Mat black(kSpanetImageSize, kSpanetImageSize, CV_32FC3,

@@ -48,23 +48,27 @@ class SpanetFeaturizer final : public Featurizer {
   // [1,3,144,144] and "loc_type" [1,3], and produce "features" with 2048
   // values and "scores" with 10. Errors: NOT_FOUND when the file does not
   // exist; FAILED_PRECONDITION when it cannot be read, is not a loadable
-  // ONNX model, or does not have that interface; each names the file.
+  // ONNX model, or does not have that interface, or when "<model>.stats"
+  // exists but is malformed; each names the file.
   static absl::StatusOr<std::unique_ptr<SpanetFeaturizer>> Load(
       const std::string& model_path);
 
   std::string name() const override { return "spanet"; }
   int dimension() const override { return kSpanetFeatureDim; }
+  // From "<model>.stats" beside the model (context_scale.h); 0 without it.
+  double context_mean_squared_norm() const override { return context_msn_; }
   absl::StatusOr<Features> Featurize(const DecodedFrame& frame,
                                      const PixelBox& box,
                                      FoodLocation location) const override;
 
  private:
-  explicit SpanetFeaturizer(cv::dnn::Net net);
+  SpanetFeaturizer(cv::dnn::Net net, double context_msn);
 
   // Runs the network on one canvas; features and scores as float rows.
   absl::Status Run(const cv::Mat& canvas, FoodLocation location,
                    cv::Mat* features, cv::Mat* scores) const;
 
+  const double context_msn_;
   mutable absl::Mutex mu_;
   mutable cv::dnn::Net net_ ABSL_GUARDED_BY(mu_);
 };

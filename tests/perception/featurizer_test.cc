@@ -2,14 +2,19 @@
 // DNN on the generated ONNX model (shape, determinism, sensitivity to the
 // crop and the location, model checks at load), and the default
 // featurizer's dimension, determinism and discrimination.
+#include <unistd.h>
+
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/perception/context_scale.h"
 #include "services/perception/default_featurizer.h"
 #include "services/perception/spanet_featurizer.h"
 #include "services/perception/spanet_onnx.h"
@@ -145,6 +150,49 @@ TEST(SpanetLoadTest, MissingFileIsNotFound) {
   auto loaded = SpanetFeaturizer::Load(TempPath("no_such_model.onnx"));
   EXPECT_EQ(loaded.status().code(), absl::StatusCode::kNotFound);
   EXPECT_THAT(loaded.status().message(), HasSubstr("no_such_model.onnx"));
+}
+
+TEST_F(SpanetTest, ReportsTheContextScaleShippedBesideTheModel) {
+  absl::StatusOr<double> shipped =
+      ReadContextScaleFile(ContextScalePathFor(BITEWISE_SPANET_MODEL));
+  ASSERT_TRUE(shipped.ok()) << shipped.status();
+  EXPECT_GT(*shipped, 0.0);
+  EXPECT_EQ(spanet_->context_mean_squared_norm(), *shipped);
+}
+
+TEST(SpanetLoadTest, MalformedContextScaleIsFailedPreconditionNamingIt) {
+  const std::string path = TempPath("scaled.onnx");
+  std::remove(path.c_str());
+  ASSERT_EQ(symlink(BITEWISE_SPANET_MODEL, path.c_str()), 0);
+  std::ofstream(ContextScalePathFor(path))
+      << "version 1\nmean_squared_norm -3\n";
+  auto loaded = SpanetFeaturizer::Load(path);
+  EXPECT_EQ(loaded.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(loaded.status().message(), HasSubstr("scaled.onnx.stats"));
+  EXPECT_THAT(loaded.status().message(), HasSubstr("line 2"));
+  std::remove(ContextScalePathFor(path).c_str());
+  auto unscaled = SpanetFeaturizer::Load(path);  // no .stats: unknown
+  ASSERT_TRUE(unscaled.ok()) << unscaled.status();
+  EXPECT_EQ((*unscaled)->context_mean_squared_norm(), 0.0);
+  std::remove(path.c_str());
+}
+
+TEST(ContextScaleTest, ParsesAndRejectsNamingTheLine) {
+  EXPECT_EQ(*ParseContextScale(FormatContextScale(123.5, "a\nb")), 123.5);
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"version 1\n", "needs a version line and a mean_squared_norm"},
+      {"mean_squared_norm 4\n", "needs a version line"},
+      {"version 1\nmean_squared_norm nan\n", "line 2"},
+      {"version 0\nmean_squared_norm 4\n", "line 1"},
+      {"version 1\nmean_squared_norm 4\nextra 1\n", "line 3"},
+  };
+  for (const auto& [text, expected] : bad) {
+    absl::StatusOr<double> parsed = ParseContextScale(text);
+    EXPECT_EQ(parsed.status().code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_THAT(parsed.status().message(), HasSubstr(expected)) << text;
+  }
+  EXPECT_EQ(ReadContextScaleFile(TempPath("absent.stats")).status().code(),
+            absl::StatusCode::kNotFound);
 }
 
 TEST(SpanetLoadTest, GarbageFileIsFailedPrecondition) {
