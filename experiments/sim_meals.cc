@@ -187,7 +187,16 @@ absl::StatusOr<std::unique_ptr<SimMealsSimulator>> SimMealsSimulator::Create(
 absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
     const SimMealsConfig& config, uint64_t seed) const {
   RETURN_IF_ERROR(ValidateSimMealsConfig(config));
-  const std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
+  std::vector<const sim::FoodType*> foods;
+  if (config.food_names.empty()) foods = sim::UnseenFoods();
+  for (const std::string& name : config.food_names) {
+    const sim::FoodType* food = sim::FindFood(name);
+    if (food == nullptr) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("food_names: unknown food \"", name, "\""));
+    }
+    foods.push_back(food);
+  }
   const int num_foods = static_cast<int>(foods.size());
   const int plates_per_trial = ResolvedPlatesPerTrial(config);
 
@@ -201,6 +210,7 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
       plates_per_trial, std::vector<std::vector<double>>(num_foods));
   std::vector<std::vector<sim::ForceProfile>> profiles(plates_per_trial);
   SimMealWorld world;
+  world.foods = foods;
   for (int plate = 0; plate < plates_per_trial; ++plate) {
     // RandomPlate leaves an item off a plate it cannot fit on, and an item
     // can end up with no visible pixel; such plates are drawn again (from
@@ -295,15 +305,11 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
   return world;
 }
 
-absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
-                                           const SimMealWorld& world,
-                                           bandit::Learner learner,
-                                           HapticContext kind, uint64_t seed,
-                                           bandit::Strategy strategy) {
-  if (world.attempts.empty()) {
-    return absl::InvalidArgumentError("the world has no attempts");
-  }
-  const std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
+bandit::BanditConfig SimUserConfig(const SimMealsConfig& config,
+                                   bandit::Learner learner,
+                                   bandit::Strategy strategy, int context_dim,
+                                   uint64_t seed,
+                                   const bandit::PopulationPrior& prior) {
   bandit::BanditConfig bandit_config;
   bandit_config.learner = learner;
   bandit_config.strategy = strategy;
@@ -312,29 +318,34 @@ absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
                             : config.alpha;
   bandit_config.lambda_c = ResolvedLambdaC(config);
   bandit_config.lambda_p = config.lambda_p;
-  bandit_config.context_dim =
-      static_cast<int>(world.attempts.front().context.size());
+  bandit_config.context_dim = context_dim;
   bandit_config.posthoc_dim = haptic::kHapticClasses;
   bandit_config.seed = seed;
-  ASSIGN_OR_RETURN(bandit::LinUcbModel model,
-                   bandit::LinUcbModel::Create(bandit_config));
+  bandit_config.prior = prior;
+  return bandit_config;
+}
 
+absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
+                                       HapticContext kind, uint64_t seed,
+                                       int64_t first_round,
+                                       bandit::LinUcbModel& model) {
+  const bandit::BanditConfig& bandit_config = model.config();
   SimMealRun run;
   double failures = 0.0;
   for (size_t t = 0; t < world.attempts.size(); ++t) {
     const SimAttempt& attempt = world.attempts[t];
     RETURN_IF_ERROR(model.ValidateContext(attempt.context));
     std::mt19937_64 rng =
-        bandit::SelectRng(seed, static_cast<int64_t>(run.actions.size()));
+        bandit::SelectRng(seed, first_round + static_cast<int64_t>(t));
     const bandit::Choice choice = bandit::ChooseAction(
         bandit_config, model.Estimate(attempt.context), rng);
     const bool failed =
-        !(attempt.coin < foods[attempt.food]->success[choice.action]);
+        !(attempt.coin < world.foods[attempt.food]->success[choice.action]);
     bandit::Round round;
     round.context = attempt.context;
     round.action = choice.action;
     round.loss = failed ? 1.0 : 0.0;
-    if (learner == bandit::Learner::kPostHoc) {
+    if (bandit_config.learner == bandit::Learner::kPostHoc) {
       round.posthoc = PosthocContext(attempt.haptic, kind);
     }
     RETURN_IF_ERROR(model.ValidateRound(round));
@@ -347,8 +358,24 @@ absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
   return run;
 }
 
+absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
+                                           const SimMealWorld& world,
+                                           bandit::Learner learner,
+                                           HapticContext kind, uint64_t seed,
+                                           bandit::Strategy strategy) {
+  if (world.attempts.empty()) {
+    return absl::InvalidArgumentError("the world has no attempts");
+  }
+  ASSIGN_OR_RETURN(
+      bandit::LinUcbModel model,
+      bandit::LinUcbModel::Create(SimUserConfig(
+          config, learner, strategy,
+          static_cast<int>(world.attempts.front().context.size()), seed)));
+  return PlaySimMeal(world, kind, seed, /*first_round=*/0, model);
+}
+
 std::vector<double> OracleExpectedFailures(const SimMealWorld& world) {
-  const std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
+  const std::vector<const sim::FoodType*>& foods = world.foods;
   std::vector<double> out;
   double sum = 0.0;
   for (const SimAttempt& attempt : world.attempts) {
@@ -360,7 +387,7 @@ std::vector<double> OracleExpectedFailures(const SimMealWorld& world) {
 }
 
 std::vector<double> UniformExpectedFailures(const SimMealWorld& world) {
-  const std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
+  const std::vector<const sim::FoodType*>& foods = world.foods;
   std::vector<double> out;
   double sum = 0.0;
   for (const SimAttempt& attempt : world.attempts) {

@@ -26,6 +26,7 @@
 
 #include "absl/status/statusor.h"
 #include "services/bandit/core/config.h"
+#include "services/bandit/core/linucb.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/perception/default_featurizer.h"
 #include "services/sim/food_catalog.h"
@@ -89,6 +90,9 @@ struct SimMealsConfig {
   // Thompson sampling's scale v (theta ~ N(theta_a, v^2 Sigma_a)): 0.5, the
   // largest standard deviation a 0/1 loss can have; not tuned.
   double thompson_v = 0.5;
+  // The foods of the meal (catalog names), each attempts_per_food times;
+  // empty means the eight unseen foods.
+  std::vector<std::string> food_names;
   // HapticNet accuracy for sensitivity runs: 0 uses the shipped model's
   // answers as they are; a value in (0, 1) makes each attempt's
   // classification wrong with probability 1 - haptic_accuracy (a confident
@@ -107,7 +111,7 @@ absl::Status ValidateSimMealsConfig(const SimMealsConfig& config);
 
 // One attempt of a trial as every learner sees it.
 struct SimAttempt {
-  int food = 0;   // index into sim::UnseenFoods()
+  int food = 0;   // index into SimMealWorld::foods
   int plate = 0;  // which of the trial's plates the item lies on
   // DefaultFeaturizer's 64 numbers for the item's ground-truth box on that
   // plate (location: isolated). Identical for all attempts on the same item.
@@ -120,6 +124,8 @@ struct SimAttempt {
 };
 
 struct SimMealWorld {
+  // The meal's foods; SimAttempt::food indexes this.
+  std::vector<const sim::FoodType*> foods;
   std::vector<SimAttempt> attempts;  // in the order they are made
   // Plates drawn again because an item did not fit or was not visible.
   int plate_redraws = 0;
@@ -170,6 +176,23 @@ struct SimMealRun {
 // user's Select generator as the BanditService does (Thompson draws from it;
 // LinUCB is deterministic). Errors: from the bandit core if a round is
 // invalid.
+// The bandit configuration a simulated user gets: the product's defaults
+// under `config` (resolved lambda_c), `learner` and `strategy`, context
+// dimension `context_dim`, 4 haptic classes, seed `seed`, and `prior`.
+bandit::BanditConfig SimUserConfig(const SimMealsConfig& config,
+                                   bandit::Learner learner,
+                                   bandit::Strategy strategy, int context_dim,
+                                   uint64_t seed,
+                                   const bandit::PopulationPrior& prior = {});
+
+// Plays `world` on an existing user's `model` (which keeps learning across
+// meals), as RunSimMealTrial does. `seed` and `first_round` seed the
+// Select generator per round.
+absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
+                                       HapticContext kind, uint64_t seed,
+                                       int64_t first_round,
+                                       bandit::LinUcbModel& model);
+
 absl::StatusOr<SimMealRun> RunSimMealTrial(
     const SimMealsConfig& config, const SimMealWorld& world,
     bandit::Learner learner, HapticContext kind, uint64_t seed,

@@ -56,8 +56,8 @@ grpc::Status BanditServiceImpl::CreateUser(grpc::ServerContext*,
   absl::StatusOr<BanditConfig> config =
       ConfigFromProto(request->config(), defaults_, request->user_id());
   if (!config.ok()) return Fail(config.status());
-  absl::StatusOr<UserRecord> user =
-      engine_->CreateUser(request->user_id(), *config);
+  absl::StatusOr<UserRecord> user = engine_->CreateUser(
+      request->user_id(), *config, request->config().prior_rounds());
   if (!user.ok()) return Fail(user.status());
   UserToProto(*user, response);
   return grpc::Status::OK;
@@ -120,6 +120,18 @@ grpc::Status BanditServiceImpl::ListEvents(grpc::ServerContext*,
     EventToProto(event, response->add_events());
   }
   response->set_next_page_token(page->next_page_token);
+  return grpc::Status::OK;
+}
+
+grpc::Status BanditServiceImpl::BuildPopulationPrior(
+    grpc::ServerContext*, const v1::BuildPopulationPriorRequest* request,
+    v1::PopulationPool* response) {
+  absl::StatusOr<BanditConfig> like =
+      ConfigFromProto(request->like(), defaults_, "population pool");
+  if (!like.ok()) return Fail(like.status());
+  absl::StatusOr<PoolRecord> pool = engine_->BuildPopulationPool(*like);
+  if (!pool.ok()) return Fail(pool.status());
+  PoolToProto(*pool, response);
   return grpc::Status::OK;
 }
 

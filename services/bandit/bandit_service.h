@@ -44,6 +44,10 @@ class BanditServiceImpl final : public v1::BanditService::Service {
   grpc::Status ListEvents(grpc::ServerContext* context,
                           const v1::ListEventsRequest* request,
                           v1::ListEventsResponse* response) override;
+  grpc::Status BuildPopulationPrior(
+      grpc::ServerContext* context,
+      const v1::BuildPopulationPriorRequest* request,
+      v1::PopulationPool* response) override;
 
  private:
   BanditEngine* const engine_;

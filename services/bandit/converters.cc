@@ -112,6 +112,27 @@ void ConfigToProto(const BanditConfig& config, v1::UserConfig* proto) {
   }
   proto->set_seed(config.seed);
   proto->set_importance_weighting(config.importance_weighting);
+  if (config.prior.enabled()) {
+    proto->set_prior_rounds(config.prior.rounds);
+    proto->set_prior_pool_version(config.prior.pool_version);
+  }
+}
+
+void PoolToProto(const PoolRecord& pool, v1::PopulationPool* proto) {
+  proto->set_pool_version(pool.pool_version);
+  proto->set_users(pool.users);
+  TimeToProto(pool.created_at, proto->mutable_created_at());
+  v1::UserConfig* like = proto->mutable_like();
+  like->set_learner(pool.learner == Learner::kPostHoc
+                        ? v1::LEARNER_POSTHOC
+                        : v1::LEARNER_CONTEXT_ONLY);
+  like->set_context_dim(static_cast<uint32_t>(pool.context_dim));
+  like->set_posthoc_dim(static_cast<uint32_t>(pool.posthoc_dim));
+  for (const std::string& name : pool.action_names) {
+    like->add_action_names(name);
+  }
+  proto->set_context_msn(pool.prior.context_msn);
+  proto->set_posthoc_msn(pool.prior.posthoc_msn);
 }
 
 void UserToProto(const UserRecord& user, v1::User* proto) {

@@ -23,6 +23,7 @@ absl::StatusOr<BanditConfig> ConfigFromProto(const v1::UserConfig& proto,
                                              const std::string& user_id);
 void ConfigToProto(const BanditConfig& config, v1::UserConfig* proto);
 void UserToProto(const UserRecord& user, v1::User* proto);
+void PoolToProto(const PoolRecord& pool, v1::PopulationPool* proto);
 void EventToProto(const EventRecord& event, v1::Event* proto);
 void SelectToProto(const SelectResult& result, v1::SelectResponse* proto);
 void ModelToProto(const ModelExport& model, v1::Model* proto);

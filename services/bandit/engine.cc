@@ -1,11 +1,13 @@
 #include "services/bandit/engine.h"
 
+#include <cmath>
 #include <random>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "absl/time/clock.h"
 #include "services/bandit/core/policy.h"
+#include "services/bandit/core/population_prior.h"
 #include "services/common/status_macros.h"
 
 namespace bitewise::bandit {
@@ -124,8 +126,24 @@ void BanditEngine::Touch(UserSlot& slot) {
 }
 
 absl::StatusOr<UserRecord> BanditEngine::CreateUser(
-    const std::string& user_id, const BanditConfig& config) {
-  RETURN_IF_ERROR(ValidateConfig(config));
+    const std::string& user_id, const BanditConfig& requested,
+    double prior_rounds) {
+  RETURN_IF_ERROR(ValidateConfig(requested));
+  if (!std::isfinite(prior_rounds) || prior_rounds < 0.0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "prior_rounds: must be finite and >= 0, got ", prior_rounds));
+  }
+  BanditConfig config = requested;
+  if (prior_rounds > 0.0) {
+    absl::StatusOr<PoolRecord> pool = store_->LatestPool(config);
+    if (absl::IsNotFound(pool.status())) {
+      return absl::FailedPreconditionError(pool.status().message());
+    }
+    RETURN_IF_ERROR(pool.status());
+    config.prior = std::move(pool->prior);
+    config.prior.rounds = prior_rounds;
+    RETURN_IF_ERROR(ValidateConfig(config));
+  }
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, true));
   absl::MutexLock lock(&slot->mu);
   UserRecord record;
@@ -134,6 +152,50 @@ absl::StatusOr<UserRecord> BanditEngine::CreateUser(
   record.created_at = absl::FromUnixMicros(absl::ToUnixMicros(absl::Now()));
   RETURN_IF_ERROR(store_->CreateUser(record));
   Unload(*slot);
+  return record;
+}
+
+absl::StatusOr<PoolRecord> BanditEngine::BuildPopulationPool(
+    const BanditConfig& like) {
+  RETURN_IF_ERROR(ValidateConfig(like));
+  PriorPool pool(like);
+  Page page;
+  page.page_size = 1000;
+  while (true) {
+    ASSIGN_OR_RETURN(PageResult<UserRecord> users, store_->ListUsers(page));
+    for (const UserRecord& user : users.items) {
+      if (user.model_version == 0) continue;
+      absl::StatusOr<std::shared_ptr<UserSlot>> slot =
+          Slot(user.user_id, false);
+      if (absl::IsNotFound(slot.status())) continue;  // deleted meanwhile
+      RETURN_IF_ERROR(slot.status());
+      absl::MutexLock lock(&(*slot)->mu);
+      RETURN_IF_ERROR(EnsureLoaded(user.user_id, **slot));
+      const LinUcbModel& model = *(*slot)->model;
+      if (model.TotalRounds() > 0 && pool.Accepts(model)) {
+        RETURN_IF_ERROR(pool.Add(model));
+      }
+    }
+    if (users.next_page_token.empty()) break;
+    page.page_token = users.next_page_token;
+  }
+  if (pool.users() == 0) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "no ", LearnerName(like.learner), " user with context_dim ",
+        like.context_dim, " and these ", like.num_actions(),
+        " actions has completed rounds; nothing to pool"));
+  }
+  PoolRecord record;
+  record.created_at = absl::FromUnixMicros(absl::ToUnixMicros(absl::Now()));
+  record.users = pool.users();
+  record.learner = like.learner;
+  record.context_dim = like.context_dim;
+  record.posthoc_dim = like.learner == Learner::kPostHoc ? like.posthoc_dim : 0;
+  record.action_names = like.action_names;
+  // The version is the store's; the vectors do not depend on it.
+  ASSIGN_OR_RETURN(record.prior, pool.Finish(/*rounds=*/0.0, 1));
+  ASSIGN_OR_RETURN(record.pool_version, store_->AddPool(record));
+  record.prior.pool_version = record.pool_version;
   return record;
 }
 

@@ -90,8 +90,19 @@ class BanditEngine {
   // `store` must outlive the engine.
   BanditEngine(EventStore* store, const EngineOptions& options);
 
+  // `prior_rounds` > 0 starts the user from the newest population pool for
+  // users like `config`, worth that many rounds (config.prior is replaced);
+  // FAILED_PRECONDITION naming what is missing when there is no such pool.
   absl::StatusOr<UserRecord> CreateUser(const std::string& user_id,
-                                        const BanditConfig& config);
+                                        const BanditConfig& config,
+                                        double prior_rounds = 0.0);
+
+  // Pools every user like `like` (learner, context_dim, posthoc_dim, action
+  // names) that has completed rounds, one model at a time, into a new
+  // durable population pool, and returns it. Users' raw events are not
+  // read beyond rebuilding their own models. FAILED_PRECONDITION when no
+  // such user has a completed round; INVALID_ARGUMENT for a bad `like`.
+  absl::StatusOr<PoolRecord> BuildPopulationPool(const BanditConfig& like);
   absl::StatusOr<UserRecord> GetUser(const std::string& user_id);
   absl::StatusOr<PageResult<UserRecord>> ListUsers(const Page& page);
   absl::StatusOr<UserRecord> ResetUser(const std::string& user_id);

@@ -1,6 +1,7 @@
 // A dense float64 evaluation of SPEC section 2, written straight from the
-// formulas with explicit inverses. It is the independent reference that the
-// incremental LinUcbModel is checked against; it is slow on purpose.
+// formulas with explicit inverses, with the population prior of
+// docs/algorithms.md when the config has one. It is the independent reference
+// that the incremental LinUcbModel is checked against; it is slow on purpose.
 #ifndef BITEWISE_TESTS_BANDIT_DENSE_REFERENCE_H_
 #define BITEWISE_TESTS_BANDIT_DENSE_REFERENCE_H_
 
@@ -30,10 +31,24 @@ inline std::vector<DenseActionModel> DenseReference(
   auto vec = [](const std::vector<double>& v) {
     return Eigen::Map<const VectorXd>(v.data(), v.size());
   };
-  std::vector<MatrixXd> a(k, config.lambda_c * MatrixXd::Identity(d, d));
+  // The prior: ridges kappa_c ||theta - theta0||^2 and
+  // kappa_p ||phi - phi0||^2 on top of lambda_c ||theta||^2, lambda_p
+  // ||phi||^2.
+  const PopulationPrior& prior = config.prior;
+  const double kappa_c = prior.enabled() ? prior.rounds * prior.context_msn : 0;
+  const double kappa_p = prior.enabled() ? prior.rounds * prior.posthoc_msn : 0;
+  std::vector<MatrixXd> a(
+      k, (config.lambda_c + kappa_c) * MatrixXd::Identity(d, d));
   std::vector<VectorXd> b(k, VectorXd::Zero(d));
-  std::vector<MatrixXd> m(k, config.lambda_p * MatrixXd::Identity(q, q));
+  std::vector<MatrixXd> m(
+      k, (config.lambda_p + kappa_p) * MatrixXd::Identity(q, q));
   std::vector<VectorXd> r(k, VectorXd::Zero(q));
+  if (prior.enabled()) {
+    for (int i = 0; i < k; ++i) {
+      b[i] = kappa_c * vec(prior.theta0[i]);
+      if (posthoc) r[i] = kappa_p * vec(prior.phi0[i]);
+    }
+  }
   MatrixXd s_pp = config.lambda_p * MatrixXd::Identity(q, q);
   MatrixXd s_pc = MatrixXd::Zero(q, d);
   for (const Round& t : rounds) {

@@ -5,8 +5,10 @@
 #include <string>
 #include <vector>
 
+#include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/bandit/core/policy.h"
+#include "services/bandit/core/population_prior.h"
 #include "tests/bandit/dense_reference.h"
 
 namespace bitewise::bandit {
@@ -23,6 +25,7 @@ struct Problem {
   Learner learner;
   bool weighted;
   int primal_threshold;  // 0: d
+  bool prior = false;    // a random population prior
 };
 
 std::string Name(const ::testing::TestParamInfo<Problem>& info) {
@@ -31,7 +34,8 @@ std::string Name(const ::testing::TestParamInfo<Problem>& info) {
          "_q" + std::to_string(p.q) + "_k" + std::to_string(p.k) + "_T" +
          std::to_string(p.rounds) + (p.weighted ? "_weighted" : "") +
          (p.primal_threshold ? "_primal" + std::to_string(p.primal_threshold)
-                             : "");
+                             : "") +
+         (p.prior ? "_prior" : "");
 }
 
 BanditConfig MakeConfig(const Problem& p, std::mt19937_64& rng) {
@@ -47,6 +51,20 @@ BanditConfig MakeConfig(const Problem& p, std::mt19937_64& rng) {
   config.alpha = 0.05 + u(rng);
   config.lambda_c = 0.5 + 3.0 * u(rng);
   config.lambda_p = 0.5 + 2.0 * u(rng);
+  if (p.prior) {
+    PopulationPrior& prior = config.prior;
+    prior.pool_version = 3;
+    prior.rounds = 0.5 + 3.0 * u(rng);
+    prior.context_msn = 0.2 + u(rng);
+    prior.posthoc_msn = p.learner == Learner::kPostHoc ? 0.2 + u(rng) : 0.0;
+    for (int a = 0; a < p.k; ++a) {
+      std::vector<double> theta0(p.d), phi0(p.q);
+      for (double& v : theta0) v = u(rng) - 0.5;
+      for (double& v : phi0) v = u(rng) - 0.5;
+      prior.theta0.push_back(theta0);
+      if (p.learner == Learner::kPostHoc) prior.phi0.push_back(phi0);
+    }
+  }
   return config;
 }
 
@@ -152,21 +170,123 @@ TEST_P(LinUcbReferenceTest, MatchesDenseReferenceThroughout) {
 
 INSTANTIATE_TEST_SUITE_P(
     RandomProblems, LinUcbReferenceTest,
-    ::testing::Values(Problem{8, 3, 4, 300, Learner::kPostHoc, false, 0},
-                      Problem{8, 3, 4, 300, Learner::kPostHoc, true, 0},
-                      Problem{8, 3, 4, 300, Learner::kContextOnly, false, 0},
-                      Problem{8, 3, 4, 300, Learner::kContextOnly, true, 0},
-                      Problem{32, 4, 6, 200, Learner::kPostHoc, false, 0},
-                      Problem{32, 4, 6, 200, Learner::kPostHoc, true, 0},
-                      Problem{64, 4, 6, 300, Learner::kPostHoc, false, 0},
-                      Problem{64, 4, 6, 300, Learner::kPostHoc, true, 0},
-                      Problem{64, 4, 6, 300, Learner::kContextOnly, false, 0},
-                      Problem{64, 4, 6, 300, Learner::kContextOnly, true, 0},
-                      Problem{64, 10, 10, 200, Learner::kPostHoc, false, 0},
-                      Problem{16, 4, 6, 200, Learner::kPostHoc, false, 5},
-                      Problem{64, 1, 2, 150, Learner::kPostHoc, true, 0},
-                      Problem{64, 4, 6, 300, Learner::kPostHoc, true, 100000}),
+    ::testing::Values(
+        Problem{8, 3, 4, 300, Learner::kPostHoc, false, 0},
+        Problem{8, 3, 4, 300, Learner::kPostHoc, true, 0},
+        Problem{8, 3, 4, 300, Learner::kContextOnly, false, 0},
+        Problem{8, 3, 4, 300, Learner::kContextOnly, true, 0},
+        Problem{32, 4, 6, 200, Learner::kPostHoc, false, 0},
+        Problem{32, 4, 6, 200, Learner::kPostHoc, true, 0},
+        Problem{64, 4, 6, 300, Learner::kPostHoc, false, 0},
+        Problem{64, 4, 6, 300, Learner::kPostHoc, true, 0},
+        Problem{64, 4, 6, 300, Learner::kContextOnly, false, 0},
+        Problem{64, 4, 6, 300, Learner::kContextOnly, true, 0},
+        Problem{64, 10, 10, 200, Learner::kPostHoc, false, 0},
+        Problem{16, 4, 6, 200, Learner::kPostHoc, false, 5},
+        Problem{64, 1, 2, 150, Learner::kPostHoc, true, 0},
+        Problem{64, 4, 6, 300, Learner::kPostHoc, true, 100000},
+        // With a population prior: dual, primal, both learners.
+        Problem{8, 3, 4, 300, Learner::kPostHoc, true, 0, true},
+        Problem{8, 3, 4, 300, Learner::kContextOnly, true, 0, true},
+        Problem{32, 4, 6, 200, Learner::kPostHoc, false, 0, true},
+        Problem{16, 4, 6, 200, Learner::kPostHoc, true, 5, true},
+        Problem{64, 4, 6, 300, Learner::kPostHoc, false, 100000, true}),
     Name);
+
+// The pool is the count-weighted mean of the users' models, and its scale
+// the pooled mean squared input norms; a new user with the prior and no
+// rounds predicts what the pooled users' models predict, shrunk by
+// kappa / (lambda + kappa) (context-only, where theta = A^-1 b exactly).
+TEST(PopulationPriorTest, PoolsModelsAndStartsNewUsersFromThem) {
+  std::mt19937_64 rng(77);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (Learner learner : {Learner::kContextOnly, Learner::kPostHoc}) {
+    BanditConfig config;
+    config.learner = learner;
+    config.context_dim = 5;
+    config.posthoc_dim = 3;
+    config.lambda_c = 2.0;
+    std::vector<LinUcbModel> users;
+    for (int user = 0; user < 3; ++user) {
+      LinUcbModel model = *LinUcbModel::Create(config);
+      for (int t = 0; t < 20 + 10 * user; ++t) {
+        Round round;
+        round.context = RandomVector(5, rng);
+        round.posthoc = RandomVector(3, rng);
+        round.action = t % (user + 2);  // some actions untried by some
+        round.loss = u(rng) < 0.4 ? 1.0 : 0.0;
+        model.Update(round);
+      }
+      users.push_back(std::move(model));
+    }
+    std::vector<const LinUcbModel*> pool;
+    for (const LinUcbModel& m : users) pool.push_back(&m);
+    absl::StatusOr<PopulationPrior> prior = PooledPrior(pool, 4.0, 1);
+    ASSERT_TRUE(prior.ok()) << prior.status();
+    double w = 0, cc = 0;
+    for (const LinUcbModel& m : users) {
+      w += m.input_scale().weight_sum;
+      cc += m.input_scale().context_sq_sum;
+    }
+    EXPECT_NEAR(prior->context_msn, cc / w, 1e-12);
+    for (int a = 0; a < config.num_actions(); ++a) {
+      Eigen::VectorXd expected = Eigen::VectorXd::Zero(5);
+      int64_t n = 0;
+      for (const LinUcbModel& m : users) {
+        expected += m.Count(a) * m.Theta(a);
+        n += m.Count(a);
+      }
+      if (n > 0) expected /= n;
+      const Eigen::Map<const Eigen::VectorXd> got(prior->theta0[a].data(), 5);
+      EXPECT_LT(RelErr(got, expected), 1e-12) << a;
+    }
+    BanditConfig newcomer = config;
+    newcomer.prior = *prior;
+    ASSERT_TRUE(ValidateConfig(newcomer).ok());
+    LinUcbModel fresh = *LinUcbModel::Create(newcomer);
+    ExpectMatchesReference(fresh, {}, RandomVector(5, rng), "fresh with prior");
+    if (learner == Learner::kContextOnly) {
+      const double kappa = prior->rounds * prior->context_msn;
+      const Eigen::Map<const Eigen::VectorXd> theta0(prior->theta0[1].data(),
+                                                     5);
+      EXPECT_LT(RelErr(fresh.Theta(1), kappa / (2.0 + kappa) * theta0), 1e-12);
+    }
+  }
+}
+
+TEST(PopulationPriorTest, RejectsUnlikeModelsAndBadPriorsNamingTheField) {
+  BanditConfig a;
+  a.context_dim = 4;
+  BanditConfig b = a;
+  b.context_dim = 5;
+  LinUcbModel ma = *LinUcbModel::Create(a);
+  LinUcbModel mb = *LinUcbModel::Create(b);
+  EXPECT_THAT(PooledPrior({&ma, &mb}, 1.0, 1).status().message(),
+              ::testing::HasSubstr("model 1 differs"));
+  EXPECT_THAT(PooledPrior({&ma}, 1.0, 1).status().message(),
+              ::testing::HasSubstr("no completed rounds"));
+  EXPECT_FALSE(PooledPrior({}, 1.0, 1).ok());
+  EXPECT_FALSE(PooledPrior({&ma}, -1.0, 1).ok());
+  BanditConfig bad = a;
+  bad.prior.pool_version = 1;
+  bad.prior.rounds = 2.0;
+  bad.prior.context_msn = 1.0;
+  bad.prior.posthoc_msn = 1.0;
+  bad.prior.theta0.assign(6, std::vector<double>(3, 0.0));
+  bad.prior.phi0.assign(6, std::vector<double>(4, 0.0));
+  EXPECT_THAT(ValidateConfig(bad).message(),
+              ::testing::HasSubstr("prior.theta0[0]: expected 4 values"));
+  bad.prior.theta0.assign(6, std::vector<double>(4, 0.0));
+  bad.prior.theta0[2][1] = std::nan("");
+  EXPECT_THAT(ValidateConfig(bad).message(),
+              ::testing::HasSubstr("prior.theta0[2]: must be finite"));
+  bad.prior.theta0[2][1] = 0.0;
+  bad.prior.posthoc_msn = 0.0;
+  EXPECT_THAT(ValidateConfig(bad).message(),
+              ::testing::HasSubstr("posthoc_msn"));
+  bad.prior.posthoc_msn = 1.0;
+  EXPECT_TRUE(ValidateConfig(bad).ok());
+}
 
 // With the default hyperparameters a model rebuilt from its log (what a
 // restart does) equals the live model within 1e-12, in both regimes.

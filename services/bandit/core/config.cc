@@ -87,6 +87,53 @@ absl::Status ValidateConfig(const BanditConfig& config) {
       }
     }
   }
+  const PopulationPrior& prior = config.prior;
+  if (prior.pool_version < 0) {
+    return bad("prior.pool_version: must be >= 0, got ", prior.pool_version);
+  }
+  if (!std::isfinite(prior.rounds) || prior.rounds < 0) {
+    return bad("prior.rounds: must be finite and >= 0, got ", prior.rounds);
+  }
+  if (prior.enabled()) {
+    const bool posthoc = config.learner == Learner::kPostHoc;
+    if (!std::isfinite(prior.context_msn) || prior.context_msn <= 0 ||
+        (posthoc &&
+         (!std::isfinite(prior.posthoc_msn) || prior.posthoc_msn <= 0))) {
+      return bad(
+          "prior: context_msn (and posthoc_msn for the post hoc "
+          "learner) must be finite and > 0");
+    }
+    auto check = [&](const char* field,
+                     const std::vector<std::vector<double>>& rows,
+                     int dim) -> absl::Status {
+      if (static_cast<int>(rows.size()) != config.num_actions()) {
+        return bad("prior.", field, ": expected ", config.num_actions(),
+                   " actions, got ", rows.size());
+      }
+      for (size_t a = 0; a < rows.size(); ++a) {
+        if (static_cast<int>(rows[a].size()) != dim) {
+          return bad("prior.", field, "[", a, "]: expected ", dim,
+                     " values, got ", rows[a].size());
+        }
+        for (double v : rows[a]) {
+          if (!std::isfinite(v)) {
+            return bad("prior.", field, "[", a, "]: must be finite");
+          }
+        }
+      }
+      return absl::OkStatus();
+    };
+    if (absl::Status s = check("theta0", prior.theta0, config.context_dim);
+        !s.ok()) {
+      return s;
+    }
+    if (posthoc) {
+      if (absl::Status s = check("phi0", prior.phi0, config.posthoc_dim);
+          !s.ok()) {
+        return s;
+      }
+    }
+  }
   return absl::OkStatus();
 }
 

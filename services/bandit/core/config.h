@@ -31,6 +31,28 @@ const char* StrategyName(Strategy strategy);
 // The six skewering actions of SPEC section 1, in index order.
 std::vector<std::string> DefaultActionNames();
 
+// An opt-in population prior (docs/algorithms.md, "Population prior"): the
+// ridges are centred on a population mean built from other users'
+// sufficient statistics instead of on zero. With kappa_c = rounds *
+// context_msn and kappa_p = rounds * posthoc_msn:
+//   A_a = (lambda_c + kappa_c) I + sum w c c^T,  b_a = kappa_c theta0_a + ...
+//   M_a = (lambda_p + kappa_p) I + sum w p p^T,  r_a = kappa_p phi0_a + ...
+// (S_pp and S_pc are unchanged): the ridge lambda_c ||theta||^2 gains
+// kappa_c ||theta - theta0||^2 and the post hoc ridge gains
+// kappa_p ||H theta - phi0||^2, a prior worth `rounds` observations.
+struct PopulationPrior {
+  int64_t pool_version = 0;  // the pool it came from; 0: no prior
+  double rounds = 0.0;       // n_0, what the prior is worth, >= 0
+  double context_msn = 0.0;  // pooled E[w ||c||^2] / E[w]
+  double posthoc_msn = 0.0;  // pooled E[w ||p||^2] / E[w]
+  std::vector<std::vector<double>> theta0;  // K x d
+  std::vector<std::vector<double>> phi0;    // K x q (post hoc learner)
+
+  bool enabled() const { return pool_version > 0 && rounds > 0.0; }
+  double kappa_c() const { return enabled() ? rounds * context_msn : 0.0; }
+  double kappa_p() const { return enabled() ? rounds * posthoc_msn : 0.0; }
+};
+
 struct BanditConfig {
   Learner learner = Learner::kPostHoc;
   Strategy strategy = Strategy::kLinUcb;
@@ -50,6 +72,8 @@ struct BanditConfig {
   std::vector<std::string> action_names = DefaultActionNames();  // K names
   // Seeds the user's random generator (epsilon-greedy, Thompson, uniform).
   uint64_t seed = 0;
+  // Opt-in; none by default.
+  PopulationPrior prior;
 
   int num_actions() const { return static_cast<int>(action_names.size()); }
 };

@@ -39,14 +39,19 @@ LinUcbModel::LinUcbModel(const BanditConfig& config, int primal_threshold)
       d_(config.context_dim),
       q_(config.learner == Learner::kPostHoc ? config.posthoc_dim : 0),
       primal_threshold_(primal_threshold > 0 ? primal_threshold
-                                             : config.context_dim) {
+                                             : config.context_dim),
+      lambda_a_(config.lambda_c + config.prior.kappa_c()) {
   actions_.resize(config.num_actions());
-  for (ActionState& s : actions_) {
+  const PopulationPrior& prior = config_.prior;
+  for (size_t a = 0; a < actions_.size(); ++a) {
+    ActionState& s = actions_[a];
     s.b = VectorXd::Zero(d_);
+    if (prior.enabled()) s.b = prior.kappa_c() * AsVector(prior.theta0[a]);
     s.zb.resize(0);
     if (posthoc()) {
-      s.M = config_.lambda_p * MatrixXd::Identity(q_, q_);
+      s.M = (config_.lambda_p + prior.kappa_p()) * MatrixXd::Identity(q_, q_);
       s.r = VectorXd::Zero(q_);
+      if (prior.enabled()) s.r = prior.kappa_p() * AsVector(prior.phi0[a]);
       s.e.resize(0, q_);
       s.z.resize(0, q_);
     }
@@ -112,13 +117,13 @@ VectorXd LinUcbModel::ApplyAInverse(const ActionState& s,
                                     const VectorXd& x) const {
   if (s.primal) return s.a_inv * x;
   const int m = n(s);
-  if (m == 0) return x / config_.lambda_c;
+  if (m == 0) return x / lambda_a_;
   const ConstRowMap c = Rows(s);
   const auto l = s.chol.topLeftCorner(m, m).triangularView<Eigen::Lower>();
   VectorXd t = c * x;
   l.solveInPlace(t);
   l.transpose().solveInPlace(t);
-  return (x - c.transpose() * t) / config_.lambda_c;
+  return (x - c.transpose() * t) / lambda_a_;
 }
 
 void LinUcbModel::AppendDualRow(ActionState& s, const VectorXd& x) {
@@ -131,8 +136,7 @@ void LinUcbModel::AppendDualRow(ActionState& s, const VectorXd& x) {
     s.chol.topLeftCorner(m, m).triangularView<Eigen::Lower>().solveInPlace(
         l_row);
   }
-  const double delta2 =
-      config_.lambda_c + x.squaredNorm() - l_row.squaredNorm();
+  const double delta2 = lambda_a_ + x.squaredNorm() - l_row.squaredNorm();
   if (s.chol.rows() < m + 1) {
     const int cap = std::max(8, 2 * (m + 1));
     MatrixXd grown = MatrixXd::Zero(cap, cap);
@@ -146,14 +150,14 @@ void LinUcbModel::AppendDualRow(ActionState& s, const VectorXd& x) {
   }
   s.chol.block(m, 0, 1, m) = l_row.transpose();
   // K is lambda-regularised, so delta2 >= lambda > 0 up to rounding.
-  s.chol(m, m) = std::sqrt(std::max(delta2, config_.lambda_c * 1e-300));
+  s.chol(m, m) = std::sqrt(std::max(delta2, lambda_a_ * 1e-300));
   if (posthoc()) s.e.row(m) = (s_pc_ * x).transpose();
   s.rows.insert(s.rows.end(), x.data(), x.data() + d_);
 }
 
 void LinUcbModel::SwitchToPrimal(ActionState& s) {
   const int m = n(s);
-  MatrixXd a = config_.lambda_c * MatrixXd::Identity(d_, d_);
+  MatrixXd a = lambda_a_ * MatrixXd::Identity(d_, d_);
   if (m > 0) {
     a.selfadjointView<Eigen::Lower>().rankUpdate(Rows(s).transpose());
   }
@@ -185,7 +189,7 @@ void LinUcbModel::RefreshLossCache(ActionState& s) {
 }
 
 void LinUcbModel::RefreshPostHocCache(ActionState& s) {
-  const double lambda = config_.lambda_c;
+  const double lambda = lambda_a_;
   MatrixXd q_mat(q_, q_);  // H A^-1 H^T
   VectorXd hab(q_);        // H A^-1 b
   if (s.primal) {
@@ -214,7 +218,7 @@ void LinUcbModel::RefreshPostHocCache(ActionState& s) {
 std::vector<ActionEstimate> LinUcbModel::Estimate(
     absl::Span<const double> context) const {
   const Eigen::Map<const VectorXd> c = AsVector(context);
-  const double lambda = config_.lambda_c;
+  const double lambda = lambda_a_;
   const double cc = c.squaredNorm();
   VectorXd hc;
   if (posthoc()) hc.noalias() = h_ * c;
@@ -277,6 +281,7 @@ void LinUcbModel::Update(const Round& round) {
   }
   ++taken.count;
   ++total_rounds_;
+  AddScale(round);
   taken.loss_sum += round.loss;
   taken.b.noalias() += (w * round.loss) * c;
   if (!taken.primal && taken.count >= primal_threshold_) {
@@ -323,6 +328,7 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
     s.rows.insert(s.rows.end(), x.data(), x.data() + model.d_);
     ++s.count;
     ++model.total_rounds_;
+    model.AddScale(round);
     s.loss_sum += round.loss;
     s.b.noalias() += (w * round.loss) * c;
     if (model.posthoc()) {
@@ -335,7 +341,7 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
     }
   }
   if (model.posthoc()) model.RecomputeH();
-  const double lambda = config.lambda_c;
+  const double lambda = model.lambda_a_;
   for (ActionState& s : model.actions_) {
     const int m = static_cast<int>(s.count);
     if (m >= model.primal_threshold_) {
@@ -351,6 +357,15 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
     if (model.posthoc()) model.RefreshPostHocCache(s);
   }
   return model;
+}
+
+void LinUcbModel::AddScale(const Round& round) {
+  scale_.weight_sum += round.weight;
+  scale_.context_sq_sum += round.weight * AsVector(round.context).squaredNorm();
+  if (posthoc()) {
+    scale_.posthoc_sq_sum +=
+        round.weight * AsVector(round.posthoc).squaredNorm();
+  }
 }
 
 VectorXd LinUcbModel::Theta(int action) const {

@@ -2,8 +2,9 @@
 // or post hoc augmented LinUCB (Gordon et al., ICRA 2021), exactly as in
 // SPEC section 2, updated incrementally without O(d^3) work per round.
 //
-// Representation. Every action keeps A_a = lambda_c I + sum w c c^T in one
-// of two forms:
+// Representation. Every action keeps A_a = lambda_c I + sum w c c^T (with a
+// population prior, lambda_c + kappa_c; see PopulationPrior) in one of two
+// forms:
 //  - dual (while the action has fewer rounds than its primal threshold,
 //    by default d): the weighted contexts C_a (n x d) and the Cholesky
 //    factor of the kernel K_a = lambda_c I + C_a C_a^T (n x n), so that
@@ -46,6 +47,14 @@ struct ActionEstimate {
   double predicted_loss = 0.0;  // theta_a^T c
   double width = 0.0;           // sqrt(c^T A_a^-1 c) or sqrt(2 c^T N_a^-1 c)
   double lcb = 0.0;             // predicted_loss - alpha * width
+};
+
+// Sums over a model's rounds that describe the scale of its inputs, for
+// pooling (see population_prior.h).
+struct InputScale {
+  double weight_sum = 0.0;      // sum w
+  double context_sq_sum = 0.0;  // sum w ||c||^2
+  double posthoc_sq_sum = 0.0;  // sum w ||p||^2 (post hoc learner)
 };
 
 class LinUcbModel {
@@ -94,6 +103,7 @@ class LinUcbModel {
   double LossSum(int action) const { return actions_[action].loss_sum; }
   int64_t TotalRounds() const { return total_rounds_; }
   bool IsPrimal(int action) const { return actions_[action].primal; }
+  const InputScale& input_scale() const { return scale_; }
 
   // Bytes held by the model's matrices and buffers.
   size_t MemoryBytes() const;
@@ -146,12 +156,16 @@ class LinUcbModel {
   void RefreshLossCache(ActionState& s);
   // Refreshes H-dependent caches (after every post hoc update).
   void RefreshPostHocCache(ActionState& s);
+  void AddScale(const Round& round);
 
   BanditConfig config_;
   int d_ = 0;
   int q_ = 0;
   int primal_threshold_ = 0;
+  // The diagonal of A_a: lambda_c plus the population prior's kappa_c.
+  double lambda_a_ = 0.0;
   int64_t total_rounds_ = 0;
+  InputScale scale_;
   std::vector<ActionState> actions_;
   Eigen::MatrixXd s_pp_;  // lambda_p I + sum w p p^T (q x q)
   Eigen::MatrixXd s_pc_;  // sum w p c^T (q x d)

@@ -47,6 +47,21 @@ struct EventRecord {
   absl::Time updated_at;
 };
 
+// A population pool: the pooled models of like users (same learner,
+// dimensions and actions), from which new users' priors are made.
+struct PoolRecord {
+  int64_t pool_version = 0;  // assigned by the store, increasing from 1
+  absl::Time created_at;
+  int64_t users = 0;  // how many users were pooled
+  Learner learner = Learner::kPostHoc;
+  int context_dim = 0;
+  int posthoc_dim = 0;
+  std::vector<std::string> action_names;
+  // theta0, phi0 and the input scale; rounds is 0 (each user chooses how
+  // much it is worth) and pool_version equals the record's.
+  PopulationPrior prior;
+};
+
 struct Page {
   int page_size = 100;     // clamped to [1, 1000]
   std::string page_token;  // empty: from the start
@@ -100,6 +115,13 @@ class EventStore {
   // model is rebuilt from.
   virtual absl::StatusOr<std::vector<EventRecord>> CompletedEvents(
       const std::string& user_id) = 0;
+
+  // Durably stores a new pool (pool_version ignored) and returns its
+  // version.
+  virtual absl::StatusOr<int64_t> AddPool(const PoolRecord& pool) = 0;
+  // The newest pool for users like `config` (learner, context_dim,
+  // posthoc_dim, action names). NOT_FOUND if there is none.
+  virtual absl::StatusOr<PoolRecord> LatestPool(const BanditConfig& config) = 0;
 };
 
 }  // namespace bitewise::bandit

@@ -19,7 +19,9 @@ namespace {
 
 // Bumped whenever the schema changes incompatibly; a file with a larger
 // version was written by a newer build and must not be touched.
-constexpr int kSchemaVersion = 1;
+// 2: users.prior and population_pools (the population prior); a version 1
+// file is migrated when opened.
+constexpr int kSchemaVersion = 2;
 // 'BiTe': marks the file as ours, so a SQLite file of another application is
 // refused instead of having tables added to it.
 constexpr int kApplicationId = 0x42695465;
@@ -46,7 +48,8 @@ CREATE TABLE users (
   action_names TEXT NOT NULL,  -- JSON array of strings
   seed INTEGER NOT NULL,       -- the uint64 seed bit-cast to int64
   created_at_us INTEGER NOT NULL,
-  model_version INTEGER NOT NULL DEFAULT 0
+  model_version INTEGER NOT NULL DEFAULT 0,
+  prior BLOB  -- the user's population prior (EncodePrior), NULL: none
 ) STRICT;
 
 -- AUTOINCREMENT: ids are never reused after ResetUser or DeleteUser, so an id
@@ -76,6 +79,33 @@ CREATE INDEX events_by_meal ON events (user_id, meal_id, event_id);
 -- (pending rows have NULL there, and NULLs do not collide).
 CREATE UNIQUE INDEX events_by_completion
   ON events (user_id, completed, model_version);
+)sql"
+                              R"sql(
+CREATE TABLE population_pools (
+  pool_version INTEGER PRIMARY KEY AUTOINCREMENT,
+  created_at_us INTEGER NOT NULL,
+  users INTEGER NOT NULL,
+  learner INTEGER NOT NULL,
+  context_dim INTEGER NOT NULL,
+  posthoc_dim INTEGER NOT NULL,
+  action_names TEXT NOT NULL,  -- JSON array of strings
+  prior BLOB NOT NULL          -- EncodePrior with rounds 0
+) STRICT;
+)sql";
+
+// Version 1 -> 2.
+constexpr char kMigrateTo2Sql[] = R"sql(
+ALTER TABLE users ADD COLUMN prior BLOB;
+CREATE TABLE population_pools (
+  pool_version INTEGER PRIMARY KEY AUTOINCREMENT,
+  created_at_us INTEGER NOT NULL,
+  users INTEGER NOT NULL,
+  learner INTEGER NOT NULL,
+  context_dim INTEGER NOT NULL,
+  posthoc_dim INTEGER NOT NULL,
+  action_names TEXT NOT NULL,
+  prior BLOB NOT NULL
+) STRICT;
 )sql";
 
 constexpr char kUserColumns[] = R"sql(
@@ -83,7 +113,8 @@ SELECT u.user_id, u.learner, u.strategy, u.alpha, u.lambda_c, u.lambda_p,
        u.epsilon, u.importance_weighting, u.context_dim, u.posthoc_dim,
        u.action_names, u.seed, u.created_at_us, u.model_version,
        (SELECT COUNT(*) FROM events e
-        WHERE e.user_id = u.user_id AND e.completed = 0)
+        WHERE e.user_id = u.user_id AND e.completed = 0),
+       u.prior
 FROM users u
 )sql";
 
@@ -172,6 +203,56 @@ absl::StatusOr<std::vector<double>> DecodeDoubles(absl::string_view bytes,
     std::memcpy(&values[i], &bits, sizeof(bits));
   }
   return values;
+}
+
+// A population prior as one float64 array: pool_version, rounds,
+// context_msn, posthoc_msn, K, d, q, then theta0 (K x d) and phi0 (K x q).
+std::string EncodePrior(const PopulationPrior& prior) {
+  const size_t k = prior.theta0.size();
+  const size_t d = k > 0 ? prior.theta0[0].size() : 0;
+  const size_t q = prior.phi0.empty() ? 0 : prior.phi0[0].size();
+  std::vector<double> v = {static_cast<double>(prior.pool_version),
+                           prior.rounds,
+                           prior.context_msn,
+                           prior.posthoc_msn,
+                           static_cast<double>(k),
+                           static_cast<double>(d),
+                           static_cast<double>(q)};
+  for (const auto& row : prior.theta0)
+    v.insert(v.end(), row.begin(), row.end());
+  for (const auto& row : prior.phi0) v.insert(v.end(), row.begin(), row.end());
+  return EncodeDoubles(v);
+}
+
+absl::StatusOr<PopulationPrior> DecodePrior(absl::string_view bytes,
+                                            absl::string_view what) {
+  ASSIGN_OR_RETURN(const std::vector<double> v, DecodeDoubles(bytes, what));
+  auto bad = [&] {
+    return absl::DataLossError(
+        absl::StrCat(what, ": stored population prior is malformed"));
+  };
+  if (v.size() < 7) return bad();
+  for (int i = 4; i < 7; ++i) {
+    if (!(v[i] >= 0 && v[i] <= (1 << 16) && v[i] == std::floor(v[i]))) {
+      return bad();
+    }
+  }
+  const size_t k = static_cast<size_t>(v[4]), d = static_cast<size_t>(v[5]),
+               q = static_cast<size_t>(v[6]);
+  if (v.size() != 7 + k * d + k * q) return bad();
+  PopulationPrior prior;
+  prior.pool_version = static_cast<int64_t>(v[0]);
+  prior.rounds = v[1];
+  prior.context_msn = v[2];
+  prior.posthoc_msn = v[3];
+  size_t at = 7;
+  for (size_t a = 0; a < k; ++a, at += d) {
+    prior.theta0.emplace_back(v.begin() + at, v.begin() + at + d);
+  }
+  for (size_t a = 0; a < k && q > 0; ++a, at += q) {
+    prior.phi0.emplace_back(v.begin() + at, v.begin() + at + q);
+  }
+  return prior;
 }
 
 // Action names may hold any byte, so no separator is safe; a JSON array of
@@ -527,6 +608,11 @@ absl::StatusOr<UserRecord> ReadUser(Statement& st) {
   user.created_at = FromMicros(st.Int64(12));
   user.model_version = st.Int64(13);
   user.pending_events = st.Int64(14);
+  if (!st.IsNull(15)) {
+    ASSIGN_OR_RETURN(config.prior,
+                     DecodePrior(st.Blob(15), absl::StrCat(what, " prior")));
+    RETURN_IF_ERROR(ValidateConfig(config));
+  }
   return user;
 }
 
@@ -619,7 +705,7 @@ absl::StatusOr<int64_t> CheckExistingFile(sqlite3* db,
     }
     return 0;
   }
-  if (version != kSchemaVersion) {
+  if (version != kSchemaVersion && version != 1) {
     return absl::FailedPreconditionError(absl::StrCat(
         path, " has bandit store schema version ", version,
         "; this build knows version ", kSchemaVersion,
@@ -679,6 +765,9 @@ absl::Status InitializeDatabase(sqlite3* db,
     RETURN_IF_ERROR(
         Exec(db, absl::StrCat("PRAGMA user_version = ", kSchemaVersion).c_str(),
              op));
+  } else if (version == 1) {
+    RETURN_IF_ERROR(Exec(db, kMigrateTo2Sql, op));
+    RETURN_IF_ERROR(Exec(db, "PRAGMA user_version = 2", op));
   }
   return txn.Commit();
 }
@@ -729,9 +818,9 @@ absl::Status SqliteEventStore::CreateUser(const UserRecord& user) {
           db_,
           "INSERT INTO users (user_id, learner, strategy, alpha, lambda_c, "
           "lambda_p, epsilon, importance_weighting, context_dim, posthoc_dim, "
-          "action_names, seed, created_at_us, model_version) "
-          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, 0) "
-          "ON CONFLICT (user_id) DO NOTHING RETURNING user_id",
+          "action_names, seed, created_at_us, model_version, prior) "
+          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, 0, "
+          "?14) ON CONFLICT (user_id) DO NOTHING RETURNING user_id",
           "CreateUser"));
   st.BindText(1, user.user_id);
   st.BindInt64(2, static_cast<int64_t>(c.learner));
@@ -746,6 +835,9 @@ absl::Status SqliteEventStore::CreateUser(const UserRecord& user) {
   st.BindText(11, EncodeNames(c.action_names));
   st.BindInt64(12, static_cast<int64_t>(c.seed));
   st.BindInt64(13, ToMicros(user.created_at));
+  const std::string prior =
+      c.prior.enabled() ? EncodePrior(c.prior) : std::string();
+  if (c.prior.enabled()) st.BindBlob(14, prior);  // else NULL
   ASSIGN_OR_RETURN(const bool inserted, st.Step());
   RETURN_IF_ERROR(st.Run());
   if (!inserted) {
@@ -971,6 +1063,76 @@ absl::StatusOr<EventRecord> SqliteEventStore::GetEvent(int64_t event_id) {
   ASSIGN_OR_RETURN(const bool found, st.Step());
   if (!found) return EventNotFound(event_id);
   return ReadEvent(st);
+}
+
+absl::StatusOr<int64_t> SqliteEventStore::AddPool(const PoolRecord& pool) {
+  absl::MutexLock lock(&mu_);
+  ASSIGN_OR_RETURN(
+      Statement st,
+      Statement::Prepare(
+          db_,
+          "INSERT INTO population_pools (created_at_us, users, learner, "
+          "context_dim, posthoc_dim, action_names, prior) "
+          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7) RETURNING pool_version",
+          "AddPool"));
+  PopulationPrior stored = pool.prior;
+  stored.pool_version = 0;
+  stored.rounds = 0.0;
+  const std::string prior = EncodePrior(stored);
+  st.BindInt64(1, ToMicros(pool.created_at));
+  st.BindInt64(2, pool.users);
+  st.BindInt64(3, static_cast<int64_t>(pool.learner));
+  st.BindInt64(4, pool.context_dim);
+  st.BindInt64(5, pool.posthoc_dim);
+  st.BindText(6, EncodeNames(pool.action_names));
+  st.BindBlob(7, prior);
+  ASSIGN_OR_RETURN(const bool row, st.Step());
+  if (!row) return absl::InternalError("AddPool: no pool_version returned");
+  const int64_t version = st.Int64(0);
+  RETURN_IF_ERROR(st.Run());
+  return version;
+}
+
+absl::StatusOr<PoolRecord> SqliteEventStore::LatestPool(
+    const BanditConfig& config) {
+  absl::MutexLock lock(&mu_);
+  ASSIGN_OR_RETURN(
+      Statement st,
+      Statement::Prepare(
+          db_,
+          "SELECT pool_version, created_at_us, users, prior "
+          "FROM population_pools WHERE learner = ?1 AND context_dim = ?2 AND "
+          "posthoc_dim = ?3 AND action_names = ?4 "
+          "ORDER BY pool_version DESC LIMIT 1",
+          "LatestPool"));
+  const int posthoc_dim =
+      config.learner == Learner::kPostHoc ? config.posthoc_dim : 0;
+  st.BindInt64(1, static_cast<int64_t>(config.learner));
+  st.BindInt64(2, config.context_dim);
+  st.BindInt64(3, posthoc_dim);
+  st.BindText(4, EncodeNames(config.action_names));
+  ASSIGN_OR_RETURN(const bool row, st.Step());
+  if (!row) {
+    return absl::NotFoundError(absl::StrCat(
+        "no population pool for ", LearnerName(config.learner),
+        " users with context_dim ", config.context_dim, ", posthoc_dim ",
+        posthoc_dim, " and these ", config.num_actions(),
+        " actions; build one with BuildPopulationPrior"));
+  }
+  PoolRecord pool;
+  pool.pool_version = st.Int64(0);
+  pool.created_at = FromMicros(st.Int64(1));
+  pool.users = st.Int64(2);
+  pool.learner = config.learner;
+  pool.context_dim = config.context_dim;
+  pool.posthoc_dim = posthoc_dim;
+  pool.action_names = config.action_names;
+  ASSIGN_OR_RETURN(
+      pool.prior,
+      DecodePrior(st.Blob(3), absl::StrCat("pool ", pool.pool_version)));
+  pool.prior.pool_version = pool.pool_version;
+  RETURN_IF_ERROR(st.Run());
+  return pool;
 }
 
 absl::Status SqliteEventStore::CheckUserExistsLocked(

@@ -85,6 +85,8 @@ class SqliteEventStore final : public EventStore {
                                             double weight,
                                             absl::Time updated_at) override;
   absl::StatusOr<EventRecord> GetEvent(int64_t event_id) override;
+  absl::StatusOr<int64_t> AddPool(const PoolRecord& pool) override;
+  absl::StatusOr<PoolRecord> LatestPool(const BanditConfig& config) override;
   absl::StatusOr<PageResult<EventRecord>> ListEvents(const std::string& user_id,
                                                      const std::string& meal_id,
                                                      const Page& page) override;

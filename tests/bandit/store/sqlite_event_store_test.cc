@@ -705,7 +705,7 @@ TEST_F(SqliteEventStoreTest, AcknowledgedUpdateSurvivesKill9) {
 TEST_F(SqliteEventStoreTest, FileIsWalWithSchemaVersion) {
   RawDb raw(path_);
   EXPECT_EQ(raw.Text("PRAGMA journal_mode"), "wal");
-  EXPECT_EQ(raw.Text("PRAGMA user_version"), "1");
+  EXPECT_EQ(raw.Text("PRAGMA user_version"), "2");
   EXPECT_NE(raw.Text("PRAGMA application_id"), "0");
 }
 
@@ -728,14 +728,101 @@ TEST_F(SqliteEventStoreTest, NotADatabaseIsFailedPrecondition) {
 
 TEST_F(SqliteEventStoreTest, NewerSchemaVersionIsFailedPrecondition) {
   store_.reset();
-  RawDb(path_).Exec("PRAGMA user_version = 2");
+  RawDb(path_).Exec("PRAGMA user_version = 3");
   SqliteStoreOptions options;
   options.path = path_;
   auto store = SqliteEventStore::Open(options);
   EXPECT_EQ(store.status().code(), absl::StatusCode::kFailedPrecondition)
       << store.status();
   EXPECT_THAT(store.status().message(), HasSubstr(path_));
-  EXPECT_THAT(store.status().message(), HasSubstr("version 2"));
+  EXPECT_THAT(store.status().message(), HasSubstr("version 3"));
+}
+
+PopulationPrior SmallPrior(int64_t version, double rounds) {
+  PopulationPrior prior;
+  prior.pool_version = version;
+  prior.rounds = rounds;
+  prior.context_msn = 1.25;
+  prior.posthoc_msn = 0.5;
+  for (int a = 0; a < 6; ++a) {
+    prior.theta0.push_back({0.1 * a, -0.2, 1.0 / 3.0});
+    prior.phi0.push_back({0.01 * a, 7.0});
+  }
+  return prior;
+}
+
+TEST_F(SqliteEventStoreTest, PoolsAndUsersWithAPriorRoundTripExactly) {
+  EXPECT_EQ(store_->LatestPool(SmallConfig()).status().code(),
+            absl::StatusCode::kNotFound);
+  EXPECT_THAT(store_->LatestPool(SmallConfig()).status().message(),
+              HasSubstr("BuildPopulationPrior"));
+  PoolRecord pool;
+  pool.created_at = absl::FromUnixMicros(1700000000000001);
+  pool.users = 20;
+  pool.learner = Learner::kPostHoc;
+  pool.context_dim = 3;
+  pool.posthoc_dim = 2;
+  pool.action_names = DefaultActionNames();
+  pool.prior = SmallPrior(0, 0.0);
+  auto first = store_->AddPool(pool);
+  auto second = store_->AddPool(pool);
+  ASSERT_TRUE(first.ok() && second.ok());
+  EXPECT_GT(*second, *first);
+  auto latest = store_->LatestPool(SmallConfig());
+  ASSERT_TRUE(latest.ok()) << latest.status();
+  EXPECT_EQ(latest->pool_version, *second);
+  EXPECT_EQ(latest->prior.pool_version, *second);
+  EXPECT_EQ(latest->users, 20);
+  EXPECT_EQ(latest->prior.theta0, pool.prior.theta0);
+  EXPECT_EQ(latest->prior.phi0, pool.prior.phi0);
+  EXPECT_EQ(latest->prior.context_msn, 1.25);
+  // Other dimensions have no pool.
+  BanditConfig other = SmallConfig();
+  other.context_dim = 4;
+  EXPECT_EQ(store_->LatestPool(other).status().code(),
+            absl::StatusCode::kNotFound);
+
+  UserRecord user = MakeUser("primed");
+  user.config.prior = SmallPrior(*second, 12.5);
+  ASSERT_TRUE(store_->CreateUser(user).ok());
+  auto read = store_->GetUser("primed");
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->config.prior.pool_version, *second);
+  EXPECT_EQ(read->config.prior.rounds, 12.5);
+  EXPECT_EQ(read->config.prior.theta0, user.config.prior.theta0);
+  EXPECT_EQ(read->config.prior.phi0, user.config.prior.phi0);
+  // A user without one reads back without one.
+  ASSERT_TRUE(store_->CreateUser(MakeUser("plain")).ok());
+  EXPECT_FALSE(store_->GetUser("plain")->config.prior.enabled());
+  // A tampered prior is data loss, not a silently different model.
+  RawDb(path_).Exec(
+      "UPDATE users SET prior = x'0102' WHERE user_id = 'primed'");
+  EXPECT_EQ(store_->GetUser("primed").status().code(),
+            absl::StatusCode::kDataLoss);
+}
+
+TEST_F(SqliteEventStoreTest, VersionOneFilesAreMigratedKeepingEverything) {
+  ASSERT_TRUE(store_->CreateUser(MakeUser("old")).ok());
+  auto id = store_->AppendPending(MakeEvent("old", "m1"));
+  ASSERT_TRUE(id.ok());
+  store_.reset();
+  {
+    RawDb raw(path_);  // what a version 1 build wrote
+    raw.Exec("DROP TABLE population_pools");
+    raw.Exec("ALTER TABLE users DROP COLUMN prior");
+    raw.Exec("PRAGMA user_version = 1");
+  }
+  SqliteStoreOptions options;
+  options.path = path_;
+  auto store = SqliteEventStore::Open(options);
+  ASSERT_TRUE(store.ok()) << store.status();
+  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "2");
+  auto user = (*store)->GetUser("old");
+  ASSERT_TRUE(user.ok()) << user.status();
+  EXPECT_EQ(user->pending_events, 1);
+  EXPECT_FALSE(user->config.prior.enabled());
+  EXPECT_EQ((*store)->LatestPool(SmallConfig()).status().code(),
+            absl::StatusCode::kNotFound);
 }
 
 TEST_F(SqliteEventStoreTest, ForeignDatabaseIsFailedPreconditionAndUntouched) {
