@@ -70,6 +70,9 @@ ABSL_FLAG(double, rho_c, 1.0,
           "reports), the number of observations the ridge is worth "
           "(docs/algorithms.md). A featurizer that does not report it keeps "
           "the BanditService's default.");
+ABSL_FLAG(double, prior_rounds, 0.0,
+          "For a NEW user: start from the facility's newest population pool "
+          "(BuildPopulationPrior), worth this many rounds; 0: no prior.");
 ABSL_FLAG(double, alpha, -1.0,
           "Exploration weight for a NEW user; negative keeps the "
           "BanditService's default.");
@@ -205,6 +208,10 @@ class MealRunner {
     if (absl::GetFlag(FLAGS_alpha) >= 0.0) {
       create.mutable_config()->set_alpha(absl::GetFlag(FLAGS_alpha));
     }
+    if (absl::GetFlag(FLAGS_prior_rounds) > 0.0) {
+      create.mutable_config()->set_prior_rounds(
+          absl::GetFlag(FLAGS_prior_rounds));
+    }
     status = WithRetries([&] {
       return stubs_.bandit->CreateUser(Context(Deadline()).get(), create,
                                        &user_);
@@ -213,9 +220,16 @@ class MealRunner {
       *error = Describe("BanditService", "CreateUser", status);
       return false;
     }
-    std::printf("new user %s (%s, context dim %u)\n", user_id.c_str(),
+    std::printf("new user %s (%s, context dim %u%s)\n", user_id.c_str(),
                 v1::Learner_Name(user_.config().learner()).c_str(),
-                user_.config().context_dim());
+                user_.config().context_dim(),
+                user_.config().prior_pool_version() > 0
+                    ? absl::StrFormat(", population prior from pool %d "
+                                      "worth %g rounds",
+                                      user_.config().prior_pool_version(),
+                                      user_.config().prior_rounds())
+                          .c_str()
+                    : "");
     return true;
   }
 

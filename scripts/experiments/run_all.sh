@@ -32,4 +32,5 @@ run "$build/experiments/bitewise-mnist" \
 gnuplot -e "dir='$out'; out='$out'" "$root/scripts/experiments/plot_synthetic.gp"
 gnuplot -e "dir='$out'; out='$out'" "$root/scripts/experiments/plot_mnist.gp"
 "$root/scripts/experiments/sim_meals_all.sh" "$build" "$out"
+"$root/scripts/experiments/sim_prior.sh" "$build" "$out"
 echo "CSV and PNG files in $out"

@@ -198,14 +198,22 @@ void LinUcbModel::RefreshPostHocCache(ActionState& s) {
     hab.noalias() = h_ * s.beta;
   } else {
     const int m = n(s);
-    // C H^T = C S_pc^T S_pp^-1 = E S_pp^-1.
-    s.z = s_pp_.llt().solve(s.e.topRows(m).transpose()).transpose();
+    // C H^T = C S_pc^T S_pp^-1 = E S_pp^-1. No Eigen solve on an empty
+    // matrix (an action without rounds): that binds a reference to a null
+    // pointer inside Eigen, undefined behaviour that only works by luck.
     if (m > 0) {
+      s.z = s_pp_.llt().solve(s.e.topRows(m).transpose()).transpose();
       s.chol.topLeftCorner(m, m).triangularView<Eigen::Lower>().solveInPlace(
           s.z);
+    } else {
+      s.z.resize(0, q_);
     }
-    q_mat = (hht_ - s.z.transpose() * s.z) / lambda;
-    hab = (h_ * s.b - s.z.transpose() * s.zb) / lambda;
+    q_mat = hht_ / lambda;
+    hab = (h_ * s.b) / lambda;
+    if (m > 0) {
+      q_mat.noalias() -= (s.z.transpose() * s.z) / lambda;
+      hab.noalias() -= (s.z.transpose() * s.zb) / lambda;
+    }
   }
   s.r_factor = s.M.llt().matrixU();
   MatrixXd cap = MatrixXd::Identity(q_, q_);
