@@ -1,8 +1,75 @@
 #!/usr/bin/env bash
 # Runs every test: builds (installing missing packages first), checks that
-# the tree is clang-formatted (Google style), then runs CTest.
+# the tree is clang-formatted (Google style), then runs CTest; then the
+# sanitizer check of the core libraries (below).
+#
+#   scripts/test.sh                 every test, plus the core sanitizer check
+#   scripts/test.sh --sanitize      the whole suite under ASan + UBSan in
+#                                   build-sanitize/ (the pre-release check;
+#                                   about three times slower)
+#   scripts/test.sh --sanitize-core only the core sanitizer check
+#
+# The core sanitizer check builds, with -fsanitize=address,undefined into
+# build-sanitize/, the tests of the libraries where undefined behaviour would
+# hurt most (the learning core, the store, the RDT decoder and the F/T
+# counter check, frame decoding, the haptic pipeline) and runs them with
+# halt_on_error: any report fails the run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+mode="all"
+case "${1:-}" in
+  "") ;;
+  --sanitize) mode="sanitize" ;;
+  --sanitize-core) mode="sanitize-core" ;;
+  *)
+    echo "usage: scripts/test.sh [--sanitize | --sanitize-core]" >&2
+    exit 2
+    ;;
+esac
+JOBS="${BITEWISE_JOBS:-$(nproc)}"
+export ASAN_OPTIONS="detect_leaks=0:halt_on_error=1:abort_on_error=1"
+export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+# Test executables (build-relative paths) of the core sanitizer check.
+CORE_TESTS=(tests/bandit/bandit_core_test tests/bandit/store/bandit_store_test
+  tests/robot/robot_rdt_protocol_test tests/robot/robot_counter_clock_test
+  tests/perception/perception_frame_test tests/haptic/haptic_core_test)
+
+configure_sanitize() {
+  if [ ! -f build-sanitize/CMakeCache.txt ]; then
+    cmake -S . -B build-sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+      -DBITEWISE_SANITIZE=ON
+  fi
+}
+
+sanitize_core() {
+  printf '\n==> Sanitizer check (ASan + UBSan) of the core libraries\n'
+  configure_sanitize
+  local targets=()
+  for t in "${CORE_TESTS[@]}"; do targets+=("$(basename "$t")"); done
+  cmake --build build-sanitize -j "$JOBS" --target "${targets[@]}"
+  for t in "${CORE_TESTS[@]}"; do
+    echo "--- $t"
+    "build-sanitize/$t" --gtest_brief=1
+  done
+}
+
+if [ "$mode" = "sanitize" ]; then
+  scripts/setup.sh
+  configure_sanitize
+  printf '\n==> Building the whole tree with ASan + UBSan (build-sanitize/)\n'
+  cmake --build build-sanitize -j "$JOBS"
+  printf '\n==> Running every test under the sanitizers\n'
+  cd build-sanitize
+  ctest --output-on-failure -j "$JOBS" --timeout 900
+  exit 0
+fi
+if [ "$mode" = "sanitize-core" ]; then
+  scripts/setup.sh
+  sanitize_core
+  exit 0
+fi
+
 scripts/setup.sh
 
 printf '\n==> Checking clang-format (Google style) on every C++ file\n'
@@ -16,5 +83,6 @@ if [ -n "$unformatted" ]; then
 fi
 
 printf '\n==> Running tests\n'
-cd build
-ctest --output-on-failure -j "${BITEWISE_JOBS:-$(nproc)}" --timeout 300
+(cd build && ctest --output-on-failure -j "$JOBS" --timeout 300)
+
+sanitize_core
