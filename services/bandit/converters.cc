@@ -209,4 +209,30 @@ Page PageFromProto(int32_t page_size, const std::string& page_token) {
   return page;
 }
 
+SelectInput SelectInputFromProto(const v1::SelectRequest& proto) {
+  SelectInput input;
+  input.user_id = proto.user_id();
+  input.context.assign(proto.context().begin(), proto.context().end());
+  input.meal_id = proto.meal_id();
+  input.item_label = proto.item_label();
+  return input;
+}
+
+absl::StatusOr<UpdateInput> UpdateInputFromProto(
+    const v1::UpdateRequest& proto) {
+  absl::StatusOr<int64_t> event_id = ParseEventId(proto.event_id());
+  if (!event_id.ok()) return event_id.status();
+  UpdateInput input;
+  input.event_id = *event_id;
+  input.loss = proto.loss();
+  input.posthoc.assign(proto.posthoc().begin(), proto.posthoc().end());
+  return input;
+}
+
+void UpdateToProto(const UpdateResult& result, v1::UpdateResponse* proto) {
+  proto->set_model_version(result.model_version);
+  proto->set_already_applied(result.already_applied);
+  proto->set_user_id(result.user_id);
+}
+
 }  // namespace bitewise::bandit

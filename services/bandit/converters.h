@@ -30,6 +30,12 @@ void ModelToProto(const ModelExport& model, v1::Model* proto);
 
 // Event ids travel as decimal strings. INVALID_ARGUMENT if malformed.
 absl::StatusOr<int64_t> ParseEventId(const std::string& event_id);
+// Requests as the engine takes them. Select's fields are checked by the
+// engine; Update's event id is parsed here (INVALID_ARGUMENT naming it).
+SelectInput SelectInputFromProto(const v1::SelectRequest& proto);
+absl::StatusOr<UpdateInput> UpdateInputFromProto(
+    const v1::UpdateRequest& proto);
+void UpdateToProto(const UpdateResult& result, v1::UpdateResponse* proto);
 Page PageFromProto(int32_t page_size, const std::string& page_token);
 
 }  // namespace bitewise::bandit

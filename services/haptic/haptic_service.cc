@@ -2,19 +2,21 @@
 
 #include <vector>
 
-#include "services/common/grpc_status.h"
+#include "services/common/rpc_handler.h"
+#include "services/common/status_macros.h"
 #include "services/haptic/converters.h"
 
 namespace bitewise::haptic {
 
-grpc::Status HapticServiceImpl::Classify(grpc::ServerContext*,
+grpc::Status HapticServiceImpl::Classify(grpc::ServerContext* context,
                                          const v1::ClassifyRequest* request,
                                          v1::ClassifyResponse* response) {
-  const std::vector<WrenchSample> trace = TraceFromProto(*request);
-  absl::StatusOr<HapticClassification> result = classifier_->Classify(trace);
-  if (!result.ok()) return ToGrpcStatus(result.status());
-  ClassificationToProto(*result, classifier_->net().fingerprint(), response);
-  return grpc::Status::OK;
+  return RunRpc("HapticService/Classify", context, [&]() -> absl::Status {
+    ASSIGN_OR_RETURN(const HapticClassification result,
+                     classifier_->Classify(TraceFromProto(*request)));
+    ClassificationToProto(result, classifier_->net().fingerprint(), response);
+    return absl::OkStatus();
+  });
 }
 
 }  // namespace bitewise::haptic

@@ -12,6 +12,7 @@
 #include <signal.h>
 #include <stdlib.h>
 
+#include <atomic>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -33,6 +34,7 @@
 #include "gtest/gtest.h"
 #include "services/common/channel.h"
 #include "services/common/grpc_status.h"
+#include "services/common/rpc_handler.h"
 
 namespace bitewise {
 namespace {
@@ -88,6 +90,79 @@ absl::Status CallClassify(const std::shared_ptr<grpc::Channel>& channel,
   for (int i = 0; i < num_samples; ++i) request.add_samples()->set_fz_n(1.0);
   v1::ClassifyResponse response;
   return FromGrpcStatus(stub->Classify(&context, request, &response));
+}
+
+// The handler adapter: one conversion, stats for every call.
+TEST(RunRpcTest, ConvertsTheStatusOnceAndRecordsTheCall) {
+  const std::string method = "Test/ConvertsOnce";
+  const std::string long_message(1000, 'x');
+  int runs = 0;
+  grpc::Status status = RunRpc(method.c_str(), nullptr, [&] {
+    ++runs;
+    return absl::InvalidArgumentError(long_message);
+  });
+  EXPECT_EQ(runs, 1);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_EQ(status.error_message(), long_message);  // the client gets it all
+  EXPECT_TRUE(
+      RunRpc(method.c_str(), nullptr, [] { return absl::OkStatus(); }).ok());
+  const RpcMethodStats stats = RpcStats::Global().Snapshot().at(method);
+  EXPECT_EQ(stats.calls, 2);
+  EXPECT_EQ(stats.failures, 1);
+  EXPECT_EQ(stats.by_code.at(static_cast<int>(absl::StatusCode::kOk)), 1);
+  EXPECT_EQ(
+      stats.by_code.at(static_cast<int>(absl::StatusCode::kInvalidArgument)),
+      1);
+  EXPECT_GE(stats.max_seconds, 0.0);
+}
+
+// A service whose handler only starts once `hold` is notified, after the
+// client's deadline: RunRpc must not do the work then, unless the policy
+// says the work matters more than the reply.
+class LateHapticService final : public v1::HapticService::Service {
+ public:
+  explicit LateHapticService(RpcPolicy policy) : policy_(policy) {}
+  grpc::Status Classify(grpc::ServerContext* context,
+                        const v1::ClassifyRequest*,
+                        v1::ClassifyResponse*) override {
+    hold.WaitForNotification();
+    grpc::Status status = RunRpc(
+        "Test/Late", context,
+        [&] {
+          ++runs;
+          return absl::OkStatus();
+        },
+        policy_);
+    done.Notify();
+    return status;
+  }
+  absl::Notification hold, done;
+  std::atomic<int> runs{0};
+
+ private:
+  const RpcPolicy policy_;
+};
+
+TEST(RunRpcTest, WorkWhoseDeadlinePassedIsSkippedUnlessItMustRun) {
+  for (RpcPolicy policy : {RpcPolicy::kNormal, RpcPolicy::kAlwaysRun}) {
+    LateHapticService service(policy);
+    auto server = ServiceServer::Start({}, {&service}, {kHapticName});
+    ASSERT_TRUE(server.ok()) << server.status();
+    auto stub = v1::HapticService::NewStub(Connect((*server)->address()));
+    grpc::ClientContext context;
+    context.set_deadline(
+        absl::ToChronoTime(absl::Now() + absl::Milliseconds(300)));
+    v1::ClassifyRequest request;
+    v1::ClassifyResponse response;
+    EXPECT_EQ(stub->Classify(&context, request, &response).error_code(),
+              grpc::StatusCode::DEADLINE_EXCEEDED);
+    // The server's copy of the deadline is the client's timeout from when
+    // the request arrived: let that pass too.
+    absl::SleepFor(absl::Milliseconds(300));
+    service.hold.Notify();
+    ASSERT_TRUE(service.done.WaitForNotificationWithTimeout(kTimeout));
+    EXPECT_EQ(service.runs.load(), policy == RpcPolicy::kAlwaysRun ? 1 : 0);
+  }
 }
 
 TEST(GrpcStatusTest, RoundTripsEveryCodeAndMessage) {

@@ -1,0 +1,76 @@
+#include "services/common/rpc_handler.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
+#include "services/common/grpc_status.h"
+
+namespace bitewise {
+namespace {
+
+// Longest message written to the log for one failure.
+constexpr size_t kMaxLoggedMessage = 300;
+
+absl::Status Precheck(const char* method, grpc::ServerContext* context) {
+  if (context == nullptr) return absl::OkStatus();
+  if (context->IsCancelled()) {
+    return absl::CancelledError(
+        absl::StrCat(method, ": the caller cancelled before it ran"));
+  }
+  const auto deadline = context->deadline();
+  if (deadline != std::chrono::system_clock::time_point::max() &&
+      deadline <= std::chrono::system_clock::now()) {
+    return absl::DeadlineExceededError(
+        absl::StrCat(method, ": the deadline passed before it ran"));
+  }
+  return absl::OkStatus();
+}
+
+}  // namespace
+
+RpcStats& RpcStats::Global() {
+  static RpcStats* const stats = new RpcStats();
+  return *stats;
+}
+
+void RpcStats::Record(const std::string& method, absl::StatusCode code,
+                      double seconds) {
+  absl::MutexLock lock(&mu_);
+  RpcMethodStats& m = methods_[method];
+  ++m.calls;
+  if (code != absl::StatusCode::kOk) ++m.failures;
+  ++m.by_code[static_cast<int>(code)];
+  m.total_seconds += seconds;
+  m.max_seconds = std::max(m.max_seconds, seconds);
+}
+
+std::map<std::string, RpcMethodStats> RpcStats::Snapshot() const {
+  absl::MutexLock lock(&mu_);
+  return methods_;
+}
+
+grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
+                    const std::function<absl::Status()>& handler,
+                    RpcPolicy policy) {
+  const absl::Time start = absl::Now();
+  absl::Status status = Precheck(method, context);
+  if (status.ok() || policy == RpcPolicy::kAlwaysRun) status = handler();
+  const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  RpcStats::Global().Record(method, status.code(), seconds);
+  if (!status.ok()) {
+    std::string message(status.message().substr(0, kMaxLoggedMessage));
+    if (status.message().size() > kMaxLoggedMessage) {
+      absl::StrAppend(&message, "... (", status.message().size(), " bytes)");
+    }
+    std::fprintf(stderr, "rpc %s failed after %.1f ms: %s: %s\n", method,
+                 1e3 * seconds, absl::StatusCodeToString(status.code()).c_str(),
+                 message.c_str());
+  }
+  return ToGrpcStatus(status);
+}
+
+}  // namespace bitewise
