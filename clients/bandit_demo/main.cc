@@ -248,7 +248,7 @@ int main(int argc, char** argv) {
         "bite %2d  %-14s %-5s lcb[%s ]  %-7s haptic %s %.2f\n", attempts,
         spec.name.c_str(), chosen.action_name().c_str(), lcbs.c_str(),
         success ? "success" : "FAILED",
-        bitewise::sim::HapticCategoryName(static_cast<HapticCategory>(sensed)),
+        bitewise::domain::HapticClassLabel(static_cast<HapticCategory>(sensed)),
         probs[sensed]);
     std::fflush(stdout);
   }

@@ -32,6 +32,7 @@
 #include "clients/orchestrator/update_journal.h"
 #include "services/common/channel.h"
 #include "services/common/grpc_status.h"
+#include "services/domain/haptic_class.h"
 
 ABSL_FLAG(std::string, user, "demo-user", "User whose model learns.");
 ABSL_FLAG(std::string, meal, "meal-1", "Meal id recorded with each event.");
@@ -83,8 +84,13 @@ namespace v1 = bitewise::v1;
 using bitewise::orchestrator::JournaledUpdate;
 using bitewise::orchestrator::UpdateJournal;
 
-const char* const kHapticNames[] = {"unknown", "hard", "medium", "soft",
-                                    "hard-skin"};
+// The API's haptic category (0 is unspecified) for people.
+const char* HapticLabel(v1::HapticCategory category) {
+  const int index = static_cast<int>(category) - 1;
+  if (index < 0 || index >= bitewise::domain::kHapticClasses) return "unknown";
+  return bitewise::domain::HapticClassLabel(
+      static_cast<bitewise::domain::HapticClass>(index));
+}
 
 std::unique_ptr<grpc::ClientContext> Context(int deadline_ms) {
   auto context = std::make_unique<grpc::ClientContext>();
@@ -341,7 +347,8 @@ class MealRunner {
       const double p = haptic.probabilities_size() >= category && category > 0
                            ? haptic.probabilities(category - 1)
                            : 0.0;
-      haptic_text = absl::StrFormat("%s %.2f", kHapticNames[category % 5], p);
+      haptic_text =
+          absl::StrFormat("%s %.2f", HapticLabel(haptic.category()), p);
       if (mode == "logprob") {
         update.posthoc.assign(haptic.log_probabilities().begin(),
                               haptic.log_probabilities().end());

@@ -4,15 +4,19 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "services/domain/skewering_actions.h"
 
 namespace bitewise::robot {
 
 const std::vector<ActionSpec>& SkeweringActions() {
-  static const auto* const kActions = new std::vector<ActionSpec>{
-      {0, "VS0", 0.0, 0.0, 25.0},  {1, "VS90", 0.0, M_PI / 2, 25.0},
-      {2, "TV0", -0.5, 0.0, 20.0}, {3, "TV90", -0.5, M_PI / 2, 20.0},
-      {4, "TA0", 0.4, 0.0, 10.0},  {5, "TA90", 0.4, M_PI / 2, 10.0},
-  };
+  static const auto* const kActions = [] {
+    auto* actions = new std::vector<ActionSpec>;
+    for (int i = 0; i < domain::kNumActions; ++i) {
+      const domain::SkeweringAction& a = domain::kSkeweringActions[i];
+      actions->push_back({i, a.name, a.pitch_rad, a.roll_rad, a.max_force_n});
+    }
+    return actions;
+  }();
   return *kActions;
 }
 

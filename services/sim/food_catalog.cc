@@ -2,20 +2,6 @@
 
 namespace bitewise::sim {
 
-const char* HapticCategoryName(HapticCategory category) {
-  switch (category) {
-    case HapticCategory::kHard:
-      return "hard";
-    case HapticCategory::kMedium:
-      return "medium";
-    case HapticCategory::kSoft:
-      return "soft";
-    case HapticCategory::kHardSkin:
-      return "hard-skin";
-  }
-  return "unknown";
-}
-
 const std::vector<FoodType>& FoodCatalog() {
   using C = HapticCategory;
   // Actions:                 VS0   VS90  TV0   TV90  TA0   TA90

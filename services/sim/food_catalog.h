@@ -16,14 +16,17 @@
 #include <string>
 #include <vector>
 
+#include "services/domain/haptic_class.h"
+#include "services/domain/skewering_actions.h"
+
 namespace bitewise::sim {
 
-// HapticNet's four classes, in the order of its outputs.
-enum class HapticCategory { kHard = 0, kMedium = 1, kSoft = 2, kHardSkin = 3 };
-constexpr int kHapticCategories = 4;
-const char* HapticCategoryName(HapticCategory category);
+// A food's haptic category is one of HapticNet's four classes.
+using HapticCategory = domain::HapticClass;
+inline constexpr int kHapticCategories = domain::kHapticClasses;
 
-constexpr int kNumActions = 6;  // VS0, VS90, TV0, TV90, TA0, TA90
+// VS0, VS90, TV0, TV90, TA0, TA90 (services/domain/skewering_actions.h).
+inline constexpr int kNumActions = domain::kNumActions;
 
 struct FoodType {
   std::string name;

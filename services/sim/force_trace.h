@@ -19,15 +19,12 @@
 #include <random>
 #include <vector>
 
+#include "services/domain/wrench.h"
 #include "services/sim/food_catalog.h"
 
 namespace bitewise::sim {
 
-// Force (N) and torque (N·m) in the sensor frame.
-struct Wrench {
-  std::array<double, 3> force_n{0.0, 0.0, 0.0};
-  std::array<double, 3> torque_nm{0.0, 0.0, 0.0};
-};
+using Wrench = domain::Wrench;
 
 struct TimedWrench {
   double t_s = 0.0;

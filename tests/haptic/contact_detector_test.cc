@@ -157,7 +157,7 @@ TEST(ContactDetectorTest, SimulatedTracesOfEveryCategory) {
                                      ? 0.012
                                      : 0.004;
       EXPECT_LT(worst_s, tolerance_s)
-          << sim::HapticCategoryName(category) << " at " << rate_hz << " Hz";
+          << domain::HapticClassLabel(category) << " at " << rate_hz << " Hz";
     }
   }
 }

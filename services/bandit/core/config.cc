@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
+#include "services/domain/skewering_actions.h"
 
 namespace bitewise::bandit {
 
@@ -33,7 +34,11 @@ const char* StrategyName(Strategy strategy) {
 }
 
 std::vector<std::string> DefaultActionNames() {
-  return {"VS0", "VS90", "TV0", "TV90", "TA0", "TA90"};
+  std::vector<std::string> names;
+  for (const domain::SkeweringAction& action : domain::kSkeweringActions) {
+    names.push_back(action.name);
+  }
+  return names;
 }
 
 absl::Status ValidateConfig(const BanditConfig& config) {

@@ -12,20 +12,6 @@ constexpr const char* kChannelNames[kWrenchChannels] = {
 
 }  // namespace
 
-const char* HapticClassName(HapticClass haptic_class) {
-  switch (haptic_class) {
-    case HapticClass::kHard:
-      return "hard";
-    case HapticClass::kMedium:
-      return "medium";
-    case HapticClass::kSoft:
-      return "soft";
-    case HapticClass::kHardSkin:
-      return "hard_skin";
-  }
-  return "unknown";
-}
-
 absl::Status ValidateTrace(absl::Span<const WrenchSample> trace,
                            int min_samples) {
   if (static_cast<int>(trace.size()) < min_samples) {

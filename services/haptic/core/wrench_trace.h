@@ -9,6 +9,7 @@
 
 #include "absl/status/status.h"
 #include "absl/types/span.h"
+#include "services/domain/haptic_class.h"
 
 namespace bitewise::haptic {
 
@@ -22,12 +23,11 @@ struct WrenchSample {
   std::array<double, kWrenchChannels> values{};
 };
 
-// HapticNet's classes, in the order of its outputs.
-enum class HapticClass { kHard = 0, kMedium = 1, kSoft = 2, kHardSkin = 3 };
-constexpr int kHapticClasses = 4;
-
-// "hard", "medium", "soft", "hard_skin".
-const char* HapticClassName(HapticClass haptic_class);
+// HapticNet's classes, in the order of its outputs
+// (services/domain/haptic_class.h).
+using HapticClass = domain::HapticClass;
+inline constexpr int kHapticClasses = domain::kHapticClasses;
+using domain::HapticClassName;
 
 // Checks what every stage downstream relies on: at least `min_samples`
 // samples, finite values, strictly increasing timestamps. INVALID_ARGUMENT

@@ -28,16 +28,13 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
+#include "services/domain/wrench.h"
 #include "services/robot/netft/counter_clock.h"
 #include "services/robot/netft/rdt_protocol.h"
 
 namespace bitewise::netft {
 
-// Force (N) and torque (N·m) in the sensor frame.
-struct Wrench {
-  std::array<double, 3> force_n{0.0, 0.0, 0.0};
-  std::array<double, 3> torque_nm{0.0, 0.0, 0.0};
-};
+using Wrench = domain::Wrench;
 
 struct FtSample {
   // Monotonic index over the client's lifetime (see SamplesSince()).
