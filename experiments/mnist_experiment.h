@@ -1,4 +1,4 @@
-// The MNIST experiment of SPEC section 5 (Gordon et al. 2021, Sec. V-B):
+// The MNIST experiment of docs/experiments.md (Gordon et al. 2021, Sec. V-B):
 // digit classification as a K = 10 armed bandit. The context is the PCA
 // projection of the image (fitted on the training images), action a means
 // "this is digit a" with loss 1 when wrong, and the post hoc context is a

@@ -1,5 +1,6 @@
-// bitewise-mnist: the MNIST experiment of SPEC section 5 on IDX files given
-// on the command line. Writes <out_dir>/mnist_learning.csv (test MSE every
+// bitewise-mnist: the MNIST experiment of docs/experiments.md on IDX files
+// given on the command line. Writes <out_dir>/mnist_learning.csv (test MSE
+// every
 // --eval_every rounds of uniform exploration, mean and standard error over
 // --trials) and <out_dir>/mnist_regret.csv (cumulative regret of LinUCB over
 // test digits, mean and standard error over --regret_trials).
@@ -187,7 +188,7 @@ int Run() {
 
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
-      "MNIST post hoc bandit experiment (SPEC section 5) on IDX files.");
+      "MNIST post hoc bandit experiment (docs/experiments.md) on IDX files.");
   absl::ParseCommandLine(argc, argv);
   return bitewise::experiments::Run();
 }

@@ -1,6 +1,6 @@
-// Principal component analysis with Eigen, for the MNIST contexts of SPEC
-// section 5 (PCA-200 of the images). Fitted on training data only, so test
-// contexts are projected with what the learner could have known.
+// Principal component analysis with Eigen, for the MNIST contexts of
+// docs/experiments.md (PCA-200 of the images). Fitted on training data only, so
+// test contexts are projected with what the learner could have known.
 #ifndef BITEWISE_EXPERIMENTS_PCA_H_
 #define BITEWISE_EXPERIMENTS_PCA_H_
 

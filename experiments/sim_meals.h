@@ -1,7 +1,8 @@
-// The simulated-meals experiment of SPEC section 5 (Gordon et al. 2021,
-// Sec. VI): a user's bandit meets the eight unseen foods of SPEC section 1,
-// eight attempts each, and we count how many attempts fail with context-only
-// LinUCB and with post hoc LinUCB fed three forms of the haptic context.
+// The simulated-meals experiment of docs/experiments.md (Gordon et al. 2021,
+// Sec. VI): a user's bandit meets the eight unseen foods of the paper
+// (docs/robot.md), eight attempts each, and we count how many attempts fail
+// with context-only LinUCB and with post hoc LinUCB fed three forms of the
+// haptic context.
 //
 // Everything comes from the project's own components, in-process and without
 // gRPC: the foods and their per-action success probabilities from

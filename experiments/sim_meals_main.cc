@@ -1,5 +1,5 @@
-// bitewise-sim-meals: the simulated-meals experiment of SPEC section 5. For
-// each seeded trial it draws one simulated meal (8 unseen foods x
+// bitewise-sim-meals: the simulated-meals experiment of docs/experiments.md.
+// For each seeded trial it draws one simulated meal (8 unseen foods x
 // --attempts_per_food attempts; rendered plates, force traces, outcome
 // draws) and plays it with context-only LinUCB and with post hoc LinUCB fed
 // the haptic log-probabilities, probabilities and one-hot class. It writes
@@ -326,7 +326,7 @@ int Run() {
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Simulated meals: post hoc vs context-only LinUCB failures on the 8 "
-      "unseen foods (SPEC section 5).");
+      "unseen foods (docs/experiments.md).");
   absl::ParseCommandLine(argc, argv);
   return bitewise::experiments::Run();
 }

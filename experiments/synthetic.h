@@ -1,8 +1,8 @@
-// The synthetic experiment of SPEC section 5 (Gordon et al. 2021, Sec. V-A):
-// K actions, contexts uniform in [0,1)^d_c, the post hoc context is the first
-// d_p coordinates of the context, and each action's expected loss is a fixed
-// hidden linear map of the post hoc context. It measures how much faster the
-// post hoc learner finds the best action than context-only LinUCB, and how
+// The synthetic experiment of docs/experiments.md (Gordon et al. 2021, Sec.
+// V-A): K actions, contexts uniform in [0,1)^d_c, the post hoc context is the
+// first d_p coordinates of the context, and each action's expected loss is a
+// fixed hidden linear map of the post hoc context. It measures how much faster
+// the post hoc learner finds the best action than context-only LinUCB, and how
 // that gain grows with d_c.
 #ifndef BITEWISE_EXPERIMENTS_SYNTHETIC_H_
 #define BITEWISE_EXPERIMENTS_SYNTHETIC_H_
@@ -30,7 +30,7 @@ struct SyntheticConfig {
   int posthoc_dim = 3;   // d_p (<= d_c)
   int rounds = 1000;
   SyntheticLoss loss = SyntheticLoss::kLinear;
-  // Learner hyperparameters (SPEC section 2 defaults).
+  // Learner hyperparameters (docs/algorithms.md defaults).
   double alpha = 0.01;
   double lambda_c = 1000.0;
   double lambda_p = 1.0;

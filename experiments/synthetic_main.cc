@@ -1,4 +1,4 @@
-// bitewise-synthetic: the synthetic experiment of SPEC section 5. For each
+// bitewise-synthetic: the synthetic experiment of docs/experiments.md. For each
 // d_c it runs `trials` seeded trials of context-only and post hoc LinUCB on
 // the same worlds and writes the mean cumulative regret, its standard error
 // and the paired difference to <out_dir>/synthetic_dc<d>.csv.
@@ -129,7 +129,8 @@ int Run() {
 
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
-      "Synthetic post hoc vs context-only LinUCB regret (SPEC section 5).");
+      "Synthetic post hoc vs context-only LinUCB regret "
+      "(docs/experiments.md).");
   absl::ParseCommandLine(argc, argv);
   return bitewise::experiments::Run();
 }

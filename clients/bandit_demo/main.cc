@@ -5,7 +5,7 @@
 // simulated world's food catalog, whose visual context is a noisy,
 // food-specific feature vector, whose haptic category is observed by a noisy
 // classifier, and whose success probability per action is the catalog's
-// (the known optima of SPEC section 1). Every bite goes through the
+// (the known optima of the paper (docs/robot.md)). Every bite goes through the
 // real BanditService (Select, then Update) so that learning persists per
 // user across meals.
 #include <algorithm>

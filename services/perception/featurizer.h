@@ -1,6 +1,6 @@
-// The visual context c of SPEC section 1: a Featurizer turns one food item
-// (a box in a frame) into the feature vector the bandit learns from. Two
-// implementations: SPANet from an ONNX file (spanet_featurizer.h) and the
+// The visual context c of the paper (docs/robot.md): a Featurizer turns one
+// food item (a box in a frame) into the feature vector the bandit learns from.
+// Two implementations: SPANet from an ONNX file (spanet_featurizer.h) and the
 // weight-free default (default_featurizer.h), behind one interface so the
 // service and the meal do not care which one runs.
 #ifndef BITEWISE_SERVICES_PERCEPTION_FEATURIZER_H_
@@ -29,7 +29,7 @@ struct CropPoint {
 struct Features {
   std::vector<double> context;
   // SPANet only: the two skewer end points and the per-action success
-  // estimates (SPEC action order VS0, VS90, TV0, TV90, TA0, TA90). Empty
+  // estimates (action order VS0, VS90, TV0, TV90, TA0, TA90). Empty
   // for featurizers that do not predict them.
   std::vector<CropPoint> skewer_points;
   std::vector<double> action_scores;

@@ -1,7 +1,7 @@
-// The six skewering actions of SPEC section 1 (fork pitch, roll relative to
-// the item's major axis, and maximum skewering force), the targets they are
-// aimed at, and the geometry that turns a target seen by the camera into a
-// fork pose in the task frame. Pure data and arithmetic: no I/O.
+// The six skewering actions of the paper (docs/robot.md) (fork pitch, roll
+// relative to the item's major axis, and maximum skewering force), the targets
+// they are aimed at, and the geometry that turns a target seen by the camera
+// into a fork pose in the task frame. Pure data and arithmetic: no I/O.
 #ifndef BITEWISE_SERVICES_ROBOT_ACTIONS_H_
 #define BITEWISE_SERVICES_ROBOT_ACTIONS_H_
 
@@ -21,7 +21,7 @@ struct ActionSpec {
   double max_force_n = 0.0;
 };
 
-// VS0, VS90, TV0, TV90, TA0, TA90, in SPEC's order.
+// VS0, VS90, TV0, TV90, TA0, TA90, in the paper's order.
 const std::vector<ActionSpec>& SkeweringActions();
 
 // INVALID_ARGUMENT naming the valid range when `index` is not an action.

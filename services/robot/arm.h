@@ -18,7 +18,7 @@
 namespace bitewise::robot {
 
 // The fork tip's pose: position, the yaw of the tines' plane about T's z
-// axis, and the pitch of the handle from vertical (SPEC's action pitch).
+// axis, and the pitch of the handle from vertical (the action's pitch).
 struct ForkPose {
   Eigen::Vector3d p_TaskTip_m = Eigen::Vector3d::Zero();
   double yaw_rad = 0.0;

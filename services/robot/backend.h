@@ -22,10 +22,10 @@
 #include "services/robot/jaco2/jaco2_arm.h"
 #include "services/robot/netft/netft_rdt_client.h"
 #include "services/robot/robot.h"
-#include "services/sim/scene.h"
 #include "services/robot/sim/sim_arm.h"
 #include "services/robot/sim/sim_netft_box.h"
 #include "services/robot/sim/sim_world.h"
+#include "services/sim/scene.h"
 
 namespace bitewise::robot {
 
@@ -34,7 +34,7 @@ enum class BackendKind { kSim, kJaco2 };
 struct SimBackendOptions {
   // Seeds the plate, the world's outcomes, the box's noise and faults.
   uint64_t seed = 1;
-  // Food names from sim::FoodCatalog(), one item each; empty means SPEC's
+  // Food names from sim::FoodCatalog(), one item each; empty means the paper's
   // eight unseen foods.
   std::vector<std::string> foods;
   bool allow_touching = false;

@@ -30,7 +30,7 @@ ABSL_FLAG(uint64_t, seed, 1,
           "sim: seeds the plate, the outcomes and the sensor noise.");
 ABSL_FLAG(std::string, foods, "",
           "sim: comma-separated foods on the plate (names from the food "
-          "catalog); empty means SPEC's eight unseen foods.");
+          "catalog); empty means the paper's eight unseen foods.");
 ABSL_FLAG(double, sim_ft_rate_hz, 1000.0,
           "sim: records per second from the simulated Net F/T box (<= 7000).");
 ABSL_FLAG(int, sim_ft_port, 0,

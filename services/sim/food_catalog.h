@@ -3,10 +3,10 @@
 // Shared by the force-trace model (HapticNet's training data and the
 // simulated Net F/T box), the camera renderer and the simulated meals.
 //
-// The success probabilities are assumptions built on SPEC section 1's known
-// optima (grape TV90; strawberry VS0 or TV0; banana TA0 or TA90; carrot
-// VS90) and on the physical reasoning behind them: hard foods need a
-// vertical skewer across the fibres, soft foods need the tilted angled
+// The success probabilities are assumptions built on the paper
+// (docs/robot.md)'s known optima (grape TV90; strawberry VS0 or TV0; banana TA0
+// or TA90; carrot VS90) and on the physical reasoning behind them: hard foods
+// need a vertical skewer across the fibres, soft foods need the tilted angled
 // scoop, hard-skinned foods need the tines-vertical approach across the
 // skin, and medium foods take any vertical skewer. See docs/simulation.md.
 #ifndef BITEWISE_SERVICES_SIM_FOOD_CATALOG_H_
@@ -31,7 +31,7 @@ inline constexpr int kNumActions = domain::kNumActions;
 struct FoodType {
   std::string name;
   HapticCategory category;
-  // Probability that each action (SPEC order) acquires the item.
+  // Probability that each action (the paper's order) acquires the item.
   std::array<double, kNumActions> success;
   // Appearance: mean colour (linear RGB in [0, 1]) and its per-item spread;
   // items vary in size within [min, max] metres and lie at any angle.
@@ -40,13 +40,13 @@ struct FoodType {
   std::array<double, 2> length_m;  // major axis
   std::array<double, 2> width_m;   // minor axis
   std::array<double, 2> height_m;  // above the plate
-  // Part of SPEC's unseen-food evaluation set.
+  // Part of the paper's unseen-food evaluation set.
   bool unseen;
 };
 
-// Every food type, unseen foods first in SPEC's order.
+// Every food type, unseen foods first in the paper's order.
 const std::vector<FoodType>& FoodCatalog();
-// The eight unseen foods of SPEC: carrot, celery, strawberry, cantaloupe,
+// The paper's eight unseen foods: carrot, celery, strawberry, cantaloupe,
 // banana, kiwi, cherry_tomato, grape.
 std::vector<const FoodType*> UnseenFoods();
 // The other foods (nine): what featurizer statistics, HapticNet and any

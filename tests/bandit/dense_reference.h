@@ -1,4 +1,4 @@
-// A dense float64 evaluation of SPEC section 2, written straight from the
+// A dense float64 evaluation of docs/algorithms.md, written straight from the
 // formulas with explicit inverses, with the population prior of
 // docs/algorithms.md when the config has one. It is the independent reference
 // that the incremental LinUcbModel is checked against; it is slow on purpose.

@@ -1,5 +1,5 @@
 // Byte-level tests of the RDT codec against packets written out by hand
-// from the protocol description (SPEC section 3), not from the encoder.
+// from the protocol description (docs/robot.md), not from the encoder.
 #include "services/robot/netft/rdt_protocol.h"
 
 #include <cstdint>

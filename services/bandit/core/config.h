@@ -1,5 +1,5 @@
 // Configuration of one user's bandit: which learner, which exploration
-// strategy, the hyperparameters of SPEC section 2 and the problem's
+// strategy, the hyperparameters of docs/algorithms.md and the problem's
 // dimensions. Plain data with the researchers' defaults; no flags here.
 #ifndef BITEWISE_SERVICES_BANDIT_CORE_CONFIG_H_
 #define BITEWISE_SERVICES_BANDIT_CORE_CONFIG_H_
@@ -28,7 +28,7 @@ enum class Strategy {
 const char* LearnerName(Learner learner);
 const char* StrategyName(Strategy strategy);
 
-// The six skewering actions of SPEC section 1, in index order.
+// The six skewering actions of the paper (docs/robot.md), in index order.
 std::vector<std::string> DefaultActionNames();
 
 // An opt-in population prior (docs/algorithms.md, "Population prior"): the

@@ -1,6 +1,6 @@
 // LinUcbModel: the learning core of bitewise. One user's context-only LinUCB
 // or post hoc augmented LinUCB (Gordon et al., ICRA 2021), exactly as in
-// SPEC section 2, updated incrementally without O(d^3) work per round.
+// docs/algorithms.md, updated incrementally without O(d^3) work per round.
 //
 // Representation. Every action keeps A_a = lambda_c I + sum w c c^T (with a
 // population prior, lambda_c + kappa_c; see PopulationPrior) in one of two

@@ -1,6 +1,6 @@
 // The ATI Net F/T Raw Data Transfer (RDT) protocol over UDP, as bytes: the
 // 8-byte request a client sends and the 36-byte record the box streams back
-// (SPEC section 3). Shared by the production client (NetFtRdtClient) and the
+// (docs/robot.md). Shared by the production client (NetFtRdtClient) and the
 // simulated box, and kept free of sockets so every byte can be tested against
 // hand-written packets. All multi-byte fields are big-endian on the wire.
 #ifndef BITEWISE_SERVICES_ROBOT_NETFT_RDT_PROTOCOL_H_
