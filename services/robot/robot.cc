@@ -16,13 +16,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double ForceMagnitude(const netft::Wrench& w, const netft::Wrench& baseline) {
-  const double dx = w.force_n[0] - baseline.force_n[0];
-  const double dy = w.force_n[1] - baseline.force_n[1];
-  const double dz = w.force_n[2] - baseline.force_n[2];
-  return std::sqrt(dx * dx + dy * dy + dz * dz);
-}
-
 ForkPose Interpolate(const ForkPose& a, const ForkPose& b, double s) {
   ForkPose out;
   out.p_TaskTip_m = a.p_TaskTip_m + s * (b.p_TaskTip_m - a.p_TaskTip_m);
@@ -60,7 +53,8 @@ class Robot::Run {
         config_(robot->config_),
         action_(action),
         target_(target),
-        on_progress_(on_progress) {}
+        on_progress_(on_progress),
+        ft_(config_.contact_threshold_n) {}
 
   absl::Status Execute() {
     start_s_ = SteadyNowS();
@@ -108,10 +102,13 @@ class Robot::Run {
     RETURN_IF_ERROR(Hold(AcquirePhase::kExtract, config_.settle_s));
 
     outcome_.duration_s = SteadyNowS() - start_s_;
-    outcome_.static_load_n = StaticLoad(std::max(
+    outcome_.static_load_n = ft_.StaticLoad(std::max(
         settle_start_s, outcome_.duration_s - config_.static_window_s));
     outcome_.attempt = robot_->judge_->EndAttempt(outcome_.static_load_n);
     outcome_.lowest_tip_z_m = lowest_z_;
+    outcome_.peak_force_n = ft_.peak_force_n();
+    outcome_.contact_time_s = ft_.contact_time_s();
+    outcome_.trace = ft_.TakeTrace();
     Report(AcquirePhase::kDone, /*force=*/true);
     return absl::OkStatus();
   }
@@ -152,7 +149,7 @@ class Robot::Run {
           return absl::AbortedError(absl::StrFormat(
               "force %.1f N exceeded the %s limit of %.1f N during %s "
               "(a collision?); arm halted",
-              last_force_n_, action_.name, action_.max_force_n,
+              ft_.last_force_n(), action_.name, action_.max_force_n,
               AcquirePhaseName(phase)));
         }
         RETURN_IF_ERROR(HaltArm());
@@ -202,8 +199,7 @@ class Robot::Run {
     Ingest();
     // The force limit first: it acts on every sample received, whatever
     // the state of the sensor's clock.
-    *over_limit = max_force_since_tick_ >= action_.max_force_n;
-    max_force_since_tick_ = 0.0;
+    *over_limit = ft_.TakeMaxForceSinceLastCall() >= action_.max_force_n;
     const netft::StreamHealth health = robot_->ft_->Health();
     if (health.silent_for_s > config_.watchdog_timeout_s) {
       RETURN_IF_ERROR(HaltArm());
@@ -268,81 +264,27 @@ class Robot::Run {
     AcquireProgressEvent event;
     event.phase = phase;
     event.elapsed_s = now_s - start_s_;
-    event.force_n = last_force_n_;
+    event.force_n = ft_.last_force_n();
     return on_progress_(event);
   }
 
-  // The unloaded reading: the mean of the samples received in the last
-  // baseline_s (arrival times: independent of the sensor's counter).
-  // Every sample after these belongs to the acquisition.
+  // The baseline from the samples of the last few seconds; every sample
+  // after these belongs to the acquisition.
   void MeasureBaseline() {
-    std::optional<netft::FtSample> latest = robot_->ft_->Latest();
-    if (!latest) return;
-    const uint64_t back = 8192;
     std::vector<netft::FtSample> recent;
-    next_index_ = robot_->ft_->SamplesSince(
-        latest->index >= back ? latest->index - back : 0, &recent);
-    int n = 0;
-    netft::Wrench sum;
-    for (const netft::FtSample& s : recent) {
-      if (s.arrival_s < start_s_ - config_.baseline_s) continue;
-      for (int i = 0; i < 3; ++i) {
-        sum.force_n[i] += s.wrench.force_n[i];
-        sum.torque_nm[i] += s.wrench.torque_nm[i];
-      }
-      ++n;
+    std::optional<netft::FtSample> latest = robot_->ft_->Latest();
+    if (latest) {
+      const uint64_t back = 8192;
+      next_index_ = robot_->ft_->SamplesSince(
+          latest->index >= back ? latest->index - back : 0, &recent);
     }
-    if (n == 0) {
-      baseline_ = latest->wrench;
-      return;
-    }
-    for (int i = 0; i < 3; ++i) {
-      baseline_.force_n[i] = sum.force_n[i] / n;
-      baseline_.torque_nm[i] = sum.torque_nm[i] / n;
-    }
+    ft_.Start(recent, start_s_, config_.baseline_s);
   }
 
-  // Every sample received since the baseline counts for the force limit,
-  // the peak and contact, whatever its timestamp: safety never depends on
-  // the sensor's counter. Only the trace (for HapticNet) needs times that
-  // strictly increase; a sample whose counter time does not is left out of
-  // it (the counter check faults on that anyway).
   void Ingest() {
     std::vector<netft::FtSample> fresh;
     next_index_ = robot_->ft_->SamplesSince(next_index_, &fresh);
-    for (const netft::FtSample& s : fresh) {
-      const double force = ForceMagnitude(s.wrench, baseline_);
-      last_force_n_ = force;
-      max_force_since_tick_ = std::max(max_force_since_tick_, force);
-      outcome_.peak_force_n = std::max(outcome_.peak_force_n, force);
-      // The client's host-time offset can still shrink as less delayed
-      // packets arrive; fixing it at the first sample keeps the trace on
-      // the sensor's own clock, strictly increasing, as HapticNet needs.
-      if (std::isnan(trace_offset_s_)) {
-        trace_offset_s_ = s.host_time_s - s.sensor_time_s - start_s_;
-      }
-      const double t_s = s.sensor_time_s + trace_offset_s_;
-      if (outcome_.contact_time_s < 0.0 &&
-          force > config_.contact_threshold_n) {
-        outcome_.contact_time_s = t_s;
-      }
-      if (!outcome_.trace.empty() && t_s <= outcome_.trace.back().t_s) continue;
-      outcome_.trace.push_back({t_s, s.wrench});
-    }
-  }
-
-  // Weight on the fork: the drop of Fz below the baseline, averaged over
-  // the trace from `from_s` on.
-  double StaticLoad(double from_s) const {
-    double sum = 0.0;
-    int n = 0;
-    for (const TraceSample& s : outcome_.trace) {
-      if (s.t_s < from_s) continue;
-      sum += s.wrench.force_n[2];
-      ++n;
-    }
-    if (n == 0) return 0.0;
-    return baseline_.force_n[2] - sum / n;
+    ft_.Add(fresh);
   }
 
   Robot* const robot_;
@@ -357,11 +299,8 @@ class Robot::Run {
   double lowest_z_ = 0.0;
   double start_s_ = 0.0;
   Clock::time_point next_tick_;
-  netft::Wrench baseline_;
+  FtRecorder ft_;
   uint64_t next_index_ = 0;
-  double trace_offset_s_ = std::numeric_limits<double>::quiet_NaN();
-  double last_force_n_ = 0.0;
-  double max_force_since_tick_ = 0.0;
   double last_report_s_ = -1e9;
 };
 

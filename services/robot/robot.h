@@ -23,6 +23,7 @@
 #include "absl/status/statusor.h"
 #include "services/robot/actions.h"
 #include "services/robot/arm.h"
+#include "services/robot/ft_recorder.h"
 #include "services/robot/netft/netft_rdt_client.h"
 #include "services/robot/success_judge.h"
 
@@ -80,11 +81,6 @@ struct AcquireProgressEvent {
 // Return false to cancel the acquisition (e.g. the caller went away).
 using AcquireProgressCallback =
     std::function<bool(const AcquireProgressEvent& event)>;
-
-struct TraceSample {
-  double t_s = 0.0;  // since the acquisition started
-  netft::Wrench wrench;
-};
 
 struct AcquireOutcome {
   AttemptOutcome attempt;
