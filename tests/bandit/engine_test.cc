@@ -14,6 +14,7 @@
 #include "gtest/gtest.h"
 #include "services/bandit/store/sqlite_event_store.h"
 #include "tests/bandit/dense_reference.h"
+#include "tests/common/status_matchers.h"
 
 namespace bitewise::bandit {
 namespace {
@@ -323,13 +324,18 @@ TEST_F(EngineTest, UserLifecycle) {
 // starts from the pool (exactly the dense reference of the prior's
 // formulas), and keeps it across a restart.
 TEST_F(EngineTest, PopulationPriorPoolsLikeUsersAndPrimesNewOnes) {
-  absl::StatusOr<UserRecord> early =
-      engine_->CreateUser("early", SmallConfig(), /*prior_rounds=*/5.0);
-  EXPECT_EQ(early.status().code(), absl::StatusCode::kFailedPrecondition);
-  EXPECT_THAT(std::string(early.status().message()),
-              ::testing::HasSubstr("BuildPopulationPrior"));
-  EXPECT_EQ(engine_->BuildPopulationPool(SmallConfig()).status().code(),
-            absl::StatusCode::kFailedPrecondition);
+  using ::bitewise::testing::IsOk;
+  using ::bitewise::testing::StatusIs;
+  using ::testing::HasSubstr;
+  EXPECT_THAT(engine_->CreateUser("early", SmallConfig(), /*prior_rounds=*/5),
+              StatusIs(absl::StatusCode::kFailedPrecondition,
+                       HasSubstr("BuildPopulationPrior")));
+  EXPECT_THAT(engine_->BuildPopulationPool(SmallConfig()),
+              StatusIs(absl::StatusCode::kFailedPrecondition,
+                       HasSubstr("nothing to pool")));
+  EXPECT_THAT(
+      engine_->CreateUser("bad", SmallConfig(), /*prior_rounds=*/-1),
+      StatusIs(absl::StatusCode::kInvalidArgument, HasSubstr("prior_rounds")));
 
   std::mt19937_64 rng(5);
   for (const char* user : {"u1", "u2"}) {
@@ -341,7 +347,7 @@ TEST_F(EngineTest, PopulationPriorPoolsLikeUsersAndPrimesNewOnes) {
   ASSERT_TRUE(engine_->CreateUser("wide", wide).ok());
   ASSERT_TRUE(engine_->CreateUser("idle", SmallConfig()).ok());  // no rounds
   absl::StatusOr<PoolRecord> pool = engine_->BuildPopulationPool(SmallConfig());
-  ASSERT_TRUE(pool.ok()) << pool.status();
+  ASSERT_THAT(pool, IsOk());
   EXPECT_EQ(pool->users, 2);
   EXPECT_GE(pool->pool_version, 1);
 
