@@ -4,9 +4,9 @@
 # and <out>/<name>_diff.png (context-only minus each post hoc variant,
 # paired, with s.e. bands).
 # Usage: gnuplot -e "dir='<csv dir>'; out='<png dir>'; name='sim_meals'; \
-#                    label='lambda_c = 1000'" plot_sim_meals.gp
+#                    label='rho_c = 3'" plot_sim_meals.gp
 if (!exists('name')) name = 'sim_meals'
-if (!exists('label')) label = 'alpha = 0.01, lambda_c = 1000, lambda_p = 1'
+if (!exists('label')) label = 'shipped defaults, lambda_c = 45.8'
 set datafile separator ','
 set terminal pngcairo size 900,600 font ',11' noenhanced
 set key top left
