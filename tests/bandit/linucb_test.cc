@@ -355,6 +355,30 @@ TEST(LinUcbTest, DefaultsMatchTheResearchers) {
   EXPECT_EQ(config.num_actions(), 6);
 }
 
+// A finite but huge value would make every later estimate NaN, forever
+// (it is replayed at every rebuild): it is refused, naming the field.
+TEST(LinUcbTest, HugeFiniteInputsAreRefusedAndChangeNothing) {
+  BanditConfig config;
+  config.context_dim = 4;
+  LinUcbModel model = *LinUcbModel::Create(config);
+  const std::vector<double> ok = {0.1, 0.2, 0.3, 0.4};
+  const std::vector<ActionEstimate> before = model.Estimate(ok);
+  Round round;
+  round.context = {0.1, 1e160, 0.3, 0.4};
+  round.posthoc = {0.0, 0.0, 1.0, 0.0};
+  absl::Status status = model.ValidateRound(round);
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(status.message(),
+            "context[1]: magnitude must be at most 1e+06, got 1e+160");
+  round.context = ok;
+  round.posthoc = {0.0, -1e155, 1.0, 0.0};
+  EXPECT_EQ(model.ValidateRound(round).message(),
+            "posthoc[1]: magnitude must be at most 1e+06, got -1e+155");
+  round.posthoc = {0.0, -1e6, 1.0, 0.0};  // the bound itself is accepted
+  EXPECT_TRUE(model.ValidateRound(round).ok());
+  EXPECT_EQ(model.Estimate(ok)[0].lcb, before[0].lcb);
+}
+
 TEST(LinUcbTest, RejectsBadInputNamingTheField) {
   BanditConfig config;
   config.context_dim = 3;

@@ -28,6 +28,11 @@ absl::Status ValidateVector(const char* field, absl::Span<const double> v,
       return absl::InvalidArgumentError(
           absl::StrCat(field, "[", i, "]: must be finite, got ", v[i]));
     }
+    if (std::abs(v[i]) > kMaxInputMagnitude) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(field, "[", i, "]: magnitude must be at most ",
+                       kMaxInputMagnitude, ", got ", v[i]));
+    }
   }
   return absl::OkStatus();
 }

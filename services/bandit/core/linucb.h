@@ -57,6 +57,12 @@ struct InputScale {
   double posthoc_sq_sum = 0.0;  // sum w ||p||^2 (post hoc learner)
 };
 
+// Largest |value| accepted in a context or post hoc context. Features are
+// of order 1 to 100 (SPANet's ReLU activations, standardised features,
+// log-probabilities); a value of 1e160 is finite but squares to infinity in
+// c c^T and would turn every later estimate into NaN for good.
+inline constexpr double kMaxInputMagnitude = 1e6;
+
 class LinUcbModel {
  public:
   // `primal_threshold`: an action switches from dual to primal form when
@@ -78,8 +84,8 @@ class LinUcbModel {
   int context_dim() const { return d_; }
   int posthoc_dim() const { return q_; }
 
-  // INVALID_ARGUMENT naming the field if `context` has the wrong length or
-  // a non-finite value.
+  // INVALID_ARGUMENT naming the field if `context` has the wrong length, a
+  // non-finite value, or a value beyond kMaxInputMagnitude.
   absl::Status ValidateContext(absl::Span<const double> context) const;
   // INVALID_ARGUMENT naming the field for a loss outside [0, 1], a post hoc
   // context of the wrong length or with a non-finite value. The
