@@ -12,6 +12,7 @@
 #include "services/bandit/core/policy.h"
 #include "services/common/status_macros.h"
 #include "services/haptic/default_model.h"
+#include "services/perception/spanet_featurizer.h"
 #include "services/sim/force_trace.h"
 #include "services/sim/scene.h"
 
@@ -157,8 +158,11 @@ absl::Status ValidateSimMealsConfig(const SimMealsConfig& config) {
 
 double ResolvedLambdaC(const SimMealsConfig& config) {
   if (config.lambda_c > 0.0) return config.lambda_c;
-  return config.rho_c *
-         perception::DefaultFeaturizer().context_mean_squared_norm();
+  const double msn =
+      config.context_msn > 0.0
+          ? config.context_msn
+          : perception::DefaultFeaturizer().context_mean_squared_norm();
+  return config.rho_c * msn;
 }
 
 int ResolvedPlatesPerTrial(const SimMealsConfig& config) {
@@ -167,11 +171,20 @@ int ResolvedPlatesPerTrial(const SimMealsConfig& config) {
 }
 
 SimMealsSimulator::SimMealsSimulator(
-    std::unique_ptr<haptic::HapticClassifier> classifier)
-    : classifier_(std::move(classifier)) {}
+    std::unique_ptr<haptic::HapticClassifier> classifier,
+    std::unique_ptr<perception::Featurizer> featurizer)
+    : classifier_(std::move(classifier)),
+      featurizer_(featurizer != nullptr
+                      ? std::move(featurizer)
+                      : std::make_unique<perception::DefaultFeaturizer>()) {}
 
 absl::StatusOr<std::unique_ptr<SimMealsSimulator>> SimMealsSimulator::Create(
-    const std::string& onnx_path) {
+    const std::string& onnx_path, const std::string& spanet_model) {
+  std::unique_ptr<perception::Featurizer> featurizer;
+  if (!spanet_model.empty()) {
+    ASSIGN_OR_RETURN(featurizer,
+                     perception::SpanetFeaturizer::Load(spanet_model));
+  }
   ASSIGN_OR_RETURN(
       std::unique_ptr<haptic::HapticNet> net,
       onnx_path.empty()
@@ -181,7 +194,8 @@ absl::StatusOr<std::unique_ptr<SimMealsSimulator>> SimMealsSimulator::Create(
   const haptic::HapticPipelineOptions options;  // the service's defaults
   RETURN_IF_ERROR(haptic::ValidatePipelineOptions(options));
   return std::make_unique<SimMealsSimulator>(
-      std::make_unique<haptic::HapticClassifier>(std::move(net), options));
+      std::make_unique<haptic::HapticClassifier>(std::move(net), options),
+      std::move(featurizer));
 }
 
 absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
@@ -226,7 +240,7 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
       ASSIGN_OR_RETURN(
           std::vector<std::vector<double>> item_contexts,
           FeaturizeScene(scene, MixSeed(seed, kRenderNoiseStream + plate),
-                         featurizer_));
+                         *featurizer_));
       std::vector<std::vector<double>> plate_contexts(num_foods);
       for (size_t i = 0; i < scene.items.size(); ++i) {
         const int food = FoodIndex(foods, scene.items[i].food);

@@ -30,6 +30,7 @@
 #include "services/bandit/core/linucb.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/perception/default_featurizer.h"
+#include "services/perception/featurizer.h"
 #include "services/sim/food_catalog.h"
 #include "services/sim/scene.h"
 
@@ -87,6 +88,9 @@ struct SimMealsConfig {
   double alpha = 0.01;
   double rho_c = 1.0;
   double lambda_c = 0.0;
+  // E||c||^2 of the featurizer in use on seen foods (what it declares); 0:
+  // the default featurizer's.
+  double context_msn = 0.0;
   double lambda_p = 1.0;
   // Thompson sampling's scale v (theta ~ N(theta_a, v^2 Sigma_a)): 0.5, the
   // largest standard deviation a 0/1 loss can have; not tuned.
@@ -137,14 +141,20 @@ struct SimMealWorld {
 class SimMealsSimulator {
  public:
   // `classifier` is used as the HapticService would use it.
+  // `featurizer` null: the PerceptionService's default featurizer.
   explicit SimMealsSimulator(
-      std::unique_ptr<haptic::HapticClassifier> classifier);
+      std::unique_ptr<haptic::HapticClassifier> classifier,
+      std::unique_ptr<perception::Featurizer> featurizer = nullptr);
 
   // The HapticService's classifier with its default pipeline options and the
   // model in `onnx_path`, or the embedded models/hapticnet/hapticnet.onnx
-  // when `onnx_path` is empty. Errors from loading the model.
+  // when `onnx_path` is empty; the SPANet featurizer from `spanet_model`
+  // (with its "<model>.stats" context scale), or the default featurizer when
+  // empty. Errors from loading either model.
   static absl::StatusOr<std::unique_ptr<SimMealsSimulator>> Create(
-      const std::string& onnx_path);
+      const std::string& onnx_path, const std::string& spanet_model = "");
+
+  const perception::Featurizer& featurizer() const { return *featurizer_; }
 
   // Draws trial `seed`: the plates (rendered and featurized; a plate on
   // which some food is missing or invisible is drawn again), the meal's
@@ -159,7 +169,7 @@ class SimMealsSimulator {
 
  private:
   std::unique_ptr<haptic::HapticClassifier> classifier_;
-  perception::DefaultFeaturizer featurizer_;
+  std::unique_ptr<perception::Featurizer> featurizer_;
 };
 
 // One learner's play of a world.

@@ -16,6 +16,7 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_split.h"
 #include "experiments/csv_writer.h"
 #include "experiments/random.h"
 #include "experiments/sim_meals.h"
@@ -49,6 +50,13 @@ ABSL_FLAG(std::string, haptic_model, "",
           "HapticNet ONNX file; empty: the embedded "
           "models/hapticnet/hapticnet.onnx.");
 ABSL_FLAG(std::string, out, "sim_meals.csv", "CSV file to write.");
+ABSL_FLAG(std::string, spanet_model, "",
+          "Featurize with this SPANet ONNX model (its <model>.stats gives the "
+          "context scale) instead of the default featurizer.");
+ABSL_FLAG(std::string, foods, "",
+          "Comma-separated catalog foods of the meal; empty: the 8 unseen "
+          "foods. E.g. banana_unripe in place of kiwi puts a look-alike pair "
+          "(ripe and unripe banana) on the plate.");
 
 namespace bitewise::experiments {
 namespace {
@@ -117,14 +125,37 @@ int Run() {
                   trials < 1 ? "--trials must be positive" : valid.ToString());
     return 2;
   }
-  auto simulator = SimMealsSimulator::Create(absl::GetFlag(FLAGS_haptic_model));
+  const std::string foods_flag = absl::GetFlag(FLAGS_foods);
+  if (!foods_flag.empty()) {
+    config.food_names = absl::StrSplit(foods_flag, ',', absl::SkipEmpty());
+  }
+  auto simulator = SimMealsSimulator::Create(absl::GetFlag(FLAGS_haptic_model),
+                                             absl::GetFlag(FLAGS_spanet_model));
   if (!simulator.ok()) {
-    absl::FPrintF(stderr, "cannot load HapticNet: %s\n",
+    absl::FPrintF(stderr, "cannot load the models: %s\n",
                   simulator.status().ToString());
     return 1;
   }
 
-  const std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
+  config.context_msn = (*simulator)->featurizer().context_mean_squared_norm();
+  if (!(config.context_msn > 0.0) && config.lambda_c <= 0.0) {
+    absl::FPrintF(stderr,
+                  "the featurizer declares no E||c||^2 (a SPANet without "
+                  "<model>.stats?): pass --lambda_c\n");
+    return 2;
+  }
+  std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
+  if (!config.food_names.empty()) {
+    foods.clear();
+    for (const std::string& name : config.food_names) {
+      const sim::FoodType* food = sim::FindFood(name);
+      if (food == nullptr) {
+        absl::FPrintF(stderr, "--foods: unknown food %s\n", name);
+        return 2;
+      }
+      foods.push_back(food);
+    }
+  }
   const int num_foods = static_cast<int>(foods.size());
   const std::vector<LearnerSpec> learners = Learners();
   const int kLearners = static_cast<int>(learners.size());
@@ -257,9 +288,8 @@ int Run() {
       "Thompson v=%g, seed %d\n",
       trials, attempts, config.attempts_per_food, order,
       ResolvedPlatesPerTrial(config), config.alpha, ResolvedLambdaC(config),
-      ResolvedLambdaC(config) /
-          perception::DefaultFeaturizer().context_mean_squared_norm(),
-      config.lambda_p, config.thompson_v, absl::GetFlag(FLAGS_seed));
+      ResolvedLambdaC(config) / config.context_msn, config.lambda_p,
+      config.thompson_v, absl::GetFlag(FLAGS_seed));
   absl::PrintF(
       "plates drawn again because a food did not fit or was not visible: "
       "%d of %d\n",
@@ -269,9 +299,9 @@ int Run() {
   absl::PrintF(
       "mean squared norm: visual context (d_c = %d) %.2f; haptic context "
       "logprob %.1f, prob %.3f, onehot %.3f\n",
-      static_cast<int>(perception::kDefaultFeatureDim),
-      context_norm2 / haptic_total, posthoc_norm2[0] / haptic_total,
-      posthoc_norm2[1] / haptic_total, posthoc_norm2[2] / haptic_total);
+      (*simulator)->featurizer().dimension(), context_norm2 / haptic_total,
+      posthoc_norm2[0] / haptic_total, posthoc_norm2[1] / haptic_total,
+      posthoc_norm2[2] / haptic_total);
   absl::PrintF(
       "expected failures over the meal: best action every time %.2f, uniform "
       "random %.2f\n",
