@@ -5,7 +5,8 @@
 # 400 paired trials on seed 1 (context-only and post hoc LinUCB with three
 # haptic encodings, and Thompson sampling for both learners), and the
 # sensitivity cells on the same seed: rho_c 0.3 and 3, blocked order,
-# HapticNet degraded to 95% and 80%.
+# HapticNet degraded to 95% and 80%, the (seeded, untrained) SPANet
+# featurizer, and a look-alike pair on the plate.
 # Nothing here was chosen by looking at these seeds' results.
 # Usage: scripts/experiments/sim_meals_all.sh [build dir] [output dir]
 set -euo pipefail
@@ -26,11 +27,16 @@ meals() {
   meals sim_meals
   meals sim_meals_rho3 --rho_c=3
   meals sim_meals_haptic95 --haptic_accuracy=0.95
+  meals sim_meals_spanet --spanet_model="$build/models/spanet_seed1.onnx"
 ) &
 lane=$!
 meals sim_meals_rho0.3 --rho_c=0.3
 meals sim_meals_blocked --order=blocked
 meals sim_meals_haptic80 --haptic_accuracy=0.8
+# A look-alike pair on the plate: unripe banana (medium) in place of kiwi,
+# looking like the ripe banana (soft).
+meals sim_meals_lookalike \
+  --foods=carrot,celery,strawberry,cantaloupe,banana,banana_unripe,cherry_tomato,grape
 wait "$lane"
 if command -v gnuplot >/dev/null; then
   gnuplot -e "dir='$out'; out='$out'; name='sim_meals'" \
