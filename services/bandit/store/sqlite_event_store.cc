@@ -1,16 +1,22 @@
 #include "services/bandit/store/sqlite_event_store.h"
 
+#include <fcntl.h>
 #include <sqlite3.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <utility>
 
+#include "absl/strings/ascii.h"
 #include "absl/strings/escaping.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "absl/strings/string_view.h"
 #include "services/common/status_macros.h"
 
@@ -772,6 +778,57 @@ absl::Status InitializeDatabase(sqlite3* db,
   return txn.Commit();
 }
 
+// Takes an exclusive advisory lock on "<path>.lock" (released by the
+// kernel when the process ends, however it ends) and writes our pid into
+// it. ":memory:" needs none (-1). FAILED_PRECONDITION naming the holder when
+// another process has the store open; UNAVAILABLE if the lock file cannot
+// be made.
+absl::StatusOr<int> LockStoreFile(const std::string& path) {
+  if (path == ":memory:") return -1;
+  const std::string lock_path = path + ".lock";
+  const int fd = open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    return absl::UnavailableError(absl::StrCat(
+        "cannot create the lock file ", lock_path, ": ", std::strerror(errno)));
+  }
+  if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    char holder[32] = {0};
+    const ssize_t n = pread(fd, holder, sizeof(holder) - 1, 0);
+    close(fd);
+    return absl::FailedPreconditionError(absl::StrCat(
+        path, " is already open in another process (pid ",
+        n > 0 ? absl::StripAsciiWhitespace(holder) : "unknown", ", holding ",
+        lock_path,
+        "); one BanditService per database file: two would serve models that "
+        "miss each other's updates"));
+  }
+  const std::string pid = absl::StrCat(getpid(), "\n");
+  if (ftruncate(fd, 0) != 0 || pwrite(fd, pid.data(), pid.size(), 0) !=
+                                   static_cast<ssize_t>(pid.size())) {
+    // The lock is what matters; the pid is for the message.
+  }
+  return fd;
+}
+
+// PRAGMA integrity_check: a file whose structure is damaged (flipped bytes,
+// a torn copy) must not be served as if it were whole. DATA_LOSS naming the
+// path and SQLite's first findings.
+absl::Status CheckIntegrity(sqlite3* db, const std::string& path) {
+  const std::string op = absl::StrCat("checking ", path);
+  ASSIGN_OR_RETURN(Statement st,
+                   Statement::Prepare(db, "PRAGMA integrity_check(5)", op));
+  std::vector<std::string> findings;
+  while (true) {
+    ASSIGN_OR_RETURN(const bool row, st.Step());
+    if (!row) break;
+    findings.push_back(st.Text(0));
+  }
+  if (findings.size() == 1 && findings[0] == "ok") return absl::OkStatus();
+  return absl::DataLossError(absl::StrCat(
+      path, " failed SQLite's integrity check: ", absl::StrJoin(findings, "; "),
+      ". Restore the last backup (docs/operations.md)"));
+}
+
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
@@ -795,13 +852,26 @@ absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
       std::clamp<int64_t>(absl::ToInt64Milliseconds(options.busy_timeout), 0,
                           std::numeric_limits<int>::max());
   sqlite3_busy_timeout(db.get(), static_cast<int>(timeout_ms));
-  RETURN_IF_ERROR(InitializeDatabase(db.get(), options));
-  return std::unique_ptr<SqliteEventStore>(new SqliteEventStore(db.release()));
+  // One process per file: a second one would serve models that miss the
+  // first one's updates.
+  ASSIGN_OR_RETURN(const int lock_fd, LockStoreFile(options.path));
+  absl::Status ready = InitializeDatabase(db.get(), options);
+  if (ready.ok()) ready = CheckIntegrity(db.get(), options.path);
+  if (!ready.ok()) {
+    if (lock_fd >= 0) close(lock_fd);
+    return ready;
+  }
+  return std::unique_ptr<SqliteEventStore>(
+      new SqliteEventStore(db.release(), lock_fd));
 }
 
-SqliteEventStore::SqliteEventStore(sqlite3* db) : db_(db) {}
+SqliteEventStore::SqliteEventStore(sqlite3* db, int lock_fd)
+    : db_(db), lock_fd_(lock_fd) {}
 
-SqliteEventStore::~SqliteEventStore() { sqlite3_close_v2(db_); }
+SqliteEventStore::~SqliteEventStore() {
+  sqlite3_close_v2(db_);
+  if (lock_fd_ >= 0) close(lock_fd_);  // releases the lock
+}
 
 absl::Status SqliteEventStore::CreateUser(const UserRecord& user) {
   if (user.user_id.empty()) {

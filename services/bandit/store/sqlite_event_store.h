@@ -63,9 +63,10 @@ struct SqliteStoreOptions {
 class SqliteEventStore final : public EventStore {
  public:
   // Opens or creates the store. FAILED_PRECONDITION, naming the path, if the
-  // file is not a SQLite database, belongs to another application, or has a
-  // schema version this build does not know; INVALID_ARGUMENT for an empty
-  // path.
+  // file is not a SQLite database, belongs to another application, has a
+  // schema version this build does not know, or is already open in another
+  // process (an advisory lock on "<path>.lock"); DATA_LOSS if SQLite's
+  // integrity check finds it damaged; INVALID_ARGUMENT for an empty path.
   static absl::StatusOr<std::unique_ptr<SqliteEventStore>> Open(
       const SqliteStoreOptions& options);
 
@@ -94,7 +95,7 @@ class SqliteEventStore final : public EventStore {
       const std::string& user_id) override;
 
  private:
-  explicit SqliteEventStore(sqlite3* db);
+  SqliteEventStore(sqlite3* db, int lock_fd);
 
   absl::StatusOr<UserRecord> GetUserLocked(const std::string& user_id)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
@@ -104,6 +105,8 @@ class SqliteEventStore final : public EventStore {
 
   absl::Mutex mu_;
   sqlite3* const db_ ABSL_PT_GUARDED_BY(mu_);
+  // The store's lock file, held while the store is open; -1 for ":memory:".
+  const int lock_fd_;
 };
 
 }  // namespace bitewise::bandit

@@ -801,6 +801,54 @@ TEST_F(SqliteEventStoreTest, PoolsAndUsersWithAPriorRoundTripExactly) {
             absl::StatusCode::kDataLoss);
 }
 
+// A second process on the same file would serve models that miss the first
+// one's updates: it is refused, naming the holder; the file is free again
+// once the first store closes (or its process dies: the lock is the
+// kernel's).
+TEST_F(SqliteEventStoreTest, ASecondStoreOnTheSameFileIsRefused) {
+  SqliteStoreOptions options;
+  options.path = path_;
+  auto second = SqliteEventStore::Open(options);
+  EXPECT_EQ(second.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(second.status().message(),
+              HasSubstr("already open in another process (pid " +
+                        std::to_string(getpid())));
+  EXPECT_THAT(second.status().message(), HasSubstr(path_));
+  store_.reset();
+  auto third = SqliteEventStore::Open(options);
+  EXPECT_TRUE(third.ok()) << third.status();
+}
+
+// A file whose pages were damaged is not served as if it were whole.
+TEST_F(SqliteEventStoreTest, ADamagedFileIsDataLossNotAnEmptyStore) {
+  ASSERT_TRUE(store_->CreateUser(MakeUser("ann")).ok());
+  for (int i = 0; i < 200; ++i) {
+    ASSERT_TRUE(store_->AppendPending(MakeEvent("ann", "m1", i)).ok());
+  }
+  store_.reset();
+  {
+    RawDb raw(path_);
+    raw.Exec("PRAGMA wal_checkpoint(TRUNCATE)");
+  }
+  // Overwrite the middle of the event table's pages with garbage.
+  const auto size = std::filesystem::file_size(path_);
+  ASSERT_GT(size, 16384u);
+  {
+    std::fstream file(path_, std::ios::in | std::ios::out | std::ios::binary);
+    for (std::streamoff at = 8192; at < 8192 + 3 * 4096; at += 4096) {
+      file.seekp(at + 8);
+      const std::string garbage(64, '\x5a');
+      file.write(garbage.data(), garbage.size());
+    }
+  }
+  SqliteStoreOptions options;
+  options.path = path_;
+  auto store = SqliteEventStore::Open(options);
+  EXPECT_EQ(store.status().code(), absl::StatusCode::kDataLoss)
+      << store.status();
+  EXPECT_THAT(store.status().message(), HasSubstr(path_));
+}
+
 TEST_F(SqliteEventStoreTest, VersionOneFilesAreMigratedKeepingEverything) {
   ASSERT_TRUE(store_->CreateUser(MakeUser("old")).ok());
   auto id = store_->AppendPending(MakeEvent("old", "m1"));
