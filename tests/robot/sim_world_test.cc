@@ -9,8 +9,8 @@
 #include <thread>
 
 #include "gtest/gtest.h"
-#include "services/sim/contact_force.h"
 #include "services/robot/steady_time.h"
+#include "services/sim/contact_force.h"
 
 namespace bitewise::sim {
 namespace {

@@ -23,11 +23,11 @@
 #include "absl/base/thread_annotations.h"
 #include "absl/synchronization/mutex.h"
 #include "services/robot/actions.h"
-#include "services/sim/contact_force.h"
-#include "services/sim/scene.h"
 #include "services/robot/sim/sim_arm.h"
 #include "services/robot/sim/sim_netft_box.h"
 #include "services/robot/success_judge.h"
+#include "services/sim/contact_force.h"
+#include "services/sim/scene.h"
 
 namespace bitewise::sim {
 
