@@ -11,6 +11,7 @@
 #include "services/bandit/bandit_service.h"
 #include "services/bandit/engine.h"
 #include "services/bandit/store/sqlite_event_store.h"
+#include "services/common/readiness_monitor.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
 
@@ -115,8 +116,12 @@ int main(int argc, char** argv) {
     return bitewise::ReportFatal(kProgram, "cannot start the server",
                                  server.status());
   }
-  // Ready: the store is open and the server accepts calls.
-  (*server)->SetServing(true);
+  // Ready while the store can durably accept writes (its file is still the
+  // one opened).
+  bitewise::ReadinessMonitor readiness(
+      [s = store->get()] { return s->CheckHealth().ok(); },
+      [srv = server->get()](bool serving) { srv->SetServing(serving); },
+      /*period_s=*/0.5);
   std::fprintf(stderr, "bitewise-bandit: serving on %s (db %s)\n",
                (*server)->address().c_str(), store_options.path.c_str());
   std::fflush(stderr);

@@ -103,23 +103,6 @@ class RobotBackend {
   std::atomic<uint64_t> frames_{0};
 };
 
-// Polls `live` and reports changes to `set_serving` (first call at once),
-// so the gRPC health status follows the F/T stream. Stops on destruction.
-class ReadinessMonitor {
- public:
-  ReadinessMonitor(std::function<bool()> live,
-                   std::function<void(bool)> set_serving,
-                   double period_s = 0.05);
-  ~ReadinessMonitor();
-  ReadinessMonitor(const ReadinessMonitor&) = delete;
-  ReadinessMonitor& operator=(const ReadinessMonitor&) = delete;
-
- private:
-  absl::Mutex mu_;
-  bool stop_ ABSL_GUARDED_BY(mu_) = false;
-  std::thread thread_;
-};
-
 }  // namespace bitewise::robot
 
 #endif  // BITEWISE_SERVICES_ROBOT_BACKEND_H_

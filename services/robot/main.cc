@@ -16,6 +16,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
+#include "services/common/readiness_monitor.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
 #include "services/robot/backend.h"
@@ -254,7 +255,7 @@ int main(int argc, char** argv) {
                                  server.status());
   }
   // Ready exactly while the F/T stream is live.
-  bitewise::robot::ReadinessMonitor readiness(
+  bitewise::ReadinessMonitor readiness(
       [b = backend->get()] { return b->FtLive(); },
       [s = server->get()](bool serving) { s->SetServing(serving); });
   std::fprintf(stderr, "bitewise-robot: serving on %s (backend %s, %s)\n",

@@ -13,6 +13,7 @@
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/common/channel.h"
+#include "services/common/readiness_monitor.h"
 #include "services/common/server.h"
 #include "tests/robot/wait_for.h"
 
@@ -40,7 +41,7 @@ class RobotServiceTest : public ::testing::Test {
         ServiceServer::Start(ServerOptions(), {service_.get()}, {kService});
     ASSERT_TRUE(server.ok()) << server.status();
     server_ = std::move(server).value();
-    readiness_ = std::make_unique<ReadinessMonitor>(
+    readiness_ = std::make_unique<::bitewise::ReadinessMonitor>(
         [this] { return backend_->FtLive(); },
         [this](bool serving) { server_->SetServing(serving); });
     auto channel = MakeChannel(server_->address(), ChannelOptions());
@@ -94,7 +95,7 @@ class RobotServiceTest : public ::testing::Test {
   std::unique_ptr<RobotBackend> backend_;
   std::unique_ptr<RobotServiceImpl> service_;
   std::unique_ptr<ServiceServer> server_;
-  std::unique_ptr<ReadinessMonitor> readiness_;
+  std::unique_ptr<::bitewise::ReadinessMonitor> readiness_;
   std::shared_ptr<grpc::Channel> channel_;
   std::unique_ptr<v1::RobotService::Stub> stub_;
 };

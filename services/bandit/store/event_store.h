@@ -116,6 +116,10 @@ class EventStore {
   virtual absl::StatusOr<std::vector<EventRecord>> CompletedEvents(
       const std::string& user_id) = 0;
 
+  // OK while the store can durably accept writes; otherwise the reason
+  // (for the service's health). Default: always OK.
+  virtual absl::Status CheckHealth() { return absl::OkStatus(); }
+
   // Durably stores a new pool (pool_version ignored) and returns its
   // version.
   virtual absl::StatusOr<int64_t> AddPool(const PoolRecord& pool) = 0;

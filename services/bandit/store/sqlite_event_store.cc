@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <sqlite3.h>
 #include <sys/file.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -861,12 +862,39 @@ absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
     if (lock_fd >= 0) close(lock_fd);
     return ready;
   }
-  return std::unique_ptr<SqliteEventStore>(
-      new SqliteEventStore(db.release(), lock_fd));
+  struct stat file {};
+  if (options.path != ":memory:" && stat(options.path.c_str(), &file) != 0) {
+    if (lock_fd >= 0) close(lock_fd);
+    return absl::UnavailableError(
+        absl::StrCat("cannot stat ", options.path, ": ", std::strerror(errno)));
+  }
+  return std::unique_ptr<SqliteEventStore>(new SqliteEventStore(
+      db.release(), lock_fd, options.path, static_cast<uint64_t>(file.st_dev),
+      static_cast<uint64_t>(file.st_ino)));
 }
 
-SqliteEventStore::SqliteEventStore(sqlite3* db, int lock_fd)
-    : db_(db), lock_fd_(lock_fd) {}
+SqliteEventStore::SqliteEventStore(sqlite3* db, int lock_fd, std::string path,
+                                   uint64_t device, uint64_t inode)
+    : db_(db),
+      lock_fd_(lock_fd),
+      path_(std::move(path)),
+      device_(device),
+      inode_(inode) {}
+
+absl::Status SqliteEventStore::CheckHealth() {
+  if (path_ == ":memory:") return absl::OkStatus();
+  struct stat file {};
+  if (stat(path_.c_str(), &file) != 0 ||
+      static_cast<uint64_t>(file.st_dev) != device_ ||
+      static_cast<uint64_t>(file.st_ino) != inode_) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "the database file ", path_,
+        " was removed or replaced while the service had it open; writes "
+        "would be lost at the next start. Restore it and restart the "
+        "service"));
+  }
+  return absl::OkStatus();
+}
 
 SqliteEventStore::~SqliteEventStore() {
   sqlite3_close_v2(db_);
@@ -874,6 +902,7 @@ SqliteEventStore::~SqliteEventStore() {
 }
 
 absl::Status SqliteEventStore::CreateUser(const UserRecord& user) {
+  RETURN_IF_ERROR(CheckHealth());
   if (user.user_id.empty()) {
     return absl::InvalidArgumentError("user_id must not be empty");
   }
@@ -969,6 +998,7 @@ absl::StatusOr<PageResult<UserRecord>> SqliteEventStore::ListUsers(
 }
 
 absl::Status SqliteEventStore::DeleteUser(const std::string& user_id) {
+  RETURN_IF_ERROR(CheckHealth());
   absl::MutexLock lock(&mu_);
   ASSIGN_OR_RETURN(
       Transaction txn,
@@ -989,6 +1019,7 @@ absl::Status SqliteEventStore::DeleteUser(const std::string& user_id) {
 }
 
 absl::Status SqliteEventStore::ResetUser(const std::string& user_id) {
+  RETURN_IF_ERROR(CheckHealth());
   absl::MutexLock lock(&mu_);
   ASSIGN_OR_RETURN(
       Transaction txn,
@@ -1017,6 +1048,7 @@ absl::Status SqliteEventStore::ResetUser(const std::string& user_id) {
 
 absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
     const EventRecord& event) {
+  RETURN_IF_ERROR(CheckHealth());
   if (std::isnan(event.propensity)) {
     return absl::InvalidArgumentError("propensity must not be NaN");
   }
@@ -1051,6 +1083,7 @@ absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
 absl::StatusOr<EventRecord> SqliteEventStore::CompleteEvent(
     int64_t event_id, double loss, const std::vector<double>& posthoc,
     double weight, absl::Time updated_at) {
+  RETURN_IF_ERROR(CheckHealth());
   if (std::isnan(loss)) {
     return absl::InvalidArgumentError("loss must not be NaN");
   }
@@ -1136,6 +1169,7 @@ absl::StatusOr<EventRecord> SqliteEventStore::GetEvent(int64_t event_id) {
 }
 
 absl::StatusOr<int64_t> SqliteEventStore::AddPool(const PoolRecord& pool) {
+  RETURN_IF_ERROR(CheckHealth());
   absl::MutexLock lock(&mu_);
   ASSIGN_OR_RETURN(
       Statement st,

@@ -87,6 +87,10 @@ class SqliteEventStore final : public EventStore {
                                             absl::Time updated_at) override;
   absl::StatusOr<EventRecord> GetEvent(int64_t event_id) override;
   absl::StatusOr<int64_t> AddPool(const PoolRecord& pool) override;
+  // FAILED_PRECONDITION naming the path when the database file was removed
+  // or replaced since it was opened: writes would then be acknowledged and
+  // lost at the next start. Every write checks this first.
+  absl::Status CheckHealth() override;
   absl::StatusOr<PoolRecord> LatestPool(const BanditConfig& config) override;
   absl::StatusOr<PageResult<EventRecord>> ListEvents(const std::string& user_id,
                                                      const std::string& meal_id,
@@ -95,7 +99,8 @@ class SqliteEventStore final : public EventStore {
       const std::string& user_id) override;
 
  private:
-  SqliteEventStore(sqlite3* db, int lock_fd);
+  SqliteEventStore(sqlite3* db, int lock_fd, std::string path, uint64_t device,
+                   uint64_t inode);
 
   absl::StatusOr<UserRecord> GetUserLocked(const std::string& user_id)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
@@ -107,6 +112,10 @@ class SqliteEventStore final : public EventStore {
   sqlite3* const db_ ABSL_PT_GUARDED_BY(mu_);
   // The store's lock file, held while the store is open; -1 for ":memory:".
   const int lock_fd_;
+  // The database file as opened (device and inode; both 0 for ":memory:").
+  const std::string path_;
+  const uint64_t device_;
+  const uint64_t inode_;
 };
 
 }  // namespace bitewise::bandit

@@ -819,6 +819,21 @@ TEST_F(SqliteEventStoreTest, ASecondStoreOnTheSameFileIsRefused) {
   EXPECT_TRUE(third.ok()) << third.status();
 }
 
+// A database file removed (or replaced) under a running service: writes
+// would be acknowledged and lost at the next start, so none is accepted.
+TEST_F(SqliteEventStoreTest, WritesAreRefusedOnceTheFileIsRemoved) {
+  ASSERT_TRUE(store_->CreateUser(MakeUser("ann")).ok());
+  EXPECT_TRUE(store_->CheckHealth().ok());
+  std::filesystem::remove(path_);
+  const absl::Status health = store_->CheckHealth();
+  EXPECT_EQ(health.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(health.message(), HasSubstr(path_ + " was removed or replaced"));
+  auto appended = store_->AppendPending(MakeEvent("ann", "m1"));
+  EXPECT_EQ(appended.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ(store_->CreateUser(MakeUser("bob")).code(),
+            absl::StatusCode::kFailedPrecondition);
+}
+
 // A file whose pages were damaged is not served as if it were whole.
 TEST_F(SqliteEventStoreTest, ADamagedFileIsDataLossNotAnEmptyStore) {
   ASSERT_TRUE(store_->CreateUser(MakeUser("ann")).ok());

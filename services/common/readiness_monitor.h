@@ -1,0 +1,33 @@
+// ReadinessMonitor: makes a service's gRPC health status follow real
+// readiness. It polls `live` (the F/T stream is sane, the database file is
+// still the one opened, ...) and reports every change to `set_serving`, the
+// first at once. Stops on destruction. Thread-safe.
+#ifndef BITEWISE_SERVICES_COMMON_READINESS_MONITOR_H_
+#define BITEWISE_SERVICES_COMMON_READINESS_MONITOR_H_
+
+#include <functional>
+#include <thread>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/synchronization/mutex.h"
+
+namespace bitewise {
+
+class ReadinessMonitor {
+ public:
+  ReadinessMonitor(std::function<bool()> live,
+                   std::function<void(bool)> set_serving,
+                   double period_s = 0.05);
+  ~ReadinessMonitor();
+  ReadinessMonitor(const ReadinessMonitor&) = delete;
+  ReadinessMonitor& operator=(const ReadinessMonitor&) = delete;
+
+ private:
+  absl::Mutex mu_;
+  bool stop_ ABSL_GUARDED_BY(mu_) = false;
+  std::thread thread_;
+};
+
+}  // namespace bitewise
+
+#endif  // BITEWISE_SERVICES_COMMON_READINESS_MONITOR_H_
