@@ -10,6 +10,7 @@
 #include <functional>
 #include <future>
 #include <memory>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -285,6 +286,16 @@ void ExpectAStepOfFortyNewtonsStopsTheDescent(RobotBackend* backend) {
           sim::SimNetFtFaults faults = backend->box()->faults();
           faults.press_n = 40.0;
           backend->box()->SetFaults(faults);
+          // Measure the robot's reaction, not the simulated box's
+          // scheduling on a loaded machine: wait until the client has the
+          // pressed sample before the descent's first tick.
+          const double until_s = SteadyNowS() + 2.0;
+          while (SteadyNowS() < until_s) {
+            const std::optional<netft::FtSample> latest =
+                backend->ft()->Latest();
+            if (latest && latest->wrench.force_n[2] > 30.0) break;
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+          }
         }
         return true;
       });
