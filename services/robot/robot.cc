@@ -209,13 +209,12 @@ class Robot::Run {
           robot_->ft_->name(), 1e3 * health.silent_for_s,
           AcquirePhaseName(phase), 1e3 * config_.watchdog_timeout_s));
     }
-    if (health.counter.state == netft::CounterClockState::kFault) {
+    // Wrong sensing stops the arm as surely as absent sensing: a fault
+    // status word from the box, or a counter that cannot be trusted.
+    if (absl::Status sane = robot_->ft_->CheckDuringMotion(); !sane.ok()) {
       RETURN_IF_ERROR(HaltArm());
-      return absl::UnavailableError(absl::StrCat(robot_->ft_->name(), ": ",
-                                                 health.counter.problem,
-                                                 "; arm stopped "
-                                                 "during ",
-                                                 AcquirePhaseName(phase)));
+      return absl::UnavailableError(absl::StrCat(
+          sane.message(), "; arm stopped during ", AcquirePhaseName(phase)));
     }
     if (!Report(phase, /*force=*/false)) {
       RETURN_IF_ERROR(HaltArm());

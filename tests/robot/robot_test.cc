@@ -362,6 +362,23 @@ TEST_F(RobotTest, ACounterThatStallsMidDescentStopsTheArm) {
   EXPECT_EQ(backend_->sim_arm()->commands(), commands);
 }
 
+TEST_F(RobotTest, AFaultStatusWordMidDescentStopsTheArm) {
+  Start({"banana"});
+  std::atomic<bool> descending{false};
+  auto running =
+      AcquireAsync(TargetOfItem(0), 0, AcquirePhase::kDescend, &descending);
+  ASSERT_TRUE(WaitFor([&] { return descending.load(); }));
+  SetFault([](sim::SimNetFtFaults* f) { f->status_word = 0x00010000; });
+  absl::StatusOr<AcquireOutcome> outcome = running.get();
+  EXPECT_EQ(outcome.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(outcome.status().message(),
+              AllOf(HasSubstr("reports fault status 0x00010000"),
+                    HasSubstr("arm stopped during descend")));
+  EXPECT_GE(backend_->sim_arm()->halts(), 1);
+  EXPECT_TRUE(ArmFrozen());
+  EXPECT_FALSE(backend_->FtLive());
+}
+
 TEST_F(RobotTest, ACounterThatWrapsIsNotAFault) {
   RobotBackendOptions options = SimOptions({"banana", "kiwi"}, 3);
   // 2^32 is reached about a second after the box boots: mid-acquisition.

@@ -277,27 +277,17 @@ absl::Status NetFtRdtClient::CheckLive() const {
     case StreamState::kStreaming:
       break;
   }
-  {
-    absl::MutexLock lock(&mu_);
-    if (stats_.last_status != 0) {
-      return absl::UnavailableError(absl::StrFormat(
-          "%s reports fault status 0x%08x", name_, stats_.last_status));
-    }
-  }
-  const CounterClockReport& counter = health.counter;
-  if (counter.state != CounterClockState::kOk) {
-    return absl::UnavailableError(absl::StrCat(name_, ": ", counter.problem));
-  }
-  return absl::OkStatus();
+  return CheckDuringMotion();
 }
 
-absl::Status NetFtRdtClient::CheckCounter() const {
-  CounterClockReport counter;
-  {
-    absl::MutexLock lock(&mu_);
-    counter = clock_.Report();
+absl::Status NetFtRdtClient::CheckDuringMotion() const {
+  absl::MutexLock lock(&mu_);
+  if (stats_.last_status != 0) {
+    return absl::UnavailableError(absl::StrFormat(
+        "%s reports fault status 0x%08x", name_, stats_.last_status));
   }
-  if (counter.state == CounterClockState::kFault) {
+  const CounterClockReport counter = clock_.Report();
+  if (counter.state != CounterClockState::kOk) {
     return absl::UnavailableError(absl::StrCat(name_, ": ", counter.problem));
   }
   return absl::OkStatus();

@@ -146,10 +146,10 @@ class NetFtRdtClient {
   // verified or in fault (the message gives measured and expected rates).
   absl::Status CheckLive() const;
 
-  // Only the counter part of CheckLive(): UNAVAILABLE naming the sensor
-  // while the counter is in fault. For the control loop, which checks
-  // silence with its own watchdog.
-  absl::Status CheckCounter() const;
+  // CheckLive() without the silence checks, for the control loop, which
+  // applies its own watchdog: UNAVAILABLE naming the sensor while the box
+  // reports a fault status word or the counter is not verified sane.
+  absl::Status CheckDuringMotion() const;
 
   StreamHealth Health() const;
   RdtStats stats() const;

@@ -217,7 +217,7 @@ void SimNetFtBox::Stream(double now_s) {
               faults_.counter_offset_counts));
     }
     record.ft_sequence = last_ft_sequence_;
-    record.status = 0;
+    record.status = faults_.status_word;
     for (int i = 0; i < 3; ++i) {
       const double f = last_clean_.force_n[i] + bias_.force_n[i] +
                        drift_.force_n[i] - tare_.force_n[i] +

@@ -64,6 +64,9 @@ struct SimNetFtFaults {
   // backwards).
   bool counter_frozen = false;
   int64_t counter_offset_counts = 0;
+  // Sent as every record's status word (non-zero: the box reports a
+  // fault, e.g. a saturated gauge).
+  uint32_t status_word = 0;
   // A load on the fork (N, along the sensor's z) that the world does not
   // know of: someone pressing the fork, or an unexpected obstacle.
   double press_n = 0.0;
