@@ -165,6 +165,21 @@ double ResolvedLambdaC(const SimMealsConfig& config) {
   return config.rho_c * msn;
 }
 
+absl::StatusOr<std::vector<const sim::FoodType*>> MealFoods(
+    const SimMealsConfig& config) {
+  if (config.food_names.empty()) return sim::UnseenFoods();
+  std::vector<const sim::FoodType*> foods;
+  for (const std::string& name : config.food_names) {
+    const sim::FoodType* food = sim::FindFood(name);
+    if (food == nullptr) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("food_names: unknown food \"", name, "\""));
+    }
+    foods.push_back(food);
+  }
+  return foods;
+}
+
 int ResolvedPlatesPerTrial(const SimMealsConfig& config) {
   return config.plates_per_trial > 0 ? config.plates_per_trial
                                      : config.attempts_per_food;
@@ -201,16 +216,8 @@ absl::StatusOr<std::unique_ptr<SimMealsSimulator>> SimMealsSimulator::Create(
 absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
     const SimMealsConfig& config, uint64_t seed) const {
   RETURN_IF_ERROR(ValidateSimMealsConfig(config));
-  std::vector<const sim::FoodType*> foods;
-  if (config.food_names.empty()) foods = sim::UnseenFoods();
-  for (const std::string& name : config.food_names) {
-    const sim::FoodType* food = sim::FindFood(name);
-    if (food == nullptr) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("food_names: unknown food \"", name, "\""));
-    }
-    foods.push_back(food);
-  }
+  ASSIGN_OR_RETURN(const std::vector<const sim::FoodType*> foods,
+                   MealFoods(config));
   const int num_foods = static_cast<int>(foods.size());
   const int plates_per_trial = ResolvedPlatesPerTrial(config);
 

@@ -108,6 +108,10 @@ struct SimMealsConfig {
 
 // The lambda_c the learners use under `config` (see SimMealsConfig).
 double ResolvedLambdaC(const SimMealsConfig& config);
+// The meal's foods under `config`: food_names from the catalogue, or the
+// eight unseen foods. INVALID_ARGUMENT naming an unknown food.
+absl::StatusOr<std::vector<const sim::FoodType*>> MealFoods(
+    const SimMealsConfig& config);
 // The plates per trial under `config` (see SimMealsConfig).
 int ResolvedPlatesPerTrial(const SimMealsConfig& config);
 

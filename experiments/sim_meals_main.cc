@@ -144,18 +144,13 @@ int Run() {
                   "<model>.stats?): pass --lambda_c\n");
     return 2;
   }
-  std::vector<const sim::FoodType*> foods = sim::UnseenFoods();
-  if (!config.food_names.empty()) {
-    foods.clear();
-    for (const std::string& name : config.food_names) {
-      const sim::FoodType* food = sim::FindFood(name);
-      if (food == nullptr) {
-        absl::FPrintF(stderr, "--foods: unknown food %s\n", name);
-        return 2;
-      }
-      foods.push_back(food);
-    }
+  const absl::StatusOr<std::vector<const sim::FoodType*>> meal_foods =
+      MealFoods(config);
+  if (!meal_foods.ok()) {
+    absl::FPrintF(stderr, "--foods: %s\n", meal_foods.status().ToString());
+    return 2;
   }
+  const std::vector<const sim::FoodType*>& foods = *meal_foods;
   const int num_foods = static_cast<int>(foods.size());
   const std::vector<LearnerSpec> learners = Learners();
   const int kLearners = static_cast<int>(learners.size());
@@ -283,10 +278,10 @@ int Run() {
           .count();
   const int last = attempts - 1;
   absl::PrintF(
-      "simulated meals: %d trials x %d attempts (8 foods x %d, %s order, %d "
+      "simulated meals: %d trials x %d attempts (%d foods x %d, %s order, %d "
       "plate(s) per trial), alpha=%g lambda_c=%g (rho_c %g) lambda_p=%g, "
       "Thompson v=%g, seed %d\n",
-      trials, attempts, config.attempts_per_food, order,
+      trials, attempts, num_foods, config.attempts_per_food, order,
       ResolvedPlatesPerTrial(config), config.alpha, ResolvedLambdaC(config),
       ResolvedLambdaC(config) / config.context_msn, config.lambda_p,
       config.thompson_v, absl::GetFlag(FLAGS_seed));

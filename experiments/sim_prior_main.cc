@@ -20,6 +20,7 @@
 #include "absl/strings/str_split.h"
 #include "experiments/random.h"
 #include "experiments/sim_meals.h"
+#include "experiments/trial_stats.h"
 #include "services/bandit/core/population_prior.h"
 #include "services/sim/food_catalog.h"
 
@@ -37,20 +38,17 @@ ABSL_FLAG(uint64_t, seed, 1, "Base seed.");
 namespace bitewise::experiments {
 namespace {
 
-struct Tally {
-  std::vector<double> values;
-  double Mean() const {
-    double s = 0;
-    for (double v : values) s += v;
-    return s / values.size();
-  }
-  double HalfWidth() const {  // 1.96 standard errors
-    const double m = Mean();
-    double ss = 0;
-    for (double v : values) ss += (v - m) * (v - m);
-    return 1.96 * std::sqrt(ss / (values.size() - 1) / values.size());
-  }
+// Mean and 95% half-width (1.96 standard errors) of one value per person.
+struct Interval {
+  double mean;
+  double half_width;
 };
+Interval MeanInterval(const std::vector<double>& values) {
+  std::vector<std::vector<double>> curves;
+  for (double v : values) curves.push_back({v});
+  const CurveSummary summary = SummarizeCurves(curves);
+  return {summary.mean[0], 1.96 * summary.standard_error[0]};
+}
 
 int Run() {
   std::vector<double> weights;
@@ -89,8 +87,8 @@ int Run() {
     absl::FPrintF(stderr, "counts must be positive (new_users >= 2)\n");
     return 2;
   }
-  Tally without;
-  std::vector<Tally> with(weights.size()), diff(weights.size());
+  std::vector<double> without;
+  std::vector<std::vector<double>> with(weights.size()), diff(weights.size());
   for (int f = 0; f < facilities; ++f) {
     const uint64_t facility_seed = MixSeed(base, 1000 + f);
     std::vector<bandit::LinUcbModel> pool;
@@ -138,7 +136,7 @@ int Run() {
                                    HapticContext::kLogProbabilities, seed);
       if (!plain.ok()) return 1;
       const double base_failures = plain->cumulative_failures.back();
-      without.values.push_back(base_failures);
+      without.push_back(base_failures);
       for (size_t w = 0; w < weights.size(); ++w) {
         auto model = bandit::LinUcbModel::Create(SimUserConfig(
             meal, bandit::Learner::kPostHoc, bandit::Strategy::kLinUcb,
@@ -148,9 +146,8 @@ int Run() {
         auto run = PlaySimMeal(*world, HapticContext::kLogProbabilities, seed,
                                0, *model);
         if (!run.ok()) return 1;
-        with[w].values.push_back(run->cumulative_failures.back());
-        diff[w].values.push_back(base_failures -
-                                 run->cumulative_failures.back());
+        with[w].push_back(run->cumulative_failures.back());
+        diff[w].push_back(base_failures - run->cumulative_failures.back());
       }
     }
     absl::FPrintF(stderr, "facility %d/%d done\n", f + 1, facilities);
@@ -162,18 +159,18 @@ int Run() {
       facilities, pool_users, pool_meals, pool_foods, new_users, base);
   absl::PrintF(
       "new person's first-meal failures (of 64; mean, 95%% interval):\n");
-  absl::PrintF("  without the prior        %6.2f [%.2f, %.2f]\n",
-               without.Mean(), without.Mean() - without.HalfWidth(),
-               without.Mean() + without.HalfWidth());
+  const Interval plain = MeanInterval(without);
+  absl::PrintF("  without the prior        %6.2f [%.2f, %.2f]\n", plain.mean,
+               plain.mean - plain.half_width, plain.mean + plain.half_width);
   for (size_t w = 0; w < weights.size(); ++w) {
+    const Interval primed = MeanInterval(with[w]);
+    const Interval d = MeanInterval(diff[w]);
     absl::PrintF(
         "  with the prior, n0 = %-4g %6.2f [%.2f, %.2f]   paired without "
         "minus with: %+.2f [%+.2f, %+.2f] (%+.1f%% fewer)\n",
-        weights[w], with[w].Mean(), with[w].Mean() - with[w].HalfWidth(),
-        with[w].Mean() + with[w].HalfWidth(), diff[w].Mean(),
-        diff[w].Mean() - diff[w].HalfWidth(),
-        diff[w].Mean() + diff[w].HalfWidth(),
-        100.0 * diff[w].Mean() / without.Mean());
+        weights[w], primed.mean, primed.mean - primed.half_width,
+        primed.mean + primed.half_width, d.mean, d.mean - d.half_width,
+        d.mean + d.half_width, 100.0 * d.mean / plain.mean);
   }
   return 0;
 }

@@ -86,8 +86,11 @@ CREATE INDEX events_by_meal ON events (user_id, meal_id, event_id);
 -- (pending rows have NULL there, and NULLs do not collide).
 CREATE UNIQUE INDEX events_by_completion
   ON events (user_id, completed, model_version);
-)sql"
-                              R"sql(
+)sql";
+
+// The population pools (schema 2), created with a new store and by the
+// migration from version 1.
+constexpr char kPoolsSql[] = R"sql(
 CREATE TABLE population_pools (
   pool_version INTEGER PRIMARY KEY AUTOINCREMENT,
   created_at_us INTEGER NOT NULL,
@@ -100,19 +103,9 @@ CREATE TABLE population_pools (
 ) STRICT;
 )sql";
 
-// Version 1 -> 2.
+// Version 1 -> 2: the users' priors, then kPoolsSql.
 constexpr char kMigrateTo2Sql[] = R"sql(
 ALTER TABLE users ADD COLUMN prior BLOB;
-CREATE TABLE population_pools (
-  pool_version INTEGER PRIMARY KEY AUTOINCREMENT,
-  created_at_us INTEGER NOT NULL,
-  users INTEGER NOT NULL,
-  learner INTEGER NOT NULL,
-  context_dim INTEGER NOT NULL,
-  posthoc_dim INTEGER NOT NULL,
-  action_names TEXT NOT NULL,
-  prior BLOB NOT NULL
-) STRICT;
 )sql";
 
 constexpr char kUserColumns[] = R"sql(
@@ -766,6 +759,7 @@ absl::Status InitializeDatabase(sqlite3* db,
   ASSIGN_OR_RETURN(const int64_t version, CheckExistingFile(db, path));
   if (version == 0) {
     RETURN_IF_ERROR(Exec(db, kSchemaSql, op));
+    RETURN_IF_ERROR(Exec(db, kPoolsSql, op));
     RETURN_IF_ERROR(Exec(
         db, absl::StrCat("PRAGMA application_id = ", kApplicationId).c_str(),
         op));
@@ -774,6 +768,7 @@ absl::Status InitializeDatabase(sqlite3* db,
              op));
   } else if (version == 1) {
     RETURN_IF_ERROR(Exec(db, kMigrateTo2Sql, op));
+    RETURN_IF_ERROR(Exec(db, kPoolsSql, op));
     RETURN_IF_ERROR(Exec(db, "PRAGMA user_version = 2", op));
   }
   return txn.Commit();
