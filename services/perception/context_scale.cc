@@ -12,16 +12,24 @@
 
 namespace bitewise::perception {
 
+std::vector<StatsLine> StatsLines(absl::string_view text) {
+  std::vector<StatsLine> lines;
+  int number = 0;
+  for (absl::string_view line : absl::StrSplit(text, '\n')) {
+    ++number;
+    line = absl::StripAsciiWhitespace(line);
+    if (line.empty() || line.front() == '#') continue;
+    lines.push_back(
+        {number, line, absl::StrSplit(line, ' ', absl::SkipEmpty())});
+  }
+  return lines;
+}
+
 absl::StatusOr<double> ParseContextScale(const std::string& text) {
   int version = 0;
   double norm = 0.0;
-  int line_number = 0;
-  for (absl::string_view line : absl::StrSplit(text, '\n')) {
-    ++line_number;
-    line = absl::StripAsciiWhitespace(line);
-    if (line.empty() || line.front() == '#') continue;
-    const std::vector<absl::string_view> fields =
-        absl::StrSplit(line, ' ', absl::SkipEmpty());
+  for (const StatsLine& line : StatsLines(text)) {
+    const std::vector<absl::string_view>& fields = line.fields;
     const bool ok =
         fields.size() == 2 &&
         ((fields[0] == "version" && absl::SimpleAtoi(fields[1], &version) &&
@@ -30,10 +38,10 @@ absl::StatusOr<double> ParseContextScale(const std::string& text) {
           absl::SimpleAtod(fields[1], &norm) && norm > 0.0 && norm < 1e300));
     if (!ok) {
       return absl::InvalidArgumentError(absl::StrCat(
-          "context scale line ", line_number,
+          "context scale line ", line.number,
           ": expected \"version <n >= 1>\" or \"mean_squared_norm <x > 0>\", "
           "got \"",
-          line, "\""));
+          line.text, "\""));
     }
   }
   if (version < 1 || norm <= 0.0) {

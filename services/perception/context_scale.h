@@ -9,10 +9,22 @@
 #define BITEWISE_SERVICES_PERCEPTION_CONTEXT_SCALE_H_
 
 #include <string>
+#include <vector>
 
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 
 namespace bitewise::perception {
+
+// One entry of a statistics file (this format and the default featurizer's
+// statistics): its 1-based line number, the stripped line, and its
+// space-separated fields. Blank lines and '#' comments are not entries.
+struct StatsLine {
+  int number = 0;
+  absl::string_view text;
+  std::vector<absl::string_view> fields;
+};
+std::vector<StatsLine> StatsLines(absl::string_view text);
 
 // The mean squared norm in `text`. INVALID_ARGUMENT naming the line when an
 // entry is unknown or malformed, or when the version or the norm is missing.

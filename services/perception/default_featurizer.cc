@@ -12,6 +12,7 @@
 #include "absl/strings/strip.h"
 #include "opencv2/imgproc.hpp"
 #include "services/common/status_macros.h"
+#include "services/perception/context_scale.h"
 #include "services/perception/default_featurizer_stats_data.h"
 
 namespace bitewise::perception {
@@ -49,17 +50,12 @@ absl::StatusOr<DefaultFeaturizerStats> ParseDefaultFeaturizerStats(
   DefaultFeaturizerStats stats;
   stats.mean.assign(kDefaultFeatureDim, std::nan(""));
   stats.sd.assign(kDefaultFeatureDim, std::nan(""));
-  int line_number = 0;
-  for (absl::string_view line : absl::StrSplit(text, '\n')) {
-    ++line_number;
-    line = absl::StripAsciiWhitespace(line);
-    if (line.empty() || line.front() == '#') continue;
-    const std::vector<absl::string_view> fields =
-        absl::StrSplit(line, ' ', absl::SkipEmpty());
+  for (const StatsLine& line : StatsLines(text)) {
+    const std::vector<absl::string_view>& fields = line.fields;
     auto bad = [&](absl::string_view why) {
       return absl::InvalidArgumentError(
-          absl::StrCat("featurizer statistics line ", line_number, ": ", why,
-                       ": \"", line, "\""));
+          absl::StrCat("featurizer statistics line ", line.number, ": ", why,
+                       ": \"", line.text, "\""));
     };
     if (fields[0] == "version" && fields.size() == 2) {
       if (!absl::SimpleAtoi(fields[1], &stats.version)) {
