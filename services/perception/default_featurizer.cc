@@ -8,8 +8,6 @@
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
-#include "absl/strings/str_split.h"
-#include "absl/strings/strip.h"
 #include "opencv2/imgproc.hpp"
 #include "services/common/status_macros.h"
 #include "services/perception/context_scale.h"
