@@ -12,6 +12,7 @@
 #include "services/common/server_flags.h"
 #include "services/perception/default_featurizer.h"
 #include "services/perception/food_detector.h"
+#include "services/perception/model_check.h"
 #include "services/perception/perception_service.h"
 #include "services/perception/spanet_featurizer.h"
 
@@ -21,6 +22,16 @@ ABSL_FLAG(std::string, featurizer, "default",
 ABSL_FLAG(std::string, spanet_model, "",
           "SPANet ONNX file (interface in docs/perception.md). Loaded and "
           "checked before the service reports SERVING.");
+ABSL_FLAG(bool, check_model, false,
+          "Load and check the featurizer (and its model) as the service "
+          "would, featurize --check_crops if given, print a summary and "
+          "exit without serving: 0 if the model is fit to serve.");
+ABSL_FLAG(std::string, check_crops, "",
+          "With --check_model: PNG crops to featurize, as "
+          "PATH[:isolated|wall|lettuce],...");
+ABSL_FLAG(std::string, check_out, "",
+          "With --check_crops: directory for crop<i>.txt (context, action "
+          "scores, skewer points) and crop<i>.canvas.png (SPANet's input).");
 ABSL_FLAG(double, min_food_height_mm, 4.0,
           "Height above the plate from which DetectFood counts a pixel as "
           "food.");
@@ -61,6 +72,29 @@ int main(int argc, char** argv) {
                                  absl::InvalidArgumentError(absl::StrCat(
                                      "--featurizer: unknown featurizer \"",
                                      which, "\" (default or spanet)")));
+  }
+  if (absl::GetFlag(FLAGS_check_model)) {
+    const std::string spec = absl::GetFlag(FLAGS_check_crops);
+    if (!spec.empty()) {
+      auto crops = bitewise::perception::ParseCheckCrops(spec);
+      if (!crops.ok()) {
+        return bitewise::ReportFatal(kProgram, "bad flags", crops.status());
+      }
+      const std::string out_dir = absl::GetFlag(FLAGS_check_out);
+      if (out_dir.empty()) {
+        return bitewise::ReportFatal(
+            kProgram, "bad flags",
+            absl::InvalidArgumentError("--check_crops needs --check_out"));
+      }
+      absl::Status checked =
+          bitewise::perception::RunModelCheck(*featurizer, *crops, out_dir);
+      if (!checked.ok()) {
+        return bitewise::ReportFatal(kProgram, "model check failed", checked);
+      }
+    }
+    std::printf("%s: featurizer %s loaded and run (%d numbers per context)\n",
+                kProgram, featurizer->name().c_str(), featurizer->dimension());
+    return 0;
   }
   bitewise::perception::FoodDetectorOptions detector_options;
   detector_options.min_height_mm = absl::GetFlag(FLAGS_min_food_height_mm);

@@ -1,14 +1,17 @@
 #include "services/perception/spanet_featurizer.h"
 
 #include <algorithm>
+#include <array>
+#include <cstdint>
 #include <fstream>
 #include <utility>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
-#include "opencv2/imgproc.hpp"
 #include "services/common/status_macros.h"
 #include "services/perception/context_scale.h"
+#include "services/perception/lanczos_resize.h"
+#include "services/perception/spanet_onnx.h"
 
 namespace bitewise::perception {
 namespace {
@@ -21,29 +24,41 @@ constexpr char kScoresOutput[] = "scores";
 }  // namespace
 
 SpanetPlacement SpanetPlacementFor(int crop_width, int crop_height) {
+  // As SPANet's Python: ratio = 144 / longer side in double precision, each
+  // side int(side * ratio). The longer side can come out at 143 when the
+  // product rounds just below 144, and the reference does the same.
+  const double ratio =
+      static_cast<double>(kSpanetImageSize) / std::max(crop_width, crop_height);
   SpanetPlacement p;
-  if (crop_width >= crop_height) {
-    p.width = kSpanetImageSize;
-    p.height = std::max(1, crop_height * kSpanetImageSize / crop_width);
-  } else {
-    p.height = kSpanetImageSize;
-    p.width = std::max(1, crop_width * kSpanetImageSize / crop_height);
-  }
+  p.width = std::max(1, static_cast<int>(crop_width * ratio));
+  p.height = std::max(1, static_cast<int>(crop_height * ratio));
   p.offset_x = (kSpanetImageSize - p.width) / 2;
   p.offset_y = (kSpanetImageSize - p.height) / 2;
   return p;
 }
 
-cv::Mat SpanetCanvas(const cv::Mat& rgb_crop) {
+cv::Mat SpanetCanvas8u(const cv::Mat& rgb_crop) {
   const SpanetPlacement p = SpanetPlacementFor(rgb_crop.cols, rgb_crop.rows);
-  const bool shrinking = p.width <= rgb_crop.cols;
-  cv::Mat resized;
-  cv::resize(rgb_crop, resized, cv::Size(p.width, p.height), 0, 0,
-             shrinking ? cv::INTER_AREA : cv::INTER_LINEAR);
-  cv::Mat canvas(kSpanetImageSize, kSpanetImageSize, CV_32FC3,
+  cv::Mat canvas(kSpanetImageSize, kSpanetImageSize, CV_8UC3,
                  cv::Scalar(0, 0, 0));
-  resized.convertTo(canvas(cv::Rect(p.offset_x, p.offset_y, p.width, p.height)),
-                    CV_32FC3, 1.0 / 255.0);
+  ResizeLanczosAsPil(rgb_crop, cv::Size(p.width, p.height))
+      .copyTo(canvas(cv::Rect(p.offset_x, p.offset_y, p.width, p.height)));
+  return canvas;
+}
+
+cv::Mat SpanetCanvas(const cv::Mat& rgb_crop) {
+  // v / 255 in float, as torchvision's ToTensor (a float division, which
+  // can differ in the last bit from multiplying by 1/255).
+  static const std::array<float, 256> kUnit = [] {
+    std::array<float, 256> t{};
+    for (int v = 0; v < 256; ++v) t[v] = static_cast<float>(v) / 255.0f;
+    return t;
+  }();
+  const cv::Mat bytes = SpanetCanvas8u(rgb_crop);
+  cv::Mat canvas(bytes.size(), CV_32FC3);
+  const uint8_t* in = bytes.ptr<uint8_t>(0);
+  float* out = canvas.ptr<float>(0);
+  for (size_t i = 0; i < bytes.total() * 3; ++i) out[i] = kUnit[in[i]];
   return canvas;
 }
 
@@ -60,6 +75,7 @@ absl::StatusOr<std::unique_ptr<SpanetFeaturizer>> SpanetFeaturizer::Load(
                        "\" does not exist or cannot be opened"));
     }
   }
+  RETURN_IF_ERROR(CheckSpanetOnnxGraph(model_path));
   cv::dnn::Net net;
   try {
     net = cv::dnn::readNetFromONNX(model_path);

@@ -24,9 +24,10 @@ constexpr int kSpanetFeatureDim = 2048;
 // Head: 2 skewer points (4 numbers), then 6 action success rates.
 constexpr int kSpanetScores = 10;
 
-// Where a crop lands on SPANet's canvas: its longer side scaled to 144, the
-// shorter one by the same ratio (rounded down, as PIL's int() does), centred
-// with the remainder split as (144 - size) / 2 on the top/left.
+// Where a crop lands on SPANet's canvas, exactly as SPANet's Python
+// computes it: ratio = 144 / longer side (double), each side
+// int(side * ratio) (at least 1), centred with the remainder split as
+// (144 - size) / 2 on the top/left.
 struct SpanetPlacement {
   int width = 0;
   int height = 0;
@@ -35,9 +36,13 @@ struct SpanetPlacement {
 };
 SpanetPlacement SpanetPlacementFor(int crop_width, int crop_height);
 
-// SPANet's input image for an RGB8 crop: the aspect-preserving resize above
-// (area averaging when shrinking, bilinear when enlarging) pasted on a black
-// 144x144 canvas, as CV_32FC3 RGB in [0, 1] with no mean or std removed.
+// SPANet's input image for an RGB8 crop, byte for byte what its own
+// preprocessing makes: the crop resized as PIL's LANCZOS (ANTIALIAS) does
+// (lanczos_resize.h) and pasted on a black 144x144 canvas. CV_8UC3, RGB.
+cv::Mat SpanetCanvas8u(const cv::Mat& rgb_crop);
+
+// The same canvas as the network takes it: CV_32FC3 RGB, each byte / 255
+// in float (torchvision's ToTensor), no mean or std removed.
 cv::Mat SpanetCanvas(const cv::Mat& rgb_crop);
 
 // Thread-safe: calls into the network are serialised (a cv::dnn::Net is not

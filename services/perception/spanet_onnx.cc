@@ -5,9 +5,12 @@
 #include <fstream>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/string_view.h"
 #include "onnx/onnx_pb.h"
 
 namespace bitewise::perception {
@@ -258,6 +261,64 @@ absl::Status WriteSpanetOnnx(const std::string& path,
   if (!model.SerializeToOstream(&out) || !out.flush()) {
     return absl::FailedPreconditionError(
         absl::StrCat("writing the SPANet model to \"", path, "\" failed"));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status CheckSpanetOnnxGraph(const std::string& path) {
+  const auto fail = [&path](absl::string_view what) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("SPANet model file \"", path, "\" ", what));
+  };
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return fail("cannot be opened");
+  onnx::ModelProto model;
+  if (!model.ParseFromIstream(&in)) return fail("is not an ONNX model");
+  const onnx::GraphProto& graph = model.graph();
+  // First, as the likeliest cause of everything else that differs (a
+  // training-mode export also needs a batch of two or more).
+  for (const auto& node : graph.node()) {
+    if (node.op_type() != "BatchNormalization") continue;
+    bool training = node.output_size() > 1;
+    for (const auto& a : node.attribute()) {
+      training |= a.name() == "training_mode" && a.i() != 0;
+    }
+    if (training) {
+      return fail(absl::StrCat(
+          "was exported with BatchNorm in training mode (node \"", node.name(),
+          "\" uses batch statistics); export after model.eval() "
+          "(scripts/spanet/export_onnx.py does)"));
+    }
+  }
+  const auto shape_of = [](const onnx::ValueInfoProto& info) {
+    std::vector<int64_t> dims;
+    for (const auto& d : info.type().tensor_type().shape().dim()) {
+      dims.push_back(d.has_dim_value() ? d.dim_value() : -1);
+    }
+    return dims;
+  };
+  const std::vector<std::pair<std::string, std::vector<int64_t>>> inputs = {
+      {"rgb", {1, 3, 144, 144}}, {"loc_type", {1, 3}}};
+  for (const auto& [name, want] : inputs) {
+    const onnx::ValueInfoProto* found = nullptr;
+    for (const auto& info : graph.input()) {
+      if (info.name() == name) found = &info;
+    }
+    if (found == nullptr) {
+      return fail(absl::StrCat("has no input \"", name, "\""));
+    }
+    if (shape_of(*found) != want) {
+      return fail(
+          absl::StrCat("input \"", name, "\" has shape [",
+                       absl::StrJoin(shape_of(*found), ","), "]; SPANet's is [",
+                       absl::StrJoin(want, ","),
+                       "] (batch fixed at 1; -1 is a symbolic dimension)"));
+    }
+  }
+  for (const char* name : {"features", "scores"}) {
+    bool found = false;
+    for (const auto& info : graph.output()) found |= info.name() == name;
+    if (!found) return fail(absl::StrCat("has no output \"", name, "\""));
   }
   return absl::OkStatus();
 }

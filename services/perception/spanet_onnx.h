@@ -45,6 +45,17 @@ struct SpanetOnnxOptions {
 absl::Status WriteSpanetOnnx(const std::string& path,
                              const SpanetOnnxOptions& options);
 
+// Checks an ONNX file's graph, before OpenCV runs it, for what OpenCV would
+// run silently but wrongly: inputs "rgb" and "loc_type" of static shapes
+// [1,3,144,144] and [1,3], outputs "features" and "scores", and every
+// BatchNormalization in inference mode (one output, no training_mode=1). A
+// graph exported with BatchNorm in training mode would normalise each crop
+// by its own statistics instead of the training set's.
+// Errors: FAILED_PRECONDITION naming the file and what is wrong (unreadable
+// or not ONNX protobuf; missing or misshapen input or output; the first
+// training-mode BatchNormalization node by name).
+absl::Status CheckSpanetOnnxGraph(const std::string& path);
+
 }  // namespace bitewise::perception
 
 #endif  // BITEWISE_SERVICES_PERCEPTION_SPANET_ONNX_H_
