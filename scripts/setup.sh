@@ -12,22 +12,32 @@ PACKAGES=(
   libabsl-dev libeigen3-dev libopencv-dev libonnx-dev
   libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev sqlite3
 )
+# SPANet's PyTorch definition, export tool and their tests (scripts/spanet):
+# CPU PyTorch, without its recommended C++ headers.
+PYTHON_PACKAGES=(python3-torch python3-onnx python3-pil python3-numpy)
 
 step() { printf '\n==> %s\n' "$*"; }
 
-missing=()
-for p in "${PACKAGES[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" ||
-    missing+=("$p")
-done
-if ((${#missing[@]})); then
-  step "Installing ${#missing[@]} missing Debian packages: ${missing[*]}"
-  SUDO=""
-  if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
-  $SUDO apt-get update -q
-  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q \
-    "${missing[@]}"
-fi
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+updated=0
+install_missing() {  # install_missing [apt options] -- packages...
+  local options=() missing=()
+  while [ "$1" != "--" ]; do options+=("$1"); shift; done
+  shift
+  for p in "$@"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" ||
+      missing+=("$p")
+  done
+  if ((${#missing[@]})); then
+    step "Installing ${#missing[@]} missing Debian packages: ${missing[*]}"
+    if ((!updated)); then $SUDO apt-get update -q; updated=1; fi
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q \
+      "${options[@]}" "${missing[@]}"
+  fi
+}
+install_missing -- "${PACKAGES[@]}"
+install_missing --no-install-recommends -- "${PYTHON_PACKAGES[@]}"
 
 JOBS="${BITEWISE_JOBS:-$(nproc)}"
 if [ ! -f build/CMakeCache.txt ]; then

@@ -273,7 +273,8 @@ absl::Status CheckSpanetOnnxGraph(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) return fail("cannot be opened");
   onnx::ModelProto model;
-  if (!model.ParseFromIstream(&in)) return fail("is not an ONNX model");
+  if (!model.ParseFromIstream(&in))
+    return fail("is not a loadable ONNX model: it does not parse as ONNX");
   const onnx::GraphProto& graph = model.graph();
   // First, as the likeliest cause of everything else that differs (a
   // training-mode export also needs a batch of two or more).

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -14,8 +15,10 @@
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "onnx/onnx_pb.h"
 #include "services/perception/context_scale.h"
 #include "services/perception/default_featurizer.h"
+#include "services/perception/lanczos_resize.h"
 #include "services/perception/spanet_featurizer.h"
 #include "services/perception/spanet_onnx.h"
 #include "tests/perception/test_frames.h"
@@ -211,6 +214,104 @@ TEST(SpanetLoadTest, TruncatedModelIsFailedPrecondition) {
   std::ofstream(path, std::ios::binary) << head;
   auto loaded = SpanetFeaturizer::Load(path);
   EXPECT_EQ(loaded.status().code(), absl::StatusCode::kFailedPrecondition);
+}
+
+// Rewrites a small generated model through `edit` and loads it.
+absl::Status LoadEdited(const std::string& name,
+                        const std::function<void(onnx::ModelProto*)>& edit) {
+  const std::string path = TempPath(name);
+  SpanetOnnxOptions options;
+  options.hidden_features = 8;
+  if (absl::Status s = WriteSpanetOnnx(path, options); !s.ok()) return s;
+  onnx::ModelProto model;
+  {
+    std::ifstream in(path, std::ios::binary);
+    if (!model.ParseFromIstream(&in)) return absl::InternalError("reparse");
+  }
+  edit(&model);
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    model.SerializeToOstream(&out);
+  }
+  return SpanetFeaturizer::Load(path).status();
+}
+
+TEST(SpanetLoadTest, GraphExportedInTrainingModeIsRefusedNamingTheNode) {
+  // A BatchNormalization that outputs its batch statistics (opset < 14).
+  absl::Status five_outputs = LoadEdited("train5.onnx", [](auto* m) {
+    onnx::NodeProto* bn = nullptr;
+    for (auto& node : *m->mutable_graph()->mutable_node()) {
+      if (node.op_type() == "BatchNormalization" && bn == nullptr) bn = &node;
+    }
+    for (const char* out : {"rm", "rv", "sm", "sv"}) bn->add_output(out);
+  });
+  EXPECT_EQ(five_outputs.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(five_outputs.message(),
+              HasSubstr("exported with BatchNorm in training mode"));
+  EXPECT_THAT(five_outputs.message(), HasSubstr("BatchNormalization_"));
+  // training_mode = 1 (opset 14 and later).
+  absl::Status attribute = LoadEdited("train14.onnx", [](auto* m) {
+    for (auto& node : *m->mutable_graph()->mutable_node()) {
+      if (node.op_type() != "BatchNormalization") continue;
+      onnx::AttributeProto* a = node.add_attribute();
+      a->set_name("training_mode");
+      a->set_type(onnx::AttributeProto::INT);
+      a->set_i(1);
+    }
+  });
+  EXPECT_THAT(attribute.message(),
+              HasSubstr("exported with BatchNorm in training mode"));
+}
+
+TEST(SpanetLoadTest, SymbolicBatchOrMissingOutputIsRefusedNamingIt) {
+  absl::Status symbolic = LoadEdited("dynamic.onnx", [](auto* m) {
+    m->mutable_graph()
+        ->mutable_input(0)
+        ->mutable_type()
+        ->mutable_tensor_type()
+        ->mutable_shape()
+        ->mutable_dim(0)
+        ->set_dim_param("batch");
+  });
+  EXPECT_EQ(symbolic.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(symbolic.message(),
+              HasSubstr("input \"rgb\" has shape [-1,3,144,144]"));
+  absl::Status no_scores = LoadEdited("noscores.onnx", [](auto* m) {
+    m->mutable_graph()->mutable_output()->RemoveLast();
+  });
+  EXPECT_THAT(no_scores.message(), HasSubstr("has no output \"scores\""));
+}
+
+TEST(LanczosResizeTest, KeepsConstantsAndCopiesWhenTheSizeIsUnchanged) {
+  const cv::Mat grey(37, 53, CV_8UC3, cv::Scalar(90, 17, 250));
+  for (const cv::Size size : {cv::Size(144, 99), cv::Size(11, 8),
+                              cv::Size(53, 144), cv::Size(144, 37)}) {
+    const cv::Mat out = ResizeLanczosAsPil(grey, size);
+    ASSERT_EQ(out.size(), size);
+    cv::Mat expected(size, CV_8UC3, cv::Scalar(90, 17, 250));
+    EXPECT_EQ(cv::norm(out, expected, cv::NORM_INF), 0.0) << size;
+  }
+  const cv::Mat same = ResizeLanczosAsPil(grey, grey.size());
+  EXPECT_NE(same.data, grey.data);
+  EXPECT_EQ(cv::norm(same, grey, cv::NORM_INF), 0.0);
+}
+
+TEST(LanczosResizeTest, ShrinkingAveragesAndEnlargingRingsLikeLanczos) {
+  // A one-pixel-wide white line on black: shrunk 4x it spreads to about a
+  // quarter of its value; enlarged 4x it keeps about its peak, and
+  // Lanczos' negative lobe, clipped, leaves black one input pixel beside
+  // it. (Byte-exactness against PIL itself is spanet_pytorch_test's.)
+  cv::Mat line(1, 64, CV_8UC1, cv::Scalar(0));
+  line.at<uint8_t>(0, 32) = 255;
+  const cv::Mat small = ResizeLanczosAsPil(line, cv::Size(16, 1));
+  double peak = 0.0;
+  cv::minMaxLoc(small, nullptr, &peak);
+  EXPECT_NEAR(peak, 255.0 / 4, 255.0 / 8);
+  const cv::Mat big = ResizeLanczosAsPil(line, cv::Size(256, 1));
+  cv::minMaxLoc(big, nullptr, &peak);
+  EXPECT_GE(peak, 240.0);
+  EXPECT_EQ(big.at<uint8_t>(0, 4 * 32 + 2 - 5), 0);
+  EXPECT_EQ(big.at<uint8_t>(0, 4 * 32 + 2 + 5), 0);
 }
 
 TEST(SpanetLoadTest, ModelWithAnotherInterfaceIsFailedPrecondition) {

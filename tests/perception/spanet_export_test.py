@@ -9,6 +9,7 @@ import subprocess
 import sys
 import tempfile
 import unittest
+import warnings
 
 import torch
 
@@ -105,6 +106,8 @@ class ExportRefusesWhatIsNotSpanet(unittest.TestCase):
         model = sm.load_spanet(self.state).train()
         path = self.path("train.onnx")
         # Batch 2: PyTorch cannot run BatchNorm1d in training mode on one.
+        # (PyTorch warns at length about exactly this mistake.)
+        warnings.simplefilter("ignore")
         torch.onnx.export(
             export_onnx._Interface(model),
             (torch.rand(2, 3, 144, 144), torch.eye(3)[[0, 1]]), path,
