@@ -1,6 +1,7 @@
 // Cost of the PerceptionService's core work on a rendered 640x480 D415
 // frame of eight touching unseen foods: DetectFood, the default featurizer
-// and SPANet through OpenCV DNN (the generated, seeded model). Numbers and
+// and SPANet through OpenCV DNN (the generated, seeded model), and
+// SPANet's preprocessing alone. Numbers and
 // how to rerun them are in docs/benchmarks.md.
 #include <cstdlib>
 #include <iostream>
@@ -87,6 +88,19 @@ void BM_FeaturizeSpanet(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_FeaturizeSpanet)->Unit(benchmark::kMillisecond);
+
+// SPANet's preprocessing alone (PIL-exact Lanczos resize and paste) on a
+// square crop of side state.range(0) cut from the frame.
+void BM_SpanetCanvas(benchmark::State& state) {
+  const Scene& scene = RenderedScene();
+  const int side = static_cast<int>(state.range(0));
+  const cv::Mat crop = scene.frame.rgb(cv::Rect(100, 50, side, side));
+  for (auto _ : state) {
+    cv::Mat canvas = SpanetCanvas(crop);
+    benchmark::DoNotOptimize(canvas.data);
+  }
+}
+BENCHMARK(BM_SpanetCanvas)->Arg(60)->Arg(300)->Unit(benchmark::kMicrosecond);
 
 }  // namespace
 }  // namespace bitewise::perception
