@@ -99,7 +99,15 @@ CORE_PATHS=(services/domain services/sim services/bandit/core
   services/perception/default_featurizer.cc
   services/perception/spanet_featurizer.h
   services/perception/spanet_featurizer.cc
-  services/perception/context_scale.h services/perception/context_scale.cc)
+  services/perception/context_scale.h services/perception/context_scale.cc
+  services/perception/lanczos_resize.h services/perception/lanczos_resize.cc
+  services/perception/model_check.h services/perception/model_check.cc
+  services/camera/frame_source.h services/camera/frame_publisher.h
+  services/camera/frame_publisher.cc services/camera/recording.h
+  services/camera/recording.cc services/camera/sim_source.h
+  services/camera/sim_source.cc services/camera/realsense_api.h
+  services/camera/realsense_source.h services/camera/realsense_source.cc
+  services/robot/backend.h services/robot/backend.cc)
 violations=$(grep -rlE '#include [<"](grpcpp/|grpc/|bitewise/v1/)' \
   "${CORE_PATHS[@]}" || true)
 if [ -n "$violations" ]; then

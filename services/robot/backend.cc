@@ -66,6 +66,7 @@ absl::StatusOr<std::unique_ptr<RobotBackend>> RobotBackend::Create(
     }
     arm = backend->jaco2_arm_.get();
     judge = backend->hardware_judge_.get();
+    backend->camera_ = options.hardware.camera;
   }
   ASSIGN_OR_RETURN(backend->ft_, netft::NetFtRdtClient::Connect(ft_options));
   if (options.kind == BackendKind::kSim) {
@@ -105,15 +106,28 @@ int RobotBackend::items_left() const {
   return world_ ? world_->items_left() : -1;
 }
 
-absl::StatusOr<sim::RenderedFrame> RobotBackend::CaptureFrame() {
+absl::StatusOr<domain::RgbdFrame> RobotBackend::CaptureFrame() {
   if (!world_) {
-    return absl::UnimplementedError(
-        "CaptureFrame on hardware needs the RealSense D415 driver, which "
-        "bitewise does not have yet; use --backend=sim");
+    if (camera_ == nullptr) {
+      return absl::FailedPreconditionError(
+          "no camera configured for the hardware backend: start "
+          "bitewise-camera on the camera computer and give its address with "
+          "--camera_address");
+    }
+    return camera_->Capture();
   }
   // Each frame its own noise, reproducibly.
-  const uint64_t noise_seed = render_seed_ * 1000003ULL + frames_++;
-  return sim::RenderPlate(world_->scene(), sim::D415Intrinsics(), noise_seed);
+  const uint64_t sequence = frames_++;
+  sim::RenderedFrame rendered =
+      sim::RenderPlate(world_->scene(), sim::D415Intrinsics(),
+                       render_seed_ * 1000003ULL + sequence);
+  domain::RgbdFrame frame;
+  frame.intrinsics = rendered.intrinsics;
+  frame.rgb = std::move(rendered.rgb);
+  frame.depth_mm = std::move(rendered.depth_mm);
+  frame.sequence = sequence;
+  frame.capture_s = SteadyNowS();
+  return frame;
 }
 
 bool RobotBackend::FtLive() const { return ft_ && ft_->CheckLive().ok(); }

@@ -2,8 +2,10 @@
 // configuration: the simulated world (a kinematic arm, a plate of food and
 // the simulated Net F/T box on loopback, read by the real NetFtRdtClient)
 // or the hardware (the JACO2 through its SDK and a real Net F/T box).
-// Also the camera (simulated frames only) and the readiness signal that the
-// service's health status follows: live only while F/T data streams.
+// Also the camera (the simulated camera, or on hardware a FrameProvider such
+// as CameraClient for the wrist camera's publisher) and the readiness
+// signal that the service's health status follows: live only while F/T
+// data streams.
 //
 // Thread-safe.
 #ifndef BITEWISE_SERVICES_ROBOT_BACKEND_H_
@@ -19,6 +21,7 @@
 
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
+#include "services/domain/rgbd_frame.h"
 #include "services/robot/jaco2/jaco2_arm.h"
 #include "services/robot/netft/netft_rdt_client.h"
 #include "services/robot/robot.h"
@@ -30,6 +33,16 @@
 namespace bitewise::robot {
 
 enum class BackendKind { kSim, kJaco2 };
+
+// Where the hardware backend's frames come from (CameraClient in
+// production). Implementations are thread-safe and never return a frame
+// too old to act on.
+class FrameProvider {
+ public:
+  virtual ~FrameProvider() = default;
+  virtual absl::StatusOr<domain::RgbdFrame> Capture() = 0;
+  virtual std::string name() const = 0;
+};
 
 struct SimBackendOptions {
   // Seeds the plate, the world's outcomes, the box's noise and faults.
@@ -48,6 +61,9 @@ struct HardwareBackendOptions {
   // Success when the static load after extraction reaches this (N); 0 or
   // less leaves the decision to the operator.
   double static_load_threshold_n = 0.02;
+  // The wrist camera; not owned, must outlive the backend. Null: no
+  // camera (CaptureFrame is FAILED_PRECONDITION saying so).
+  FrameProvider* camera = nullptr;
 };
 
 struct RobotBackendOptions {
@@ -80,9 +96,10 @@ class RobotBackend {
   sim::SimArm* sim_arm() { return sim_arm_.get(); }
   netft::NetFtRdtClient* ft() { return ft_.get(); }
 
-  // One RGB-D frame of the plate. UNIMPLEMENTED on hardware: the D415
-  // driver is not part of bitewise yet.
-  absl::StatusOr<sim::RenderedFrame> CaptureFrame();
+  // One RGB-D frame of the plate: rendered in simulation; on hardware the
+  // camera's (its errors, e.g. FAILED_PRECONDITION for a stale frame), or
+  // FAILED_PRECONDITION when no camera was configured.
+  absl::StatusOr<domain::RgbdFrame> CaptureFrame();
 
   // True while the F/T stream is live (the health status follows this).
   bool FtLive() const;
@@ -99,6 +116,7 @@ class RobotBackend {
   std::unique_ptr<netft::NetFtRdtClient> ft_;
   std::unique_ptr<SuccessJudge> hardware_judge_;
   std::unique_ptr<Robot> robot_;
+  FrameProvider* camera_ = nullptr;
   uint64_t render_seed_ = 0;
   std::atomic<uint64_t> frames_{0};
 };

@@ -98,26 +98,4 @@ void StatusToProto(const RobotStatusInfo& info, bool simulated, int items_left,
   proto->set_items_left(items_left);
 }
 
-void FrameToProto(const sim::RenderedFrame& frame, double timestamp_s,
-                  uint64_t frame_number, v1::Frame* proto) {
-  proto->set_width(frame.intrinsics.width);
-  proto->set_height(frame.intrinsics.height);
-  proto->set_rgb_encoding(v1::IMAGE_ENCODING_RGB8);
-  proto->set_rgb(frame.rgb.data(), frame.rgb.size());
-  std::string depth(frame.depth_mm.size() * 2, '\0');
-  for (size_t i = 0; i < frame.depth_mm.size(); ++i) {
-    // Little-endian, as common.proto specifies, whatever the host.
-    depth[2 * i] = static_cast<char>(frame.depth_mm[i] & 0xff);
-    depth[2 * i + 1] = static_cast<char>(frame.depth_mm[i] >> 8);
-  }
-  proto->set_depth_mm(std::move(depth));
-  v1::CameraIntrinsics* k = proto->mutable_intrinsics();
-  k->set_fx(frame.intrinsics.fx);
-  k->set_fy(frame.intrinsics.fy);
-  k->set_cx(frame.intrinsics.cx);
-  k->set_cy(frame.intrinsics.cy);
-  proto->set_timestamp_s(timestamp_s);
-  proto->set_frame_id(absl::StrCat("sim-", frame_number));
-}
-
 }  // namespace bitewise::robot

@@ -7,7 +7,6 @@
 #include "bitewise/v1/robot.pb.h"
 #include "services/robot/actions.h"
 #include "services/robot/robot.h"
-#include "services/sim/scene.h"
 
 namespace bitewise::robot {
 
@@ -21,8 +20,6 @@ void OutcomeToProto(const AcquireOutcome& outcome, const ActionSpec& action,
                     v1::AcquireResult* proto);
 void StatusToProto(const RobotStatusInfo& info, bool simulated, int items_left,
                    v1::RobotStatus* proto);
-void FrameToProto(const sim::RenderedFrame& frame, double timestamp_s,
-                  uint64_t frame_number, v1::Frame* proto);
 
 }  // namespace bitewise::robot
 

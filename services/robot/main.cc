@@ -20,6 +20,7 @@
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
 #include "services/robot/backend.h"
+#include "services/robot/camera_client.h"
 #include "services/robot/robot_service.h"
 #include "services/robot/sim/sim_netft_box.h"
 #include "services/robot/steady_time.h"
@@ -71,6 +72,15 @@ ABSL_FLAG(std::string, task_origin_in_base_m, "0,-0.45,-0.05",
           "jaco2: the plate centre in the arm base frame, x,y,z metres.");
 ABSL_FLAG(double, camera_height_m, 0.35,
           "jaco2: height of the wrist camera above the plate at capture.");
+ABSL_FLAG(std::string, camera_address, "",
+          "jaco2: host:port of bitewise-camera (the wrist camera's "
+          "publisher); empty: no camera, CaptureFrame refuses.");
+ABSL_FLAG(double, camera_max_frame_age_s, 0.5,
+          "jaco2: CaptureFrame refuses a frame older than this (seconds, "
+          "capture to arrival).");
+ABSL_FLAG(std::string, camera_tls_ca, "",
+          "jaco2: PEM CA that signed bitewise-camera's certificate (TLS on "
+          "the camera link); empty: plaintext.");
 ABSL_FLAG(double, static_load_threshold_n, 0.02,
           "jaco2: success when the fork carries at least this load after "
           "extraction; 0 leaves success to the operator.");
@@ -240,6 +250,24 @@ int main(int argc, char** argv) {
     return bitewise::ReportFatal(kProgram, "bad flags", options.status());
   }
   if (absl::GetFlag(FLAGS_check_sensor)) return CheckSensor(*options);
+  std::unique_ptr<bitewise::robot::CameraClient> camera;
+  if (const std::string address = absl::GetFlag(FLAGS_camera_address);
+      !address.empty()) {
+    bitewise::robot::CameraClientOptions camera_options;
+    camera_options.address = address;
+    camera_options.max_frame_age_s =
+        absl::GetFlag(FLAGS_camera_max_frame_age_s);
+    camera_options.channel.tls_ca_file = absl::GetFlag(FLAGS_camera_tls_ca);
+    // A 1280x720 RGB-D frame is 4.6 MB, more than gRPC's default 4 MiB.
+    camera_options.channel.max_message_bytes = 64 << 20;
+    auto created = bitewise::robot::CameraClient::Create(camera_options);
+    if (!created.ok()) {
+      return bitewise::ReportFatal(kProgram, "bad camera flags",
+                                   created.status());
+    }
+    camera = *std::move(created);
+    options->hardware.camera = camera.get();
+  }
   auto backend = bitewise::robot::RobotBackend::Create(*options);
   if (!backend.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot start the robot",

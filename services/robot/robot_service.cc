@@ -1,5 +1,7 @@
 #include "services/robot/robot_service.h"
 
+#include "absl/strings/str_cat.h"
+#include "services/camera/frame_proto.h"
 #include "services/common/rpc_handler.h"
 #include "services/common/status_macros.h"
 #include "services/robot/converters.h"
@@ -23,8 +25,12 @@ grpc::Status RobotServiceImpl::CaptureFrame(grpc::ServerContext* context,
                                             const v1::CaptureFrameRequest*,
                                             v1::Frame* response) {
   return RunRpc("RobotService/CaptureFrame", context, [&]() -> absl::Status {
-    ASSIGN_OR_RETURN(const sim::RenderedFrame frame, backend_->CaptureFrame());
-    FrameToProto(frame, SteadyNowS(), frames_++, response);
+    ASSIGN_OR_RETURN(const domain::RgbdFrame frame, backend_->CaptureFrame());
+    camera::FrameToProto(
+        frame, frame.capture_s,
+        absl::StrCat(backend_->simulated() ? "sim-" : "camera-",
+                     frame.sequence),
+        response);
     return absl::OkStatus();
   });
 }

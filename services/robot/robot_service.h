@@ -42,7 +42,6 @@ class RobotServiceImpl final : public v1::RobotService::Service {
 
  private:
   RobotBackend* const backend_;
-  std::atomic<uint64_t> frames_{0};
 };
 
 }  // namespace bitewise::robot

@@ -18,6 +18,7 @@
 #include <random>
 #include <vector>
 
+#include "services/domain/rgbd_frame.h"
 #include "services/sim/food_catalog.h"
 
 namespace bitewise::sim {
@@ -44,14 +45,8 @@ struct PlateScene {
   std::vector<SceneItem> items;
 };
 
-struct PinholeIntrinsics {
-  int width = 640;
-  int height = 480;
-  double fx = 615.0;
-  double fy = 615.0;
-  double cx = 320.0;
-  double cy = 240.0;
-};
+// The vocabulary's intrinsics (services/domain/rgbd_frame.h).
+using PinholeIntrinsics = domain::CameraIntrinsics;
 
 // The D415's colour-aligned intrinsics at 640x480.
 PinholeIntrinsics D415Intrinsics();

@@ -1,0 +1,119 @@
+// bitewise-camera: the wrist camera's publisher (CameraService), run on the
+// computer the D415 is plugged into. Flags are parsed here and nowhere
+// else.
+#include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/flags/usage.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
+#include "services/camera/camera_service.h"
+#include "services/camera/frame_publisher.h"
+#include "services/camera/realsense_source.h"
+#include "services/camera/recording.h"
+#include "services/camera/sim_source.h"
+#include "services/common/readiness_monitor.h"
+#include "services/common/server.h"
+#include "services/common/server_flags.h"
+
+ABSL_FLAG(std::string, source, "realsense",
+          "realsense (the D415 through the RealSense SDK), replay (a "
+          "recording, --replay_dir) or sim (the simulated camera).");
+ABSL_FLAG(std::string, realsense_library, "",
+          "The RealSense SDK shared library; empty: the installed "
+          "librealsense2.so.");
+ABSL_FLAG(int, width, 640, "realsense: colour and depth width.");
+ABSL_FLAG(int, height, 480, "realsense: colour and depth height.");
+ABSL_FLAG(int, fps, 15, "realsense, sim: frames per second.");
+ABSL_FLAG(std::string, replay_dir, "", "replay: the recording's directory.");
+ABSL_FLAG(bool, replay_loop, false,
+          "replay: start again after the last frame (otherwise the last "
+          "frame ages and the camera reports itself stale).");
+ABSL_FLAG(uint64_t, sim_seed, 1, "sim: seeds the plate and the noise.");
+ABSL_FLAG(std::string, sim_foods, "",
+          "sim: comma-separated food names; empty: the unseen foods.");
+ABSL_FLAG(std::string, record, "",
+          "Also write every frame into this directory as a recording "
+          "(replayable with --source=replay).");
+ABSL_FLAG(double, stale_after_s, 1.0,
+          "Health is NOT_SERVING while the newest frame is older than this.");
+
+namespace {
+
+constexpr char kProgram[] = "bitewise-camera";
+constexpr int kDefaultPort = 50055;
+
+absl::StatusOr<std::unique_ptr<bitewise::camera::FrameSource>> MakeSource() {
+  using namespace bitewise::camera;  // NOLINT: local, for brevity
+  const std::string source = absl::GetFlag(FLAGS_source);
+  if (source == "realsense") {
+    RealSenseOptions options;
+    options.library = absl::GetFlag(FLAGS_realsense_library);
+    options.width = absl::GetFlag(FLAGS_width);
+    options.height = absl::GetFlag(FLAGS_height);
+    options.fps = absl::GetFlag(FLAGS_fps);
+    return RealSenseSource::Open(options);
+  }
+  if (source == "replay") {
+    ReplayOptions options;
+    options.loop = absl::GetFlag(FLAGS_replay_loop);
+    return ReplaySource::Open(absl::GetFlag(FLAGS_replay_dir), options);
+  }
+  if (source == "sim") {
+    SimSourceOptions options;
+    options.seed = absl::GetFlag(FLAGS_sim_seed);
+    options.rate_hz = absl::GetFlag(FLAGS_fps);
+    for (absl::string_view food : absl::StrSplit(absl::GetFlag(FLAGS_sim_foods),
+                                                 ',', absl::SkipEmpty())) {
+      options.foods.emplace_back(food);
+    }
+    return SimSource::Create(options);
+  }
+  return absl::InvalidArgumentError(absl::StrCat(
+      "--source: unknown source \"", source, "\" (realsense, replay or sim)"));
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bitewise::BlockTerminationSignals();
+  absl::SetProgramUsageMessage(
+      "CameraService: the wrist camera's newest RGB-D frame over gRPC.");
+  absl::ParseCommandLine(argc, argv);
+
+  auto source = MakeSource();
+  if (!source.ok()) {
+    return bitewise::ReportFatal(kProgram, "cannot open the camera",
+                                 source.status());
+  }
+  if (const std::string dir = absl::GetFlag(FLAGS_record); !dir.empty()) {
+    *source = std::make_unique<bitewise::camera::RecordingSource>(
+        *std::move(source), dir, absl::GetFlag(FLAGS_fps));
+  }
+  bitewise::camera::FramePublisher publisher(*std::move(source));
+  bitewise::camera::CameraServiceImpl service(&publisher);
+  auto server = bitewise::ServiceServer::Start(
+      bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
+      {"bitewise.v1.CameraService"});
+  if (!server.ok()) {
+    return bitewise::ReportFatal(kProgram, "cannot start the server",
+                                 server.status());
+  }
+  const double stale_after_s = absl::GetFlag(FLAGS_stale_after_s);
+  bitewise::ReadinessMonitor readiness(
+      [&publisher, stale_after_s] {
+        const auto c = publisher.Counters();
+        return c.newest_age_s >= 0.0 && c.newest_age_s <= stale_after_s;
+      },
+      [s = server->get()](bool serving) { s->SetServing(serving); });
+  std::fprintf(stderr, "bitewise-camera: serving on %s (source %s)\n",
+               (*server)->address().c_str(), publisher.source_name().c_str());
+  std::fflush(stderr);
+  absl::Status status = bitewise::RunUntilSignal(**server);
+  if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);
+  return 0;
+}

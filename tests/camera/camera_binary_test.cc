@@ -1,0 +1,101 @@
+// The real bitewise-camera binary as a child process: on the RealSense
+// path (the fake SDK library) it serves the camera's frames to the
+// RobotService's client and records them when asked; a missing SDK stops
+// the start naming the library; SIGTERM drains.
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "services/camera/recording.h"
+#include "services/common/channel.h"
+#include "services/robot/camera_client.h"
+#include "tests/common/child_process.h"
+
+namespace bitewise::camera {
+namespace {
+
+using ::bitewise::testing::ChildProcess;
+using ::bitewise::testing::DescribeWaitStatus;
+using ::testing::HasSubstr;
+
+constexpr char kService[] = "bitewise.v1.CameraService";
+
+std::string LogPath() {
+  return absl::StrCat(
+      ::testing::TempDir(), "/camera_binary_test.",
+      ::testing::UnitTest::GetInstance()->current_test_info()->name(), ".log");
+}
+
+void Spawn(ChildProcess& child, const std::vector<std::string>& args) {
+  std::vector<std::string> argv = {BITEWISE_CAMERA_BINARY};
+  argv.insert(argv.end(), args.begin(), args.end());
+  const std::string log = LogPath();
+  unlink(log.c_str());
+  const absl::Status started = child.Start(argv, log);
+  ASSERT_TRUE(started.ok()) << started;
+}
+
+TEST(CameraBinaryTest, ServesAndRecordsTheRealSensePath) {
+  const absl::StatusOr<int> port = bitewise::testing::PickFreePort();
+  ASSERT_TRUE(port.ok());
+  const std::string dir = ::testing::TempDir() + "/camera_binary_recording";
+  std::filesystem::remove_all(dir);
+  ChildProcess child;
+  ASSERT_NO_FATAL_FAILURE(Spawn(
+      child, {"--source=realsense",
+              absl::StrCat("--realsense_library=", BITEWISE_FAKE_REALSENSE),
+              "--fps=30", absl::StrCat("--record=", dir),
+              absl::StrCat("--listen=127.0.0.1:", *port)}));
+  const std::string address = absl::StrCat("127.0.0.1:", *port);
+  auto channel = MakeChannel(address, {});
+  ASSERT_TRUE(channel.ok());
+  const absl::Status serving =
+      WaitForServing(*channel, kService, absl::Seconds(30));
+  ASSERT_TRUE(serving.ok()) << serving << "; log:\n" << child.log();
+
+  robot::CameraClientOptions options;
+  options.address = address;
+  auto client = robot::CameraClient::Create(options);
+  ASSERT_TRUE(client.ok());
+  absl::StatusOr<domain::RgbdFrame> frame = (*client)->Capture();
+  ASSERT_TRUE(frame.ok()) << frame.status() << "; log:\n" << child.log();
+  EXPECT_FLOAT_EQ(frame->intrinsics.fx, 612.3f);  // the fake SDK's
+  EXPECT_EQ(frame->depth_mm[10], 400);
+
+  const absl::StatusOr<int> status =
+      child.SignalAndWait(SIGTERM, absl::Seconds(30));
+  ASSERT_TRUE(status.ok()) << status.status();
+  ASSERT_TRUE(WIFEXITED(*status)) << DescribeWaitStatus(*status);
+  EXPECT_EQ(WEXITSTATUS(*status), 0) << child.log();
+  // What it recorded replays.
+  auto replay = ReplaySource::Open(dir, {});
+  ASSERT_TRUE(replay.ok()) << replay.status();
+  absl::StatusOr<domain::RgbdFrame> first = (*replay)->Next();
+  ASSERT_TRUE(first.ok()) << first.status();
+  EXPECT_FLOAT_EQ(first->intrinsics.fx, 612.3f);
+}
+
+TEST(CameraBinaryTest, MissingSdkStopsTheStartNamingIt) {
+  ChildProcess child;
+  ASSERT_NO_FATAL_FAILURE(
+      Spawn(child, {"--source=realsense",
+                    "--realsense_library=/nonexistent/librealsense2.so.2.54",
+                    "--listen=127.0.0.1:0"}));
+  const absl::StatusOr<int> status = child.Wait(absl::Seconds(30));
+  ASSERT_TRUE(status.ok()) << status.status();
+  ASSERT_TRUE(WIFEXITED(*status)) << DescribeWaitStatus(*status);
+  EXPECT_NE(WEXITSTATUS(*status), 0);
+  EXPECT_THAT(child.log(), HasSubstr("/nonexistent/librealsense2.so.2.54"));
+}
+
+}  // namespace
+}  // namespace bitewise::camera
