@@ -272,7 +272,20 @@ absl::StatusOr<std::vector<DetectedFood>> FoodDetector::Detect(
   cv::Mat local_top;
   cv::dilate(height_mm, local_top,
              cv::getStructuringElement(cv::MORPH_RECT, {21, 21}));
+  // Height valleys: how far a closing (which bridges a seam narrower than
+  // its element) lifts each pixel. Two rounded items side by side meet in
+  // a valley as deep as their curvature makes it (two cylinders: half
+  // their height); the top of one item is not lifted at all.
+  cv::Mat valley;
+  cv::morphologyEx(
+      height_mm, valley, cv::MORPH_CLOSE,
+      cv::getStructuringElement(cv::MORPH_ELLIPSE, {options_.valley_width_px,
+                                                    options_.valley_width_px}));
+  valley -= height_mm;
   cv::Mat cores(h, w, CV_8UC1, cv::Scalar(0));
+  cv::Mat seams(h, w, CV_8UC1, cv::Scalar(0));
+  const float min_valley = static_cast<float>(options_.min_valley_mm);
+  const float valley_fraction = static_cast<float>(options_.valley_fraction);
   const float edge2 = static_cast<float>(options_.min_edge_strength *
                                          options_.min_edge_strength);
   for (int v = 0; v < h; ++v) {
@@ -281,16 +294,56 @@ absl::StatusOr<std::vector<DetectedFood>> FoodDetector::Detect(
     const auto* in = above.ptr<uint8_t>(v);
     const auto* hv = height_mm.ptr<float>(v);
     const auto* top = local_top.ptr<float>(v);
+    const auto* dip = valley.ptr<float>(v);
     auto* out = cores.ptr<uint8_t>(v);
+    auto* seam = seams.ptr<uint8_t>(v);
     for (int u = 0; u < w; ++u) {
       if (in[u] && hv[u] >= 0.5f * top[u] &&
           a[u].dot(a[u]) + b[u].dot(b[u]) <= edge2) {
         out[u] = 255;
+        seam[u] = dip[u] > std::max(min_valley, valley_fraction * top[u]);
       }
     }
   }
-  cv::morphologyEx(cores, cores, cv::MORPH_OPEN,
-                   cv::getStructuringElement(cv::MORPH_ELLIPSE, {3, 3}));
+  const cv::Mat open3 = cv::getStructuringElement(cv::MORPH_ELLIPSE, {3, 3});
+  cv::morphologyEx(cores, cores, cv::MORPH_OPEN, open3);
+  // Cut the cores along the valleys, but only where that splits one core
+  // into two or more substantial parts (items that touch). Elsewhere the
+  // core stays whole: a small, low item next to a tall one is a valley in
+  // height too, and cutting its seed would hand it to the neighbour.
+  {
+    cv::Mat whole;
+    const int n_whole = cv::connectedComponents(cores, whole, 4, CV_32S);
+    cv::Mat cut = cores & (seams == 0);
+    cv::morphologyEx(cut, cut, cv::MORPH_OPEN, open3);
+    cv::Mat parts, part_stats, part_centroids;
+    const int n_parts = cv::connectedComponentsWithStats(
+        cut, parts, part_stats, part_centroids, 4, CV_32S);
+    // Substantial parts per original core.
+    std::vector<int> split(n_whole, 0);
+    std::vector<int> part_owner(n_parts, 0);
+    for (int v = 0; v < h; ++v) {
+      const auto* label = whole.ptr<int>(v);
+      const auto* part = parts.ptr<int>(v);
+      for (int u = 0; u < w; ++u) {
+        if (part[u] > 0) part_owner[part[u]] = label[u];
+      }
+    }
+    for (int p = 1; p < n_parts; ++p) {
+      if (part_stats.at<int>(p, cv::CC_STAT_AREA) >= options_.min_seed_px) {
+        ++split[part_owner[p]];
+      }
+    }
+    for (int v = 0; v < h; ++v) {
+      const auto* label = whole.ptr<int>(v);
+      const auto* core = cores.ptr<uint8_t>(v);
+      auto* kept = cut.ptr<uint8_t>(v);
+      for (int u = 0; u < w; ++u) {
+        if (core[u] && split[label[u]] < 2) kept[u] = 255;
+      }
+    }
+    cores = cut;
+  }
   cv::Mat markers;
   const int n_cores = cv::connectedComponents(cores, markers, 4, CV_32S);
   if (n_cores <= 1) return items;
@@ -334,11 +387,17 @@ absl::StatusOr<std::vector<DetectedFood>> FoodDetector::Detect(
     top_mm[i] = hs[q];
   }
   // Boundary statistics per pair of neighbouring regions.
-  std::map<std::pair<int, int>, std::pair<double, int>> boundary;
+  struct Seam {
+    double height_sum = 0.0;
+    double dip_sum = 0.0;
+    int count = 0;
+  };
+  std::map<std::pair<int, int>, Seam> boundary;
   for (int v = 1; v + 1 < h; ++v) {
     const auto* m = markers.ptr<int>(v);
     const auto* hv = height_mm.ptr<float>(v);
     const auto* ok = valid.ptr<uint8_t>(v);
+    const auto* dip = valley.ptr<float>(v);
     for (int u = 1; u + 1 < w; ++u) {
       if (m[u] != -1) continue;
       int found[4];
@@ -354,8 +413,9 @@ absl::StatusOr<std::vector<DetectedFood>> FoodDetector::Detect(
         for (int b = a + 1; b < n_found; ++b) {
           auto& entry = boundary[std::minmax(found[a], found[b])];
           if (ok[u]) {
-            entry.first += hv[u];
-            ++entry.second;
+            entry.height_sum += hv[u];
+            entry.dip_sum += dip[u];
+            ++entry.count;
           }
         }
       }
@@ -367,14 +427,19 @@ absl::StatusOr<std::vector<DetectedFood>> FoodDetector::Detect(
     while (parent[i] != i) i = parent[i] = parent[parent[i]];
     return i;
   };
-  for (const auto& [pair, sum] : boundary) {
+  for (const auto& [pair, seam] : boundary) {
     const auto [a, b] = pair;
-    if (sum.second < 3 || lab_count[a] == 0 || lab_count[b] == 0) continue;
+    if (seam.count < 3 || lab_count[a] == 0 || lab_count[b] == 0) continue;
     const cv::Vec3d diff =
         lab_sum[a] / lab_count[a] - lab_sum[b] / lab_count[b];
-    const double seam_mm = sum.first / sum.second;
+    const double seam_mm = seam.height_sum / seam.count;
+    const double lower_top = std::min(top_mm[a], top_mm[b]);
+    // No valley between them, by height and by the closing's lift.
     if (cv::norm(diff) < options_.min_colour_distance &&
-        seam_mm > 0.8 * std::min(top_mm[a], top_mm[b])) {
+        seam_mm > 0.8 * lower_top &&
+        seam.dip_sum / seam.count <=
+            std::max(options_.min_valley_mm,
+                     options_.valley_fraction * lower_top)) {
       parent[root(a)] = root(b);
     }
   }

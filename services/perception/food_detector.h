@@ -30,6 +30,14 @@ struct FoodDetectorOptions {
   // Colour gradient (CIELAB units per pixel) that separates two touching
   // items; texture within one item stays below it.
   double min_edge_strength = 10.0;
+  // Seeds stop at height valleys (where touching items meet): a pixel that
+  // a closing of this width lifts by more than max(min_valley_mm,
+  // valley_fraction x the local top) is not a seed.
+  int valley_width_px = 31;
+  double min_valley_mm = 1.5;
+  double valley_fraction = 0.15;
+  // A cut seed counts as a part when it keeps at least this many pixels.
+  int min_seed_px = 30;
   // RANSAC plane fit: iterations and seed (fixed, so detection repeats).
   int ransac_iterations = 150;
   uint64_t ransac_seed = 1;

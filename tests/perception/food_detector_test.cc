@@ -10,6 +10,7 @@
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/sim/food_catalog.h"
 #include "tests/perception/test_frames.h"
 
 namespace bitewise::perception {
@@ -77,6 +78,50 @@ TEST(FoodDetectorTest, FindsEveryItemWithTightBoxesOnRenderedPlates) {
   // The test is only meaningful if touching items were in it.
   EXPECT_GE(touching_plates, 5);
   RecordProperty("worst_iou", std::to_string(worst));
+}
+
+// Two pieces of the same food in contact, side by side and end to side:
+// one colour, no edge between them, only the height valley where their
+// rounded sides meet tells them apart.
+TEST(FoodDetectorTest, SeparatesTouchingPiecesOfTheSameFood) {
+  const FoodDetector detector;
+  for (const char* name : {"carrot", "celery"}) {
+    const sim::FoodType* food = sim::FindFood(name);
+    ASSERT_NE(food, nullptr);
+    for (const bool side_by_side : {true, false}) {
+      sim::PlateScene scene;
+      sim::SceneItem a;
+      a.id = 1;
+      a.food = food;
+      a.length_m = 0.07;
+      a.width_m = 0.014;
+      a.height_m = 0.013;
+      a.rgb = food->rgb;
+      a.texture_seed = 3;
+      sim::SceneItem b = a;
+      b.id = 2;
+      b.texture_seed = 4;
+      if (side_by_side) {  // parallel, long sides touching
+        a.y_m = -a.width_m / 2;
+        b.y_m = a.width_m / 2;
+      } else {  // an L: b's end against a's side
+        b.yaw_rad = kPi / 2;
+        b.x_m = 0.01;
+        b.y_m = a.width_m / 2 + b.length_m / 2;
+      }
+      scene.items = {a, b};
+      sim::RenderedFrame rendered =
+          sim::RenderPlate(scene, sim::D415Intrinsics(), 5);
+      absl::StatusOr<std::vector<DetectedFood>> detected =
+          detector.Detect(testing::ToDecoded(rendered));
+      ASSERT_TRUE(detected.ok()) << detected.status();
+      ASSERT_EQ(detected->size(), 2u)
+          << name << (side_by_side ? " side by side" : " end to side");
+      for (const Match& m : MatchTruth(*detected, rendered.truth)) {
+        EXPECT_GE(m.iou, 0.7) << name;
+      }
+    }
+  }
 }
 
 TEST(FoodDetectorTest, CentreAngleAndDepthMatchTheScene) {
