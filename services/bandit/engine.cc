@@ -1,10 +1,12 @@
 #include "services/bandit/engine.h"
 
 #include <cmath>
+#include <limits>
 #include <random>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
 #include "services/bandit/core/policy.h"
 #include "services/bandit/core/population_prior.h"
@@ -125,10 +127,29 @@ void BanditEngine::Touch(UserSlot& slot) {
   }
 }
 
+size_t MaxModelBytes(const BanditConfig& config) {
+  const double d = config.context_dim;
+  const double q = config.posthoc_dim;
+  const double per_action = 2 * d * d + 2 * d * q + q * q + 4 * (d + q);
+  const double bytes = 8.0 * config.num_actions() * per_action;
+  return bytes >= static_cast<double>(std::numeric_limits<size_t>::max())
+             ? std::numeric_limits<size_t>::max()
+             : static_cast<size_t>(bytes);
+}
+
 absl::StatusOr<UserRecord> BanditEngine::CreateUser(
     const std::string& user_id, const BanditConfig& requested,
     double prior_rounds) {
   RETURN_IF_ERROR(ValidateConfig(requested));
+  if (const size_t bytes = MaxModelBytes(requested);
+      bytes > options_.max_model_bytes) {
+    return absl::InvalidArgumentError(absl::StrFormat(
+        "config: a model with context_dim %d, posthoc_dim %d and %d actions "
+        "can grow to %.1f GB, over this service's limit of %.1f GB "
+        "(--max_model_mb); use fewer dimensions or actions",
+        requested.context_dim, requested.posthoc_dim, requested.num_actions(),
+        bytes / 1e9, options_.max_model_bytes / 1e9));
+  }
   if (!std::isfinite(prior_rounds) || prior_rounds < 0.0) {
     return absl::InvalidArgumentError(absl::StrCat(
         "prior_rounds: must be finite and >= 0, got ", prior_rounds));

@@ -37,7 +37,17 @@ struct EngineOptions {
   size_t cache_budget_bytes = size_t{2} << 30;
   // Passed to LinUcbModel: rounds at which an action turns primal (0: d).
   int primal_threshold = 0;
+  // CreateUser refuses a configuration whose model could grow beyond this
+  // (MaxModelBytes), so that no user's model can take the machine's
+  // memory (d = 65536 would need terabytes in primal form).
+  size_t max_model_bytes = size_t{2} << 30;
 };
+
+// The most memory a model of `config` can need, in bytes: per action, the
+// primal form's d x d and q x q matrices and the d x q cross terms, with
+// the dual form's rows and factor at the switch (another d x d), all in
+// doubles. An upper bound, not the size of a new model.
+size_t MaxModelBytes(const BanditConfig& config);
 
 struct SelectInput {
   std::string user_id;

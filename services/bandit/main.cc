@@ -23,6 +23,9 @@ ABSL_FLAG(bool, sqlite_fsync, true,
 ABSL_FLAG(int64_t, cache_budget_mb, 2048,
           "Memory budget for loaded user models; least recently used models "
           "beyond it are unloaded and rebuilt from the log on next use.");
+ABSL_FLAG(int64_t, max_model_mb, 2048,
+          "CreateUser refuses a configuration whose model could grow beyond "
+          "this (all actions in primal form: about 16 d^2 bytes per action).");
 ABSL_FLAG(std::string, default_learner, "posthoc",
           "Learner for new users: posthoc or context_only.");
 ABSL_FLAG(std::string, default_strategy, "linucb",
@@ -106,6 +109,8 @@ int main(int argc, char** argv) {
   bitewise::bandit::EngineOptions engine_options;
   engine_options.cache_budget_bytes =
       static_cast<size_t>(absl::GetFlag(FLAGS_cache_budget_mb)) << 20;
+  engine_options.max_model_bytes =
+      static_cast<size_t>(absl::GetFlag(FLAGS_max_model_mb)) << 20;
   bitewise::bandit::BanditEngine engine(store->get(), engine_options);
   bitewise::bandit::BanditServiceImpl service(&engine, *defaults);
 

@@ -1,7 +1,10 @@
 #include "services/perception/frame.h"
 
 #include <cmath>
+#include <cstdint>
 #include <cstring>
+#include <optional>
+#include <utility>
 #include <vector>
 
 #include "absl/strings/str_cat.h"
@@ -39,6 +42,48 @@ bool HasSignature(absl::string_view bytes, ImageEncoding encoding) {
          static_cast<unsigned char>(bytes[2]) == 0xFF;
 }
 
+uint32_t BigEndian(absl::string_view b, size_t at, int n) {
+  uint32_t v = 0;
+  for (int i = 0; i < n; ++i) v = (v << 8) | static_cast<uint8_t>(b[at + i]);
+  return v;
+}
+
+// The size a PNG or JPEG header declares, read without decoding, so that a
+// small file claiming a huge image is refused before anything is
+// allocated for it. nullopt when the header cannot be found.
+std::optional<std::pair<uint32_t, uint32_t>> HeaderSize(
+    absl::string_view b, ImageEncoding encoding) {
+  if (encoding == ImageEncoding::kPng) {
+    // Signature, then the IHDR chunk: length, type, width, height.
+    if (b.size() < 24 || b.substr(12, 4) != "IHDR") return std::nullopt;
+    return std::pair{BigEndian(b, 16, 4), BigEndian(b, 20, 4)};
+  }
+  // JPEG: walk the marker segments to the first start-of-frame.
+  size_t at = 2;
+  while (at + 4 <= b.size()) {
+    if (static_cast<uint8_t>(b[at]) != 0xFF) return std::nullopt;
+    const uint8_t marker = static_cast<uint8_t>(b[at + 1]);
+    if (marker == 0xFF) {  // fill byte
+      ++at;
+      continue;
+    }
+    if (marker == 0x01 || (marker >= 0xD0 && marker <= 0xD7)) {
+      at += 2;  // no length
+      continue;
+    }
+    if (marker == 0xDA || marker == 0xD9) return std::nullopt;  // no SOF
+    const uint32_t length = BigEndian(b, at + 2, 2);
+    const bool sof = marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 &&
+                     marker != 0xC8 && marker != 0xCC;
+    if (sof) {
+      if (at + 9 > b.size()) return std::nullopt;
+      return std::pair{BigEndian(b, at + 7, 2), BigEndian(b, at + 5, 2)};
+    }
+    at += 2 + length;
+  }
+  return std::nullopt;
+}
+
 absl::StatusOr<cv::Mat> DecodeRgb(const FrameBytes& bytes, int width,
                                   int height) {
   if (bytes.encoding == ImageEncoding::kRgb8) {
@@ -61,6 +106,19 @@ absl::StatusOr<cv::Mat> DecodeRgb(const FrameBytes& bytes, int width,
         absl::StrCat("frame.rgb does not start with the ",
                      bytes.encoding == ImageEncoding::kPng ? "PNG" : "JPEG",
                      " signature although frame.rgb_encoding is ", name));
+  }
+  const auto declared = HeaderSize(bytes.rgb, bytes.encoding);
+  if (!declared) {
+    return Invalid(absl::StrCat("frame.rgb: corrupt ", name,
+                                " data (no image size in its header)"));
+  }
+  if (declared->first != static_cast<uint32_t>(width) ||
+      declared->second != static_cast<uint32_t>(height)) {
+    return Invalid(absl::StrCat(
+        "frame.rgb's ", bytes.encoding == ImageEncoding::kPng ? "PNG" : "JPEG",
+        " header says ", declared->first, "x", declared->second,
+        " but frame.width x frame.height is ", width, "x", height,
+        " (not decoded)"));
   }
   cv::Mat bgr;
   try {
@@ -98,6 +156,11 @@ absl::StatusOr<DecodedFrame> DecodeFrame(const FrameBytes& bytes) {
     return Invalid(absl::StrCat("frame size ", bytes.width, "x", bytes.height,
                                 " exceeds the limit of ", kMaxFrameSide,
                                 " pixels per side"));
+  }
+  if (bytes.width * bytes.height > kMaxFramePixels) {
+    return Invalid(absl::StrCat("frame size ", bytes.width, "x", bytes.height,
+                                " exceeds the limit of ", kMaxFramePixels,
+                                " pixels (4K UHD is 8294400)"));
   }
   if (bytes.encoding == ImageEncoding::kUnspecified) {
     return Invalid(

@@ -55,12 +55,18 @@ struct DecodedFrame {
 // Largest accepted side, far above any depth camera's, so that a corrupt
 // size cannot make the service allocate gigabytes.
 constexpr int64_t kMaxFrameSide = 8192;
+// Largest accepted frame in pixels (8.4 M: 4K UHD fits; the D415's largest
+// colour mode is 1920x1080): bounds what one request can cost to decode,
+// detect and featurize.
+constexpr int64_t kMaxFramePixels = int64_t{1} << 23;
 
 // Checks and decodes a frame. Errors (all INVALID_ARGUMENT, each naming the
-// field): a non-positive or oversized width/height; an unspecified
-// encoding; raw RGB of the wrong length; PNG/JPEG bytes that are not of the
-// declared format, cannot be decoded, or decode to another size; depth of
-// the wrong length; non-finite or non-positive focal lengths or a
+// field): a non-positive or oversized width/height (per side or in
+// pixels); a PNG/JPEG header declaring another size (checked before
+// decoding, so a small file claiming a huge image costs nothing); an
+// unspecified encoding; raw RGB of the wrong length; PNG/JPEG bytes that are
+// not of the declared format, cannot be decoded, or decode to another size;
+// depth of the wrong length; non-finite or non-positive focal lengths or a
 // non-finite principal point.
 absl::StatusOr<DecodedFrame> DecodeFrame(const FrameBytes& bytes);
 

@@ -10,6 +10,7 @@
 #include <thread>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/bandit/store/sqlite_event_store.h"
@@ -165,6 +166,35 @@ TEST_F(EngineTest, BadInputGetsPreciseStatusAndWritesNothing) {
   EXPECT_EQ(engine_->GetUser("bob")->model_version, 0);
   EXPECT_EQ(engine_->GetModel("bob")->actions[0].count, 0);
   EXPECT_TRUE(engine_->Update({chosen->event_id, 0.0, {0, 0, 0, 1}}).ok());
+}
+
+TEST_F(EngineTest, ConfigsWhoseModelCouldOutgrowTheLimitAreRefused) {
+  // The largest the validator allows: terabytes in primal form.
+  BanditConfig huge = SmallConfig();
+  huge.context_dim = 1 << 16;
+  huge.posthoc_dim = 1024;
+  huge.action_names.clear();
+  for (int a = 0; a < 256; ++a)
+    huge.action_names.push_back(absl::StrCat("a", a));
+  absl::StatusOr<UserRecord> refused = engine_->CreateUser("huge", huge);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(refused.status().message(),
+              ::testing::HasSubstr("context_dim 65536, posthoc_dim 1024 and "
+                                   "256 actions can grow to"));
+  EXPECT_EQ(store_->GetUser("huge").status().code(),
+            absl::StatusCode::kNotFound);
+  // The paper's size fits the default limit, with room: d = 4096 too.
+  BanditConfig spanet = SmallConfig();
+  spanet.context_dim = 4096;
+  EXPECT_LT(MaxModelBytes(spanet), EngineOptions().max_model_bytes);
+  EXPECT_TRUE(engine_->CreateUser("spanet", spanet).ok());
+  // A tighter limit refuses it, naming the limit.
+  EngineOptions tight;
+  tight.max_model_bytes = size_t{100} << 20;
+  Reopen(tight);
+  absl::StatusOr<UserRecord> over = engine_->CreateUser("spanet2", spanet);
+  EXPECT_EQ(over.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(over.status().message(), ::testing::HasSubstr("limit of 0.1 GB"));
 }
 
 TEST_F(EngineTest, ModelSurvivesReopenWithin1e12) {

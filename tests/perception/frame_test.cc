@@ -74,8 +74,8 @@ void ExpectInvalid(const v1::Frame& proto, const std::string& fragment) {
 TEST_F(FrameTest, CorruptPngIsInvalidArgument) {
   v1::Frame proto = Proto(v1::IMAGE_ENCODING_PNG);
   std::string bytes = proto.rgb();
-  // Keep the signature, destroy the chunks after it.
-  for (size_t i = 16; i < bytes.size(); i += 7) bytes[i] ^= 0x5A;
+  // Keep the signature and the header, destroy the chunks after them.
+  for (size_t i = 40; i < bytes.size(); i += 7) bytes[i] ^= 0x5A;
   proto.set_rgb(bytes);
   ExpectInvalid(proto, "corrupt IMAGE_ENCODING_PNG");
 }
@@ -99,7 +99,32 @@ TEST_F(FrameTest, PngOfAnotherSizeIsInvalidArgument) {
   v1::Frame proto = Proto(v1::IMAGE_ENCODING_PNG);
   proto.set_width(320);
   proto.clear_depth_mm();
-  ExpectInvalid(proto, "decodes to 640x480");
+  ExpectInvalid(proto,
+                "header says 640x480 but frame.width x frame.height "
+                "is 320x480 (not decoded)");
+}
+
+// A small file whose header claims a huge image is refused from its header,
+// before the decoder allocates gigabytes for it.
+TEST_F(FrameTest, HeaderClaimingAHugeImageIsRefusedBeforeDecoding) {
+  v1::Frame png = Proto(v1::IMAGE_ENCODING_PNG);
+  std::string bytes = png.rgb();
+  for (int i = 0; i < 2; ++i) {  // IHDR width and height: 20000
+    bytes[16 + 4 * i] = 0;
+    bytes[17 + 4 * i] = 0;
+    bytes[18 + 4 * i] = static_cast<char>(20000 >> 8);
+    bytes[19 + 4 * i] = static_cast<char>(20000 & 0xFF);
+  }
+  png.set_rgb(bytes);
+  ExpectInvalid(png, "PNG header says 20000x20000");
+  v1::Frame jpeg = Proto(v1::IMAGE_ENCODING_JPEG);
+  bytes = jpeg.rgb();
+  const size_t sof = bytes.find("\xFF\xC0");
+  ASSERT_NE(sof, std::string::npos);
+  bytes[sof + 5] = static_cast<char>(0x4E);  // height 20000 (0x4E20)
+  bytes[sof + 6] = static_cast<char>(0x20);
+  jpeg.set_rgb(bytes);
+  ExpectInvalid(jpeg, "JPEG header says 640x20000");
 }
 
 TEST_F(FrameTest, WrongRgbLengthIsInvalidArgument) {
@@ -121,6 +146,10 @@ TEST_F(FrameTest, BadSizesEncodingAndIntrinsicsAreInvalidArgument) {
   proto = Proto(v1::IMAGE_ENCODING_RGB8);
   proto.set_height(100000);
   ExpectInvalid(proto, "exceeds the limit");
+  proto = Proto(v1::IMAGE_ENCODING_RGB8);
+  proto.set_width(4000);
+  proto.set_height(4000);
+  ExpectInvalid(proto, "exceeds the limit of 8388608 pixels");
   proto = Proto(v1::IMAGE_ENCODING_RGB8);
   proto.set_rgb_encoding(v1::IMAGE_ENCODING_UNSPECIFIED);
   ExpectInvalid(proto, "frame.rgb_encoding");
