@@ -32,10 +32,16 @@ absl::Status ValidateUserId(const std::string& user_id) {
     return absl::InvalidArgumentError(absl::StrCat(
         "user_id: must be 1-128 characters, got ", user_id.size()));
   }
+  const auto alnum = [](char ch) {
+    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') ||
+           (ch >= '0' && ch <= '9');
+  };
+  if (!alnum(user_id[0])) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "user_id: must start with a letter or digit, got \"", user_id, "\""));
+  }
   for (const char ch : user_id) {
-    const bool ok = (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') ||
-                    (ch >= '0' && ch <= '9') || ch == '.' || ch == '_' ||
-                    ch == '-';
+    const bool ok = alnum(ch) || ch == '.' || ch == '_' || ch == '-';
     if (!ok) {
       return absl::InvalidArgumentError(
           absl::StrCat("user_id: only letters, digits, '.', '_' and '-' are "
@@ -247,6 +253,14 @@ absl::Status BanditEngine::DeleteUser(const std::string& user_id) {
 }
 
 absl::StatusOr<SelectResult> BanditEngine::Select(const SelectInput& input) {
+  for (const auto& [field, value] :
+       {std::pair{"meal_id", &input.meal_id},
+        std::pair{"item_label", &input.item_label}}) {
+    if (value->size() > kMaxLabelBytes) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          field, ": at most ", kMaxLabelBytes, " bytes, got ", value->size()));
+    }
+  }
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(input.user_id, false));
   absl::MutexLock lock(&slot->mu);
   RETURN_IF_ERROR(EnsureLoaded(input.user_id, *slot));
@@ -294,6 +308,18 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
   UpdateResult result;
   result.user_id = event.user_id;
   if (event.completed) {
+    // A retry carries the same outcome; another outcome is a conflict, and
+    // the client must learn that its outcome was not the one recorded.
+    if (input.loss != event.loss) {
+      return absl::AlreadyExistsError(absl::StrCat(
+          "event ", event.event_id, " was completed with loss ", event.loss,
+          "; this Update says ", input.loss, " (not applied)"));
+    }
+    if (input.posthoc != event.posthoc) {
+      return absl::AlreadyExistsError(absl::StrCat(
+          "event ", event.event_id,
+          " was completed with another posthoc vector (not applied)"));
+    }
     result.model_version = event.model_version;
     result.already_applied = true;
     return result;

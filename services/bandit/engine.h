@@ -49,6 +49,10 @@ struct EngineOptions {
 // doubles. An upper bound, not the size of a new model.
 size_t MaxModelBytes(const BanditConfig& config);
 
+// Longest meal_id and item_label a Select may carry (bytes): labels, not
+// documents, so that every page of ListEvents stays small.
+constexpr size_t kMaxLabelBytes = 256;
+
 struct SelectInput {
   std::string user_id;
   std::vector<double> context;

@@ -232,9 +232,15 @@ TEST_F(BanditServiceTest, ErrorsNameTheFieldAndChangeNothing) {
 
   ASSERT_TRUE(Update(chosen.event_id(), 1.0, {1, 0, 0, 0}, &updated).ok());
   EXPECT_FALSE(updated.already_applied());
-  ASSERT_TRUE(Update(chosen.event_id(), 0.0, {0, 1, 0, 0}, &updated).ok());
+  ASSERT_TRUE(Update(chosen.event_id(), 1.0, {1, 0, 0, 0}, &updated).ok());
   EXPECT_TRUE(updated.already_applied());
   EXPECT_EQ(updated.model_version(), 1);
+  // Another outcome for a completed event is a conflict.
+  const grpc::Status conflict =
+      Update(chosen.event_id(), 0.0, {0, 1, 0, 0}, &updated);
+  EXPECT_EQ(conflict.error_code(), grpc::StatusCode::ALREADY_EXISTS);
+  EXPECT_NE(conflict.error_message().find("was completed with loss 1"),
+            std::string::npos);
 }
 
 TEST_F(BanditServiceTest, OversizedMessageIsRejected) {

@@ -93,12 +93,22 @@ TEST_F(EngineTest, SelectThenUpdateIsRecordedAndIdempotent) {
   EXPECT_FALSE(first->already_applied);
   EXPECT_EQ(first->user_id, "alice");
 
-  // A repeat, even with another outcome, returns the recorded result.
-  update.loss = 0.0;
+  // A repeat with the same outcome returns the recorded result.
   absl::StatusOr<UpdateResult> again = engine_->Update(update);
   ASSERT_TRUE(again.ok());
   EXPECT_TRUE(again->already_applied);
   EXPECT_EQ(again->model_version, 1);
+  // Another outcome is a conflict, named, and changes nothing.
+  update.loss = 0.0;
+  absl::StatusOr<UpdateResult> conflict = engine_->Update(update);
+  EXPECT_EQ(conflict.status().code(), absl::StatusCode::kAlreadyExists);
+  EXPECT_THAT(conflict.status().message(),
+              ::testing::HasSubstr("was completed with loss 1"));
+  update.loss = 1.0;
+  update.posthoc[0] = 0.5;
+  EXPECT_THAT(engine_->Update(update).status().message(),
+              ::testing::HasSubstr("another posthoc vector"));
+  update.posthoc[0] = 0.1;
   absl::StatusOr<EventRecord> stored = store_->GetEvent(chosen->event_id);
   ASSERT_TRUE(stored.ok());
   EXPECT_EQ(stored->loss, 1.0);
@@ -134,6 +144,20 @@ TEST_F(EngineTest, BadInputGetsPreciseStatusAndWritesNothing) {
                 .status()
                 .code(),
             absl::StatusCode::kInvalidArgument);
+  for (const char* id : {".", "..", "-x", "_"}) {
+    EXPECT_THAT(engine_->GetUser(id).status().message(),
+                ::testing::HasSubstr("must start with a letter or digit"))
+        << id;
+  }
+  EXPECT_THAT(
+      engine_->Select({"bob", RandomVector(8, rng), std::string(257, 'm'), ""})
+          .status()
+          .message(),
+      ::testing::HasSubstr("meal_id: at most 256 bytes, got 257"));
+  BanditConfig long_names = SmallConfig();
+  long_names.action_names[0] = std::string(1 << 20, 'a');  // 1 MB
+  EXPECT_THAT(engine_->CreateUser("long", long_names).status().message(),
+              ::testing::HasSubstr("action_names[0]: must be 1-64 bytes"));
   EXPECT_TRUE(store_->ListEvents("bob", "", Page())->items.empty());
 
   absl::StatusOr<SelectResult> chosen =

@@ -82,8 +82,10 @@ absl::Status ValidateConfig(const BanditConfig& config) {
                config.num_actions());
   }
   for (size_t i = 0; i < config.action_names.size(); ++i) {
-    if (config.action_names[i].empty()) {
-      return bad("action_names[", i, "]: must not be empty");
+    if (config.action_names[i].empty() ||
+        config.action_names[i].size() > kMaxActionNameBytes) {
+      return bad("action_names[", i, "]: must be 1-", kMaxActionNameBytes,
+                 " bytes, got ", config.action_names[i].size());
     }
     for (size_t j = 0; j < i; ++j) {
       if (config.action_names[i] == config.action_names[j]) {

@@ -81,6 +81,10 @@ struct BanditConfig {
 // Returns INVALID_ARGUMENT naming the first field that is out of range.
 absl::Status ValidateConfig(const BanditConfig& config);
 
+// Longest accepted action name (bytes): names, not documents, so that
+// every page of ListUsers stays small.
+constexpr size_t kMaxActionNameBytes = 64;
+
 }  // namespace bitewise::bandit
 
 #endif  // BITEWISE_SERVICES_BANDIT_CORE_CONFIG_H_

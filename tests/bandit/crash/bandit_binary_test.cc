@@ -584,10 +584,14 @@ TEST_F(BanditBinaryTest, SigkillLosesNoAcknowledgedUpdate) {
   }
 
   // Retrying an update acknowledged before the crash changes nothing and
-  // returns the recorded result.
+  // returns the recorded result; a retry with another outcome is a
+  // conflict and changes nothing either.
   const SentRound& retried = acknowledged[10];
-  absl::StatusOr<v1::UpdateResponse> retry =
+  absl::StatusOr<v1::UpdateResponse> conflict =
       Update(stub(), retried.event_id, 0.5, RandomVector(kPostHocDim, rng));
+  EXPECT_EQ(conflict.status().code(), absl::StatusCode::kAlreadyExists);
+  absl::StatusOr<v1::UpdateResponse> retry =
+      Update(stub(), retried.event_id, retried.loss, retried.posthoc);
   ASSERT_TRUE(retry.ok()) << retry.status();
   EXPECT_TRUE(retry->already_applied());
   EXPECT_EQ(retry->model_version(), retried.model_version);
