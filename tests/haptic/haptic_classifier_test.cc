@@ -95,6 +95,24 @@ TEST_F(HapticClassifierTest, NanAndInfAreInvalidAndNamed) {
   EXPECT_THAT(result.status().message(), HasSubstr("samples[7].t_s"));
 }
 
+TEST_F(HapticClassifierTest,
+       HugeValuesAndRatesOutsideTheTrainedRangeAreInvalid) {
+  std::mt19937_64 rng(3);
+  auto trace = SimulatedTrace(HapticClass::kMedium, rng);
+  trace[30].values[2] = 1e300;  // finite, but no sensor's
+  absl::StatusOr<HapticClassification> result = classifier_->Classify(trace);
+  ASSERT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(result.status().message(),
+              HasSubstr("samples[30].fz_n = 1e+300 is beyond"));
+  trace = SimulatedTrace(HapticClass::kMedium, rng);
+  for (size_t i = 0; i < trace.size(); ++i)
+    trace[i].t_s = static_cast<double>(i);
+  result = classifier_->Classify(trace);  // the same samples at 1 Hz
+  ASSERT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(result.status().message(), HasSubstr(" Hz on average"));
+  EXPECT_THAT(result.status().message(), HasSubstr("90-7700 Hz"));
+}
+
 TEST_F(HapticClassifierTest, NoContactIsFailedPreconditionWithPeakForce) {
   // Free motion only: sensor noise around a 1.5 N offset.
   std::mt19937_64 rng(3);

@@ -30,12 +30,28 @@ absl::Status ValidateTrace(absl::Span<const WrenchSample> trace,
             absl::StrCat("samples[", i, "].", kChannelNames[c],
                          " is not finite (", sample.values[c], ")"));
       }
+      const double limit = c < 3 ? kMaxForceN : kMaxTorqueNm;
+      if (std::abs(sample.values[c]) > limit) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "samples[", i, "].", kChannelNames[c], " = ", sample.values[c],
+            " is beyond any F/T sensor's range (limit ", limit, ")"));
+      }
     }
     if (i > 0 && !(sample.t_s > trace[i - 1].t_s)) {
       return absl::InvalidArgumentError(absl::StrCat(
           "samples[", i, "].t_s = ", sample.t_s,
           " s does not increase (samples[", i - 1, "].t_s = ", trace[i - 1].t_s,
           " s); timestamps must be strictly increasing"));
+    }
+  }
+  if (trace.size() >= 2) {
+    const double rate_hz =
+        (trace.size() - 1) / (trace.back().t_s - trace.front().t_s);
+    if (rate_hz < kMinRateHz || rate_hz > kMaxRateHz) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("samples: ", trace.size(), " samples at ", rate_hz,
+                       " Hz on average; HapticNet was trained on ", kMinRateHz,
+                       "-", kMaxRateHz, " Hz"));
     }
   }
   return absl::OkStatus();

@@ -29,9 +29,19 @@ using HapticClass = domain::HapticClass;
 inline constexpr int kHapticClasses = domain::kHapticClasses;
 using domain::HapticClassName;
 
+// What a trace may hold: forces up to 10 kN and torques up to 1 kN·m (far
+// beyond the Forque's Nano25 and any Net F/T sensor, but finite ones that
+// keep every later sum finite), and an average rate within HapticNet's
+// trained range of 100 Hz to 7 kHz, with 10% slack either side.
+inline constexpr double kMaxForceN = 1e4;
+inline constexpr double kMaxTorqueNm = 1e3;
+inline constexpr double kMinRateHz = 90.0;
+inline constexpr double kMaxRateHz = 7700.0;
+
 // Checks what every stage downstream relies on: at least `min_samples`
-// samples, finite values, strictly increasing timestamps. INVALID_ARGUMENT
-// naming the first offending sample and field otherwise.
+// samples, finite values within the limits above, strictly increasing
+// timestamps, the average rate within the limits. INVALID_ARGUMENT naming
+// the first offending sample and field (or the measured rate) otherwise.
 absl::Status ValidateTrace(absl::Span<const WrenchSample> trace,
                            int min_samples);
 
