@@ -19,6 +19,7 @@
 #include "absl/flags/usage.h"
 #include "opencv2/imgcodecs.hpp"
 #include "opencv2/imgproc.hpp"
+#include "services/common/flags_usage.h"
 #include "services/perception/food_detector.h"
 #include "services/sim/food_catalog.h"
 #include "services/sim/scene.h"
@@ -57,6 +58,7 @@ double IoU(const Box& a, const Box& b) {
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "DetectFood on rendered plates with touching and repeated foods.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   const int plates = absl::GetFlag(FLAGS_plates);
   const int max_items = std::max(2, absl::GetFlag(FLAGS_max_items));

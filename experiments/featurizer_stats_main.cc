@@ -21,6 +21,7 @@
 #include "absl/strings/str_format.h"
 #include "experiments/random.h"
 #include "experiments/sim_meals.h"
+#include "services/common/flags_usage.h"
 #include "services/perception/context_scale.h"
 #include "services/perception/default_featurizer.h"
 #include "services/perception/spanet_featurizer.h"
@@ -107,6 +108,7 @@ int SpanetStats(int plates, uint64_t seed) {
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Writes the default featurizer's seen-food statistics.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   const int plates = absl::GetFlag(FLAGS_plates);
   const uint64_t seed = absl::GetFlag(FLAGS_seed);

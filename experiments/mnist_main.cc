@@ -19,6 +19,7 @@
 #include "experiments/mnist_experiment.h"
 #include "experiments/random.h"
 #include "experiments/trial_stats.h"
+#include "services/common/flags_usage.h"
 
 ABSL_FLAG(std::string, train_images, "", "IDX ubyte training images.");
 ABSL_FLAG(std::string, train_labels, "", "IDX ubyte training labels.");
@@ -189,6 +190,7 @@ int Run() {
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "MNIST post hoc bandit experiment (docs/experiments.md) on IDX files.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   return bitewise::experiments::Run();
 }

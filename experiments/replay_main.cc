@@ -18,6 +18,7 @@
 #include "absl/strings/str_format.h"
 #include "experiments/event_log.h"
 #include "experiments/replay.h"
+#include "services/common/flags_usage.h"
 
 ABSL_FLAG(std::string, db, "", "BanditService SQLite file to read.");
 ABSL_FLAG(std::string, user, "", "User whose log --db holds.");
@@ -190,6 +191,7 @@ int Run() {
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Offline tuning of alpha and the ridges by replaying a logged history.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   return bitewise::experiments::Run();
 }

@@ -21,6 +21,7 @@
 #include "experiments/random.h"
 #include "experiments/sim_meals.h"
 #include "experiments/trial_stats.h"
+#include "services/common/flags_usage.h"
 #include "services/sim/food_catalog.h"
 
 ABSL_FLAG(int, trials, 200, "Seeded trials (simulated meals).");
@@ -352,6 +353,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Simulated meals: post hoc vs context-only LinUCB failures on the 8 "
       "unseen foods (docs/experiments.md).");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   return bitewise::experiments::Run();
 }

@@ -22,6 +22,7 @@
 #include "experiments/sim_meals.h"
 #include "experiments/trial_stats.h"
 #include "services/bandit/core/population_prior.h"
+#include "services/common/flags_usage.h"
 #include "services/sim/food_catalog.h"
 
 ABSL_FLAG(int, facilities, 4, "Independent facilities (pools).");
@@ -182,6 +183,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Simulated meals: a new person's first meal with and without the "
       "population prior.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   return bitewise::experiments::Run();
 }

@@ -17,6 +17,7 @@
 #include "experiments/random.h"
 #include "experiments/synthetic.h"
 #include "experiments/trial_stats.h"
+#include "services/common/flags_usage.h"
 
 ABSL_FLAG(std::vector<std::string>, context_dims,
           std::vector<std::string>({"10", "100"}),
@@ -131,6 +132,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Synthetic post hoc vs context-only LinUCB regret "
       "(docs/experiments.md).");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   return bitewise::experiments::Run();
 }

@@ -26,6 +26,7 @@
 #include "absl/time/time.h"
 #include "bitewise/v1/bandit.grpc.pb.h"
 #include "services/common/channel.h"
+#include "services/common/flags_usage.h"
 #include "services/common/grpc_status.h"
 #include "services/sim/food_catalog.h"
 
@@ -126,6 +127,7 @@ int Fail(const char* what, const grpc::Status& status) {
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Runs simulated bites for one user against a BanditService.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   const std::string posthoc_kind = absl::GetFlag(FLAGS_posthoc);
   if (posthoc_kind != "logprob" && posthoc_kind != "prob") {

@@ -9,6 +9,7 @@
 #include "absl/flags/usage.h"
 #include "absl/time/time.h"
 #include "services/common/channel.h"
+#include "services/common/flags_usage.h"
 
 ABSL_FLAG(std::string, address, "127.0.0.1:50051", "Service address.");
 ABSL_FLAG(std::string, service, "",
@@ -22,6 +23,7 @@ ABSL_FLAG(std::string, tls_key, "", "Client key (mutual TLS).");
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Waits until a bitewise service reports SERVING.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   bitewise::ChannelOptions options;
   options.tls_ca_file = absl::GetFlag(FLAGS_tls_ca);

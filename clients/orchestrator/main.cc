@@ -17,6 +17,7 @@
 #include "bitewise/v1/robot.grpc.pb.h"
 #include "clients/orchestrator/meal_runner.h"
 #include "services/common/channel.h"
+#include "services/common/flags_usage.h"
 
 ABSL_FLAG(std::string, user, "demo-user", "User whose model learns.");
 ABSL_FLAG(std::string, meal, "meal-1", "Meal id recorded with each event.");
@@ -72,6 +73,7 @@ namespace orchestrator = bitewise::orchestrator;
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Runs bites for one user through the bitewise services.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   const std::string confirm = absl::GetFlag(FLAGS_confirm);
   const std::string posthoc = absl::GetFlag(FLAGS_posthoc);

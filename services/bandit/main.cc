@@ -11,6 +11,7 @@
 #include "services/bandit/bandit_service.h"
 #include "services/bandit/engine.h"
 #include "services/bandit/store/sqlite_event_store.h"
+#include "services/common/flags_usage.h"
 #include "services/common/readiness_monitor.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
@@ -90,6 +91,7 @@ int main(int argc, char** argv) {
   bitewise::BlockTerminationSignals();
   absl::SetProgramUsageMessage(
       "BanditService: per-user post hoc contextual bandits over gRPC.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
 
   absl::StatusOr<bitewise::bandit::BanditConfig> defaults = DefaultsFromFlags();
@@ -128,7 +130,7 @@ int main(int argc, char** argv) {
       [srv = server->get()](bool serving) { srv->SetServing(serving); },
       /*period_s=*/0.5);
   std::fprintf(stderr, "bitewise-bandit: serving on %s (db %s)\n",
-               (*server)->address().c_str(), store_options.path.c_str());
+               (*server)->description().c_str(), store_options.path.c_str());
   std::fflush(stderr);
   absl::Status status = bitewise::RunUntilSignal(**server);
   if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);

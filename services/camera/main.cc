@@ -16,6 +16,7 @@
 #include "services/camera/realsense_source.h"
 #include "services/camera/recording.h"
 #include "services/camera/sim_source.h"
+#include "services/common/flags_usage.h"
 #include "services/common/readiness_monitor.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
@@ -83,6 +84,7 @@ int main(int argc, char** argv) {
   bitewise::BlockTerminationSignals();
   absl::SetProgramUsageMessage(
       "CameraService: the wrist camera's newest RGB-D frame over gRPC.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
 
   auto source = MakeSource();
@@ -111,7 +113,7 @@ int main(int argc, char** argv) {
       },
       [s = server->get()](bool serving) { s->SetServing(serving); });
   std::fprintf(stderr, "bitewise-camera: serving on %s (source %s)\n",
-               (*server)->address().c_str(), publisher.source_name().c_str());
+               (*server)->description().c_str(), publisher.source_name().c_str());
   std::fflush(stderr);
   absl::Status status = bitewise::RunUntilSignal(**server);
   if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);

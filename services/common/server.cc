@@ -15,6 +15,7 @@
 #include <sstream>
 #include <utility>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "absl/time/clock.h"
@@ -78,6 +79,18 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
   }
   ASSIGN_OR_RETURN(std::shared_ptr<grpc::ServerCredentials> credentials,
                    MakeCredentials(options));
+  const std::string host =
+      options.listen_address.substr(0, options.listen_address.rfind(':'));
+  const bool loopback =
+      absl::StartsWith(host, "127.") || host == "[::1]" || host == "localhost";
+  const bool tls = !options.tls_cert_file.empty();
+  if (!loopback && !tls && !options.allow_plaintext_remote) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "refusing to listen on \"", options.listen_address,
+        "\" in plaintext: a non-loopback address needs --tls_cert and "
+        "--tls_key (and --tls_client_ca for mutual TLS), or "
+        "--allow_plaintext_remote on a network you trust"));
+  }
 
   // Both are consulted by ServerBuilder, so they must be on before building.
   grpc::EnableDefaultHealthCheckService(true);
@@ -99,20 +112,26 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
         absl::StrCat("cannot listen on \"", options.listen_address,
                      "\" (invalid address, or port already in use)"));
   }
+  const char* mode = !tls                                 ? "plaintext"
+                     : options.tls_client_ca_file.empty() ? "TLS"
+                                                          : "mutual TLS";
   auto result = std::unique_ptr<ServiceServer>(new ServiceServer(
       std::move(server), std::move(health_names), port,
-      DialableAddress(options.listen_address, port), options.drain_timeout));
+      DialableAddress(options.listen_address, port),
+      absl::StrCat(host, ":", port, " (", mode, ")"), options.drain_timeout));
   result->SetServing(false);
   return result;
 }
 
 ServiceServer::ServiceServer(std::unique_ptr<grpc::Server> server,
                              std::vector<std::string> health_names, int port,
-                             std::string address, absl::Duration drain_timeout)
+                             std::string address, std::string description,
+                             absl::Duration drain_timeout)
     : server_(std::move(server)),
       health_names_(std::move(health_names)),
       port_(port),
       address_(std::move(address)),
+      description_(std::move(description)),
       drain_timeout_(drain_timeout) {}
 
 ServiceServer::~ServiceServer() {

@@ -38,6 +38,10 @@ struct ServerOptions {
   int max_message_bytes = 4 << 20;
   // How long Shutdown() lets in-flight calls finish before cancelling them.
   absl::Duration drain_timeout = absl::Seconds(10);
+  // Listening on a non-loopback address without TLS exposes health data
+  // and the robot to the network in clear text; Start refuses it unless
+  // this says the operator means it.
+  bool allow_plaintext_remote = false;
 };
 
 // A running gRPC server hosting one or more bitewise services plus health and
@@ -75,6 +79,9 @@ class ServiceServer {
   // An address a client on this machine can dial ("127.0.0.1:<port>" when
   // bound to a wildcard address, otherwise the configured host).
   std::string address() const { return address_; }
+  // For the start-up line: the address actually bound (wildcards as
+  // given) and the transport security, e.g. "0.0.0.0:50051 (mutual TLS)".
+  std::string description() const { return description_; }
 
   absl::Duration drain_timeout() const { return drain_timeout_; }
 
@@ -92,12 +99,14 @@ class ServiceServer {
  private:
   ServiceServer(std::unique_ptr<grpc::Server> server,
                 std::vector<std::string> health_names, int port,
-                std::string address, absl::Duration drain_timeout);
+                std::string address, std::string description,
+                absl::Duration drain_timeout);
 
   const std::unique_ptr<grpc::Server> server_;
   const std::vector<std::string> health_names_;
   const int port_;
   const std::string address_;
+  const std::string description_;
   const absl::Duration drain_timeout_;
 
   absl::Mutex mu_;

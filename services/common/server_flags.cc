@@ -15,6 +15,9 @@ ABSL_FLAG(std::string, tls_client_ca, "",
           "signed (mutual TLS).");
 ABSL_FLAG(int, max_message_bytes, 4 << 20,
           "Largest request or response message, in bytes.");
+ABSL_FLAG(bool, allow_plaintext_remote, false,
+          "Allow listening on a non-loopback address without TLS (refused by "
+          "default: requests carry health data and move the robot).");
 ABSL_FLAG(int, drain_timeout_s, 10,
           "Seconds in-flight calls may take to finish after SIGTERM.");
 
@@ -22,6 +25,7 @@ namespace bitewise {
 
 ServerOptions ServerOptionsFromFlags(int default_port) {
   ServerOptions options;
+  options.allow_plaintext_remote = absl::GetFlag(FLAGS_allow_plaintext_remote);
   options.listen_address = absl::GetFlag(FLAGS_listen);
   if (options.listen_address.empty()) {
     options.listen_address = absl::StrCat("127.0.0.1:", default_port);

@@ -8,6 +8,7 @@
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
+#include "services/common/flags_usage.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
 #include "services/haptic/core/haptic_classifier.h"
@@ -44,6 +45,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "HapticService: classifies food from the fork's force/torque trace "
       "(HapticNet) over gRPC.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
 
   bitewise::haptic::HapticPipelineOptions options;
@@ -82,7 +84,7 @@ int main(int argc, char** argv) {
   // Ready: the model is loaded and checked, and the server accepts calls.
   (*server)->SetServing(true);
   std::fprintf(stderr, "bitewise-haptic: serving on %s (model %s, %s)\n",
-               (*server)->address().c_str(),
+               (*server)->description().c_str(),
                model_path.empty() ? bitewise::haptic::kDefaultHapticNetSource
                                   : model_path.c_str(),
                fingerprint.c_str());

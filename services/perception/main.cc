@@ -8,6 +8,7 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
+#include "services/common/flags_usage.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
 #include "services/perception/default_featurizer.h"
@@ -47,6 +48,7 @@ int main(int argc, char** argv) {
   bitewise::BlockTerminationSignals();
   absl::SetProgramUsageMessage(
       "PerceptionService: food detection and visual features over gRPC.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
 
   const std::string which = absl::GetFlag(FLAGS_featurizer);
@@ -112,7 +114,7 @@ int main(int argc, char** argv) {
   // Ready: the featurizer (and its model, if any) is loaded and checked.
   (*server)->SetServing(true);
   std::fprintf(stderr, "bitewise-perception: serving on %s (featurizer %s)\n",
-               (*server)->address().c_str(), featurizer->name().c_str());
+               (*server)->description().c_str(), featurizer->name().c_str());
   std::fflush(stderr);
   absl::Status status = bitewise::RunUntilSignal(**server);
   if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);

@@ -6,6 +6,7 @@
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
+#include "services/common/flags_usage.h"
 #include "services/perception/spanet_onnx.h"
 
 ABSL_FLAG(std::string, out, "spanet.onnx", "Where to write the model.");
@@ -14,6 +15,7 @@ ABSL_FLAG(uint64_t, seed, 1, "Seed of every weight.");
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Writes an untrained SPANet with seeded weights as ONNX.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   bitewise::perception::SpanetOnnxOptions options;
   options.seed = absl::GetFlag(FLAGS_seed);

@@ -16,6 +16,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
+#include "services/common/flags_usage.h"
 #include "services/common/readiness_monitor.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
@@ -242,6 +243,7 @@ int main(int argc, char** argv) {
   bitewise::BlockTerminationSignals();
   absl::SetProgramUsageMessage(
       "RobotService: the JACO2 with the Forque, or the simulated world.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
 
   absl::StatusOr<bitewise::robot::RobotBackendOptions> options =
@@ -287,7 +289,7 @@ int main(int argc, char** argv) {
       [b = backend->get()] { return b->FtLive(); },
       [s = server->get()](bool serving) { s->SetServing(serving); });
   std::fprintf(stderr, "bitewise-robot: serving on %s (backend %s, %s)\n",
-               (*server)->address().c_str(),
+               (*server)->description().c_str(),
                absl::GetFlag(FLAGS_backend).c_str(),
                (*backend)->ft()->name().c_str());
   std::fflush(stderr);

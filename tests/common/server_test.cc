@@ -306,6 +306,7 @@ TEST(ServiceServerTest, InvalidAddressFailsCleanly) {
   FakeHapticService service;
   ServerOptions options;
   options.listen_address = "256.1.1.1:1";
+  options.allow_plaintext_remote = true;  // to reach the bind
   auto server = StartHaptic(service, options);
   ASSERT_FALSE(server.ok());
   EXPECT_EQ(server.status().code(), absl::StatusCode::kUnavailable);
@@ -552,6 +553,40 @@ TEST(ServiceServerTlsTest, InconsistentTlsOptionsAreRejected) {
   cert_without_ca.tls_key_file = "client.key";
   EXPECT_EQ(MakeChannel("127.0.0.1:1", cert_without_ca).status().code(),
             absl::StatusCode::kInvalidArgument);
+}
+
+}  // namespace
+}  // namespace bitewise
+
+namespace bitewise {
+namespace {
+
+TEST(ServiceServerTest, PlaintextOnANonLoopbackAddressIsRefusedUnlessAllowed) {
+  FakeHapticService service;
+  ServerOptions options;
+  options.listen_address = "0.0.0.0:0";
+  auto refused = StartHaptic(service, options);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(refused.status().message(), HasSubstr("in plaintext"));
+  EXPECT_THAT(refused.status().message(), HasSubstr("--tls_cert"));
+  options.allow_plaintext_remote = true;
+  auto allowed = StartHaptic(service, options);
+  ASSERT_TRUE(allowed.ok()) << allowed.status();
+  EXPECT_THAT((*allowed)->description(),
+              ::testing::MatchesRegex("0\\.0\\.0\\.0:[0-9]+ \\(plaintext\\)"));
+}
+
+TEST(ServiceServerTest, DescriptionNamesTheTransport) {
+  FakeHapticService a, b;
+  ServerOptions mutual = TlsServerOptions(/*mutual=*/true);
+  mutual.listen_address = "0.0.0.0:0";  // TLS: allowed off loopback
+  auto tls = StartHaptic(a, mutual);
+  ASSERT_TRUE(tls.ok()) << tls.status();
+  EXPECT_THAT((*tls)->description(), HasSubstr("(mutual TLS)"));
+  auto plain = StartHaptic(b);
+  ASSERT_TRUE(plain.ok());
+  EXPECT_THAT((*plain)->description(), HasSubstr("127.0.0.1:"));
+  EXPECT_THAT((*plain)->description(), HasSubstr("(plaintext)"));
 }
 
 }  // namespace

@@ -18,6 +18,7 @@
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
+#include "services/common/flags_usage.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/core/haptic_net.h"
 #include "services/haptic/default_model.h"
@@ -198,6 +199,7 @@ std::vector<Condition> Conditions() {
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Evaluates a HapticNet model on fresh simulated traces.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   const std::string path = absl::GetFlag(FLAGS_model);
   absl::StatusOr<std::unique_ptr<HapticNet>> net =

@@ -17,6 +17,7 @@
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "services/common/flags_usage.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/core/haptic_net.h"
 #include "services/haptic/training/haptic_net_weights.h"
@@ -65,6 +66,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Trains HapticNet and writes it as ONNX. With no flags: 3000 simulated "
       "traces per class, seed 1, model to ./hapticnet.onnx.");
+  bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
 
