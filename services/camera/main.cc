@@ -113,7 +113,8 @@ int main(int argc, char** argv) {
       },
       [s = server->get()](bool serving) { s->SetServing(serving); });
   std::fprintf(stderr, "bitewise-camera: serving on %s (source %s)\n",
-               (*server)->description().c_str(), publisher.source_name().c_str());
+               (*server)->description().c_str(),
+               publisher.source_name().c_str());
   std::fflush(stderr);
   absl::Status status = bitewise::RunUntilSignal(**server);
   if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);
