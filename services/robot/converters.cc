@@ -56,6 +56,7 @@ void OutcomeToProto(const AcquireOutcome& outcome, const ActionSpec& action,
   proto->set_contact_time_s(outcome.contact_time_s);
   proto->set_static_load_n(outcome.static_load_n);
   proto->set_duration_s(outcome.duration_s);
+  proto->set_dry_run(outcome.dry_run);
   ActionToProto(action, proto->mutable_action());
   proto->mutable_trace()->Reserve(static_cast<int>(outcome.trace.size()));
   for (const TraceSample& s : outcome.trace) {

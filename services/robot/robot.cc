@@ -48,12 +48,13 @@ const char* AcquirePhaseName(AcquirePhase phase) {
 class Robot::Run {
  public:
   Run(Robot* robot, const ActionSpec& action, const TaskTarget& target,
-      const AcquireProgressCallback& on_progress)
+      const AcquireProgressCallback& on_progress, bool dry_run)
       : robot_(robot),
-        config_(robot->config_),
-        action_(action),
-        target_(target),
+        config_(dry_run ? DryRunConfig(robot->config_) : robot->config_),
+        action_(dry_run ? DryRunAction(action, robot->config_) : action),
+        target_(dry_run ? Raised(target, robot->config_) : target),
         on_progress_(on_progress),
+        dry_run_(dry_run),
         ft_(config_.contact_threshold_n) {}
 
   absl::Status Execute() {
@@ -104,7 +105,11 @@ class Robot::Run {
     outcome_.duration_s = SteadyNowS() - start_s_;
     outcome_.static_load_n = ft_.StaticLoad(std::max(
         settle_start_s, outcome_.duration_s - config_.static_window_s));
-    outcome_.attempt = robot_->judge_->EndAttempt(outcome_.static_load_n);
+    if (dry_run_) {
+      outcome_.dry_run = true;
+    } else {
+      outcome_.attempt = robot_->judge_->EndAttempt(outcome_.static_load_n);
+    }
     outcome_.lowest_tip_z_m = lowest_z_;
     outcome_.peak_force_n = ft_.peak_force_n();
     outcome_.contact_time_s = ft_.contact_time_s();
@@ -116,6 +121,28 @@ class Robot::Run {
   AcquireOutcome TakeOutcome() { return std::move(outcome_); }
 
  private:
+  static AcquisitionConfig DryRunConfig(const AcquisitionConfig& c) {
+    AcquisitionConfig slow = c;
+    slow.approach_speed_mps *= c.dry_run_speed_scale;
+    slow.orient_rate_radps *= c.dry_run_speed_scale;
+    slow.descend_speed_mps *= c.dry_run_speed_scale;
+    slow.extract_speed_mps *= c.dry_run_speed_scale;
+    return slow;
+  }
+  // The whole motion lifted so that the deepest point of the descent is
+  // dry_run_clearance_m above the item's top.
+  static TaskTarget Raised(const TaskTarget& t, const AcquisitionConfig& c) {
+    TaskTarget up = t;
+    up.p_TaskItem_m.z() += c.dry_run_clearance_m + c.depth_limit_m;
+    return up;
+  }
+  static ActionSpec DryRunAction(const ActionSpec& a,
+                                 const AcquisitionConfig& c) {
+    ActionSpec gentle = a;
+    gentle.max_force_n *= c.dry_run_force_scale;
+    return gentle;
+  }
+
   // Moves in a straight line (and a linear change of yaw and pitch) at
   // `speed_mps` or orient_rate_radps, whichever takes longer. In the
   // descent, reaching the action's force limit halts the arm and ends the
@@ -143,14 +170,14 @@ class Robot::Run {
       RETURN_IF_ERROR(AwaitTick(phase, &over_limit));
       // Extraction moves the tines out of the food, which unloads them: the
       // limit guards the pushing phases only.
-      if (over_limit && phase != AcquirePhase::kExtract) {
-        if (phase != AcquirePhase::kDescend) {
+      if (over_limit && (dry_run_ || phase != AcquirePhase::kExtract)) {
+        if (dry_run_ || phase != AcquirePhase::kDescend) {
           RETURN_IF_ERROR(HaltArm());
           return absl::AbortedError(absl::StrFormat(
-              "force %.1f N exceeded the %s limit of %.1f N during %s "
+              "force %.1f N exceeded the %s%s limit of %.1f N during %s "
               "(a collision?); arm halted",
-              ft_.last_force_n(), action_.name, action_.max_force_n,
-              AcquirePhaseName(phase)));
+              ft_.last_force_n(), action_.name, dry_run_ ? " dry-run" : "",
+              action_.max_force_n, AcquirePhaseName(phase)));
         }
         RETURN_IF_ERROR(HaltArm());
         *force_stop = true;
@@ -287,10 +314,11 @@ class Robot::Run {
   }
 
   Robot* const robot_;
-  const AcquisitionConfig& config_;
-  const ActionSpec action_;
+  const AcquisitionConfig config_;  // scaled for a dry run
+  const ActionSpec action_;         // its limit scaled for a dry run
   const TaskTarget target_;
   const AcquireProgressCallback& on_progress_;
+  const bool dry_run_;
 
   AcquireOutcome outcome_;
   AcquirePhase phase_ = AcquirePhase::kIdle;
@@ -309,7 +337,7 @@ Robot::Robot(Arm* arm, netft::NetFtRdtClient* ft, SuccessJudge* judge,
 
 absl::StatusOr<AcquireOutcome> Robot::Acquire(
     const AcquireTarget& target, int action_index,
-    const AcquireProgressCallback& on_progress) {
+    const AcquireProgressCallback& on_progress, const AcquireOptions& options) {
   ASSIGN_OR_RETURN(const ActionSpec action, FindAction(action_index));
   const TaskTarget task_target = ToTaskFrame(target, config_.X_TaskCamera);
   RETURN_IF_ERROR(CheckInWorkspace(task_target, config_.workspace));
@@ -330,8 +358,10 @@ absl::StatusOr<AcquireOutcome> Robot::Acquire(
   if (!live.ok()) {
     result = live;
   } else {
-    judge_->BeginAttempt(action_index);
-    Run run(this, action, task_target, on_progress);
+    // A dry run is no attempt: the judge (and the simulated world) never
+    // hears of it.
+    if (!options.dry_run) judge_->BeginAttempt(action_index);
+    Run run(this, action, task_target, on_progress, options.dry_run);
     absl::Status status = run.Execute();
     if (status.ok()) {
       result = run.TakeOutcome();
@@ -340,7 +370,7 @@ absl::StatusOr<AcquireOutcome> Robot::Acquire(
         std::lock_guard<std::mutex> lock(mu_);
         arm_->Halt().IgnoreError();  // the error being returned says more
       }
-      judge_->AbortAttempt();
+      if (!options.dry_run) judge_->AbortAttempt();
       result = status;
     }
   }

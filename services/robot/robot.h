@@ -60,6 +60,21 @@ struct AcquisitionConfig {
   double watchdog_timeout_s = 0.1;
   // Progress reports per second while moving.
   double progress_rate_hz = 10.0;
+  // A dry run (AcquireOptions::dry_run) flies the action in the air: the
+  // descent ends this far above the item's top, every speed is scaled by
+  // dry_run_speed_scale and the action's force limit by
+  // dry_run_force_scale, and any force above that limit in any phase is a
+  // collision (nothing should be touched).
+  double dry_run_clearance_m = 0.03;
+  double dry_run_speed_scale = 0.25;
+  double dry_run_force_scale = 0.5;
+};
+
+struct AcquireOptions {
+  // For hardware bring-up: the whole motion, slower, above the food;
+  // success is not judged (the outcome says dry_run) and nothing is
+  // counted as an attempt.
+  bool dry_run = false;
 };
 
 enum class AcquirePhase {
@@ -92,6 +107,8 @@ struct AcquireOutcome {
   double duration_s = 0.0;
   // Lowest tip height reached, task frame.
   double lowest_tip_z_m = 0.0;
+  // The motion was a dry run: attempt.success is false and means nothing.
+  bool dry_run = false;
 };
 
 struct RobotStatusInfo {
@@ -121,9 +138,12 @@ class Robot {
   //    the descent (a collision);
   //  - CANCELLED: `on_progress` returned false;
   //  - errors of the Arm, passed through.
+  // With options.dry_run, also ABORTED when any force above the reduced
+  // limit is felt in any phase (the fork should touch nothing).
   absl::StatusOr<AcquireOutcome> Acquire(
       const AcquireTarget& target, int action_index,
-      const AcquireProgressCallback& on_progress);
+      const AcquireProgressCallback& on_progress,
+      const AcquireOptions& options = {});
 
   // Halts the arm now (within the control period in which it is called: no
   // further command is sent after it returns) and ends a running

@@ -52,19 +52,23 @@ grpc::Status RobotServiceImpl::Acquire(
   return RunRpc("RobotService/Acquire", context, [&]() -> absl::Status {
     ASSIGN_OR_RETURN(const AcquireTarget target, TargetFromProto(*request));
     ASSIGN_OR_RETURN(const ActionSpec action, FindAction(request->action()));
-    ASSIGN_OR_RETURN(
-        const AcquireOutcome outcome,
-        backend_->robot().Acquire(
-            target, request->action(), [&](const AcquireProgressEvent& event) {
-              if (context->IsCancelled()) return false;
-              // The final message, with the result, is written below.
-              if (event.phase == AcquirePhase::kDone) return true;
-              v1::AcquireProgress progress;
-              progress.set_phase(PhaseToProto(event.phase));
-              progress.set_elapsed_s(event.elapsed_s);
-              progress.set_force_n(event.force_n);
-              return writer->Write(progress);
-            }));
+    AcquireOptions options;
+    options.dry_run = request->dry_run();
+    ASSIGN_OR_RETURN(const AcquireOutcome outcome,
+                     backend_->robot().Acquire(
+                         target, request->action(),
+                         [&](const AcquireProgressEvent& event) {
+                           if (context->IsCancelled()) return false;
+                           // The final message, with the result, is written
+                           // below.
+                           if (event.phase == AcquirePhase::kDone) return true;
+                           v1::AcquireProgress progress;
+                           progress.set_phase(PhaseToProto(event.phase));
+                           progress.set_elapsed_s(event.elapsed_s);
+                           progress.set_force_n(event.force_n);
+                           return writer->Write(progress);
+                         },
+                         options));
     v1::AcquireProgress last;
     last.set_phase(v1::ACQUIRE_PHASE_DONE);
     last.set_elapsed_s(outcome.duration_s);

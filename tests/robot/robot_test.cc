@@ -131,6 +131,63 @@ TEST_F(RobotTest, AcquireRunsEveryPhaseAndRecordsTheTrace) {
   }
 }
 
+TEST_F(RobotTest, ADryRunFliesTheActionAboveTheFoodWithoutAnAttempt) {
+  Start({"carrot"});
+  const AcquisitionConfig& config = backend_->robot().config();
+  const AcquireTarget target = TargetOfItem(0);
+  const double item_top_z =
+      ToTaskFrame(target, config.X_TaskCamera).p_TaskItem_m.z();
+  std::vector<AcquirePhase> phases;
+  AcquireOptions options;
+  options.dry_run = true;
+  absl::StatusOr<AcquireOutcome> dry = backend_->robot().Acquire(
+      target, /*TV0*/ 2,
+      [&](const AcquireProgressEvent& event) {
+        if (phases.empty() || phases.back() != event.phase) {
+          phases.push_back(event.phase);
+        }
+        return true;
+      },
+      options);
+  ASSERT_TRUE(dry.ok()) << dry.status();
+  EXPECT_TRUE(dry->dry_run);
+  EXPECT_EQ(phases.size(), 5u);  // every phase, in the air
+  // The deepest point is the clearance above the food: it was never
+  // touched, and the plate still holds it.
+  EXPECT_NEAR(dry->lowest_tip_z_m, item_top_z + config.dry_run_clearance_m,
+              0.002);
+  EXPECT_EQ(dry->contact_time_s, -1.0);
+  EXPECT_LT(dry->peak_force_n, 0.5);
+  EXPECT_EQ(backend_->items_left(), 1);
+  EXPECT_FALSE(dry->attempt.success);
+  // At a quarter of the speed: it takes longer than the real action.
+  absl::StatusOr<AcquireOutcome> real =
+      backend_->robot().Acquire(target, 2, nullptr);
+  ASSERT_TRUE(real.ok()) << real.status();
+  EXPECT_GT(dry->duration_s, 2.0 * real->duration_s);
+}
+
+TEST_F(RobotTest, AnyForceInADryRunStopsTheArm) {
+  Start({"carrot"});
+  AcquireOptions options;
+  options.dry_run = true;
+  bool pressed = false;
+  absl::StatusOr<AcquireOutcome> dry = backend_->robot().Acquire(
+      TargetOfItem(0), /*TV0, 20 N; 10 N in a dry run*/ 2,
+      [&](const AcquireProgressEvent& event) {
+        if (event.phase == AcquirePhase::kOrient && !pressed) {
+          pressed = true;
+          SetFault([](sim::SimNetFtFaults* f) { f->press_n = 15.0; });
+        }
+        return true;
+      },
+      options);
+  EXPECT_EQ(dry.status().code(), absl::StatusCode::kAborted);
+  EXPECT_THAT(dry.status().message(),
+              ::testing::HasSubstr("TV0 dry-run limit of 10.0 N"));
+  EXPECT_TRUE(ArmFrozen());
+}
+
 TEST_F(RobotTest, TheSeedDecidesTheOutcome) {
   std::vector<bool> first, second;
   for (std::vector<bool>* run : {&first, &second}) {
