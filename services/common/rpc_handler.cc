@@ -3,10 +3,15 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <memory>
+#include <string>
+#include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
+#include "services/common/authz.h"
 #include "services/common/grpc_status.h"
 
 namespace bitewise {
@@ -28,6 +33,20 @@ absl::Status Precheck(const char* method, grpc::ServerContext* context) {
         absl::StrCat(method, ": the deadline passed before it ran"));
   }
   return absl::OkStatus();
+}
+
+// The client's certificate identities: subject CN and SAN entries.
+std::vector<std::string> PeerIdentities(const grpc::ServerContext& context) {
+  std::vector<std::string> out;
+  const std::shared_ptr<const grpc::AuthContext> auth = context.auth_context();
+  if (auth == nullptr) return out;
+  for (const char* property :
+       {"x509_common_name", "x509_subject_alternative_name"}) {
+    for (const grpc::string_ref& value : auth->FindPropertyValues(property)) {
+      out.emplace_back(value.data(), value.size());
+    }
+  }
+  return out;
 }
 
 }  // namespace
@@ -58,7 +77,33 @@ grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
                     RpcPolicy policy) {
   const absl::Time start = absl::Now();
   absl::Status status = Precheck(method, context);
-  if (status.ok() || policy == RpcPolicy::kAlwaysRun) status = handler();
+  // Authorization comes before everything, Stop included: a refused call
+  // runs nothing.
+  const Authorizer* authorizer = Authorizer::Global();
+  std::vector<std::string> identities;
+  std::string role;
+  if (authorizer != nullptr && context != nullptr) {
+    identities = PeerIdentities(*context);
+    absl::Status allowed =
+        authorizer->Check(method, identities, context->peer(), &role);
+    if (!allowed.ok()) {
+      status = allowed;
+      policy = RpcPolicy::kNormal;
+    }
+  }
+  if (status.ok() ||
+      (policy == RpcPolicy::kAlwaysRun && !absl::IsPermissionDenied(status))) {
+    status = handler();
+  }
+  if (Audited(method) && context != nullptr) {
+    std::fprintf(
+        stderr, "audit: %s %s by %s (role %s) from %s: %s\n",
+        absl::FormatTime(absl::Now()).c_str(), method,
+        identities.empty() ? "(no certificate)"
+                           : absl::StrJoin(identities, ",").c_str(),
+        role.empty() ? "none" : role.c_str(), context->peer().c_str(),
+        status.ok() ? "OK" : absl::StatusCodeToString(status.code()).c_str());
+  }
   const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
   RpcStats::Global().Record(method, status.code(), seconds);
   if (!status.ok()) {

@@ -92,6 +92,16 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
         "--allow_plaintext_remote on a network you trust"));
   }
 
+  std::unique_ptr<Authorizer> authorizer;
+  if (!options.authz_file.empty()) {
+    if (options.tls_client_ca_file.empty()) {
+      return absl::InvalidArgumentError(
+          "--authz_file needs mutual TLS (--tls_cert, --tls_key and "
+          "--tls_client_ca): roles are given to client certificates");
+    }
+    ASSIGN_OR_RETURN(authorizer, Authorizer::Load(options.authz_file));
+  }
+
   // Both are consulted by ServerBuilder, so they must be on before building.
   grpc::EnableDefaultHealthCheckService(true);
   grpc::reflection::InitProtoReflectionServerBuilderPlugin();
@@ -115,10 +125,17 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
   const char* mode = !tls                                 ? "plaintext"
                      : options.tls_client_ca_file.empty() ? "TLS"
                                                           : "mutual TLS";
+  // Built before the call: the authorizer is moved in the same argument
+  // list, and argument evaluation order is unspecified.
+  std::string description =
+      absl::StrCat(host, ":", port, " (", mode, ", ",
+                   authorizer ? absl::StrCat("roles from ", options.authz_file)
+                              : std::string("authorization off"),
+                   ")");
   auto result = std::unique_ptr<ServiceServer>(new ServiceServer(
       std::move(server), std::move(health_names), port,
-      DialableAddress(options.listen_address, port),
-      absl::StrCat(host, ":", port, " (", mode, ")"), options.drain_timeout));
+      DialableAddress(options.listen_address, port), std::move(description),
+      options.drain_timeout, std::move(authorizer)));
   result->SetServing(false);
   return result;
 }
@@ -126,17 +143,29 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
 ServiceServer::ServiceServer(std::unique_ptr<grpc::Server> server,
                              std::vector<std::string> health_names, int port,
                              std::string address, std::string description,
-                             absl::Duration drain_timeout)
+                             absl::Duration drain_timeout,
+                             std::unique_ptr<Authorizer> authorizer)
     : server_(std::move(server)),
       health_names_(std::move(health_names)),
       port_(port),
       address_(std::move(address)),
       description_(std::move(description)),
-      drain_timeout_(drain_timeout) {}
+      authorizer_(std::move(authorizer)),
+      drain_timeout_(drain_timeout) {
+  if (authorizer_) Authorizer::SetGlobal(authorizer_.get());
+}
 
 ServiceServer::~ServiceServer() {
   Shutdown();
   Wait();
+  if (authorizer_ && Authorizer::Global() == authorizer_.get()) {
+    Authorizer::SetGlobal(nullptr);
+  }
+}
+
+absl::Status ServiceServer::ReloadAuthorization() {
+  if (!authorizer_) return absl::OkStatus();
+  return authorizer_->Reload();
 }
 
 void ServiceServer::SetServing(bool serving) {
@@ -174,6 +203,7 @@ sigset_t TerminationSignals() {
   sigemptyset(&signals);
   sigaddset(&signals, SIGTERM);
   sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGHUP);  // reload the roles file
   return signals;
 }
 
@@ -190,9 +220,18 @@ absl::Status RunUntilSignal(ServiceServer& server) {
   // no-op when the main already did it.
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   int signal_number = 0;
-  if (const int error = sigwait(&signals, &signal_number); error != 0) {
-    return absl::InternalError(
-        absl::StrCat("sigwait failed: ", std::strerror(error)));
+  while (true) {
+    if (const int error = sigwait(&signals, &signal_number); error != 0) {
+      return absl::InternalError(
+          absl::StrCat("sigwait failed: ", std::strerror(error)));
+    }
+    if (signal_number != SIGHUP) break;
+    const absl::Status reloaded = server.ReloadAuthorization();
+    std::fprintf(stderr, "bitewise: SIGHUP: %s\n",
+                 reloaded.ok() ? "roles reloaded"
+                               : absl::StrCat("roles kept, reload failed: ",
+                                              reloaded.ToString())
+                                     .c_str());
   }
   std::fprintf(stderr, "bitewise: received %s, draining (up to %s)\n",
                signal_number == SIGTERM ? "SIGTERM" : "SIGINT",

@@ -17,6 +17,7 @@
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
+#include "services/common/authz.h"
 
 namespace bitewise {
 
@@ -42,6 +43,9 @@ struct ServerOptions {
   // and the robot to the network in clear text; Start refuses it unless
   // this says the operator means it.
   bool allow_plaintext_remote = false;
+  // Roles file (authz.h). Requires mutual TLS. Empty: authorization off,
+  // which the start-up line says.
+  std::string authz_file;
 };
 
 // A running gRPC server hosting one or more bitewise services plus health and
@@ -82,6 +86,8 @@ class ServiceServer {
   // For the start-up line: the address actually bound (wildcards as
   // given) and the transport security, e.g. "0.0.0.0:50051 (mutual TLS)".
   std::string description() const { return description_; }
+  // Reloads the roles file (on SIGHUP); OK when authorization is off.
+  absl::Status ReloadAuthorization();
 
   absl::Duration drain_timeout() const { return drain_timeout_; }
 
@@ -100,28 +106,31 @@ class ServiceServer {
   ServiceServer(std::unique_ptr<grpc::Server> server,
                 std::vector<std::string> health_names, int port,
                 std::string address, std::string description,
-                absl::Duration drain_timeout);
+                absl::Duration drain_timeout,
+                std::unique_ptr<Authorizer> authorizer);
 
   const std::unique_ptr<grpc::Server> server_;
   const std::vector<std::string> health_names_;
   const int port_;
   const std::string address_;
   const std::string description_;
+  const std::unique_ptr<Authorizer> authorizer_;
   const absl::Duration drain_timeout_;
 
   absl::Mutex mu_;
   bool shut_down_ ABSL_GUARDED_BY(mu_) = false;
 };
 
-// Blocks SIGTERM and SIGINT in the calling thread. Mains call this first
-// thing, before any thread exists (gRPC starts threads as soon as it is
+// Blocks SIGTERM, SIGINT and SIGHUP in the calling thread. Mains call this
+// first thing, before any thread exists (gRPC starts threads as soon as it is
 // used), so every thread inherits the mask and the signals are only ever
 // consumed by RunUntilSignal() instead of killing the process mid-call.
 void BlockTerminationSignals();
 
 // Waits for SIGTERM or SIGINT (which BlockTerminationSignals() must already
 // have blocked), prints one line to stderr, shuts `server` down with its
-// drain timeout and returns once it has stopped. Errors: INTERNAL if waiting
+// drain timeout and returns once it has stopped. A SIGHUP meanwhile reloads
+// the roles file (and keeps serving). Errors: INTERNAL if waiting
 // for the signal fails.
 absl::Status RunUntilSignal(ServiceServer& server);
 

@@ -18,6 +18,10 @@ ABSL_FLAG(int, max_message_bytes, 4 << 20,
 ABSL_FLAG(bool, allow_plaintext_remote, false,
           "Allow listening on a non-loopback address without TLS (refused by "
           "default: requests carry health data and move the robot).");
+ABSL_FLAG(std::string, authz_file, "",
+          "Roles file: which client certificate identity may call what "
+          "(docs/security.md). Needs mutual TLS; re-read on SIGHUP. Empty: "
+          "authorization off.");
 ABSL_FLAG(int, drain_timeout_s, 10,
           "Seconds in-flight calls may take to finish after SIGTERM.");
 
@@ -26,6 +30,7 @@ namespace bitewise {
 ServerOptions ServerOptionsFromFlags(int default_port) {
   ServerOptions options;
   options.allow_plaintext_remote = absl::GetFlag(FLAGS_allow_plaintext_remote);
+  options.authz_file = absl::GetFlag(FLAGS_authz_file);
   options.listen_address = absl::GetFlag(FLAGS_listen);
   if (options.listen_address.empty()) {
     options.listen_address = absl::StrCat("127.0.0.1:", default_port);

@@ -16,6 +16,7 @@ ABSL_DECLARE_FLAG(std::string, tls_client_ca);
 ABSL_DECLARE_FLAG(int, max_message_bytes);
 ABSL_DECLARE_FLAG(int, drain_timeout_s);
 ABSL_DECLARE_FLAG(bool, allow_plaintext_remote);
+ABSL_DECLARE_FLAG(std::string, authz_file);
 
 namespace bitewise {
 

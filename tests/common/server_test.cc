@@ -32,6 +32,7 @@
 #include "bitewise/v1/haptic.grpc.pb.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/common/authz.h"
 #include "services/common/channel.h"
 #include "services/common/grpc_status.h"
 #include "services/common/rpc_handler.h"
@@ -573,7 +574,8 @@ TEST(ServiceServerTest, PlaintextOnANonLoopbackAddressIsRefusedUnlessAllowed) {
   auto allowed = StartHaptic(service, options);
   ASSERT_TRUE(allowed.ok()) << allowed.status();
   EXPECT_THAT((*allowed)->description(),
-              ::testing::MatchesRegex("0\\.0\\.0\\.0:[0-9]+ \\(plaintext\\)"));
+              ::testing::MatchesRegex(
+                  "0\\.0\\.0\\.0:[0-9]+ \\(plaintext, authorization off\\)"));
 }
 
 TEST(ServiceServerTest, DescriptionNamesTheTransport) {
@@ -582,11 +584,112 @@ TEST(ServiceServerTest, DescriptionNamesTheTransport) {
   mutual.listen_address = "0.0.0.0:0";  // TLS: allowed off loopback
   auto tls = StartHaptic(a, mutual);
   ASSERT_TRUE(tls.ok()) << tls.status();
-  EXPECT_THAT((*tls)->description(), HasSubstr("(mutual TLS)"));
+  EXPECT_THAT((*tls)->description(), HasSubstr("(mutual TLS, "));
   auto plain = StartHaptic(b);
   ASSERT_TRUE(plain.ok());
   EXPECT_THAT((*plain)->description(), HasSubstr("127.0.0.1:"));
-  EXPECT_THAT((*plain)->description(), HasSubstr("(plaintext)"));
+  EXPECT_THAT((*plain)->description(),
+              HasSubstr("(plaintext, authorization off)"));
+}
+
+}  // namespace
+}  // namespace bitewise
+
+namespace bitewise {
+namespace {
+
+// A HapticService whose Classify runs through RunRpc under a configurable
+// method name, so one server can stand for any method in the role table.
+class AuthzProbeService final : public v1::HapticService::Service {
+ public:
+  grpc::Status Classify(grpc::ServerContext* context,
+                        const v1::ClassifyRequest*,
+                        v1::ClassifyResponse*) override {
+    return RunRpc(method.c_str(), context, [this] {
+      ++ran;
+      return absl::OkStatus();
+    });
+  }
+  std::string method = "HapticService/Classify";
+  std::atomic<int> ran{0};
+};
+
+std::string WriteRoles(const std::string& text) {
+  const std::string path = Certs().Path("roles.txt");
+  std::ofstream(path, std::ios::trunc) << text;
+  return path;
+}
+
+TEST(AuthorizationTest, RolesDecideWhatAClientCertificateMayCall) {
+  ASSERT_TRUE(Certs().error.empty()) << Certs().error;
+  AuthzProbeService service;
+  ServerOptions options = TlsServerOptions(/*mutual=*/true);
+  options.authz_file =
+      WriteRoles("# identity role\nbitewise-client researcher\n");
+  auto server =
+      ServiceServer::Start(options, {&service}, {"bitewise.v1.HapticService"});
+  ASSERT_TRUE(server.ok()) << server.status();
+  EXPECT_THAT((*server)->description(),
+              HasSubstr("(mutual TLS, roles from " + options.authz_file));
+  ChannelOptions channel = TlsChannelOptions(/*with_client_cert=*/true);
+  channel.tls_server_name_override = "localhost";
+  auto connected = Connect((*server)->address(), channel);
+
+  // A researcher reads ...
+  EXPECT_TRUE(CallClassify(connected, 1).ok());
+  EXPECT_EQ(service.ran, 1);
+  // ... but does not delete, and nothing runs.
+  service.method = "BanditService/DeleteUser";
+  absl::Status denied = CallClassify(connected, 1);
+  EXPECT_EQ(denied.code(), absl::StatusCode::kPermissionDenied);
+  EXPECT_THAT(denied.message(), HasSubstr("client \"bitewise-client\" from "));
+  EXPECT_THAT(denied.message(),
+              HasSubstr("has role researcher, which may not call "
+                        "BanditService/DeleteUser"));
+  EXPECT_EQ(service.ran, 1);
+  // Anyone with a lab certificate may stop the arm.
+  service.method = "RobotService/Stop";
+  EXPECT_TRUE(CallClassify(connected, 1).ok());
+
+  // SIGHUP's reload: the client becomes an admin, then nobody.
+  WriteRoles("bitewise-client admin\n");
+  ASSERT_TRUE((*server)->ReloadAuthorization().ok());
+  service.method = "BanditService/DeleteUser";
+  EXPECT_TRUE(CallClassify(connected, 1).ok());
+  WriteRoles("somebody-else robot\n");
+  ASSERT_TRUE((*server)->ReloadAuthorization().ok());
+  service.method = "HapticService/Classify";
+  EXPECT_THAT(CallClassify(connected, 1).message(),
+              HasSubstr("has no role in"));
+  // A broken file is refused and the roles in force stay.
+  WriteRoles("somebody-else superuser\n");
+  absl::Status bad = (*server)->ReloadAuthorization();
+  EXPECT_EQ(bad.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(bad.message(), HasSubstr("line 1: unknown role \"superuser\""));
+  (*server)->Shutdown();
+}
+
+TEST(AuthorizationTest, RolesNeedMutualTls) {
+  AuthzProbeService service;
+  ServerOptions options;  // plaintext on loopback
+  options.authz_file = WriteRoles("bitewise-client admin\n");
+  auto server =
+      ServiceServer::Start(options, {&service}, {"bitewise.v1.HapticService"});
+  EXPECT_EQ(server.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(server.status().message(), HasSubstr("needs mutual TLS"));
+}
+
+TEST(AuthorizationTest, TheRoleTableMatchesTheIssue) {
+  EXPECT_TRUE(RoleAllows(Role::kRobot, "BanditService/Select"));
+  EXPECT_FALSE(RoleAllows(Role::kRobot, "BanditService/DeleteUser"));
+  EXPECT_FALSE(RoleAllows(Role::kRobot, "BanditService/ListEvents"));
+  EXPECT_TRUE(RoleAllows(Role::kResearcher, "BanditService/ListEvents"));
+  EXPECT_FALSE(RoleAllows(Role::kResearcher, "BanditService/Update"));
+  EXPECT_FALSE(RoleAllows(Role::kResearcher, "RobotService/Acquire"));
+  EXPECT_TRUE(RoleAllows(Role::kAdmin, "BanditService/ResetUser"));
+  EXPECT_FALSE(RoleAllows(Role::kRobot, "SomeService/Unknown"));
+  EXPECT_TRUE(OpenToEveryIdentity("RobotService/Stop"));
+  EXPECT_TRUE(Audited("BanditService/DeleteUser"));
 }
 
 }  // namespace

@@ -1,0 +1,175 @@
+#include "services/common/authz.h"
+
+#include <atomic>
+#include <fstream>
+#include <set>
+#include <utility>
+
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
+#include "absl/strings/strip.h"
+
+namespace bitewise {
+namespace {
+
+const std::set<std::string>& RobotMethods() {
+  static const auto* const methods = new std::set<std::string>{
+      "BanditService/Select",        "BanditService/Update",
+      "BanditService/CreateUser",    "BanditService/GetUser",
+      "BanditService/GetModel",      "PerceptionService/DetectFood",
+      "PerceptionService/Featurize", "HapticService/Classify",
+      "RobotService/Acquire",        "RobotService/CaptureFrame",
+      "RobotService/Tare",           "RobotService/GetStatus",
+      "RobotService/ListActions",    "CameraService/GetFrame"};
+  return *methods;
+}
+
+const std::set<std::string>& ResearcherMethods() {
+  static const auto* const methods = new std::set<std::string>{
+      "BanditService/GetUser",        "BanditService/ListUsers",
+      "BanditService/GetModel",       "BanditService/ListEvents",
+      "PerceptionService/DetectFood", "PerceptionService/Featurize",
+      "HapticService/Classify",       "RobotService/GetStatus",
+      "RobotService/ListActions"};
+  return *methods;
+}
+
+std::atomic<Authorizer*> global_authorizer{nullptr};
+
+}  // namespace
+
+const char* RoleName(Role role) {
+  switch (role) {
+    case Role::kRobot:
+      return "robot";
+    case Role::kResearcher:
+      return "researcher";
+    case Role::kAdmin:
+      return "admin";
+  }
+  return "?";
+}
+
+bool RoleAllows(Role role, const std::string& method) {
+  switch (role) {
+    case Role::kAdmin:
+      return true;
+    case Role::kRobot:
+      return RobotMethods().count(method) > 0;
+    case Role::kResearcher:
+      return ResearcherMethods().count(method) > 0;
+  }
+  return false;
+}
+
+bool OpenToEveryIdentity(const std::string& method) {
+  return method == "RobotService/Stop";
+}
+
+bool Audited(const std::string& method) {
+  return method == "BanditService/CreateUser" ||
+         method == "BanditService/ResetUser" ||
+         method == "BanditService/DeleteUser" ||
+         method == "BanditService/BuildPopulationPrior" ||
+         method == "RobotService/Tare";
+}
+
+absl::StatusOr<std::map<std::string, Role>> Authorizer::Parse(
+    const std::string& path) {
+  std::ifstream in(path);
+  if (!in) {
+    return absl::NotFoundError(
+        absl::StrCat("roles file \"", path, "\" cannot be read"));
+  }
+  std::map<std::string, Role> roles;
+  std::string line;
+  for (int n = 1; std::getline(in, line); ++n) {
+    absl::string_view text = line;
+    if (const size_t hash = text.find('#'); hash != text.npos) {
+      text = text.substr(0, hash);
+    }
+    const std::vector<std::string> words =
+        absl::StrSplit(text, absl::ByAnyChar(" \t"), absl::SkipWhitespace());
+    if (words.empty()) continue;
+    const auto bad = [&](absl::string_view why) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("roles file \"", path, "\" line ", n, ": ", why));
+    };
+    if (words.size() != 2) return bad("expected \"<identity> <role>\"");
+    Role role;
+    if (words[1] == "robot") {
+      role = Role::kRobot;
+    } else if (words[1] == "researcher") {
+      role = Role::kResearcher;
+    } else if (words[1] == "admin") {
+      role = Role::kAdmin;
+    } else {
+      return bad(absl::StrCat("unknown role \"", words[1],
+                              "\" (robot, researcher or admin)"));
+    }
+    if (!roles.emplace(words[0], role).second) {
+      return bad(absl::StrCat("identity \"", words[0], "\" listed twice"));
+    }
+  }
+  return roles;
+}
+
+absl::StatusOr<std::unique_ptr<Authorizer>> Authorizer::Load(
+    const std::string& path) {
+  auto roles = Parse(path);
+  if (!roles.ok()) return roles.status();
+  auto authorizer = std::unique_ptr<Authorizer>(new Authorizer(path));
+  absl::MutexLock lock(&authorizer->mu_);
+  authorizer->roles_ = *std::move(roles);
+  return authorizer;
+}
+
+absl::Status Authorizer::Reload() {
+  auto roles = Parse(path_);
+  if (!roles.ok()) return roles.status();
+  absl::MutexLock lock(&mu_);
+  roles_ = *std::move(roles);
+  return absl::OkStatus();
+}
+
+absl::Status Authorizer::Check(const std::string& method,
+                               const std::vector<std::string>& identities,
+                               const std::string& peer,
+                               std::string* role_out) const {
+  const std::string who =
+      identities.empty()
+          ? std::string("(no certificate identity)")
+          : absl::StrCat("\"", absl::StrJoin(identities, "\", \""), "\"");
+  if (OpenToEveryIdentity(method) && !identities.empty()) {
+    *role_out = "any";
+    return absl::OkStatus();
+  }
+  absl::MutexLock lock(&mu_);
+  const Role* found = nullptr;
+  for (const std::string& identity : identities) {
+    auto it = roles_.find(identity);
+    if (it == roles_.end()) continue;
+    if (RoleAllows(it->second, method)) {
+      *role_out = RoleName(it->second);
+      return absl::OkStatus();
+    }
+    found = &it->second;
+  }
+  if (found == nullptr) {
+    return absl::PermissionDeniedError(
+        absl::StrCat("client ", who, " from ", peer, " has no role in \"",
+                     path_, "\"; ", method, " refused"));
+  }
+  return absl::PermissionDeniedError(
+      absl::StrCat("client ", who, " from ", peer, " has role ",
+                   RoleName(*found), ", which may not call ", method));
+}
+
+Authorizer* Authorizer::Global() { return global_authorizer.load(); }
+
+void Authorizer::SetGlobal(Authorizer* authorizer) {
+  global_authorizer.store(authorizer);
+}
+
+}  // namespace bitewise

@@ -1,0 +1,89 @@
+// Authorization: who may call what. With mutual TLS each client presents a
+// certificate of the lab's CA; its identities (subject CN and SAN entries)
+// map to one role in a roles file the service reads at start and again on
+// SIGHUP:
+//
+//   # identity        role
+//   robot-computer    robot
+//   lab-laptop        researcher
+//   ops               admin
+//
+// robot: Select, Update, CreateUser, GetUser, GetModel, DetectFood,
+//   Featurize, Classify, Acquire, CaptureFrame, Tare, GetStatus,
+//   ListActions, GetFrame.
+// researcher: read only: GetUser, ListUsers, GetModel, ListEvents, and the
+//   stateless DetectFood, Featurize, Classify, GetStatus, ListActions.
+// admin: everything, including ResetUser, DeleteUser, BuildPopulationPrior.
+// RobotService/Stop stays callable by every client with a valid lab
+// certificate, role or not: anyone must be able to stop the arm.
+//
+// RunRpc (rpc_handler.h) consults the process's Authorizer before every
+// handler; a refused call is PERMISSION_DENIED naming the identity, the
+// role and the method, and nothing runs. Administrative and destructive
+// calls (CreateUser, ResetUser, DeleteUser, BuildPopulationPrior, Tare) are
+// written to the audit log (stderr: who, role, peer, method, time, result).
+//
+// Thread-safe.
+#ifndef BITEWISE_SERVICES_COMMON_AUTHZ_H_
+#define BITEWISE_SERVICES_COMMON_AUTHZ_H_
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
+
+namespace bitewise {
+
+enum class Role { kRobot, kResearcher, kAdmin };
+const char* RoleName(Role role);
+
+// Whether `role` may call `method` ("Service/Method"). Unknown methods are
+// admin-only.
+bool RoleAllows(Role role, const std::string& method);
+// Methods any authenticated client may call (RobotService/Stop).
+bool OpenToEveryIdentity(const std::string& method);
+// Methods whose calls are written to the audit log.
+bool Audited(const std::string& method);
+
+class Authorizer {
+ public:
+  // Reads the roles file. INVALID_ARGUMENT naming the line of a malformed
+  // entry or an unknown role; NOT_FOUND when the file cannot be read.
+  static absl::StatusOr<std::unique_ptr<Authorizer>> Load(
+      const std::string& path);
+
+  // Reads the file again; on error keeps the roles it had.
+  absl::Status Reload();
+
+  // OK when one of `identities` has a role that allows `method`; else
+  // PERMISSION_DENIED naming the identities, the role (if any), the method
+  // and the peer.
+  absl::Status Check(const std::string& method,
+                     const std::vector<std::string>& identities,
+                     const std::string& peer, std::string* role_out) const;
+
+  const std::string& path() const { return path_; }
+
+  // The process's authorizer (null: authorization off). Set once by
+  // ServiceServer::Start; owned by the caller.
+  static Authorizer* Global();
+  static void SetGlobal(Authorizer* authorizer);
+
+ private:
+  explicit Authorizer(std::string path) : path_(std::move(path)) {}
+  static absl::StatusOr<std::map<std::string, Role>> Parse(
+      const std::string& path);
+
+  const std::string path_;
+  mutable absl::Mutex mu_;
+  std::map<std::string, Role> roles_ ABSL_GUARDED_BY(mu_);
+};
+
+}  // namespace bitewise
+
+#endif  // BITEWISE_SERVICES_COMMON_AUTHZ_H_
