@@ -60,7 +60,7 @@ start() {
 
 printf '\n==> Starting the services (logs in %s/logs)\n' "$DATA_DIR"
 start bandit BanditService "$BASE_PORT" build/services/bandit/bitewise-bandit \
-  --db "$DATA_DIR/bandit.db"
+  --db "$DATA_DIR/bandit.db" --create
 start perception PerceptionService "$((BASE_PORT + 1))" \
   build/services/perception/bitewise-perception
 start haptic HapticService "$((BASE_PORT + 2))" build/services/haptic/bitewise-haptic

@@ -12,7 +12,7 @@ meals="${3:-10}"
 port="${4:-50071}"
 rm -f "$db" "$db-wal" "$db-shm"
 mkdir -p "$(dirname "$db")"
-"$build/services/bandit/bitewise-bandit" --db "$db" --default_strategy uniform \
+"$build/services/bandit/bitewise-bandit" --db "$db" --create --default_strategy uniform \
   --listen "127.0.0.1:$port" >/dev/null 2>&1 &
 server=$!
 trap 'kill "$server" 2>/dev/null; wait "$server" 2>/dev/null || true' EXIT

@@ -24,6 +24,10 @@ ABSL_FLAG(bool, sqlite_fsync, true,
 ABSL_FLAG(int64_t, cache_budget_mb, 2048,
           "Memory budget for loaded user models; least recently used models "
           "beyond it are unloaded and rebuilt from the log on next use.");
+ABSL_FLAG(bool, create, false,
+          "Make a new store when --db does not exist or is an empty file. "
+          "Without it such a --db stops the start (a mistyped path must not "
+          "silently start everyone from scratch).");
 ABSL_FLAG(int64_t, max_model_mb, 2048,
           "CreateUser refuses a configuration whose model could grow beyond "
           "this (all actions in primal form: about 16 d^2 bytes per action).");
@@ -101,6 +105,7 @@ int main(int argc, char** argv) {
 
   bitewise::bandit::SqliteStoreOptions store_options;
   store_options.path = absl::GetFlag(FLAGS_db);
+  store_options.create_if_missing = absl::GetFlag(FLAGS_create);
   store_options.synchronous_full = absl::GetFlag(FLAGS_sqlite_fsync);
   auto store = bitewise::bandit::SqliteEventStore::Open(store_options);
   if (!store.ok()) {

@@ -58,7 +58,8 @@ class MealEndToEndTest : public ::testing::Test {
     dir_ = ::testing::TempDir() + "/e2e_XXXXXX";
     ASSERT_NE(mkdtemp(dir_.data()), nullptr);
     services_[0].spec = kBandit;
-    services_[0].extra_args = {absl::StrCat("--db=", dir_, "/bandit.db")};
+    services_[0].extra_args = {absl::StrCat("--db=", dir_, "/bandit.db"),
+                               "--create"};
     services_[1].spec = kPerception;
     services_[2].spec = kHaptic;
     services_[3].spec = kRobot;

@@ -832,12 +832,29 @@ absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
   if (options.path.empty()) {
     return absl::InvalidArgumentError("SqliteStoreOptions.path is empty");
   }
+  // A missing or empty file is a new store only when asked for: a mistyped
+  // --db must not silently start everyone from scratch.
+  bool creating = false;
+  if (options.path != ":memory:") {
+    struct stat existing {};
+    const bool exists = stat(options.path.c_str(), &existing) == 0;
+    creating = !exists || existing.st_size == 0;
+    if (creating && !options.create_if_missing) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "database \"", options.path, "\" ",
+          exists ? "is an empty file" : "does not exist",
+          "; pass --create to make a new store there (or correct --db)"));
+    }
+  }
   sqlite3* raw = nullptr;
   // NOMUTEX: the store's own mutex already serialises use of the connection.
+  // A new file gets owner-only permissions: it holds health data.
+  const mode_t previous_umask = creating ? umask(0077) : 0;
   const int rc = sqlite3_open_v2(
       options.path.c_str(), &raw,
       SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE | SQLITE_OPEN_NOMUTEX,
       nullptr);
+  if (creating) umask(previous_umask);
   // SQLite allocates a handle even when opening fails; it must be closed.
   std::unique_ptr<sqlite3, SqliteCloser> db(raw);
   if (rc != SQLITE_OK) {

@@ -58,6 +58,10 @@ struct SqliteStoreOptions {
   // How long an operation waits for a lock held by another process on the
   // same file before failing with UNAVAILABLE.
   absl::Duration busy_timeout = absl::Seconds(5);
+  // Whether a path that does not exist (or an empty file) becomes a new
+  // store, created with owner-only permissions. The service sets it only
+  // with --create; otherwise Open is FAILED_PRECONDITION naming the path.
+  bool create_if_missing = true;
 };
 
 class SqliteEventStore final : public EventStore {

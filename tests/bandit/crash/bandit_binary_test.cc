@@ -76,7 +76,7 @@ class ServerProcess {
       absl::StatusOr<int> port = testing::PickFreePort();
       if (!port.ok()) return port.status();
       RETURN_IF_ERROR(child_.Start(
-          {kBinary, absl::StrCat("--db=", db),
+          {kBinary, absl::StrCat("--db=", db), "--create",
            absl::StrCat("--listen=127.0.0.1:", *port), "--drain_timeout_s=5"},
           log_path));
       // The line is printed after the health status is set, so a channel
@@ -860,6 +860,31 @@ TEST_F(BanditBinaryTest, BadInputGetsTheRightStatusAndChangesNothing) {
   ASSERT_TRUE(good.ok()) << good.status();
   EXPECT_FALSE(good->already_applied());
   EXPECT_EQ(good->model_version(), 2);
+}
+
+}  // namespace
+}  // namespace bitewise
+
+namespace bitewise {
+namespace {
+
+TEST(BanditBinaryStartTest, AMistypedDbStopsTheStartUnlessCreateIsGiven) {
+  const std::string db = ::testing::TempDir() + "/no-such-dir-typo.db";
+  std::remove(db.c_str());
+  const std::string log = ::testing::TempDir() + "/bandit_no_create.log";
+  std::remove(log.c_str());
+  testing::ChildProcess child;
+  ASSERT_TRUE(
+      child
+          .Start({kBinary, absl::StrCat("--db=", db), "--listen=127.0.0.1:0"},
+                 log)
+          .ok());
+  const absl::StatusOr<int> status = child.Wait(absl::Seconds(30));
+  ASSERT_TRUE(status.ok()) << status.status();
+  ASSERT_TRUE(WIFEXITED(*status));
+  EXPECT_NE(WEXITSTATUS(*status), 0);
+  EXPECT_THAT(child.log(), HasSubstr(db + "\" does not exist; pass --create"));
+  EXPECT_NE(access(db.c_str(), F_OK), 0);  // nothing was made
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include <signal.h>
 #include <sqlite3.h>
 #include <stdlib.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -707,6 +708,32 @@ TEST_F(SqliteEventStoreTest, FileIsWalWithSchemaVersion) {
   EXPECT_EQ(raw.Text("PRAGMA journal_mode"), "wal");
   EXPECT_EQ(raw.Text("PRAGMA user_version"), "2");
   EXPECT_NE(raw.Text("PRAGMA application_id"), "0");
+}
+
+TEST_F(SqliteEventStoreTest, MissingOrEmptyFileIsANewStoreOnlyWhenAskedFor) {
+  SqliteStoreOptions options;
+  options.path = dir_ + "/typo.db";
+  options.create_if_missing = false;
+  auto missing = SqliteEventStore::Open(options);
+  EXPECT_EQ(missing.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(missing.status().message(),
+              HasSubstr(options.path + "\" does not exist; pass --create"));
+  EXPECT_FALSE(std::filesystem::exists(options.path));  // nothing made
+  std::ofstream(options.path).close();                  // a 0-byte file
+  auto empty = SqliteEventStore::Open(options);
+  EXPECT_THAT(empty.status().message(), HasSubstr("is an empty file"));
+  // Asked for: created, readable by its owner only.
+  options.create_if_missing = true;
+  std::filesystem::remove(options.path);
+  auto created = SqliteEventStore::Open(options);
+  ASSERT_TRUE(created.ok()) << created.status();
+  struct stat st {};
+  ASSERT_EQ(stat(options.path.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  created->reset();
+  // An existing store opens without it.
+  options.create_if_missing = false;
+  EXPECT_TRUE(SqliteEventStore::Open(options).ok());
 }
 
 TEST_F(SqliteEventStoreTest, NotADatabaseIsFailedPrecondition) {
