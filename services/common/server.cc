@@ -19,6 +19,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "absl/time/clock.h"
+#include "grpc/health/v1/health.pb.h"
 #include "services/common/status_macros.h"
 #include "services/common/tls_files.h"
 
@@ -101,6 +102,10 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
     }
     ASSIGN_OR_RETURN(authorizer, Authorizer::Load(options.authz_file));
   }
+
+  // The health protocol's descriptor, referenced so that the linker keeps
+  // it and reflection can describe grpc.health.v1.Health.
+  (void)grpc::health::v1::HealthCheckRequest::descriptor();
 
   // Both are consulted by ServerBuilder, so they must be on before building.
   grpc::EnableDefaultHealthCheckService(true);

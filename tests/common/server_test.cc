@@ -259,19 +259,14 @@ bool Await(grpc::CompletionQueue& cq, void* tag) {
   return cq.Next(&got, &ok) && got == tag && ok;
 }
 
-TEST(ServiceServerTest, ReflectionListsServices) {
-  FakeHapticService service;
-  auto server = StartHaptic(service);
-  ASSERT_TRUE(server.ok()) << server.status();
-  auto channel = Connect((*server)->address());
-
-  // ServerReflectionRequest{list_services: ""}: field 7, length-delimited.
-  const std::string request_bytes("\x3a\x00", 2);
+// One ServerReflectionInfo exchange with `request_bytes` (a serialized
+// ServerReflectionRequest); returns the serialized response.
+std::string ReflectionCall(const std::shared_ptr<grpc::Channel>& channel,
+                           const std::string& request_bytes) {
   grpc::Slice request_slice(request_bytes);
   grpc::ByteBuffer request(&request_slice, 1);
   grpc::ByteBuffer response;
   grpc::Status status;
-
   grpc::GenericStub stub(channel);
   grpc::ClientContext context;
   context.set_deadline(absl::ToChronoTime(absl::Now() + kTimeout));
@@ -279,28 +274,55 @@ TEST(ServiceServerTest, ReflectionListsServices) {
   auto call = stub.PrepareCall(
       &context,
       "/grpc.reflection.v1alpha.ServerReflection/ServerReflectionInfo", &cq);
-  ASSERT_NE(call, nullptr);
+  EXPECT_NE(call, nullptr);
+  if (call == nullptr) return "";
   int tags[5];
   call->StartCall(&tags[0]);
-  ASSERT_TRUE(Await(cq, &tags[0]));
+  EXPECT_TRUE(Await(cq, &tags[0]));
   call->Write(request, &tags[1]);
-  ASSERT_TRUE(Await(cq, &tags[1]));
+  EXPECT_TRUE(Await(cq, &tags[1]));
   call->WritesDone(&tags[2]);
-  ASSERT_TRUE(Await(cq, &tags[2]));
+  EXPECT_TRUE(Await(cq, &tags[2]));
   call->Read(&response, &tags[3]);
-  ASSERT_TRUE(Await(cq, &tags[3]));
+  EXPECT_TRUE(Await(cq, &tags[3]));
   call->Finish(&status, &tags[4]);
-  ASSERT_TRUE(Await(cq, &tags[4]));
+  EXPECT_TRUE(Await(cq, &tags[4]));
   EXPECT_TRUE(status.ok()) << status.error_message();
   cq.Shutdown();
   void* ignored_tag;
   bool ignored_ok;
   while (cq.Next(&ignored_tag, &ignored_ok)) {
   }
+  return ToBytes(response);
+}
 
-  const std::string bytes = ToBytes(response);
+TEST(ServiceServerTest, ReflectionListsServices) {
+  FakeHapticService service;
+  auto server = StartHaptic(service);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto channel = Connect((*server)->address());
+  // ServerReflectionRequest{list_services: ""}: field 7, length-delimited.
+  const std::string bytes = ReflectionCall(channel, std::string("\x3a\x00", 2));
   EXPECT_THAT(bytes, HasSubstr(kHapticName));
   EXPECT_THAT(bytes, HasSubstr("grpc.health.v1.Health"));
+}
+
+// grpcurl resolves a method through reflection before calling it; the
+// health service must be describable too, or `grpcurl ...
+// grpc.health.v1.Health/Check` fails with "does not expose service".
+TEST(ServiceServerTest, ReflectionDescribesTheHealthService) {
+  FakeHapticService service;
+  auto server = StartHaptic(service);
+  ASSERT_TRUE(server.ok()) << server.status();
+  auto channel = Connect((*server)->address());
+  // ServerReflectionRequest{file_containing_symbol: ...}: field 4.
+  const std::string symbol = "grpc.health.v1.Health";
+  const std::string bytes = ReflectionCall(
+      channel, std::string("\x22") + static_cast<char>(symbol.size()) + symbol);
+  // A file_descriptor_response (field 4 of the response) holding the file.
+  EXPECT_THAT(bytes, HasSubstr("grpc/health/v1/health.proto"));
+  EXPECT_THAT(bytes, HasSubstr("HealthCheckRequest"));
+  EXPECT_THAT(bytes, ::testing::Not(HasSubstr("not found")));
 }
 
 TEST(ServiceServerTest, InvalidAddressFailsCleanly) {
