@@ -34,7 +34,7 @@ absl::StatusOr<domain::RgbdFrame> FrameFromProto(const v1::Frame& proto) {
         absl::StrCat("frame.rgb_encoding: expected IMAGE_ENCODING_RGB8, got ",
                      v1::ImageEncoding_Name(proto.rgb_encoding())));
   }
-  constexpr uint32_t kMaxSide = 8192;
+  constexpr uint32_t kMaxSide = domain::kMaxFrameSide;
   if (proto.width() == 0 || proto.height() == 0 || proto.width() > kMaxSide ||
       proto.height() > kMaxSide) {
     return absl::InvalidArgumentError(

@@ -67,7 +67,7 @@ absl::StatusOr<PublishedFrame> FramePublisher::Newest(double max_age_s) const {
     return absl::UnavailableError(
         absl::StrCat("camera ", name_, " has sent no frame yet", why));
   }
-  out.age_s = CameraNowS() - newest->capture_s;
+  out.age_s = SteadyNowS() - newest->capture_s;
   if (max_age_s > 0.0 && out.age_s > max_age_s) {
     return absl::FailedPreconditionError(absl::StrFormat(
         "the newest frame from camera %s is %.2f s old (limit %.2f s): the "
@@ -83,7 +83,7 @@ PublisherCounters FramePublisher::Counters() const {
   PublisherCounters c;
   c.frames_captured = captured_;
   c.frames_dropped = dropped_;
-  c.newest_age_s = newest_ ? CameraNowS() - newest_->capture_s : -1.0;
+  c.newest_age_s = newest_ ? SteadyNowS() - newest_->capture_s : -1.0;
   c.last_error = last_error_;
   return c;
 }

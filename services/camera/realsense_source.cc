@@ -11,6 +11,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "services/camera/realsense_api.h"
+#include "services/common/status_macros.h"
 
 namespace bitewise::camera {
 
@@ -127,10 +128,8 @@ class FrameRef {
 
 }  // namespace
 
-#define BITEWISE_RS2_RESOLVE(field, symbol)                                \
-  if (absl::Status s = Resolve(api->handle, library, symbol, &api->field); \
-      !s.ok())                                                             \
-  return s
+#define BITEWISE_RS2_RESOLVE(field, symbol) \
+  RETURN_IF_ERROR(Resolve(api->handle, library, symbol, &api->field))
 
 absl::StatusOr<std::unique_ptr<RealSenseSource>> RealSenseSource::Open(
     const RealSenseOptions& options) {
@@ -213,23 +212,17 @@ absl::StatusOr<std::unique_ptr<RealSenseSource>> RealSenseSource::Open(
   h->api = api.get();
   rs2_error* e = nullptr;
   h->context = api->create_context(kApiVersion, &e);
-  if (absl::Status s = api->Check(e, "rs2_create_context"); !s.ok()) return s;
+  RETURN_IF_ERROR(api->Check(e, "rs2_create_context"));
   h->pipeline = api->create_pipeline(h->context, &e);
-  if (absl::Status s = api->Check(e, "rs2_create_pipeline"); !s.ok()) return s;
+  RETURN_IF_ERROR(api->Check(e, "rs2_create_pipeline"));
   h->config = api->create_config(&e);
-  if (absl::Status s = api->Check(e, "rs2_create_config"); !s.ok()) return s;
+  RETURN_IF_ERROR(api->Check(e, "rs2_create_config"));
   api->config_enable_stream(h->config, RS2_STREAM_COLOR, -1, options.width,
                             options.height, RS2_FORMAT_RGB8, options.fps, &e);
-  if (absl::Status s = api->Check(e, "rs2_config_enable_stream (colour)");
-      !s.ok()) {
-    return s;
-  }
+  RETURN_IF_ERROR(api->Check(e, "rs2_config_enable_stream (colour)"));
   api->config_enable_stream(h->config, RS2_STREAM_DEPTH, -1, options.width,
                             options.height, RS2_FORMAT_Z16, options.fps, &e);
-  if (absl::Status s = api->Check(e, "rs2_config_enable_stream (depth)");
-      !s.ok()) {
-    return s;
-  }
+  RETURN_IF_ERROR(api->Check(e, "rs2_config_enable_stream (depth)"));
   h->profile = api->pipeline_start_with_config(h->pipeline, h->config, &e);
   if (absl::Status s = api->Check(e, "rs2_pipeline_start_with_config");
       !s.ok()) {
@@ -237,15 +230,11 @@ absl::StatusOr<std::unique_ptr<RealSenseSource>> RealSenseSource::Open(
     return s;
   }
   h->align = api->create_align(RS2_STREAM_COLOR, &e);
-  if (absl::Status s = api->Check(e, "rs2_create_align"); !s.ok()) return s;
+  RETURN_IF_ERROR(api->Check(e, "rs2_create_align"));
   h->queue = api->create_frame_queue(1, &e);
-  if (absl::Status s = api->Check(e, "rs2_create_frame_queue"); !s.ok()) {
-    return s;
-  }
+  RETURN_IF_ERROR(api->Check(e, "rs2_create_frame_queue"));
   api->start_processing_queue(h->align, h->queue, &e);
-  if (absl::Status s = api->Check(e, "rs2_start_processing_queue"); !s.ok()) {
-    return s;
-  }
+  RETURN_IF_ERROR(api->Check(e, "rs2_start_processing_queue"));
   return std::unique_ptr<RealSenseSource>(new RealSenseSource(
       std::move(api), std::move(h), options, std::move(library)));
 }
@@ -274,46 +263,33 @@ absl::StatusOr<domain::RgbdFrame> RealSenseSource::Next() {
   rs2_error* e = nullptr;
   rs2_frame* frames = api.pipeline_wait_for_frames(
       handles_->pipeline, static_cast<unsigned>(options_.timeout_ms), &e);
-  if (absl::Status s = api.Check(e, "rs2_pipeline_wait_for_frames",
-                                 absl::StatusCode::kUnavailable);
-      !s.ok()) {
-    return s;
-  }
-  const double capture_s = CameraNowS();
+  RETURN_IF_ERROR(api.Check(e, "rs2_pipeline_wait_for_frames",
+                            absl::StatusCode::kUnavailable));
+  const double capture_s = SteadyNowS();
   // The align block takes ownership of the frameset.
   api.process_frame(handles_->align, frames, &e);
-  if (absl::Status s = api.Check(e, "rs2_process_frame"); !s.ok()) return s;
+  RETURN_IF_ERROR(api.Check(e, "rs2_process_frame"));
   FrameRef aligned(
       &api, api.wait_for_frame(handles_->queue,
                                static_cast<unsigned>(options_.timeout_ms), &e));
-  if (absl::Status s = api.Check(e, "rs2_wait_for_frame (aligned)",
-                                 absl::StatusCode::kUnavailable);
-      !s.ok()) {
-    return s;
-  }
+  RETURN_IF_ERROR(api.Check(e, "rs2_wait_for_frame (aligned)",
+                            absl::StatusCode::kUnavailable));
   const int count = api.embedded_frames_count(aligned.get(), &e);
-  if (absl::Status s = api.Check(e, "rs2_embedded_frames_count"); !s.ok()) {
-    return s;
-  }
+  RETURN_IF_ERROR(api.Check(e, "rs2_embedded_frames_count"));
   domain::RgbdFrame out;
   bool have_colour = false, have_depth = false;
   for (int i = 0; i < count; ++i) {
     FrameRef frame(&api, api.extract_frame(aligned.get(), i, &e));
-    if (absl::Status s = api.Check(e, "rs2_extract_frame"); !s.ok()) return s;
+    RETURN_IF_ERROR(api.Check(e, "rs2_extract_frame"));
     const rs2_stream_profile* profile =
         api.get_frame_stream_profile(frame.get(), &e);
-    if (absl::Status s = api.Check(e, "rs2_get_frame_stream_profile");
-        !s.ok()) {
-      return s;
-    }
+    RETURN_IF_ERROR(api.Check(e, "rs2_get_frame_stream_profile"));
     rs2_stream stream = RS2_STREAM_ANY;
     rs2_format format = RS2_FORMAT_ANY;
     int index = 0, unique_id = 0, rate = 0;
     api.get_stream_profile_data(profile, &stream, &format, &index, &unique_id,
                                 &rate, &e);
-    if (absl::Status s = api.Check(e, "rs2_get_stream_profile_data"); !s.ok()) {
-      return s;
-    }
+    RETURN_IF_ERROR(api.Check(e, "rs2_get_stream_profile_data"));
     const int width = api.get_frame_width(frame.get(), &e);
     const int height = e == nullptr ? api.get_frame_height(frame.get(), &e) : 0;
     const int stride =
@@ -322,7 +298,7 @@ absl::StatusOr<domain::RgbdFrame> RealSenseSource::Next() {
         e == nullptr
             ? static_cast<const uint8_t*>(api.get_frame_data(frame.get(), &e))
             : nullptr;
-    if (absl::Status s = api.Check(e, "reading a frame"); !s.ok()) return s;
+    RETURN_IF_ERROR(api.Check(e, "reading a frame"));
     if (width != options_.width || height != options_.height ||
         data == nullptr) {
       return absl::FailedPreconditionError(absl::StrCat(
@@ -333,15 +309,10 @@ absl::StatusOr<domain::RgbdFrame> RealSenseSource::Next() {
     if (stream == RS2_STREAM_COLOR && format == RS2_FORMAT_RGB8) {
       rs2_intrinsics k{};
       api.get_video_stream_intrinsics(profile, &k, &e);
-      if (absl::Status s = api.Check(e, "rs2_get_video_stream_intrinsics");
-          !s.ok()) {
-        return s;
-      }
+      RETURN_IF_ERROR(api.Check(e, "rs2_get_video_stream_intrinsics"));
       out.intrinsics = {width, height, k.fx, k.fy, k.ppx, k.ppy};
       out.sequence = api.get_frame_number(frame.get(), &e);
-      if (absl::Status s = api.Check(e, "rs2_get_frame_number"); !s.ok()) {
-        return s;
-      }
+      RETURN_IF_ERROR(api.Check(e, "rs2_get_frame_number"));
       out.rgb.resize(static_cast<size_t>(width) * height * 3);
       for (int row = 0; row < height; ++row) {
         std::memcpy(&out.rgb[static_cast<size_t>(row) * width * 3],
@@ -351,9 +322,7 @@ absl::StatusOr<domain::RgbdFrame> RealSenseSource::Next() {
       have_colour = true;
     } else if (stream == RS2_STREAM_DEPTH && format == RS2_FORMAT_Z16) {
       const float units_m = api.depth_frame_get_units(frame.get(), &e);
-      if (absl::Status s = api.Check(e, "rs2_depth_frame_get_units"); !s.ok()) {
-        return s;
-      }
+      RETURN_IF_ERROR(api.Check(e, "rs2_depth_frame_get_units"));
       if (!(units_m > 0.0f) || !std::isfinite(units_m)) {
         return absl::FailedPreconditionError(absl::StrCat(
             "RealSense: depth units of ", units_m, " m are not usable"));

@@ -72,12 +72,12 @@ absl::Status WriteRecordedFrame(const std::string& dir, int64_t index,
 }
 
 ReplaySource::ReplaySource(std::string dir, domain::CameraIntrinsics k,
-                           int64_t count, double period_s, bool loop)
+                           int64_t count, double rate_hz, bool loop)
     : dir_(std::move(dir)),
       intrinsics_(k),
       count_(count),
-      period_s_(period_s),
-      loop_(loop) {}
+      loop_(loop),
+      pacer_(rate_hz) {}
 
 absl::StatusOr<std::unique_ptr<ReplaySource>> ReplaySource::Open(
     const std::string& dir, const ReplayOptions& options) {
@@ -129,7 +129,7 @@ absl::StatusOr<std::unique_ptr<ReplaySource>> ReplaySource::Open(
         "recording \"", dir, "\" has no frames (000000.rgb.png missing)"));
   }
   return std::unique_ptr<ReplaySource>(
-      new ReplaySource(dir, k, count, 1.0 / rate, options.loop));
+      new ReplaySource(dir, k, count, rate, options.loop));
 }
 
 absl::StatusOr<domain::RgbdFrame> ReplaySource::Next() {
@@ -137,9 +137,7 @@ absl::StatusOr<domain::RgbdFrame> ReplaySource::Next() {
     return absl::OutOfRangeError(absl::StrCat(
         "recording \"", dir_, "\" ended after ", count_, " frames"));
   }
-  const double now = CameraNowS();
-  if (next_s_ > now) absl::SleepFor(absl::Seconds(next_s_ - now));
-  next_s_ = std::max(now, next_s_) + period_s_;
+  pacer_.Wait();
   const int64_t index = static_cast<int64_t>(sequence_ % count_);
   const std::string rgb_path = FramePath(dir_, index, "rgb");
   const std::string depth_path = FramePath(dir_, index, "depth");
@@ -163,7 +161,7 @@ absl::StatusOr<domain::RgbdFrame> ReplaySource::Next() {
   cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
   frame.depth_mm.assign(depth.begin<uint16_t>(), depth.end<uint16_t>());
   frame.sequence = sequence_++;
-  frame.capture_s = CameraNowS();
+  frame.capture_s = SteadyNowS();
   return frame;
 }
 

@@ -58,15 +58,14 @@ class ReplaySource final : public FrameSource {
 
  private:
   ReplaySource(std::string dir, domain::CameraIntrinsics intrinsics,
-               int64_t count, double period_s, bool loop);
+               int64_t count, double rate_hz, bool loop);
 
   const std::string dir_;
   const domain::CameraIntrinsics intrinsics_;
   const int64_t count_;
-  const double period_s_;
   const bool loop_;
+  Pacer pacer_;
   uint64_t sequence_ = 0;
-  double next_s_ = 0.0;
 };
 
 // Passes another source's frames on and writes each into a recording (the

@@ -33,25 +33,19 @@ absl::StatusOr<std::unique_ptr<SimSource>> SimSource::Create(
 }
 
 SimSource::SimSource(sim::PlateScene scene, const SimSourceOptions& options)
-    : scene_(std::move(scene)), options_(options) {}
+    : scene_(std::move(scene)), options_(options), pacer_(options.rate_hz) {}
 
 std::string SimSource::name() const {
   return absl::StrCat("sim:seed=", options_.seed);
 }
 
 absl::StatusOr<domain::RgbdFrame> SimSource::Next() {
-  const double now = CameraNowS();
-  if (next_s_ > now) absl::SleepFor(absl::Seconds(next_s_ - now));
-  next_s_ = std::max(now, next_s_) + 1.0 / options_.rate_hz;
-  sim::RenderedFrame rendered = sim::RenderPlate(
-      scene_, sim::D415Intrinsics(), options_.seed * 1000003ULL + sequence_);
-  domain::RgbdFrame frame;
-  frame.intrinsics = rendered.intrinsics;
-  frame.rgb = std::move(rendered.rgb);
-  frame.depth_mm = std::move(rendered.depth_mm);
-  frame.sequence = sequence_++;
-  frame.capture_s = CameraNowS();
-  return frame;
+  pacer_.Wait();
+  const uint64_t sequence = sequence_++;
+  return sim::ToRgbdFrame(
+      sim::RenderPlate(scene_, sim::D415Intrinsics(),
+                       options_.seed * 1000003ULL + sequence),
+      sequence, SteadyNowS());
 }
 
 }  // namespace bitewise::camera

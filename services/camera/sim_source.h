@@ -38,8 +38,8 @@ class SimSource final : public FrameSource {
 
   const sim::PlateScene scene_;
   const SimSourceOptions options_;
+  Pacer pacer_;
   uint64_t sequence_ = 0;
-  double next_s_ = 0.0;
 };
 
 }  // namespace bitewise::camera

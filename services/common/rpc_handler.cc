@@ -88,13 +88,10 @@ grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
         authorizer->Check(method, identities, context->peer(), &role);
     if (!allowed.ok()) {
       status = allowed;
-      policy = RpcPolicy::kNormal;
+      policy = RpcPolicy::kNormal;  // not even Stop runs for a refused call
     }
   }
-  if (status.ok() ||
-      (policy == RpcPolicy::kAlwaysRun && !absl::IsPermissionDenied(status))) {
-    status = handler();
-  }
+  if (status.ok() || policy == RpcPolicy::kAlwaysRun) status = handler();
   if (Audited(method) && context != nullptr) {
     std::fprintf(
         stderr, "audit: %s %s by %s (role %s) from %s: %s\n",

@@ -24,6 +24,10 @@ struct CameraIntrinsics {
   double cy = 240.0;
 };
 
+// Largest accepted frame side in pixels, far above any depth camera's, so a
+// corrupt size cannot make a service allocate gigabytes.
+constexpr int kMaxFrameSide = 8192;
+
 struct RgbdFrame {
   CameraIntrinsics intrinsics;
   std::vector<uint8_t> rgb;        // width*height*3, row-major RGB8

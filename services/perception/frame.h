@@ -13,6 +13,7 @@
 #include "absl/status/statusor.h"
 #include "absl/strings/string_view.h"
 #include "opencv2/core.hpp"
+#include "services/domain/rgbd_frame.h"
 
 namespace bitewise::perception {
 
@@ -52,9 +53,8 @@ struct DecodedFrame {
   bool has_depth() const { return !depth_mm.empty(); }
 };
 
-// Largest accepted side, far above any depth camera's, so that a corrupt
-// size cannot make the service allocate gigabytes.
-constexpr int64_t kMaxFrameSide = 8192;
+// Largest accepted side (the vocabulary's, shared with the camera link).
+constexpr int64_t kMaxFrameSide = domain::kMaxFrameSide;
 // Largest accepted frame in pixels (8.4 M: 4K UHD fits; the D415's largest
 // colour mode is 1920x1080): bounds what one request can cost to decode,
 // detect and featurize.

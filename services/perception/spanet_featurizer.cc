@@ -4,6 +4,8 @@
 #include <array>
 #include <cstdint>
 #include <fstream>
+#include <iterator>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -67,6 +69,8 @@ SpanetFeaturizer::SpanetFeaturizer(cv::dnn::Net net, double context_msn)
 
 absl::StatusOr<std::unique_ptr<SpanetFeaturizer>> SpanetFeaturizer::Load(
     const std::string& model_path) {
+  // Read once: the graph check and OpenCV both take these bytes.
+  std::string bytes;
   {
     std::ifstream in(model_path, std::ios::binary);
     if (!in) {
@@ -74,16 +78,18 @@ absl::StatusOr<std::unique_ptr<SpanetFeaturizer>> SpanetFeaturizer::Load(
           absl::StrCat("SPANet model file \"", model_path,
                        "\" does not exist or cannot be opened"));
     }
+    bytes.assign(std::istreambuf_iterator<char>(in), {});
   }
-  RETURN_IF_ERROR(CheckSpanetOnnxGraph(model_path));
+  RETURN_IF_ERROR(CheckSpanetOnnxGraph(bytes, model_path));
   cv::dnn::Net net;
   try {
-    net = cv::dnn::readNetFromONNX(model_path);
+    net = cv::dnn::readNetFromONNX(bytes.data(), bytes.size());
   } catch (const cv::Exception& e) {
     return absl::FailedPreconditionError(
         absl::StrCat("SPANet model file \"", model_path,
                      "\" is not a loadable ONNX model: ", e.what()));
   }
+  bytes = std::string();  // the network holds its own copy now
   if (net.empty()) {
     return absl::FailedPreconditionError(absl::StrCat(
         "SPANet model file \"", model_path, "\" holds no network"));

@@ -7,7 +7,7 @@
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "services/common/status_macros.h"
-#include "services/robot/steady_time.h"
+#include "services/domain/steady_time.h"
 
 namespace bitewise::robot {
 
@@ -118,16 +118,10 @@ absl::StatusOr<domain::RgbdFrame> RobotBackend::CaptureFrame() {
   }
   // Each frame its own noise, reproducibly.
   const uint64_t sequence = frames_++;
-  sim::RenderedFrame rendered =
+  return sim::ToRgbdFrame(
       sim::RenderPlate(world_->scene(), sim::D415Intrinsics(),
-                       render_seed_ * 1000003ULL + sequence);
-  domain::RgbdFrame frame;
-  frame.intrinsics = rendered.intrinsics;
-  frame.rgb = std::move(rendered.rgb);
-  frame.depth_mm = std::move(rendered.depth_mm);
-  frame.sequence = sequence;
-  frame.capture_s = SteadyNowS();
-  return frame;
+                       render_seed_ * 1000003ULL + sequence),
+      sequence, SteadyNowS());
 }
 
 bool RobotBackend::FtLive() const { return ft_ && ft_->CheckLive().ok(); }

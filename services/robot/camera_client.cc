@@ -9,7 +9,7 @@
 #include "services/camera/frame_proto.h"
 #include "services/common/grpc_status.h"
 #include "services/common/status_macros.h"
-#include "services/robot/steady_time.h"
+#include "services/domain/steady_time.h"
 
 namespace bitewise::robot {
 

@@ -20,11 +20,11 @@
 #include "services/common/readiness_monitor.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
+#include "services/domain/steady_time.h"
 #include "services/robot/backend.h"
 #include "services/robot/camera_client.h"
 #include "services/robot/robot_service.h"
 #include "services/robot/sim/sim_netft_box.h"
-#include "services/robot/steady_time.h"
 
 ABSL_FLAG(std::string, backend, "sim",
           "sim (simulated world, arm and Net F/T box on loopback) or jaco2 "
@@ -192,7 +192,7 @@ int CheckSensor(const bitewise::robot::RobotBackendOptions& options) {
   std::vector<netft::FtSample> samples;
   (*client)->SamplesSince(0, &samples);
   // Noise and bias over the second half of the watch (after any start-up).
-  const double from_s = bitewise::robot::SteadyNowS() - watch_s / 2;
+  const double from_s = bitewise::SteadyNowS() - watch_s / 2;
   std::array<double, 6> sum{}, sum_sq{};
   int n = 0;
   for (const netft::FtSample& s : samples) {

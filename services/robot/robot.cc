@@ -9,7 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "services/common/status_macros.h"
-#include "services/robot/steady_time.h"
+#include "services/domain/steady_time.h"
 
 namespace bitewise::robot {
 namespace {

@@ -4,8 +4,8 @@
 #include "services/camera/frame_proto.h"
 #include "services/common/rpc_handler.h"
 #include "services/common/status_macros.h"
+#include "services/domain/steady_time.h"
 #include "services/robot/converters.h"
-#include "services/robot/steady_time.h"
 
 namespace bitewise::robot {
 

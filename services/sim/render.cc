@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <limits>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "services/sim/scene.h"
@@ -377,6 +378,17 @@ bool Overlaps(const SceneItem& a, const SceneItem& b, double gap_m) {
 }
 
 }  // namespace
+
+domain::RgbdFrame ToRgbdFrame(RenderedFrame rendered, uint64_t sequence,
+                              double capture_s) {
+  domain::RgbdFrame frame;
+  frame.intrinsics = rendered.intrinsics;
+  frame.rgb = std::move(rendered.rgb);
+  frame.depth_mm = std::move(rendered.depth_mm);
+  frame.sequence = sequence;
+  frame.capture_s = capture_s;
+  return frame;
+}
 
 PlateScene RandomPlate(const std::vector<const FoodType*>& foods,
                        bool allow_touching, std::mt19937_64& rng) {

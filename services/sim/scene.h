@@ -65,6 +65,10 @@ struct RenderedFrame {
   std::vector<ItemTruth> truth;    // one per item in the scene
 };
 
+// The rendered picture as the vocabulary's frame (the truth stays behind).
+domain::RgbdFrame ToRgbdFrame(RenderedFrame rendered, uint64_t sequence,
+                              double capture_s);
+
 // Renders the scene; `noise_seed` drives sensor noise so frames repeat.
 RenderedFrame RenderPlate(const PlateScene& scene,
                           const PinholeIntrinsics& intrinsics,

@@ -107,13 +107,14 @@ class ExportRefusesWhatIsNotSpanet(unittest.TestCase):
         path = self.path("train.onnx")
         # Batch 2: PyTorch cannot run BatchNorm1d in training mode on one.
         # (PyTorch warns at length about exactly this mistake.)
-        warnings.simplefilter("ignore")
-        torch.onnx.export(
-            export_onnx._Interface(model),
-            (torch.rand(2, 3, 144, 144), torch.eye(3)[[0, 1]]), path,
-            opset_version=11, training=torch.onnx.TrainingMode.PRESERVE,
-            input_names=["rgb", "loc_type"],
-            output_names=["scores", "features"])
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            torch.onnx.export(
+                export_onnx._Interface(model),
+                (torch.rand(2, 3, 144, 144), torch.eye(3)[[0, 1]]), path,
+                opset_version=11, training=torch.onnx.TrainingMode.PRESERVE,
+                input_names=["rgb", "loc_type"],
+                output_names=["scores", "features"])
         export_onnx.materialize_shared_initializers(path)
         checkpoint = self.path("train.pth")
         torch.save({"net": self.state}, checkpoint)

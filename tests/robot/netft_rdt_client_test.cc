@@ -13,8 +13,8 @@
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/domain/steady_time.h"
 #include "services/robot/sim/sim_netft_box.h"
-#include "services/robot/steady_time.h"
 #include "tests/robot/udp_test_peer.h"
 #include "tests/robot/wait_for.h"
 
@@ -349,10 +349,10 @@ TEST_F(SimBoxTest, StreamsAtSevenKilohertz) {
   Start(7000.0, sim::SimNetFtFaults());
   ASSERT_TRUE(WaitFor([&] { return client_->stats().samples_accepted > 100; }));
   const uint64_t n0 = box_->counters().records_sent;
-  const double t0 = robot::SteadyNowS();
+  const double t0 = SteadyNowS();
   std::this_thread::sleep_for(std::chrono::milliseconds(1000));
   const double rate =
-      (box_->counters().records_sent - n0) / (robot::SteadyNowS() - t0);
+      (box_->counters().records_sent - n0) / (SteadyNowS() - t0);
   EXPECT_NEAR(rate, 7000.0, 700.0);
   // The sensor clock spaces the samples exactly 1/7000 s apart.
   std::vector<FtSample> samples;

@@ -16,8 +16,8 @@
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/domain/steady_time.h"
 #include "services/robot/backend.h"
-#include "services/robot/steady_time.h"
 #include "tests/robot/wait_for.h"
 
 namespace bitewise::robot {

@@ -9,7 +9,7 @@
 #include <thread>
 
 #include "gtest/gtest.h"
-#include "services/robot/steady_time.h"
+#include "services/domain/steady_time.h"
 #include "services/sim/contact_force.h"
 
 namespace bitewise::sim {
@@ -75,7 +75,7 @@ class SimWorldTest : public ::testing::Test {
       if ((arm_.MeasuredPose()->p_TaskTip_m - p).norm() < 1e-12) break;
     }
     EXPECT_LT((arm_.MeasuredPose()->p_TaskTip_m - p).norm(), 1e-12);
-    return world.WrenchAt(robot::SteadyNowS());
+    return world.WrenchAt(SteadyNowS());
   }
 
   SimArm arm_;

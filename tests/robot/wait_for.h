@@ -7,7 +7,7 @@
 #include <functional>
 #include <thread>
 
-#include "services/robot/steady_time.h"
+#include "services/domain/steady_time.h"
 
 namespace bitewise::testing {
 
@@ -16,8 +16,8 @@ namespace bitewise::testing {
 // value, checked once more at the deadline.
 inline bool WaitFor(const std::function<bool()>& done,
                     double timeout_s = 30.0) {
-  const double deadline = robot::SteadyNowS() + timeout_s;
-  while (robot::SteadyNowS() < deadline) {
+  const double deadline = SteadyNowS() + timeout_s;
+  while (SteadyNowS() < deadline) {
     if (done()) return true;
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }

@@ -14,7 +14,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "services/robot/steady_time.h"
+#include "services/domain/steady_time.h"
 
 namespace bitewise::netft {
 namespace {
@@ -101,7 +101,7 @@ NetFtRdtClient::NetFtRdtClient(const NetFtRdtClientOptions& options, int fd,
     : options_(options),
       fd_(fd),
       name_(std::move(name)),
-      connect_time_s_(robot::SteadyNowS()),
+      connect_time_s_(SteadyNowS()),
       clock_(options.counter) {
   last_restart_s_ = connect_time_s_;
 }
@@ -134,7 +134,7 @@ void NetFtRdtClient::ReceiveLoop() {
   while (!stop_) {
     pollfd pfd{fd_, POLLIN, 0};
     poll(&pfd, 1, /*timeout_ms=*/10);
-    const double now_s = robot::SteadyNowS();
+    const double now_s = SteadyNowS();
     absl::MutexLock lock(&mu_);
     while (true) {
       const ssize_t n = recv(fd_, buffer.data(), buffer.size(), MSG_DONTWAIT);
@@ -241,7 +241,7 @@ FtSample NetFtRdtClient::Stamped(const FtSample& sample) const {
 }
 
 StreamHealth NetFtRdtClient::Health() const {
-  const double now_s = robot::SteadyNowS();
+  const double now_s = SteadyNowS();
   absl::MutexLock lock(&mu_);
   StreamHealth health;
   if (stats_.samples_accepted == 0) {

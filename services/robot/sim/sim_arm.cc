@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
-#include "services/robot/steady_time.h"
+#include "services/domain/steady_time.h"
 
 namespace bitewise::sim {
 namespace {
@@ -16,18 +16,18 @@ constexpr size_t kKeptSegments = 512;
 
 SimArm::SimArm(const SimArmOptions& options) : options_(options) {
   absl::MutexLock lock(&mu_);
-  Push({robot::SteadyNowS(), options.home, options.home});
+  Push({SteadyNowS(), options.home, options.home});
 }
 
 absl::Status SimArm::MoveHome() {
   absl::MutexLock lock(&mu_);
-  Push({robot::SteadyNowS(), options_.home, options_.home});
+  Push({SteadyNowS(), options_.home, options_.home});
   return absl::OkStatus();
 }
 
 absl::StatusOr<robot::ForkPose> SimArm::MeasuredPose() {
   absl::MutexLock lock(&mu_);
-  return PoseAtLocked(robot::SteadyNowS());
+  return PoseAtLocked(SteadyNowS());
 }
 
 absl::Status SimArm::Command(const robot::ForkPose& setpoint,
@@ -36,7 +36,7 @@ absl::Status SimArm::Command(const robot::ForkPose& setpoint,
       !std::isfinite(setpoint.pitch_rad)) {
     return absl::InvalidArgumentError("simulated arm: set point not finite");
   }
-  const double now_s = robot::SteadyNowS();
+  const double now_s = SteadyNowS();
   absl::MutexLock lock(&mu_);
   ++commands_;
   const robot::ForkPose from = PoseAtLocked(now_s);
@@ -51,7 +51,7 @@ absl::Status SimArm::Command(const robot::ForkPose& setpoint,
 }
 
 absl::Status SimArm::Halt() {
-  const double now_s = robot::SteadyNowS();
+  const double now_s = SteadyNowS();
   absl::MutexLock lock(&mu_);
   ++halts_;
   last_halt_s_ = now_s;

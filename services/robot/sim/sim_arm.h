@@ -37,7 +37,7 @@ class SimArm final : public robot::Arm {
                        const robot::ForkVelocity& velocity) override;
   absl::Status Halt() override;
 
-  // The pose at `time_s` (robot::SteadyNowS()); times older than the kept
+  // The pose at `time_s` (SteadyNowS()); times older than the kept
   // history give the oldest known pose.
   robot::ForkPose PoseAt(double time_s) const;
   // How many Command() and Halt() calls arrived, and when the last halt was.

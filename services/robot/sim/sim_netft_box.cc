@@ -13,8 +13,8 @@
 #include <limits>
 
 #include "absl/strings/str_cat.h"
+#include "services/domain/steady_time.h"
 #include "services/robot/netft/rdt_protocol.h"
-#include "services/robot/steady_time.h"
 
 namespace bitewise::sim {
 namespace {
@@ -79,7 +79,7 @@ SimNetFtBox::SimNetFtBox(const SimNetFtBoxOptions& options,
       port_(port),
       noise_rng_(options.seed),
       fault_rng_(options.seed ^ 0x9e3779b97f4a7c15ULL) {
-  boot_time_s_ = robot::SteadyNowS();
+  boot_time_s_ = SteadyNowS();
   bias_ = options.noise.bias;
   if (options.noise.random_bias_n > 0.0) {
     const double b = options.noise.random_bias_n;
@@ -120,7 +120,7 @@ void SimNetFtBox::Serve() {
     // scheduler delay anyway.
     pollfd pfd{fd_, POLLIN, 0};
     poll(&pfd, 1, /*timeout_ms=*/1);
-    const double now_s = robot::SteadyNowS();
+    const double now_s = SteadyNowS();
     HandleRequests(now_s);
     if (streaming_) Stream(now_s);
   }

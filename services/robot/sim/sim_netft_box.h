@@ -25,7 +25,7 @@
 
 namespace bitewise::sim {
 
-// What the sensor physically feels at a time on robot::SteadyNowS(), before
+// What the sensor physically feels at a time on SteadyNowS(), before
 // noise, bias and tare. Called from the box's thread only, with
 // non-decreasing times.
 class WrenchSource {
