@@ -3,7 +3,6 @@
 #include <cmath>
 #include <cstdint>
 #include <fstream>
-#include <limits>
 #include <random>
 #include <string>
 #include <utility>
@@ -266,18 +265,16 @@ absl::Status WriteSpanetOnnx(const std::string& path,
   return absl::OkStatus();
 }
 
-absl::Status CheckSpanetOnnxGraph(absl::string_view bytes,
-                                  const std::string& path) {
+absl::Status CheckSpanetOnnxGraph(const std::string& path) {
   const auto fail = [&path](absl::string_view what) {
     return absl::FailedPreconditionError(
         absl::StrCat("SPANet model file \"", path, "\" ", what));
   };
-  // Over 2 GB is no SPANet; protobuf cannot parse it from one array anyway.
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return fail("cannot be opened");
   onnx::ModelProto model;
-  if (bytes.size() > static_cast<size_t>(std::numeric_limits<int>::max()) ||
-      !model.ParseFromArray(bytes.data(), static_cast<int>(bytes.size()))) {
+  if (!model.ParseFromIstream(&in))
     return fail("is not a loadable ONNX model: it does not parse as ONNX");
-  }
   const onnx::GraphProto& graph = model.graph();
   // First, as the likeliest cause of everything else that differs (a
   // training-mode export also needs a batch of two or more).

@@ -27,7 +27,6 @@
 #include <string>
 
 #include "absl/status/status.h"
-#include "absl/strings/string_view.h"
 
 namespace bitewise::perception {
 
@@ -55,10 +54,7 @@ absl::Status WriteSpanetOnnx(const std::string& path,
 // Errors: FAILED_PRECONDITION naming the file and what is wrong (unreadable
 // or not ONNX protobuf; missing or misshapen input or output; the first
 // training-mode BatchNormalization node by name).
-// `bytes` is the file's content (read once by the caller, which hands the
-// same bytes to OpenCV); `path` only names it in messages.
-absl::Status CheckSpanetOnnxGraph(absl::string_view bytes,
-                                  const std::string& path);
+absl::Status CheckSpanetOnnxGraph(const std::string& path);
 
 }  // namespace bitewise::perception
 
