@@ -95,8 +95,13 @@ int main(int argc, char** argv) {
       return 1;
     }
     std::vector<Box> truth, boxes;
+    std::vector<const bitewise::sim::FoodType*> truth_food;  // by truth index
     for (const auto& t : rendered.truth) {
-      if (t.visible_pixels > 0) truth.push_back({t.x, t.y, t.width, t.height});
+      if (t.visible_pixels == 0) continue;
+      truth.push_back({t.x, t.y, t.width, t.height});
+      for (const auto& item : scene.items) {
+        if (item.id == t.id) truth_food.push_back(item.food);
+      }
     }
     for (const DetectedFood& d : *detected) {
       boxes.push_back({d.bbox.x, d.bbox.y, d.bbox.width, d.bbox.height});
@@ -107,7 +112,7 @@ int main(int argc, char** argv) {
       for (size_t b = 0; b < truth.size(); ++b) {
         if (a == b) continue;
         touches |= Intersection(truth[a], truth[b]) > 0;
-        repeat |= scene.items[a].food == scene.items[b].food;
+        repeat |= truth_food[a] == truth_food[b];
       }
       touching_items += touches;
       repeated_items += repeat;
@@ -145,7 +150,7 @@ int main(int argc, char** argv) {
         if (absl::GetFlag(FLAGS_verbose)) {
           std::fprintf(stderr, "plate %d merged:", p);
           for (size_t t : covered) {
-            std::fprintf(stderr, " %s", scene.items[t].food->name.c_str());
+            std::fprintf(stderr, " %s", truth_food[t]->name.c_str());
           }
           std::fprintf(stderr, "\n");
         }
