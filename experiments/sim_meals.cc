@@ -12,6 +12,7 @@
 #include "services/bandit/core/policy.h"
 #include "services/common/status_macros.h"
 #include "services/haptic/default_model.h"
+#include "services/haptic/training/labelled_traces.h"
 #include "services/perception/spanet_featurizer.h"
 #include "services/sim/force_trace.h"
 #include "services/sim/scene.h"
@@ -33,20 +34,6 @@ enum Stream : uint64_t {
 
 // Draws of a plate before giving up on fitting every food on it.
 constexpr int kMaxPlateDraws = 20;
-
-// The haptic core's samples for a simulated trace (same channel order).
-std::vector<haptic::WrenchSample> ToWrenchSamples(
-    const std::vector<sim::TimedWrench>& trace) {
-  std::vector<haptic::WrenchSample> samples;
-  samples.reserve(trace.size());
-  for (const sim::TimedWrench& s : trace) {
-    samples.push_back({s.t_s,
-                       {s.wrench.force_n[0], s.wrench.force_n[1],
-                        s.wrench.force_n[2], s.wrench.torque_nm[0],
-                        s.wrench.torque_nm[1], s.wrench.torque_nm[2]}});
-  }
-  return samples;
-}
 
 // Fisher-Yates through our own UniformIndex (std::shuffle's algorithm is
 // left to the library).
@@ -297,8 +284,8 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
     attempt.plate = attempts_so_far[food]++ % plates_per_trial;
     attempt.context = contexts[attempt.plate][food];
     const std::vector<haptic::WrenchSample> trace =
-        ToWrenchSamples(sim::SimulateTrace(profiles[attempt.plate][food],
-                                           trace_options, trace_rng));
+        haptic::ToWrenchSamples(sim::SimulateTrace(
+            profiles[attempt.plate][food], trace_options, trace_rng));
     absl::StatusOr<haptic::HapticClassification> classified =
         classifier_->Classify(trace);
     if (!classified.ok()) {

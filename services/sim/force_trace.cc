@@ -9,7 +9,62 @@ double Uniform(std::mt19937_64& rng, double lo, double hi) {
   return std::uniform_real_distribution<double>(lo, hi)(rng);
 }
 
+// The profile's axial force peak in its first 100 ms (0.1 ms steps): the
+// skin break or puncture; for items that only rise, the end.
+double PeakTime(const ForceProfile& profile) {
+  double peak_s = 0.0, peak_n = -1.0;
+  for (int i = 1; i <= 1000; ++i) {
+    const double fz = profile.At(i * 1e-4).force_n[2];
+    if (fz > peak_n) {
+      peak_n = fz;
+      peak_s = i * 1e-4;
+    }
+  }
+  return peak_s;
+}
+
+// The noise-free wrench of `profile` varied by `v`, `tau_s` after contact;
+// `peak_s` is PeakTime(profile).
+Wrench VariedAt(const ForceProfile& profile, const TraceVariation& v,
+                double peak_s, double tau_s) {
+  double profile_tau = tau_s / v.time_scale;
+  if (profile_tau > peak_s) {
+    profile_tau = peak_s + (profile_tau - peak_s) / v.drop_time_scale;
+  }
+  const Wrench w = profile.At(profile_tau);
+  double touch = 0.0;
+  if (tau_s > 0.0) {
+    touch = v.touch_n;
+  } else if (v.touch_s > 0.0 && tau_s > -v.touch_s) {
+    touch = v.touch_n * (tau_s + v.touch_s) / v.touch_s;
+  }
+  const double fz = v.amplitude * w.force_n[2] + touch;
+  const double lateral = v.amplitude * v.lateral_scale;
+  Wrench out;
+  out.force_n = {lateral * w.force_n[0], lateral * w.force_n[1], fz};
+  out.torque_nm = {lateral * w.torque_nm[0], lateral * w.torque_nm[1],
+                   v.twist_m * fz};
+  return out;
+}
+
+// `w` as the sensor reports it: plus `bias` and white noise.
+Wrench AddSensorNoise(Wrench w, const SensorNoise& noise, const Wrench& bias,
+                      std::mt19937_64& rng) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (int i = 0; i < 3; ++i) {
+    w.force_n[i] += bias.force_n[i] + noise.force_sd_n * normal(rng);
+    w.torque_nm[i] += bias.torque_nm[i] + noise.torque_sd_nm * normal(rng);
+  }
+  return w;
+}
+
 }  // namespace
+
+bool TraceVariation::IsIdentity() const {
+  return amplitude == 1.0 && time_scale == 1.0 && drop_time_scale == 1.0 &&
+         lateral_scale == 1.0 && twist_m == 0.0 && touch_n == 0.0 &&
+         touch_s == 0.0;
+}
 
 ForceProfile ForceProfile::Sample(HapticCategory category,
                                   std::mt19937_64& rng) {
@@ -73,13 +128,7 @@ Wrench ForceProfile::At(double tau_s) const {
 Wrench Measure(const ForceProfile& profile, double tau_s,
                const SensorNoise& noise, const Wrench& bias,
                std::mt19937_64& rng) {
-  std::normal_distribution<double> normal(0.0, 1.0);
-  Wrench w = profile.At(tau_s);
-  for (int i = 0; i < 3; ++i) {
-    w.force_n[i] += bias.force_n[i] + noise.force_sd_n * normal(rng);
-    w.torque_nm[i] += bias.torque_nm[i] + noise.torque_sd_nm * normal(rng);
-  }
-  return w;
+  return AddSensorNoise(profile.At(tau_s), noise, bias, rng);
 }
 
 std::vector<TimedWrench> SimulateTrace(const ForceProfile& profile,
@@ -96,6 +145,9 @@ std::vector<TimedWrench> SimulateTrace(const ForceProfile& profile,
   const double dt = 1.0 / options.rate_hz;
   const int n =
       static_cast<int>(std::floor(options.duration_s * options.rate_hz));
+  const TraceVariation& variation = options.variation;
+  const bool varied = !variation.IsIdentity();
+  const double peak_s = varied ? PeakTime(profile) : 0.0;
   std::vector<TimedWrench> trace;
   trace.reserve(n);
   for (int i = 0; i < n; ++i) {
@@ -103,8 +155,11 @@ std::vector<TimedWrench> SimulateTrace(const ForceProfile& profile,
     if (options.jitter_fraction > 0.0 && i > 0) {
       t += Uniform(rng, -0.5, 0.5) * options.jitter_fraction * dt;
     }
+    const double tau = t - options.contact_s;
     trace.push_back(
-        {t, Measure(profile, t - options.contact_s, options.noise, bias, rng)});
+        {t, varied ? AddSensorNoise(VariedAt(profile, variation, peak_s, tau),
+                                    options.noise, bias, rng)
+                   : Measure(profile, tau, options.noise, bias, rng)});
   }
   return trace;
 }

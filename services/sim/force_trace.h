@@ -66,12 +66,39 @@ struct SensorNoise {
   double random_bias_n = 0.5;
 };
 
+// One item's departure from the profile it was drawn from, for training
+// data that must cover more than the world model's own variation (HapticNet's
+// trainer draws one per trace; the simulated world never varies). The
+// identity by default.
+//  - amplitude: the whole wrench scaled (a stiffer or weaker item);
+//  - time_scale: the profile's time axis stretched (a faster or slower fork,
+//    another size);
+//  - drop_time_scale: after the profile's force peak (the skin break or
+//    puncture; for items that only rise, the end of the first 100 ms), time
+//    stretched again, so a puncture may be as fast as a skin break;
+//  - lateral_scale: Fx, Fy and the torques they cause scaled;
+//  - twist_m: a twist Tz = twist_m * Fz;
+//  - touch_n, touch_s: a gentle touch before the fork bites: Fz ramps
+//    linearly to touch_n over touch_s before the profile starts and stays.
+struct TraceVariation {
+  double amplitude = 1.0;
+  double time_scale = 1.0;
+  double drop_time_scale = 1.0;
+  double lateral_scale = 1.0;
+  double twist_m = 0.0;
+  double touch_n = 0.0;
+  double touch_s = 0.0;
+
+  bool IsIdentity() const;
+};
+
 struct TraceOptions {
   double rate_hz = 1000.0;       // 100 Hz to 7 kHz
   double contact_s = 0.3;        // first contact, from the start of the trace
   double duration_s = 0.6;       // whole trace
   double jitter_fraction = 0.0;  // timestamp jitter as a fraction of 1/rate
   SensorNoise noise;
+  TraceVariation variation;
 };
 
 // The wrench that the sensor reports at time `tau_s` after contact: the
@@ -81,7 +108,9 @@ Wrench Measure(const ForceProfile& profile, double tau_s,
                std::mt19937_64& rng);
 
 // A whole trace sampled at `options.rate_hz`, contact at
-// `options.contact_s`, with noise and a bias (fixed or random).
+// `options.contact_s`, with noise and a bias (fixed or random), of the
+// profile varied by `options.variation`. With the identity variation every
+// sample is Measure()'s, as the simulated Net F/T box streams.
 std::vector<TimedWrench> SimulateTrace(const ForceProfile& profile,
                                        const TraceOptions& options,
                                        std::mt19937_64& rng);

@@ -1,5 +1,5 @@
-// Traces for the haptic tests: the force-trace model's samples converted to
-// the haptic core's, and one simulated item of a category.
+// Traces for the haptic tests: one simulated item of a category, as the
+// haptic core's samples.
 #ifndef BITEWISE_TESTS_HAPTIC_HAPTIC_TEST_TRACES_H_
 #define BITEWISE_TESTS_HAPTIC_HAPTIC_TEST_TRACES_H_
 
@@ -7,21 +7,10 @@
 #include <vector>
 
 #include "services/haptic/core/wrench_trace.h"
+#include "services/haptic/training/labelled_traces.h"
 #include "services/sim/force_trace.h"
 
 namespace bitewise::haptic {
-
-inline std::vector<WrenchSample> ToWrenchSamples(
-    const std::vector<sim::TimedWrench>& simulated) {
-  std::vector<WrenchSample> trace;
-  for (const sim::TimedWrench& s : simulated) {
-    trace.push_back({s.t_s,
-                     {s.wrench.force_n[0], s.wrench.force_n[1],
-                      s.wrench.force_n[2], s.wrench.torque_nm[0],
-                      s.wrench.torque_nm[1], s.wrench.torque_nm[2]}});
-  }
-  return trace;
-}
 
 inline std::vector<WrenchSample> SimulatedTrace(HapticClass haptic_class,
                                                 std::mt19937_64& rng,

@@ -423,6 +423,14 @@ double ConfusionMatrix::Accuracy() const {
   return total == 0 ? 0.0 : static_cast<double>(correct) / total;
 }
 
+double ConfusionMatrix::Recall(int true_class) const {
+  int row_total = 0;
+  for (int p = 0; p < kHapticClasses; ++p) row_total += counts[true_class][p];
+  return row_total == 0
+             ? 0.0
+             : static_cast<double>(counts[true_class][true_class]) / row_total;
+}
+
 std::string ConfusionMatrix::ToString() const {
   std::string out = absl::StrFormat("%-12s", "true\\pred");
   for (int k = 0; k < kHapticClasses; ++k) {
@@ -433,14 +441,10 @@ std::string ConfusionMatrix::ToString() const {
   for (int t = 0; t < kHapticClasses; ++t) {
     absl::StrAppendFormat(&out, "%-12s",
                           HapticClassName(static_cast<HapticClass>(t)));
-    int row_total = 0;
     for (int p = 0; p < kHapticClasses; ++p) {
       absl::StrAppendFormat(&out, "%10d", counts[t][p]);
-      row_total += counts[t][p];
     }
-    absl::StrAppendFormat(
-        &out, "%9.1f%%\n",
-        row_total == 0 ? 0.0 : 100.0 * counts[t][t] / row_total);
+    absl::StrAppendFormat(&out, "%9.1f%%\n", 100.0 * Recall(t));
   }
   absl::StrAppendFormat(&out, "accuracy %.2f%% of %d\n", 100.0 * Accuracy(),
                         Total());

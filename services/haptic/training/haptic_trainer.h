@@ -80,6 +80,8 @@ struct ConfusionMatrix {
   std::array<std::array<int, kHapticClasses>, kHapticClasses> counts{};
   int Total() const;
   double Accuracy() const;
+  // Share of `true_class`'s windows predicted as it (0 if there are none).
+  double Recall(int true_class) const;
   // Rows true class, columns predicted, with per-class recall.
   std::string ToString() const;
 };

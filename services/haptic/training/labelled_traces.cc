@@ -1,5 +1,6 @@
 #include "services/haptic/training/labelled_traces.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -12,6 +13,7 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "services/sim/force_trace.h"
+#include "services/sim/trace_stories.h"
 
 namespace bitewise::haptic {
 namespace {
@@ -28,90 +30,23 @@ double LogUniform(std::mt19937_64& rng, double lo, double hi) {
   return std::exp(Uniform(rng, std::log(lo), std::log(hi)));
 }
 
-// One trace of `profile` under `options` (rate, contact, duration, jitter,
-// noise and bias as sim::SimulateTrace) with the augmentation of
-// `conditions` drawn from `rng`.
-std::vector<WrenchSample> AugmentedTrace(const sim::ForceProfile& profile,
-                                         const sim::TraceOptions& options,
-                                         const SimulationConditions& conditions,
-                                         std::mt19937_64& rng) {
-  const int k = static_cast<int>(profile.category());
-  const double amplitude = LogUniform(rng, conditions.min_amplitude_scale[k],
-                                      conditions.max_amplitude_scale[k]);
-  const double time_scale = LogUniform(rng, conditions.min_time_scale[k],
-                                       conditions.max_time_scale[k]);
-  const double drop_scale = LogUniform(rng, conditions.min_drop_time_scale,
-                                       conditions.max_drop_time_scale);
-  const double lateral =
+// One draw of the augmentation ranges of `conditions` for an item of
+// class `k`.
+sim::TraceVariation DrawVariation(const SimulationConditions& conditions, int k,
+                                  std::mt19937_64& rng) {
+  sim::TraceVariation v;
+  v.amplitude = LogUniform(rng, conditions.min_amplitude_scale[k],
+                           conditions.max_amplitude_scale[k]);
+  v.time_scale = LogUniform(rng, conditions.min_time_scale[k],
+                            conditions.max_time_scale[k]);
+  v.drop_time_scale = LogUniform(rng, conditions.min_drop_time_scale,
+                                 conditions.max_drop_time_scale);
+  v.lateral_scale =
       Uniform(rng, conditions.min_lateral_scale, conditions.max_lateral_scale);
-  const double twist_m =
-      Uniform(rng, -conditions.max_twist_m, conditions.max_twist_m);
-  const double touch_n = Uniform(rng, 0.0, conditions.max_touch_n);
-  const double touch_s = Uniform(rng, 0.0, conditions.max_touch_s);
-  std::array<double, kWrenchChannels> bias{};
-  for (int c = 0; c < 3; ++c) {
-    bias[c] = options.noise.bias.force_n[c];
-    bias[3 + c] = options.noise.bias.torque_nm[c];
-  }
-  if (options.noise.random_bias_n > 0.0) {
-    const double b = options.noise.random_bias_n;
-    for (int c = 0; c < 3; ++c) {
-      bias[c] += Uniform(rng, -b, b);
-      bias[3 + c] += Uniform(rng, -0.02 * b, 0.02 * b);
-    }
-  }
-  // The profile's force peak in its first 100 ms (0.1 ms steps): the skin
-  // break or puncture; for hard and soft items, which only rise, the end.
-  double peak_s = 0.0, peak_n = -1.0;
-  for (int i = 1; i <= 1000; ++i) {
-    const double fz = profile.At(i * 1e-4).force_n[2];
-    if (fz > peak_n) {
-      peak_n = fz;
-      peak_s = i * 1e-4;
-    }
-  }
-  const double dt = 1.0 / options.rate_hz;
-  const int n =
-      static_cast<int>(std::floor(options.duration_s * options.rate_hz));
-  std::normal_distribution<double> normal(0.0, 1.0);
-  std::vector<WrenchSample> samples;
-  samples.reserve(n);
-  for (int i = 0; i < n; ++i) {
-    double t = i * dt;
-    if (options.jitter_fraction > 0.0 && i > 0) {
-      t += Uniform(rng, -0.5, 0.5) * options.jitter_fraction * dt;
-    }
-    const double tau = t - options.contact_s;
-    // Profile time: stretched by time_scale, and after the peak by
-    // drop_scale as well.
-    double profile_tau = tau / time_scale;
-    if (profile_tau > peak_s) {
-      profile_tau = peak_s + (profile_tau - peak_s) / drop_scale;
-    }
-    const sim::Wrench w = profile.At(profile_tau);
-    double touch = 0.0;
-    if (tau > 0.0) {
-      touch = touch_n;
-    } else if (touch_s > 0.0 && tau > -touch_s) {
-      touch = touch_n * (tau + touch_s) / touch_s;
-    }
-    const double fz = amplitude * w.force_n[2] + touch;
-    WrenchSample s;
-    s.t_s = t;
-    s.values = {amplitude * lateral * w.force_n[0],
-                amplitude * lateral * w.force_n[1],
-                fz,
-                amplitude * lateral * w.torque_nm[0],
-                amplitude * lateral * w.torque_nm[1],
-                twist_m * fz};
-    for (int c = 0; c < kWrenchChannels; ++c) {
-      const double sd =
-          c < 3 ? options.noise.force_sd_n : options.noise.torque_sd_nm;
-      s.values[c] += bias[c] + sd * normal(rng);
-    }
-    samples.push_back(s);
-  }
-  return samples;
+  v.twist_m = Uniform(rng, -conditions.max_twist_m, conditions.max_twist_m);
+  v.touch_n = Uniform(rng, 0.0, conditions.max_touch_n);
+  v.touch_s = Uniform(rng, 0.0, conditions.max_touch_s);
+  return v;
 }
 
 bool ParseLabel(absl::string_view text, HapticClass* label) {
@@ -125,6 +60,19 @@ bool ParseLabel(absl::string_view text, HapticClass* label) {
 }
 
 }  // namespace
+
+std::vector<WrenchSample> ToWrenchSamples(
+    const std::vector<sim::TimedWrench>& simulated) {
+  std::vector<WrenchSample> samples;
+  samples.reserve(simulated.size());
+  for (const sim::TimedWrench& s : simulated) {
+    samples.push_back({s.t_s,
+                       {s.wrench.force_n[0], s.wrench.force_n[1],
+                        s.wrench.force_n[2], s.wrench.torque_nm[0],
+                        s.wrench.torque_nm[1], s.wrench.torque_nm[2]}});
+  }
+  return samples;
+}
 
 bool SimulationConditions::Augmented() const {
   for (int k = 0; k < kHapticClasses; ++k) {
@@ -193,21 +141,78 @@ std::vector<LabelledTrace> SimulateLabelledTraces(
         options.noise.bias.force_n[c] = conditions.fixed_bias_n;
         options.noise.bias.torque_nm[c] = 0.02 * conditions.fixed_bias_n;
       }
+      if (conditions.Augmented()) {
+        options.variation = DrawVariation(conditions, k, rng);
+      }
       LabelledTrace trace;
       trace.label = static_cast<HapticClass>(k);
-      if (conditions.Augmented()) {
-        trace.samples = AugmentedTrace(profile, options, conditions, rng);
-        traces.push_back(std::move(trace));
-        continue;
+      trace.samples =
+          ToWrenchSamples(sim::SimulateTrace(profile, options, rng));
+      traces.push_back(std::move(trace));
+    }
+  }
+  return traces;
+}
+
+const char* TraceStoryName(TraceStory story) {
+  switch (story) {
+    case TraceStory::kWorld:
+      return "world";
+    case TraceStory::kPiecewise:
+      return "piecewise";
+    case TraceStory::kMechanics:
+      return "mechanics";
+  }
+  return "unknown";
+}
+
+absl::StatusOr<std::vector<TraceStory>> ParseTraceStories(
+    absl::string_view names) {
+  std::vector<TraceStory> stories;
+  for (absl::string_view name : absl::StrSplit(names, ',', absl::SkipEmpty())) {
+    name = absl::StripAsciiWhitespace(name);
+    bool known = false;
+    for (int i = 0; i < kTraceStories; ++i) {
+      const auto story = static_cast<TraceStory>(i);
+      if (name != TraceStoryName(story)) continue;
+      known = true;
+      if (std::find(stories.begin(), stories.end(), story) != stories.end()) {
+        return absl::InvalidArgumentError(
+            absl::StrCat("trace story \"", name, "\" given twice"));
       }
-      for (const sim::TimedWrench& s :
-           sim::SimulateTrace(profile, options, rng)) {
-        trace.samples.push_back(
-            {s.t_s,
-             {s.wrench.force_n[0], s.wrench.force_n[1], s.wrench.force_n[2],
-              s.wrench.torque_nm[0], s.wrench.torque_nm[1],
-              s.wrench.torque_nm[2]}});
-      }
+      stories.push_back(story);
+    }
+    if (!known) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "unknown trace story \"", name, "\" (world, piecewise, mechanics)"));
+    }
+  }
+  if (stories.empty()) {
+    return absl::InvalidArgumentError("no trace story given");
+  }
+  return stories;
+}
+
+std::vector<LabelledTrace> StoryTraces(TraceStory story, int per_class,
+                                       uint64_t seed) {
+  if (story == TraceStory::kWorld) {
+    return SimulateLabelledTraces(per_class, TrainingConditions(), seed);
+  }
+  // Each story its own stream of the seed.
+  std::mt19937_64 rng(seed ^ (story == TraceStory::kPiecewise
+                                  ? 0x00d00d00d00d00dull
+                                  : 0x3ec4a41c53ec4a41ull));
+  std::vector<LabelledTrace> traces;
+  traces.reserve(static_cast<size_t>(per_class) * kHapticClasses);
+  for (int i = 0; i < per_class; ++i) {
+    for (int k = 0; k < kHapticClasses; ++k) {
+      const auto category = static_cast<sim::HapticCategory>(k);
+      LabelledTrace trace;
+      trace.label = static_cast<HapticClass>(k);
+      trace.samples =
+          ToWrenchSamples(story == TraceStory::kPiecewise
+                              ? sim::PiecewiseStoryTrace(category, rng)
+                              : sim::MechanicsStoryTrace(category, rng));
       traces.push_back(std::move(trace));
     }
   }

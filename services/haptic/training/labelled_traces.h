@@ -19,9 +19,11 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/core/wrench_trace.h"
 #include "services/haptic/training/haptic_trainer.h"
+#include "services/sim/force_trace.h"
 
 namespace bitewise::haptic {
 
@@ -53,22 +55,13 @@ struct SimulationConditions {
   double after_contact_s = 0.3;
 
   // Augmentation beyond the force-trace model (training only; all off by
-  // default). Each is drawn per trace, so every item is a new variant:
-  //  - the whole wrench scaled by a factor log-uniform in
-  //    [min, max]_amplitude_scale[class] (stiffer or weaker items);
-  //  - the profile's time axis stretched by a factor log-uniform in
-  //    [min, max]_time_scale[class] (faster or slower fork, other sizes);
-  //  - after the force peak (the skin break or puncture), time stretched
-  //    again by a factor log-uniform in [min, max]_drop_time_scale, so a
-  //    puncture may be as fast as a skin break: only its depth tells them
-  //    apart;
-  //  - Fx, Fy and the torques they cause scaled by a factor uniform in
-  //    [min, max]_lateral_scale, plus a twist Tz = twist * Fz with twist
-  //    uniform in +-max_twist_m;
-  //  - a gentle touch before the fork bites: Fz ramps linearly to a level
-  //    uniform in [0, max_touch_n] over a time uniform in [0, max_touch_s]
-  //    before the profile starts and stays, which moves the detected
-  //    contact time.
+  // default): the ranges of a sim::TraceVariation (force_trace.h), drawn per
+  // trace so every item is a new variant. Amplitude and time scale are
+  // log-uniform in [min, max]_amplitude_scale[class] and
+  // [min, max]_time_scale[class], the after-peak stretch log-uniform in
+  // [min, max]_drop_time_scale, the lateral scale uniform in
+  // [min, max]_lateral_scale, the twist uniform in +-max_twist_m, the touch
+  // uniform in [0, max_touch_n] over [0, max_touch_s].
   // The ranges are per class (index HapticClass) so that the class
   // signatures survive every draw: hard stays the steepest and highest,
   // soft slow and low, hard-skin peaks then drops by more than half, medium
@@ -102,6 +95,31 @@ SimulationConditions TrainingConditions();
 // hard_skin, each from a new simulated food item. Deterministic in `seed`.
 std::vector<LabelledTrace> SimulateLabelledTraces(
     int per_class, const SimulationConditions& conditions, uint64_t seed);
+
+// A simulated trace as the haptic core's samples (same channel order).
+std::vector<WrenchSample> ToWrenchSamples(
+    const std::vector<sim::TimedWrench>& simulated);
+
+// Where simulated traces come from: the simulated world's force-trace model
+// under TrainingConditions() (augmented), or one of the independent stories
+// of services/sim/trace_stories.h. HapticNet is trained on some and judged on
+// one it never saw.
+enum class TraceStory { kWorld = 0, kPiecewise = 1, kMechanics = 2 };
+inline constexpr int kTraceStories = 3;
+
+// "world", "piecewise", "mechanics".
+const char* TraceStoryName(TraceStory story);
+
+// A comma-separated list of story names, each at most once. INVALID_ARGUMENT
+// naming an unknown or repeated name, or an empty list.
+absl::StatusOr<std::vector<TraceStory>> ParseTraceStories(
+    absl::string_view names);
+
+// `per_class` traces of each class from `story`, interleaved hard, medium,
+// soft, hard_skin, each a new item. Deterministic in `seed`; different
+// stories draw from different streams of the same seed.
+std::vector<LabelledTrace> StoryTraces(TraceStory story, int per_class,
+                                       uint64_t seed);
 
 // Writes `traces` in the CSV format above. INTERNAL if the file cannot be
 // written.

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <numeric>
@@ -17,6 +18,7 @@
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
 #include "services/common/flags_usage.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/core/haptic_net.h"
@@ -27,11 +29,16 @@
 ABSL_FLAG(std::string, out, "hapticnet.onnx", "Where to write the model.");
 ABSL_FLAG(std::string, traces, "",
           "Labelled traces in the CSV format of docs/haptic.md. Empty: draw "
-          "them from the simulated world's force-trace model.");
+          "them from the simulated trace stories of --stories.");
+ABSL_FLAG(std::string, stories, "world,piecewise",
+          "Simulated trace stories to train on (when --traces is empty), "
+          "comma-separated: world (the simulated world's force-trace model, "
+          "augmented), piecewise, mechanics (services/sim/trace_stories.h). "
+          "The shipped model holds mechanics out for its evaluation.");
 ABSL_FLAG(std::string, write_traces, "",
           "Also write the traces used (simulated or read) to this CSV file.");
 ABSL_FLAG(int, traces_per_class, 3000,
-          "Simulated traces per class (when --traces is empty).");
+          "Simulated traces per class and story (when --traces is empty).");
 ABSL_FLAG(uint64_t, seed, 1,
           "Seed of the simulated traces, the split, the initial weights and "
           "the batch order.");
@@ -48,6 +55,9 @@ ABSL_FLAG(double, label_smoothing, 0.04,
 ABSL_FLAG(double, min_temperature, 1.0,
           "Floor of the softmax temperature fitted on the validation split "
           "(1: the fit may soften the model, never sharpen it).");
+ABSL_FLAG(int, held_out_per_class, 500,
+          "Traces per class of each simulated story not trained on, scored "
+          "after training (0: none).");
 ABSL_FLAG(int, patience, 8,
           "Stop after this many epochs without a better validation loss.");
 
@@ -65,20 +75,38 @@ int Die(const std::string& what) {
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Trains HapticNet and writes it as ONNX. With no flags: 3000 simulated "
-      "traces per class, seed 1, model to ./hapticnet.onnx.");
+      "traces per class from each of the world and piecewise stories, seed "
+      "1, model to ./hapticnet.onnx.");
   bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
 
   std::vector<LabelledTrace> traces;
   std::string source;
+  std::vector<TraceStory> held_out;  // stories not trained on
   if (absl::GetFlag(FLAGS_traces).empty()) {
-    traces = SimulateLabelledTraces(absl::GetFlag(FLAGS_traces_per_class),
-                                    TrainingConditions(), seed);
-    source = absl::StrCat("simulated (", absl::GetFlag(FLAGS_traces_per_class),
-                          " per class, seed ", seed,
-                          ", augmented: amplitude, time scale, noise, bias, "
-                          "rate, lateral, touch)");
+    absl::StatusOr<std::vector<TraceStory>> stories =
+        ParseTraceStories(absl::GetFlag(FLAGS_stories));
+    if (!stories.ok()) return Die(stories.status().ToString());
+    std::vector<std::string> names;
+    for (TraceStory story : *stories) {
+      std::vector<LabelledTrace> drawn =
+          StoryTraces(story, absl::GetFlag(FLAGS_traces_per_class), seed);
+      std::move(drawn.begin(), drawn.end(), std::back_inserter(traces));
+      names.push_back(TraceStoryName(story));
+    }
+    for (int i = 0; i < kTraceStories; ++i) {
+      const auto story = static_cast<TraceStory>(i);
+      if (std::find(stories->begin(), stories->end(), story) ==
+          stories->end()) {
+        held_out.push_back(story);
+      }
+    }
+    source = absl::StrCat("simulated stories ", absl::StrJoin(names, "+"), " (",
+                          absl::GetFlag(FLAGS_traces_per_class),
+                          " per class and story, seed ", seed,
+                          "; world augmented: amplitude, time scale, noise, "
+                          "bias, rate, lateral, touch)");
   } else {
     absl::StatusOr<std::vector<LabelledTrace>> read =
         ReadTraceCsv(absl::GetFlag(FLAGS_traces));
@@ -168,6 +196,33 @@ int main(int argc, char** argv) {
       100.0 * score.confusion.Accuracy(), score.mean_log_loss,
       score.expected_calibration_error, score.confusion.ToString().c_str());
 
+  // Stories the model never saw: fresh items from another seed's stream.
+  std::string held_out_summary;
+  for (TraceStory story : held_out) {
+    const int per_class = absl::GetFlag(FLAGS_held_out_per_class);
+    if (per_class <= 0) break;
+    int skipped = 0;
+    const LabelledWindows windows = WindowsFromTraces(
+        StoryTraces(story, per_class, seed + 1000), pipeline, &skipped);
+    std::vector<std::array<double, kHapticClasses>> probabilities;
+    for (const auto& window : windows.inputs) {
+      probabilities.push_back(ReferenceProbabilities(result->weights, window));
+    }
+    const ProbabilisticScore held =
+        ScorePredictions(probabilities, windows.labels);
+    std::printf(
+        "\nheld-out story %s (never trained on; %d per class, seed %lu, %d "
+        "without contact): accuracy %.2f%%, log loss %.4f, calibration error "
+        "%.4f\n%s",
+        TraceStoryName(story), per_class,
+        static_cast<unsigned long>(seed + 1000), skipped,
+        100.0 * held.confusion.Accuracy(), held.mean_log_loss,
+        held.expected_calibration_error, held.confusion.ToString().c_str());
+    absl::StrAppend(&held_out_summary, held_out_summary.empty() ? "" : ";",
+                    TraceStoryName(story), ":",
+                    absl::StrFormat("%.4f", held.confusion.Accuracy()));
+  }
+
   const std::map<std::string, std::string> metadata = {
       {"bitewise.classes", "hard,medium,soft,hard_skin"},
       {"bitewise.input",
@@ -182,6 +237,8 @@ int main(int argc, char** argv) {
       {"bitewise.temperature", absl::StrFormat("%.2f", result->temperature)},
       {"bitewise.test_accuracy",
        absl::StrFormat("%.4f", score.confusion.Accuracy())},
+      {"bitewise.held_out_accuracy",
+       held_out_summary.empty() ? "none" : held_out_summary},
   };
   const std::string bytes = HapticNetToOnnx(result->weights, metadata);
   const std::string out = absl::GetFlag(FLAGS_out);
