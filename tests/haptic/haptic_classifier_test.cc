@@ -3,13 +3,16 @@
 // the documented statuses.
 #include "services/haptic/core/haptic_classifier.h"
 
+#include <array>
 #include <cmath>
 #include <limits>
 #include <random>
+#include <vector>
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/haptic/default_model.h"
+#include "services/haptic/training/haptic_trainer.h"
 #include "tests/haptic/haptic_test_traces.h"
 
 namespace bitewise::haptic {
@@ -28,6 +31,36 @@ class HapticClassifierTest : public ::testing::Test {
   }
   std::unique_ptr<HapticClassifier> classifier_;
 };
+
+// The shipped model was trained on the world and piecewise stories only
+// (models/hapticnet/hapticnet.onnx metadata, docs/haptic.md); the mechanics
+// story is held out. The targets, through the service's own path,
+// on the traces docs/haptic.md reports (500 per class, seed 20261123): every
+// category at least 90 % right, calibration error at most 0.05.
+TEST_F(HapticClassifierTest, MeetsTheTargetsOnTheHeldOutMechanicsStory) {
+  std::vector<std::array<double, kHapticClasses>> probabilities;
+  std::vector<int> labels;
+  int rejected = 0;
+  for (const LabelledTrace& trace :
+       StoryTraces(TraceStory::kMechanics, 500, 20261123)) {
+    absl::StatusOr<HapticClassification> result =
+        classifier_->Classify(trace.samples);
+    if (!result.ok()) {
+      ++rejected;
+      continue;
+    }
+    probabilities.push_back(result->probabilities);
+    labels.push_back(static_cast<int>(trace.label));
+  }
+  EXPECT_LE(rejected, 10);  // soft items too weak to register as contact
+  const ProbabilisticScore score = ScorePredictions(probabilities, labels);
+  for (int k = 0; k < kHapticClasses; ++k) {
+    EXPECT_GE(score.confusion.Recall(k), 0.90)
+        << HapticClassName(static_cast<HapticClass>(k)) << "\n"
+        << score.confusion.ToString();
+  }
+  EXPECT_LE(score.expected_calibration_error, 0.05);
+}
 
 TEST_F(HapticClassifierTest, ClassifiesSimulatedItemsOfEveryCategory) {
   std::mt19937_64 rng(99);
