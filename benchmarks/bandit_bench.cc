@@ -12,6 +12,7 @@
 #include "benchmark/benchmark.h"
 #include "services/bandit/core/linucb.h"
 #include "services/bandit/core/policy.h"
+#include "services/domain/random.h"
 
 namespace bitewise::bandit {
 namespace {
@@ -36,14 +37,13 @@ BanditConfig Config(int d, bool prior = false) {
 }
 
 Round RandomRound(int d, std::mt19937_64& rng) {
-  std::uniform_real_distribution<double> u(0.0, 1.0);
   Round round;
   round.context.resize(d);
-  for (double& x : round.context) x = u(rng);
-  round.action = static_cast<int>(u(rng) * kActions) % kActions;
+  for (double& x : round.context) x = random::Canonical(rng);
+  round.action = static_cast<int>(random::Canonical(rng) * kActions) % kActions;
   round.posthoc.assign(kPostHocDim, 0.0);
   round.posthoc[round.action % kPostHocDim] = 1.0;
-  round.loss = u(rng) < 0.3 ? 1.0 : 0.0;
+  round.loss = random::Canonical(rng) < 0.3 ? 1.0 : 0.0;
   return round;
 }
 

@@ -19,9 +19,9 @@
 #include "absl/flags/usage.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/str_format.h"
-#include "experiments/random.h"
 #include "experiments/sim_meals.h"
 #include "services/common/flags_usage.h"
+#include "services/domain/random.h"
 #include "services/perception/context_scale.h"
 #include "services/perception/default_featurizer.h"
 #include "services/perception/spanet_featurizer.h"
@@ -41,7 +41,6 @@ ABSL_FLAG(std::string, spanet_model, "", "spanet: the ONNX model.");
 namespace {
 
 using bitewise::experiments::FeaturizeScene;
-using bitewise::experiments::MixSeed;
 namespace perception = bitewise::perception;
 namespace sim = bitewise::sim;
 
@@ -54,13 +53,13 @@ int Fail(const std::string& what) {
 absl::StatusOr<std::vector<std::vector<double>>> SeenFoodContexts(
     const perception::Featurizer& featurizer, int plates, uint64_t seed) {
   const std::vector<const sim::FoodType*> seen = sim::SeenFoods();
-  std::mt19937_64 plate_rng(MixSeed(seed, 1));
+  std::mt19937_64 plate_rng(bitewise::random::MixSeed(seed, 1));
   std::vector<std::vector<double>> contexts;
   for (int plate = 0; plate < plates; ++plate) {
     const sim::PlateScene scene =
         sim::RandomPlate(seen, /*allow_touching=*/false, plate_rng);
-    auto featurized =
-        FeaturizeScene(scene, MixSeed(seed, 100 + plate), featurizer);
+    auto featurized = FeaturizeScene(
+        scene, bitewise::random::MixSeed(seed, 100 + plate), featurizer);
     if (!featurized.ok()) return featurized.status();
     for (std::vector<double>& c : *featurized) {
       if (!c.empty()) contexts.push_back(std::move(c));

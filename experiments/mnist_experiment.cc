@@ -5,10 +5,10 @@
 #include "Eigen/Dense"
 #include "absl/strings/str_cat.h"
 #include "experiments/pca.h"
-#include "experiments/random.h"
 #include "services/bandit/core/linucb.h"
 #include "services/bandit/core/policy.h"
 #include "services/common/status_macros.h"
+#include "services/domain/random.h"
 
 namespace bitewise::experiments {
 namespace {
@@ -114,7 +114,7 @@ Eigen::MatrixXd DrawPosthocMap(int num_actions, int posthoc_dim,
   std::mt19937_64 rng(seed);
   Eigen::MatrixXd a(num_actions, posthoc_dim);
   for (int i = 0; i < num_actions; ++i) {
-    for (int j = 0; j < posthoc_dim; ++j) a(i, j) = Uniform01(rng);
+    for (int j = 0; j < posthoc_dim; ++j) a(i, j) = random::Uniform01(rng);
   }
   return a.completeOrthogonalDecomposition().pseudoInverse();
 }
@@ -145,7 +145,7 @@ absl::StatusOr<LearningCurve> RunLearningSpeedTrial(const MnistProblem& problem,
   ASSIGN_OR_RETURN(auto posthoc,
                    bandit::LinUcbModel::Create(LearnerConfig(
                        problem, config, bandit::Learner::kPostHoc)));
-  std::mt19937_64 rng(MixSeed(seed, 1));
+  std::mt19937_64 rng(random::MixSeed(seed, 1));
   LearningCurve curve;
   auto evaluate = [&](int round) {
     curve.rounds.push_back(round);
@@ -161,10 +161,10 @@ absl::StatusOr<LearningCurve> RunLearningSpeedTrial(const MnistProblem& problem,
   evaluate(0);
   const int n = static_cast<int>(problem.train_contexts.rows());
   for (int t = 1; t <= config.exploration_rounds; ++t) {
-    const int i = UniformIndex(rng, n);
+    const int i = random::UniformIndex(rng, n);
     bandit::Round round;
     round.context = Row(problem.train_contexts, i);
-    round.action = UniformIndex(rng, problem.num_actions);
+    round.action = random::UniformIndex(rng, problem.num_actions);
     round.loss = problem.train_losses(i, round.action);
     context_only.Update(round);
     const Eigen::VectorXd p = b * problem.train_losses.row(i).transpose();
@@ -183,13 +183,13 @@ absl::StatusOr<std::vector<double>> RunMnistRegretTrial(
       DrawPosthocMap(problem.num_actions, config.posthoc_dim, seed);
   ASSIGN_OR_RETURN(auto model, bandit::LinUcbModel::Create(
                                    LearnerConfig(problem, config, learner)));
-  std::mt19937_64 rng(MixSeed(seed, 2));
+  std::mt19937_64 rng(random::MixSeed(seed, 2));
   const int n = static_cast<int>(problem.test_contexts.rows());
   const int rounds = config.regret_rounds > 0 ? config.regret_rounds : n;
   std::vector<double> cumulative(rounds);
   double total = 0.0;
   for (int t = 0; t < rounds; ++t) {
-    const int i = UniformIndex(rng, n);
+    const int i = random::UniformIndex(rng, n);
     bandit::Round round;
     round.context = Row(problem.test_contexts, i);
     std::vector<double> lcb;

@@ -17,9 +17,9 @@
 #include "experiments/csv_writer.h"
 #include "experiments/idx.h"
 #include "experiments/mnist_experiment.h"
-#include "experiments/random.h"
 #include "experiments/trial_stats.h"
 #include "services/common/flags_usage.h"
+#include "services/domain/random.h"
 
 ABSL_FLAG(std::string, train_images, "", "IDX ubyte training images.");
 ABSL_FLAG(std::string, train_labels, "", "IDX ubyte training labels.");
@@ -96,7 +96,8 @@ int Run() {
   std::vector<double> rounds;
   const int trials = absl::GetFlag(FLAGS_trials);
   for (int trial = 0; trial < trials; ++trial) {
-    auto curve = RunLearningSpeedTrial(*problem, config, MixSeed(seed, trial));
+    auto curve =
+        RunLearningSpeedTrial(*problem, config, random::MixSeed(seed, trial));
     if (!curve.ok()) return Fail(curve.status());
     rounds = curve->rounds;
     co.push_back(curve->context_only_mse);
@@ -143,7 +144,7 @@ int Run() {
   std::vector<std::vector<double>> rc, rp, rd;
   const int regret_trials = absl::GetFlag(FLAGS_regret_trials);
   for (int trial = 0; trial < regret_trials; ++trial) {
-    const uint64_t trial_seed = MixSeed(seed, 1000 + trial);
+    const uint64_t trial_seed = random::MixSeed(seed, 1000 + trial);
     auto c = RunMnistRegretTrial(*problem, config,
                                  bandit::Learner::kContextOnly, trial_seed);
     if (!c.ok()) return Fail(c.status());

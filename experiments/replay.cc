@@ -8,10 +8,10 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
-#include "experiments/random.h"
 #include "services/bandit/core/linucb.h"
 #include "services/bandit/core/policy.h"
 #include "services/common/status_macros.h"
+#include "services/domain/random.h"
 
 namespace bitewise::experiments {
 namespace {
@@ -117,10 +117,10 @@ absl::StatusOr<ReplayEstimate> ReplaySettingOnLog(const EventLog& log,
   std::vector<double> dm_totals, dr_totals;
   for (int r = 0; r < replays; ++r) {
     ASSIGN_OR_RETURN(auto model, bandit::LinUcbModel::Create(config));
-    std::mt19937_64 rng(MixSeed(seed, r));
+    std::mt19937_64 rng(random::MixSeed(seed, r));
     double dm = 0.0, dr = 0.0;
     for (int t = 0; t < n; ++t) {
-      const int i = UniformIndex(rng, n);
+      const int i = random::UniformIndex(rng, n);
       const LoggedEvent& e = log.events[i];
       std::vector<double> lcb;
       for (const auto& est : model.Estimate(e.context)) lcb.push_back(est.lcb);

@@ -6,11 +6,11 @@
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
-#include "experiments/random.h"
 #include "opencv2/core.hpp"
 #include "services/bandit/core/linucb.h"
 #include "services/bandit/core/policy.h"
 #include "services/common/status_macros.h"
+#include "services/domain/random.h"
 #include "services/haptic/default_model.h"
 #include "services/haptic/training/labelled_traces.h"
 #include "services/perception/spanet_featurizer.h"
@@ -39,7 +39,7 @@ constexpr int kMaxPlateDraws = 20;
 // left to the library).
 void Shuffle(std::vector<int>& values, std::mt19937_64& rng) {
   for (int i = static_cast<int>(values.size()) - 1; i > 0; --i) {
-    std::swap(values[i], values[UniformIndex(rng, i + 1)]);
+    std::swap(values[i], values[random::UniformIndex(rng, i + 1)]);
   }
 }
 
@@ -211,8 +211,8 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
   // Plates: render each once and featurize every item's ground-truth box;
   // each food's force profile is drawn per item, as the simulated robot
   // does (the same item feels the same on every attempt).
-  std::mt19937_64 plate_rng(MixSeed(seed, kPlateStream));
-  std::mt19937_64 profile_rng(MixSeed(seed, kProfileStream));
+  std::mt19937_64 plate_rng(random::MixSeed(seed, kPlateStream));
+  std::mt19937_64 profile_rng(random::MixSeed(seed, kProfileStream));
   // [plate][food]
   std::vector<std::vector<std::vector<double>>> contexts(
       plates_per_trial, std::vector<std::vector<double>>(num_foods));
@@ -233,7 +233,8 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
           sim::RandomPlate(foods, config.allow_touching, plate_rng);
       ASSIGN_OR_RETURN(
           std::vector<std::vector<double>> item_contexts,
-          FeaturizeScene(scene, MixSeed(seed, kRenderNoiseStream + plate),
+          FeaturizeScene(scene,
+                         random::MixSeed(seed, kRenderNoiseStream + plate),
                          *featurizer_));
       std::vector<std::vector<double>> plate_contexts(num_foods);
       for (size_t i = 0; i < scene.items.size(); ++i) {
@@ -254,7 +255,7 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
   }
 
   // The meal's order of foods.
-  std::mt19937_64 order_rng(MixSeed(seed, kOrderStream));
+  std::mt19937_64 order_rng(random::MixSeed(seed, kOrderStream));
   std::vector<int> order;
   if (config.order == MealOrder::kShuffled) {
     for (int food = 0; food < num_foods; ++food) {
@@ -272,9 +273,9 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
 
   // Attempts: a fresh trace of the item per attempt (sensor noise and bias
   // differ), classified by the HapticService's pipeline; one outcome coin.
-  std::mt19937_64 trace_rng(MixSeed(seed, kTraceStream));
-  std::mt19937_64 coin_rng(MixSeed(seed, kCoinStream));
-  std::mt19937_64 haptic_error_rng(MixSeed(seed, kHapticErrorStream));
+  std::mt19937_64 trace_rng(random::MixSeed(seed, kTraceStream));
+  std::mt19937_64 coin_rng(random::MixSeed(seed, kCoinStream));
+  std::mt19937_64 haptic_error_rng(random::MixSeed(seed, kHapticErrorStream));
   std::vector<int> attempts_so_far(num_foods, 0);
   world.attempts.reserve(order.size());
   const sim::TraceOptions trace_options;  // 1 kHz, as the simulated Net F/T
@@ -295,11 +296,12 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
     }
     attempt.haptic = *classified;
     if (config.haptic_accuracy > 0.0 &&
-        Uniform01(haptic_error_rng) >= config.haptic_accuracy) {
+        random::Uniform01(haptic_error_rng) >= config.haptic_accuracy) {
       // A confident wrong answer: the top probability moves to another
       // class, drawn uniformly.
       const int top = static_cast<int>(attempt.haptic.category);
-      int wrong = UniformIndex(haptic_error_rng, haptic::kHapticClasses - 1);
+      int wrong =
+          random::UniformIndex(haptic_error_rng, haptic::kHapticClasses - 1);
       if (wrong >= top) ++wrong;
       std::swap(attempt.haptic.probabilities[top],
                 attempt.haptic.probabilities[wrong]);
@@ -307,7 +309,7 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
                 attempt.haptic.log_probabilities[wrong]);
       attempt.haptic.category = static_cast<haptic::HapticClass>(wrong);
     }
-    attempt.coin = Uniform01(coin_rng);
+    attempt.coin = random::Uniform01(coin_rng);
     world.attempts.push_back(std::move(attempt));
   }
   return world;

@@ -18,10 +18,10 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "experiments/csv_writer.h"
-#include "experiments/random.h"
 #include "experiments/sim_meals.h"
 #include "experiments/trial_stats.h"
 #include "services/common/flags_usage.h"
+#include "services/domain/random.h"
 #include "services/sim/food_catalog.h"
 
 ABSL_FLAG(int, trials, 200, "Seeded trials (simulated meals).");
@@ -172,7 +172,7 @@ int Run() {
   double context_norm2 = 0.0;
   std::array<double, kHapticContexts.size()> posthoc_norm2{};
   for (int trial = 0; trial < trials; ++trial) {
-    const uint64_t seed = MixSeed(absl::GetFlag(FLAGS_seed), trial);
+    const uint64_t seed = random::MixSeed(absl::GetFlag(FLAGS_seed), trial);
     const auto world_start = std::chrono::steady_clock::now();
     absl::StatusOr<SimMealWorld> world = (*simulator)->DrawWorld(config, seed);
     world_seconds += std::chrono::duration<double>(

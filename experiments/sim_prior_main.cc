@@ -18,11 +18,11 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
-#include "experiments/random.h"
 #include "experiments/sim_meals.h"
 #include "experiments/trial_stats.h"
 #include "services/bandit/core/population_prior.h"
 #include "services/common/flags_usage.h"
+#include "services/domain/random.h"
 #include "services/sim/food_catalog.h"
 
 ABSL_FLAG(int, facilities, 4, "Independent facilities (pools).");
@@ -91,14 +91,15 @@ int Run() {
   std::vector<double> without;
   std::vector<std::vector<double>> with(weights.size()), diff(weights.size());
   for (int f = 0; f < facilities; ++f) {
-    const uint64_t facility_seed = MixSeed(base, 1000 + f);
+    const uint64_t facility_seed = random::MixSeed(base, 1000 + f);
     std::vector<bandit::LinUcbModel> pool;
     for (int u = 0; u < pool_users; ++u) {
-      const uint64_t user_seed = MixSeed(facility_seed, u);
+      const uint64_t user_seed = random::MixSeed(facility_seed, u);
       std::optional<bandit::LinUcbModel> model;
       int64_t rounds = 0;
       for (int m = 0; m < pool_meals; ++m) {
-        auto world = (*simulator)->DrawWorld(pool_meal, MixSeed(user_seed, m));
+        auto world =
+            (*simulator)->DrawWorld(pool_meal, random::MixSeed(user_seed, m));
         if (!world.ok()) {
           absl::FPrintF(stderr, "%s\n", world.status().ToString());
           return 1;
@@ -130,7 +131,7 @@ int Run() {
       priors.push_back(*std::move(prior));
     }
     for (int i = 0; i < new_users; ++i) {
-      const uint64_t seed = MixSeed(facility_seed, 100000 + i);
+      const uint64_t seed = random::MixSeed(facility_seed, 100000 + i);
       auto world = (*simulator)->DrawWorld(meal, seed);
       if (!world.ok()) return 1;
       auto plain = RunSimMealTrial(meal, *world, bandit::Learner::kPostHoc,

@@ -4,10 +4,10 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
-#include "experiments/random.h"
 #include "services/bandit/core/linucb.h"
 #include "services/bandit/core/policy.h"
 #include "services/common/status_macros.h"
+#include "services/domain/random.h"
 
 namespace bitewise::experiments {
 
@@ -18,16 +18,16 @@ SyntheticWorld DrawSyntheticWorld(const SyntheticConfig& config,
   world.phi.resize(config.num_actions, config.posthoc_dim);
   for (int a = 0; a < config.num_actions; ++a) {
     for (int j = 0; j < config.posthoc_dim; ++j) {
-      world.phi(a, j) = Uniform01(rng) / config.posthoc_dim;
+      world.phi(a, j) = random::Uniform01(rng) / config.posthoc_dim;
     }
   }
   world.contexts.resize(config.rounds, config.context_dim);
   world.coins.resize(config.rounds);
   for (int t = 0; t < config.rounds; ++t) {
     for (int j = 0; j < config.context_dim; ++j) {
-      world.contexts(t, j) = Uniform01(rng);
+      world.contexts(t, j) = random::Uniform01(rng);
     }
-    world.coins(t) = Uniform01(rng);
+    world.coins(t) = random::Uniform01(rng);
   }
   return world;
 }

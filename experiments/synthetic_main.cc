@@ -14,10 +14,10 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "experiments/csv_writer.h"
-#include "experiments/random.h"
 #include "experiments/synthetic.h"
 #include "experiments/trial_stats.h"
 #include "services/common/flags_usage.h"
+#include "services/domain/random.h"
 
 ABSL_FLAG(std::vector<std::string>, context_dims,
           std::vector<std::string>({"10", "100"}),
@@ -74,8 +74,8 @@ int Run() {
     const auto start = std::chrono::steady_clock::now();
     std::vector<std::vector<double>> context_only, posthoc, diff;
     for (int trial = 0; trial < trials; ++trial) {
-      const uint64_t seed =
-          MixSeed(absl::GetFlag(FLAGS_seed), (uint64_t{1} << 32) * dim + trial);
+      const uint64_t seed = random::MixSeed(absl::GetFlag(FLAGS_seed),
+                                            (uint64_t{1} << 32) * dim + trial);
       const SyntheticWorld world = DrawSyntheticWorld(config, seed);
       auto c = RunSyntheticTrial(config, world, bandit::Learner::kContextOnly);
       auto p = RunSyntheticTrial(config, world, bandit::Learner::kPostHoc);

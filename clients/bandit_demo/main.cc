@@ -28,6 +28,7 @@
 #include "services/common/channel.h"
 #include "services/common/flags_usage.h"
 #include "services/common/grpc_status.h"
+#include "services/domain/random.h"
 #include "services/sim/food_catalog.h"
 
 ABSL_FLAG(std::string, bandit, "127.0.0.1:50051", "BanditService address.");
@@ -61,7 +62,7 @@ class VisualModel {
  public:
   VisualModel(int foods, int dim, uint64_t seed) : dim_(dim) {
     std::mt19937_64 rng(seed);
-    std::normal_distribution<double> normal(0.0, 1.0);
+    bitewise::random::Normal normal;
     for (int f = 0; f < foods; ++f) {
       std::vector<double> base(dim);
       for (double& x : base) x = 0.5 * normal(rng);
@@ -70,7 +71,7 @@ class VisualModel {
   }
 
   std::vector<double> Observe(int food, std::mt19937_64& rng) const {
-    std::normal_distribution<double> normal(0.0, 0.35);
+    bitewise::random::Normal normal(0.0, 0.35);
     std::vector<double> c(dim_);
     for (int i = 0; i < dim_; ++i) {
       c[i] = std::max(0.0, bases_[food][i] + normal(rng));
@@ -86,7 +87,7 @@ class VisualModel {
 // A noisy haptic classifier: softmax of a boosted true class plus noise.
 std::vector<double> HapticProbabilities(HapticCategory category,
                                         std::mt19937_64& rng) {
-  std::normal_distribution<double> normal(0.0, 0.8);
+  bitewise::random::Normal normal(0.0, 0.8);
   std::vector<double> logits(bitewise::sim::kHapticCategories);
   for (int k = 0; k < bitewise::sim::kHapticCategories; ++k)
     logits[k] = (k == static_cast<int>(category) ? 3.0 : 0.0) + normal(rng);
@@ -189,7 +190,6 @@ int main(int argc, char** argv) {
   const VisualModel visual(num_foods, dim, 7);
   std::mt19937_64 rng(absl::GetFlag(FLAGS_seed) ^
                       std::hash<std::string>()(meal_id));
-  std::uniform_real_distribution<double> coin(0.0, 1.0);
 
   std::vector<int> plate(num_foods);
   for (int f = 0; f < num_foods; ++f) plate[f] = f;
@@ -217,7 +217,8 @@ int main(int argc, char** argv) {
         [&] { return stub->Select(Context().get(), select, &chosen); });
     if (!status.ok()) return Fail("Select", status);
 
-    const bool success = coin(rng) < spec.success[chosen.action()];
+    const bool success =
+        bitewise::random::Canonical(rng) < spec.success[chosen.action()];
     const std::vector<double> probs = HapticProbabilities(spec.category, rng);
     const int sensed = static_cast<int>(
         std::max_element(probs.begin(), probs.end()) - probs.begin());

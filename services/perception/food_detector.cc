@@ -10,6 +10,7 @@
 
 #include "absl/status/status.h"
 #include "opencv2/imgproc.hpp"
+#include "services/domain/random.h"
 
 namespace bitewise::perception {
 namespace {
@@ -84,13 +85,16 @@ std::optional<Plane> FitPlatePlane(const cv::Mat& depth_mm,
   }
   if (points.size() < 50) return std::nullopt;
   std::mt19937_64 rng(options.ransac_seed);
-  std::uniform_int_distribution<size_t> pick(0, points.size() - 1);
+  auto pick = [&] {
+    return static_cast<size_t>(
+        random::UniformInt(rng, 0, static_cast<int64_t>(points.size()) - 1));
+  };
   std::optional<Plane> best;
   size_t best_inliers = 0;
   const size_t check_step = std::max<size_t>(1, points.size() / 1500);
   for (int it = 0; it < options.ransac_iterations; ++it) {
     std::optional<Plane> plane =
-        PlaneThrough(points[pick(rng)], points[pick(rng)], points[pick(rng)]);
+        PlaneThrough(points[pick()], points[pick()], points[pick()]);
     if (!plane) continue;
     size_t inliers = 0;
     for (size_t i = 0; i < points.size(); i += check_step) {

@@ -2,12 +2,12 @@
 
 #include <cmath>
 
+#include "services/domain/random.h"
+
 namespace bitewise::sim {
 namespace {
 
-double Uniform(std::mt19937_64& rng, double lo, double hi) {
-  return std::uniform_real_distribution<double>(lo, hi)(rng);
-}
+using random::Uniform;
 
 // The profile's axial force peak in its first 100 ms (0.1 ms steps): the
 // skin break or puncture; for items that only rise, the end.
@@ -50,7 +50,7 @@ Wrench VariedAt(const ForceProfile& profile, const TraceVariation& v,
 // `w` as the sensor reports it: plus `bias` and white noise.
 Wrench AddSensorNoise(Wrench w, const SensorNoise& noise, const Wrench& bias,
                       std::mt19937_64& rng) {
-  std::normal_distribution<double> normal(0.0, 1.0);
+  random::Normal normal;
   for (int i = 0; i < 3; ++i) {
     w.force_n[i] += bias.force_n[i] + noise.force_sd_n * normal(rng);
     w.torque_nm[i] += bias.torque_nm[i] + noise.torque_sd_nm * normal(rng);

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "services/domain/random.h"
 #include "services/sim/scene.h"
 
 namespace bitewise::sim {
@@ -200,8 +201,7 @@ RenderedFrame RenderPlate(const PlateScene& scene,
   frame.rgb.resize(static_cast<size_t>(w) * h * 3);
   frame.depth_mm.resize(static_cast<size_t>(w) * h);
   std::mt19937_64 rng(noise_seed);
-  std::normal_distribution<double> gauss(0.0, 1.0);
-  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  random::Normal gauss;
 
   // Light from the upper left, as from a window or ceiling lamp.
   const double lx = -0.35, ly = -0.45, lz = 0.82;
@@ -304,13 +304,13 @@ RenderedFrame RenderPlate(const PlateScene& scene,
   }
   // Speckle dropouts and a few larger holes (specular glints).
   for (uint16_t& d : frame.depth_mm) {
-    if (uniform(rng) < kSpeckleHoleFraction) d = 0;
+    if (random::Canonical(rng) < kSpeckleHoleFraction) d = 0;
   }
-  const int blobs = 2 + static_cast<int>(uniform(rng) * 3);
+  const int blobs = 2 + static_cast<int>(random::Canonical(rng) * 3);
   for (int b = 0; b < blobs; ++b) {
-    const int bu = static_cast<int>(uniform(rng) * w);
-    const int bv = static_cast<int>(uniform(rng) * h);
-    const int r = 2 + static_cast<int>(uniform(rng) * 3);
+    const int bu = static_cast<int>(random::Canonical(rng) * w);
+    const int bv = static_cast<int>(random::Canonical(rng) * h);
+    const int r = 2 + static_cast<int>(random::Canonical(rng) * 3);
     for (int y = std::max(0, bv - r); y <= std::min(h - 1, bv + r); ++y) {
       for (int x = std::max(0, bu - r); x <= std::min(w - 1, bu + r); ++x) {
         if ((x - bu) * (x - bu) + (y - bv) * (y - bv) <= r * r) {
@@ -393,10 +393,9 @@ domain::RgbdFrame ToRgbdFrame(RenderedFrame rendered, uint64_t sequence,
 PlateScene RandomPlate(const std::vector<const FoodType*>& foods,
                        bool allow_touching, std::mt19937_64& rng) {
   PlateScene scene;
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
-  std::normal_distribution<double> gauss(0.0, 1.0);
+  random::Normal gauss;
   auto between = [&](const std::array<double, 2>& range) {
-    return range[0] + (range[1] - range[0]) * unit(rng);
+    return range[0] + (range[1] - range[0]) * random::Canonical(rng);
   };
   // Items stay inside the well, clear of the rim.
   const double well = kWellFraction * scene.plate_radius_m - 0.004;
@@ -412,7 +411,7 @@ PlateScene RandomPlate(const std::vector<const FoodType*>& foods,
     item.length_m = length;
     item.width_m = width;
     item.height_m = between(food->height_m);
-    item.yaw_rad = kPi * (2 * unit(rng) - 1);
+    item.yaw_rad = kPi * (2 * random::Canonical(rng) - 1);
     // Ripeness shifts all channels together; the rest varies per channel.
     const double ripeness = food->rgb_spread * gauss(rng);
     for (int c = 0; c < 3; ++c) {
@@ -425,11 +424,12 @@ PlateScene RandomPlate(const std::vector<const FoodType*>& foods,
     bool placed = false;
     // Touch a neighbour half of the time when allowed: slide out from a
     // placed item along a random direction until the two just separate.
-    if (allow_touching && !scene.items.empty() && unit(rng) < 0.5) {
+    if (allow_touching && !scene.items.empty() &&
+        random::Canonical(rng) < 0.5) {
       for (int attempt = 0; attempt < 40 && !placed; ++attempt) {
-        const SceneItem& anchor =
-            scene.items[static_cast<size_t>(unit(rng) * scene.items.size())];
-        const double dir = 2 * kPi * unit(rng);
+        const SceneItem& anchor = scene.items[static_cast<size_t>(
+            random::Canonical(rng) * scene.items.size())];
+        const double dir = 2 * kPi * random::Canonical(rng);
         double lo = 0.0, hi = anchor.length_m / 2 + item.length_m / 2 + 0.01;
         for (int it = 0; it < 30; ++it) {
           const double mid = 0.5 * (lo + hi);
@@ -448,8 +448,8 @@ PlateScene RandomPlate(const std::vector<const FoodType*>& foods,
       }
     }
     for (int attempt = 0; attempt < 2000 && !placed; ++attempt) {
-      const double r = reach * std::sqrt(unit(rng));
-      const double t = 2 * kPi * unit(rng);
+      const double r = reach * std::sqrt(random::Canonical(rng));
+      const double t = 2 * kPi * random::Canonical(rng);
       item.x_m = r * std::cos(t);
       item.y_m = r * std::sin(t);
       placed = true;

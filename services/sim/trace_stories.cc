@@ -4,12 +4,12 @@
 #include <array>
 #include <cmath>
 
+#include "services/domain/random.h"
+
 namespace bitewise::sim {
 namespace {
 
-double Uniform(std::mt19937_64& rng, double lo, double hi) {
-  return std::uniform_real_distribution<double>(lo, hi)(rng);
-}
+using random::Uniform;
 
 double LogUniform(std::mt19937_64& rng, double lo, double hi) {
   return std::exp(Uniform(rng, std::log(lo), std::log(hi)));
@@ -268,7 +268,7 @@ std::vector<TimedWrench> PiecewiseStoryTrace(HapticCategory category,
                                              std::mt19937_64& rng) {
   constexpr std::array<double, 6> kRates = {100.0,  250.0,  500.0,
                                             1000.0, 2500.0, 7000.0};
-  std::normal_distribution<double> normal(0.0, 1.0);
+  random::Normal normal;
   const PiecewiseLinear fz = PiecewiseItem(category, rng);
   const double rate = kRates[rng() % kRates.size()];
   const double contact = Uniform(rng, 0.15, 0.35);
@@ -338,7 +338,7 @@ std::vector<TimedWrench> MechanicsStoryTrace(HapticCategory category,
   const double vibration_phase = Uniform(rng, 0.0, 2.0 * M_PI);
   std::array<double, 3> vibration_direction;
   {
-    std::normal_distribution<double> normal(0.0, 1.0);
+    random::Normal normal;
     double norm = 0.0;
     for (double& v : vibration_direction) {
       v = normal(rng);
@@ -375,14 +375,13 @@ std::vector<TimedWrench> MechanicsStoryTrace(HapticCategory category,
     fz[i] = static_cast<float>(filtered);
   }
 
-  std::normal_distribution<double> normal(0.0, 1.0);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  random::Normal normal;
   const int n = static_cast<int>(duration * rate);
   std::vector<TimedWrench> trace;
   trace.reserve(n);
   for (int j = 0; j < n; ++j) {
     const double t = j / rate;
-    const bool lost = unit(rng) < loss;
+    const bool lost = random::Canonical(rng) < loss;
     const double f = fz[std::min(steps - 1, static_cast<int>(t / kStepS))];
     const double vibration =
         vibration_n * std::sin(2.0 * M_PI * vibration_hz * t + vibration_phase);

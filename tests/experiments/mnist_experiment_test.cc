@@ -4,8 +4,8 @@
 #include <vector>
 
 #include "Eigen/Dense"
-#include "experiments/random.h"
 #include "gtest/gtest.h"
+#include "services/domain/random.h"
 
 namespace bitewise::experiments {
 namespace {
@@ -21,12 +21,12 @@ void MakeDigits(int count, uint64_t seed, IdxImages& images,
   images.pixels.assign(count * 100, 0);
   labels.resize(count);
   for (int i = 0; i < count; ++i) {
-    const int digit = UniformIndex(rng, 10);
+    const int digit = random::UniformIndex(rng, 10);
     labels[i] = digit;
     for (int j = 0; j < 100; ++j) {
       const bool lit = (j % 10 == digit) || (j / 10 == digit);
       images.pixels[i * 100 + j] =
-          static_cast<uint8_t>((lit ? 200 : 0) + UniformIndex(rng, 50));
+          static_cast<uint8_t>((lit ? 200 : 0) + random::UniformIndex(rng, 50));
     }
   }
 }

@@ -3,8 +3,8 @@
 #include <random>
 
 #include "Eigen/Dense"
-#include "experiments/random.h"
 #include "gtest/gtest.h"
+#include "services/domain/random.h"
 
 namespace bitewise::experiments {
 namespace {
@@ -21,7 +21,7 @@ TEST(PcaTest, RecoversKnownDirectionsAndVariances) {
   Eigen::MatrixXd data(n, 3);
   for (int i = 0; i < n; ++i) {
     Eigen::Vector3d z;
-    for (int j = 0; j < 3; ++j) z(j) = scale(j) * StandardNormal(rng);
+    for (int j = 0; j < 3; ++j) z(j) = scale(j) * random::StandardNormal(rng);
     data.row(i) = (rotation * z).transpose() + Eigen::RowVector3d(5, -2, 1);
   }
   auto pca = Pca::Fit(data, 2);

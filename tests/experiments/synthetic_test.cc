@@ -2,9 +2,9 @@
 
 #include <vector>
 
-#include "experiments/random.h"
 #include "experiments/trial_stats.h"
 #include "gtest/gtest.h"
+#include "services/domain/random.h"
 
 namespace bitewise::experiments {
 namespace {
@@ -61,7 +61,8 @@ TEST(SyntheticTest, PostHocBeatsContextOnlyAtHighDimensionByAMargin) {
   std::vector<std::vector<double>> diff;
   double context_only_total = 0.0;
   for (int trial = 0; trial < 8; ++trial) {
-    const SyntheticWorld world = DrawSyntheticWorld(config, MixSeed(11, trial));
+    const SyntheticWorld world =
+        DrawSyntheticWorld(config, random::MixSeed(11, trial));
     auto c = RunSyntheticTrial(config, world, Learner::kContextOnly);
     auto p = RunSyntheticTrial(config, world, Learner::kPostHoc);
     ASSERT_TRUE(c.ok() && p.ok());

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "services/domain/random.h"
+
 namespace bitewise::bandit {
 namespace {
 
@@ -11,7 +13,7 @@ constexpr int kThompsonPropensityDraws = 2000;
 std::vector<double> ThompsonScores(const BanditConfig& config,
                                    const std::vector<ActionEstimate>& est,
                                    std::mt19937_64& rng) {
-  std::normal_distribution<double> normal(0.0, 1.0);
+  random::Normal normal;
   std::vector<double> scores(est.size());
   for (size_t a = 0; a < est.size(); ++a) {
     scores[a] =
@@ -54,10 +56,9 @@ Choice ChooseAction(const BanditConfig& config,
       return {ArgMin(pred), 1.0};
     case Strategy::kEpsilonGreedy: {
       const int greedy = ArgMin(pred);
-      std::uniform_real_distribution<double> coin(0.0, 1.0);
       int action = greedy;
-      if (coin(rng) < config.epsilon) {
-        action = std::uniform_int_distribution<int>(0, k - 1)(rng);
+      if (random::Canonical(rng) < config.epsilon) {
+        action = static_cast<int>(random::UniformInt(rng, 0, k - 1));
       }
       const double propensity =
           config.epsilon / k + (action == greedy ? 1.0 - config.epsilon : 0.0);
@@ -74,7 +75,7 @@ Choice ChooseAction(const BanditConfig& config,
               static_cast<double>(hits + 1) / (kThompsonPropensityDraws + 1)};
     }
     case Strategy::kUniform:
-      return {std::uniform_int_distribution<int>(0, k - 1)(rng), 1.0 / k};
+      return {static_cast<int>(random::UniformInt(rng, 0, k - 1)), 1.0 / k};
   }
   return {ArgMin(lcb), 1.0};
 }

@@ -7,6 +7,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "services/domain/random.h"
 
 namespace bitewise::haptic {
 namespace {
@@ -270,7 +271,7 @@ absl::StatusOr<TrainingResult> TrainHapticNet(
   Parameters params;
   {
     // He initialisation for ReLU layers; biases start at zero.
-    std::normal_distribution<double> normal(0.0, 1.0);
+    random::Normal normal;
     for (int b = 0; b < 6; b += 2) {
       const double scale = std::sqrt(2.0 / Parameters::kRows[b]);
       for (double& w : params.blocks[b]) w = scale * normal(rng);

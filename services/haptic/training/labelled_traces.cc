@@ -12,6 +12,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
+#include "services/domain/random.h"
 #include "services/sim/force_trace.h"
 #include "services/sim/trace_stories.h"
 
@@ -23,7 +24,7 @@ constexpr char kCsvHeader[] =
 
 double Uniform(std::mt19937_64& rng, double lo, double hi) {
   if (lo == hi) return lo;
-  return std::uniform_real_distribution<double>(lo, hi)(rng);
+  return random::Uniform(rng, lo, hi);
 }
 
 double LogUniform(std::mt19937_64& rng, double lo, double hi) {

@@ -13,6 +13,7 @@
 #include <limits>
 
 #include "absl/strings/str_cat.h"
+#include "services/domain/random.h"
 #include "services/domain/steady_time.h"
 #include "services/robot/netft/rdt_protocol.h"
 
@@ -83,10 +84,9 @@ SimNetFtBox::SimNetFtBox(const SimNetFtBoxOptions& options,
   bias_ = options.noise.bias;
   if (options.noise.random_bias_n > 0.0) {
     const double b = options.noise.random_bias_n;
-    std::uniform_real_distribution<double> uniform(-1.0, 1.0);
     for (int i = 0; i < 3; ++i) {
-      bias_.force_n[i] += b * uniform(noise_rng_);
-      bias_.torque_nm[i] += 0.02 * b * uniform(noise_rng_);
+      bias_.force_n[i] += b * random::Uniform(noise_rng_, -1.0, 1.0);
+      bias_.torque_nm[i] += 0.02 * b * random::Uniform(noise_rng_, -1.0, 1.0);
     }
   }
 }
@@ -190,8 +190,7 @@ void SimNetFtBox::Stream(double now_s) {
   const double period_s = 1.0 / options_.rate_hz;
   uint64_t due = static_cast<uint64_t>((now_s - stream_start_s_) / period_s);
   if (due >= next_k_ + kMaxBurst) next_k_ = due - kMaxBurst / 2;
-  std::normal_distribution<double> normal(0.0, 1.0);
-  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  random::Normal normal;
   absl::MutexLock lock(&mu_);
   for (; next_k_ <= due && streaming_; ++next_k_) {
     const double t_s = stream_start_s_ + next_k_ * period_s;
@@ -232,11 +231,11 @@ void SimNetFtBox::Stream(double now_s) {
     counters_.last_rdt_sequence = record.rdt_sequence;
     const auto bytes = netft::EncodeRdtRecord(record);
     if (faults_.loss_probability > 0.0 &&
-        uniform(fault_rng_) < faults_.loss_probability) {
+        random::Canonical(fault_rng_) < faults_.loss_probability) {
       ++counters_.records_dropped;
       counters_.dropped_sequences.push_back(record.rdt_sequence);
     } else if (held_.empty() && faults_.reorder_probability > 0.0 &&
-               uniform(fault_rng_) < faults_.reorder_probability) {
+               random::Canonical(fault_rng_) < faults_.reorder_probability) {
       held_.assign(bytes.begin(), bytes.end());
       ++counters_.records_reordered;
     } else {

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "services/domain/random.h"
+
 namespace bitewise::sim {
 
 SimWorld::SimWorld(const PlateScene& scene, const SimArm* arm,
@@ -39,8 +41,7 @@ void SimWorld::Resolve() {
   resolved_ = true;
   if (action_ < 0 || !engaged_) return;
   const double p = engaged_->food->success[action_];
-  const bool success =
-      std::uniform_real_distribution<double>(0.0, 1.0)(outcome_rng_) < p;
+  const bool success = random::Uniform(outcome_rng_, 0.0, 1.0) < p;
   if (!success) return;
   carried_ = engaged_;
   auto& items = scene_.items;
