@@ -15,7 +15,6 @@
 #include <map>
 #include <random>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "absl/flags/flag.h"
@@ -98,17 +97,6 @@ std::vector<double> HapticProbabilities(HapticCategory category,
   return logits;
 }
 
-template <typename Call>
-grpc::Status WithRetries(Call call) {
-  grpc::Status status;
-  for (int attempt = 0; attempt < 5; ++attempt) {
-    status = call();
-    if (status.error_code() != grpc::StatusCode::UNAVAILABLE) return status;
-    std::this_thread::sleep_for(std::chrono::milliseconds(200 << attempt));
-  }
-  return status;
-}
-
 std::unique_ptr<grpc::ClientContext> Context() {
   auto context = std::make_unique<grpc::ClientContext>();
   context->set_deadline(
@@ -141,6 +129,8 @@ int main(int argc, char** argv) {
   channel_options.tls_ca_file = absl::GetFlag(FLAGS_tls_ca);
   channel_options.tls_cert_file = absl::GetFlag(FLAGS_tls_cert);
   channel_options.tls_key_file = absl::GetFlag(FLAGS_tls_key);
+  channel_options.max_attempts = 5;  // gRPC's retry policy on UNAVAILABLE
+  channel_options.initial_backoff = absl::Milliseconds(200);
   auto channel =
       bitewise::MakeChannel(absl::GetFlag(FLAGS_bandit), channel_options);
   if (!channel.ok()) {
@@ -157,8 +147,7 @@ int main(int argc, char** argv) {
   {
     v1::GetUserRequest request;
     request.set_user_id(user_id);
-    grpc::Status status = WithRetries(
-        [&] { return stub->GetUser(Context().get(), request, &user); });
+    grpc::Status status = stub->GetUser(Context().get(), request, &user);
     if (status.error_code() == grpc::StatusCode::NOT_FOUND) {
       v1::CreateUserRequest create;
       create.set_user_id(user_id);
@@ -169,8 +158,7 @@ int main(int argc, char** argv) {
                                                    "context_only"
                                                ? v1::LEARNER_CONTEXT_ONLY
                                                : v1::LEARNER_POSTHOC);
-      status = WithRetries(
-          [&] { return stub->CreateUser(Context().get(), create, &user); });
+      status = stub->CreateUser(Context().get(), create, &user);
       if (!status.ok()) return Fail("CreateUser", status);
       std::printf("new user %s (%s learner, d=%u)\n", user_id.c_str(),
                   v1::Learner_Name(user.config().learner()).c_str(),
@@ -213,8 +201,7 @@ int main(int argc, char** argv) {
     const std::vector<double> c = visual.Observe(food, rng);
     select.mutable_context()->Add(c.begin(), c.end());
     v1::SelectResponse chosen;
-    grpc::Status status = WithRetries(
-        [&] { return stub->Select(Context().get(), select, &chosen); });
+    grpc::Status status = stub->Select(Context().get(), select, &chosen);
     if (!status.ok()) return Fail("Select", status);
 
     const bool success =
@@ -229,8 +216,7 @@ int main(int argc, char** argv) {
       update.add_posthoc(posthoc_kind == "logprob" ? std::log(p) : p);
     }
     v1::UpdateResponse updated;
-    status = WithRetries(
-        [&] { return stub->Update(Context().get(), update, &updated); });
+    status = stub->Update(Context().get(), update, &updated);
     if (!status.ok()) return Fail("Update", status);
 
     ++attempts;

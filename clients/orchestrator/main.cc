@@ -46,7 +46,10 @@ ABSL_FLAG(std::string, journal, "bitewise-orchestrator.journal",
           "File of updates not yet delivered to the BanditService.");
 ABSL_FLAG(int, deadline_ms, 10000, "Deadline of every unary call.");
 ABSL_FLAG(int, acquire_deadline_ms, 60000, "Deadline of one Acquire.");
-ABSL_FLAG(int, retries, 4, "Retries with backoff on UNAVAILABLE.");
+ABSL_FLAG(int, retries, 4,
+          "Retries of a call that ends UNAVAILABLE (0-4; gRPC's retry policy, "
+          "random backoff below 0.5 s * 2^n, at most 4 s, within the call's "
+          "deadline).");
 ABSL_FLAG(double, lambda_c, 0.0,
           "Context ridge for a NEW user, honoured exactly; 0 derives it from "
           "--rho_c and the featurizer's E||c||^2.");
@@ -119,6 +122,7 @@ int main(int argc, char** argv) {
     bitewise::ChannelOptions options = tls;
     if (!use_tls) options = bitewise::ChannelOptions{};
     options.max_message_bytes = tls.max_message_bytes;
+    options.max_attempts = absl::GetFlag(FLAGS_retries) + 1;
     auto made = bitewise::MakeChannel(address, options);
     if (!made.ok()) {
       std::fprintf(stderr, "%s: %s\n", address.c_str(),
@@ -147,7 +151,6 @@ int main(int argc, char** argv) {
   options.prior_rounds = absl::GetFlag(FLAGS_prior_rounds);
   options.deadline_ms = absl::GetFlag(FLAGS_deadline_ms);
   options.acquire_deadline_ms = absl::GetFlag(FLAGS_acquire_deadline_ms);
-  options.retries = absl::GetFlag(FLAGS_retries);
 
   orchestrator::UpdateJournal journal(absl::GetFlag(FLAGS_journal));
   const std::string meal_id = absl::GetFlag(FLAGS_meal);

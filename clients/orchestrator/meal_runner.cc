@@ -6,7 +6,6 @@
 #include <chrono>
 #include <cstdio>
 #include <iostream>
-#include <thread>
 #include <utility>
 
 #include "absl/strings/ascii.h"
@@ -31,20 +30,6 @@ std::unique_ptr<grpc::ClientContext> Context(int deadline_ms) {
   context->set_deadline(std::chrono::system_clock::now() +
                         std::chrono::milliseconds(deadline_ms));
   return context;
-}
-
-// Retries `call` with exponential backoff while the server is UNAVAILABLE.
-template <typename Call>
-grpc::Status WithRetries(int retries, Call call) {
-  grpc::Status status;
-  for (int attempt = 0; attempt <= retries; ++attempt) {
-    status = call();
-    if (status.error_code() != grpc::StatusCode::UNAVAILABLE) return status;
-    if (attempt < retries) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(250 << attempt));
-    }
-  }
-  return status;
 }
 
 std::string Describe(const char* service, const char* call,
@@ -91,10 +76,8 @@ bool MealRunner::EnsureUser(const std::string& user_id, bool vision_only,
                             std::string* error) {
   v1::GetUserRequest get;
   get.set_user_id(user_id);
-  grpc::Status status = WithRetries(options_.retries, [&] {
-    return stubs_.bandit->GetUser(Context(options_.deadline_ms).get(), get,
-                                  &user_);
-  });
+  grpc::Status status =
+      stubs_.bandit->GetUser(Context(options_.deadline_ms).get(), get, &user_);
   if (status.ok()) {
     if (static_cast<int>(user_.config().context_dim()) != context_dim) {
       *error = absl::StrFormat(
@@ -137,10 +120,8 @@ bool MealRunner::EnsureUser(const std::string& user_id, bool vision_only,
   if (options_.prior_rounds > 0.0) {
     create.mutable_config()->set_prior_rounds(options_.prior_rounds);
   }
-  status = WithRetries(options_.retries, [&] {
-    return stubs_.bandit->CreateUser(Context(options_.deadline_ms).get(),
+  status = stubs_.bandit->CreateUser(Context(options_.deadline_ms).get(),
                                      create, &user_);
-  });
   if (!status.ok()) {
     *error = Describe("BanditService", "CreateUser", status);
     return false;
@@ -166,10 +147,8 @@ BiteResult MealRunner::Bite(const std::string& meal_id, int number) {
   auto failed = [&] { return BiteResult{BiteEnd::kFailed, error_text}; };
   v1::CaptureFrameRequest capture;
   v1::Frame frame;
-  grpc::Status status = WithRetries(options_.retries, [&] {
-    return stubs_.robot->CaptureFrame(Context(options_.deadline_ms).get(),
-                                      capture, &frame);
-  });
+  grpc::Status status = stubs_.robot->CaptureFrame(
+      Context(options_.deadline_ms).get(), capture, &frame);
   if (!status.ok()) {
     *error = Describe("RobotService", "CaptureFrame", status);
     return failed();
@@ -177,10 +156,8 @@ BiteResult MealRunner::Bite(const std::string& meal_id, int number) {
   v1::DetectFoodRequest detect;
   *detect.mutable_frame() = frame;
   v1::DetectFoodResponse detected;
-  status = WithRetries(options_.retries, [&] {
-    return stubs_.perception->DetectFood(Context(options_.deadline_ms).get(),
+  status = stubs_.perception->DetectFood(Context(options_.deadline_ms).get(),
                                          detect, &detected);
-  });
   if (!status.ok()) {
     *error = Describe("PerceptionService", "DetectFood", status);
     return failed();
@@ -197,10 +174,8 @@ BiteResult MealRunner::Bite(const std::string& meal_id, int number) {
   *featurize.mutable_frame() = frame;
   *featurize.mutable_bbox() = item.bbox();
   v1::FeaturizeResponse features;
-  status = WithRetries(options_.retries, [&] {
-    return stubs_.perception->Featurize(Context(options_.deadline_ms).get(),
+  status = stubs_.perception->Featurize(Context(options_.deadline_ms).get(),
                                         featurize, &features);
-  });
   if (!status.ok()) {
     *error = Describe("PerceptionService", "Featurize", status);
     return failed();
@@ -221,10 +196,8 @@ BiteResult MealRunner::Bite(const std::string& meal_id, int number) {
                                         item.center_px().v()));
   *select.mutable_context() = features.context();
   v1::SelectResponse chosen;
-  status = WithRetries(options_.retries, [&] {
-    return stubs_.bandit->Select(Context(options_.deadline_ms).get(), select,
+  status = stubs_.bandit->Select(Context(options_.deadline_ms).get(), select,
                                  &chosen);
-  });
   if (!status.ok()) {
     *error = Describe("BanditService", "Select", status);
     return failed();
@@ -254,10 +227,8 @@ BiteResult MealRunner::Bite(const std::string& meal_id, int number) {
   v1::ClassifyRequest classify;
   *classify.mutable_samples() = result.trace();
   v1::ClassifyResponse haptic;
-  status = WithRetries(options_.retries, [&] {
-    return stubs_.haptic->Classify(Context(options_.deadline_ms).get(),
+  status = stubs_.haptic->Classify(Context(options_.deadline_ms).get(),
                                    classify, &haptic);
-  });
   std::string haptic_text;
   JournaledUpdate update;
   update.event_id = chosen.event_id();
@@ -338,10 +309,8 @@ grpc::Status MealRunner::SendUpdate(const JournaledUpdate& update,
   request.set_loss(update.loss);
   request.mutable_posthoc()->Add(update.posthoc.begin(), update.posthoc.end());
   v1::UpdateResponse ignored;
-  return WithRetries(options_.retries, [&] {
-    return stubs_.bandit->Update(Context(options_.deadline_ms).get(), request,
-                                 response != nullptr ? response : &ignored);
-  });
+  return stubs_.bandit->Update(Context(options_.deadline_ms).get(), request,
+                               response != nullptr ? response : &ignored);
 }
 
 grpc::Status MealRunner::RunAcquire(const v1::AcquireRequest& request,

@@ -45,11 +45,11 @@ struct MealRunnerOptions {
   // prior_rounds > 0 starts from the facility's population pool.
   double alpha = -1.0;
   double prior_rounds = 0.0;
-  // Deadline of every unary call, of one Acquire, and retries with backoff
-  // on UNAVAILABLE.
+  // Deadline of every unary call and of one Acquire (each covering the
+  // call's retries, which are the channels' gRPC retry policy:
+  // ChannelOptions::max_attempts).
   int deadline_ms = 10000;
   int acquire_deadline_ms = 60000;
-  int retries = 4;
 };
 
 struct MealStubs {

@@ -1,5 +1,6 @@
 #include "services/common/channel.h"
 
+#include <grpc/grpc.h>
 #include <grpcpp/create_channel.h>
 #include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/security/credentials.h>
@@ -15,6 +16,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/string_view.h"
 #include "absl/synchronization/notification.h"
 #include "absl/time/clock.h"
@@ -126,6 +128,18 @@ absl::StatusOr<ServingStatus> DecodeHealthCheckResponse(
   return static_cast<ServingStatus>(status);
 }
 
+// The service config of a channel that retries every method on UNAVAILABLE
+// (an empty name matches all services and methods).
+std::string RetryServiceConfig(const ChannelOptions& options) {
+  return absl::StrCat(
+      R"({"methodConfig": [{"name": [{}], "retryPolicy": {"maxAttempts": )",
+      options.max_attempts, R"(, "initialBackoff": ")",
+      absl::StrFormat("%.3f", absl::ToDoubleSeconds(options.initial_backoff)),
+      R"(s", "maxBackoff": ")",
+      absl::StrFormat("%.3f", absl::ToDoubleSeconds(options.max_backoff)),
+      R"(s", "backoffMultiplier": 2, "retryableStatusCodes": ["UNAVAILABLE"]}}]})");
+}
+
 }  // namespace
 
 absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(
@@ -136,7 +150,20 @@ absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(
   }
   ASSIGN_OR_RETURN(std::shared_ptr<grpc::ChannelCredentials> credentials,
                    MakeCredentials(options));
+  if (options.max_attempts < 1 || options.max_attempts > 5) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "max_attempts must be 1-5 (gRPC's cap), got ", options.max_attempts));
+  }
+  if (options.initial_backoff <= absl::ZeroDuration() ||
+      options.max_backoff < options.initial_backoff) {
+    return absl::InvalidArgumentError(
+        "retry backoffs must be positive, the maximum at least the initial");
+  }
   grpc::ChannelArguments args;
+  if (options.max_attempts > 1) {
+    args.SetInt(GRPC_ARG_ENABLE_RETRIES, 1);
+    args.SetServiceConfigJSON(RetryServiceConfig(options));
+  }
   args.SetMaxReceiveMessageSize(options.max_message_bytes);
   args.SetMaxSendMessageSize(options.max_message_bytes);
   if (!options.tls_server_name_override.empty()) {

@@ -30,10 +30,21 @@ struct ChannelOptions {
   std::string tls_server_name_override;
   // Largest message accepted or sent, in bytes. Default 4 MiB, gRPC's own.
   int max_message_bytes = 4 << 20;
+  // gRPC retry policy (the channel's service config), for every method:
+  // a call that ends UNAVAILABLE (the server restarting, the link down, or
+  // a service refusing for now, as the robot does while its F/T stream is
+  // not sane) is tried again, up to `max_attempts` in all (gRPC caps it at
+  // 5), after a random backoff below initial_backoff * 2^(n-1), at most
+  // max_backoff. The call's deadline covers all attempts. 1: no retries
+  // (the default; the services' own links fail fast).
+  int max_attempts = 1;
+  absl::Duration initial_backoff = absl::Milliseconds(500);
+  absl::Duration max_backoff = absl::Seconds(4);
 };
 
 // Creates a channel to `address` (host:port). Connection happens lazily, on
-// the first call. Errors: INVALID_ARGUMENT for inconsistent options;
+// the first call. Errors: INVALID_ARGUMENT for inconsistent options (also a
+// max_attempts outside 1-5 or backoffs that are not positive);
 // FAILED_PRECONDITION naming the file when a TLS file cannot be read.
 absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(
     const std::string& address, const ChannelOptions& options);

@@ -57,6 +57,11 @@ class FakeHapticService final : public v1::HapticService::Service {
       entered.Notify();
       hold->WaitForNotification();
     }
+    ++calls;
+    if (unavailable_left > 0) {
+      --unavailable_left;
+      return ToGrpcStatus(absl::UnavailableError("restarting"));
+    }
     if (request->samples().empty()) {
       return ToGrpcStatus(
           absl::InvalidArgumentError("samples: need at least one sample"));
@@ -67,6 +72,8 @@ class FakeHapticService final : public v1::HapticService::Service {
 
   absl::Notification* hold = nullptr;
   absl::Notification entered;
+  std::atomic<int> calls{0};
+  std::atomic<int> unavailable_left{0};  // answer UNAVAILABLE this often first
 };
 
 std::shared_ptr<grpc::Channel> Connect(const std::string& address,
@@ -206,6 +213,46 @@ TEST(ServiceServerTest, ErrorStatusReachesClientUnchanged) {
   EXPECT_EQ(CallClassify(channel, 0),
             absl::InvalidArgumentError("samples: need at least one sample"));
   EXPECT_TRUE(CallClassify(channel, 3).ok());
+}
+
+// The clients' retries are gRPC's retry policy in the channel's service
+// config: UNAVAILABLE is tried again up to max_attempts, nothing else is.
+TEST(ChannelRetryTest, UnavailableIsRetriedUpToMaxAttemptsAndNothingElse) {
+  FakeHapticService service;
+  auto server = StartHaptic(service);
+  ASSERT_TRUE(server.ok()) << server.status();
+  ChannelOptions retrying;
+  retrying.max_attempts = 3;
+  retrying.initial_backoff = absl::Milliseconds(10);
+  retrying.max_backoff = absl::Milliseconds(20);
+
+  service.unavailable_left = 2;
+  EXPECT_TRUE(CallClassify(Connect((*server)->address(), retrying), 3).ok());
+  EXPECT_EQ(service.calls, 3);
+
+  service.calls = 0;
+  service.unavailable_left = 5;
+  EXPECT_EQ(CallClassify(Connect((*server)->address(), retrying), 3).code(),
+            absl::StatusCode::kUnavailable);
+  EXPECT_EQ(service.calls, 3);
+
+  service.calls = 0;
+  service.unavailable_left = 1;
+  EXPECT_EQ(CallClassify(Connect((*server)->address()), 3).code(),
+            absl::StatusCode::kUnavailable);
+  EXPECT_EQ(service.calls, 1);  // the default: no retries
+
+  service.calls = 0;
+  service.unavailable_left = 0;
+  EXPECT_EQ(CallClassify(Connect((*server)->address(), retrying), 0).code(),
+            absl::StatusCode::kInvalidArgument);
+  EXPECT_EQ(service.calls, 1);
+
+  for (int bad : {0, 6}) {
+    retrying.max_attempts = bad;
+    EXPECT_THAT(MakeChannel("127.0.0.1:1", retrying).status().message(),
+                HasSubstr("max_attempts must be 1-5"));
+  }
 }
 
 TEST(ServiceServerTest, HealthFollowsSetServing) {
