@@ -13,91 +13,104 @@ namespace bitewise::robot {
 
 absl::StatusOr<std::unique_ptr<RobotBackend>> RobotBackend::Create(
     const RobotBackendOptions& options) {
+  return options.kind == BackendKind::kSim ? MakeSimBackend(options)
+                                           : MakeHardwareBackend(options);
+}
+
+absl::StatusOr<std::unique_ptr<RobotBackend>> RobotBackend::MakeSimBackend(
+    const RobotBackendOptions& options) {
   std::unique_ptr<RobotBackend> backend(new RobotBackend());
-  AcquisitionConfig acquisition = options.acquisition;
-  netft::NetFtRdtClientOptions ft_options = options.ft;
-  Arm* arm = nullptr;
-  SuccessJudge* judge = nullptr;
-  if (options.kind == BackendKind::kSim) {
-    const SimBackendOptions& sim_options = options.sim;
-    std::vector<const sim::FoodType*> foods;
-    if (sim_options.foods.empty()) {
-      foods = sim::UnseenFoods();
-    } else {
-      for (const std::string& name : sim_options.foods) {
-        const sim::FoodType* food = sim::FindFood(name);
-        if (food == nullptr) {
-          return absl::InvalidArgumentError(absl::StrCat(
-              "unknown food \"", name, "\" for the simulated plate"));
-        }
-        foods.push_back(food);
-      }
-    }
-    std::mt19937_64 plate_rng(sim_options.seed);
-    const sim::PlateScene scene =
-        sim::RandomPlate(foods, sim_options.allow_touching, plate_rng);
-    sim::SimArmOptions arm_options = sim_options.arm;
-    arm_options.control_period_s = acquisition.control_period_s;
-    backend->sim_arm_ = std::make_unique<sim::SimArm>(arm_options);
-    sim::SimWorldOptions world_options = sim_options.world;
-    world_options.seed = sim_options.seed;
-    backend->world_ = std::make_unique<sim::SimWorld>(
-        scene, backend->sim_arm_.get(), world_options);
-    sim::SimNetFtBoxOptions box_options = sim_options.box;
-    box_options.seed = sim_options.seed;
-    box_options.counts_per_force = ft_options.counts_per_force;
-    box_options.counts_per_torque = ft_options.counts_per_torque;
-    ASSIGN_OR_RETURN(backend->box_, sim::SimNetFtBox::Start(
-                                        box_options, backend->world_.get()));
-    ft_options.host = box_options.host;
-    ft_options.port = backend->box_->port();
-    acquisition.X_TaskCamera = backend->world_->X_TaskCamera();
-    arm = backend->sim_arm_.get();
-    judge = backend->world_.get();
-    backend->render_seed_ = sim_options.seed;
+  const SimBackendOptions& sim_options = options.sim;
+  std::vector<const sim::FoodType*> foods;
+  if (sim_options.foods.empty()) {
+    foods = sim::UnseenFoods();
   } else {
-    ASSIGN_OR_RETURN(backend->jaco2_arm_,
-                     jaco2::Jaco2Arm::Open(options.hardware.arm));
-    if (options.hardware.static_load_threshold_n > 0.0) {
-      backend->hardware_judge_ = std::make_unique<StaticLoadJudge>(
-          options.hardware.static_load_threshold_n);
-    } else {
-      backend->hardware_judge_ = std::make_unique<OperatorJudge>();
+    for (const std::string& name : sim_options.foods) {
+      const sim::FoodType* food = sim::FindFood(name);
+      if (food == nullptr) {
+        return absl::InvalidArgumentError(absl::StrCat(
+            "unknown food \"", name, "\" for the simulated plate"));
+      }
+      foods.push_back(food);
     }
-    arm = backend->jaco2_arm_.get();
-    judge = backend->hardware_judge_.get();
-    backend->camera_ = options.hardware.camera;
   }
+  AcquisitionConfig acquisition = options.acquisition;
+  std::mt19937_64 plate_rng(sim_options.seed);
+  const sim::PlateScene scene =
+      sim::RandomPlate(foods, sim_options.allow_touching, plate_rng);
+  sim::SimArmOptions arm_options = sim_options.arm;
+  arm_options.control_period_s = acquisition.control_period_s;
+  backend->sim_arm_ = std::make_unique<sim::SimArm>(arm_options);
+  sim::SimWorldOptions world_options = sim_options.world;
+  world_options.seed = sim_options.seed;
+  backend->world_ = std::make_unique<sim::SimWorld>(
+      scene, backend->sim_arm_.get(), world_options);
+  netft::NetFtRdtClientOptions ft_options = options.ft;
+  sim::SimNetFtBoxOptions box_options = sim_options.box;
+  box_options.seed = sim_options.seed;
+  box_options.counts_per_force = ft_options.counts_per_force;
+  box_options.counts_per_torque = ft_options.counts_per_torque;
+  ASSIGN_OR_RETURN(backend->box_,
+                   sim::SimNetFtBox::Start(box_options, backend->world_.get()));
+  ft_options.host = box_options.host;
+  ft_options.port = backend->box_->port();
+  acquisition.X_TaskCamera = backend->world_->X_TaskCamera();
+  backend->render_seed_ = sim_options.seed;
   ASSIGN_OR_RETURN(backend->ft_, netft::NetFtRdtClient::Connect(ft_options));
-  if (options.kind == BackendKind::kSim) {
-    // Loopback: data must flow at once, or something is badly wrong.
-    const double deadline_s = SteadyNowS() + options.ft_start_timeout_s;
-    while (backend->ft_->Health().state != netft::StreamState::kStreaming) {
-      if (SteadyNowS() > deadline_s) {
-        return absl::UnavailableError(
-            absl::StrCat(backend->ft_->name(), " (simulated) sent no data in ",
-                         options.ft_start_timeout_s, " s"));
-      }
-      absl::SleepFor(absl::Milliseconds(5));
-    }
-    // And until the counter has a verdict (ok or fault: a box whose counter
-    // disagrees with the configured rate must still come up, refusing to
-    // move, so that the fault is visible).
-    while (backend->ft_->Health().counter.state ==
-           netft::CounterClockState::kVerifying) {
-      if (SteadyNowS() > deadline_s) {
-        return absl::UnavailableError(absl::StrCat(
-            backend->ft_->name(),
-            " (simulated): ", backend->ft_->Health().counter.problem, " after ",
-            options.ft_start_timeout_s, " s"));
-      }
-      absl::SleepFor(absl::Milliseconds(5));
-    }
-  }
-  RETURN_IF_ERROR(arm->MoveHome());
-  backend->robot_ =
-      std::make_unique<Robot>(arm, backend->ft_.get(), judge, acquisition);
+  RETURN_IF_ERROR(backend->WaitForSimulatedStream(options.ft_start_timeout_s));
+  RETURN_IF_ERROR(backend->StartRobot(backend->sim_arm_.get(),
+                                      backend->world_.get(), acquisition));
   return backend;
+}
+
+absl::StatusOr<std::unique_ptr<RobotBackend>> RobotBackend::MakeHardwareBackend(
+    const RobotBackendOptions& options) {
+  std::unique_ptr<RobotBackend> backend(new RobotBackend());
+  ASSIGN_OR_RETURN(backend->jaco2_arm_,
+                   jaco2::Jaco2Arm::Open(options.hardware.arm));
+  if (options.hardware.static_load_threshold_n > 0.0) {
+    backend->hardware_judge_ = std::make_unique<StaticLoadJudge>(
+        options.hardware.static_load_threshold_n);
+  } else {
+    backend->hardware_judge_ = std::make_unique<OperatorJudge>();
+  }
+  backend->camera_ = options.hardware.camera;
+  ASSIGN_OR_RETURN(backend->ft_, netft::NetFtRdtClient::Connect(options.ft));
+  RETURN_IF_ERROR(backend->StartRobot(backend->jaco2_arm_.get(),
+                                      backend->hardware_judge_.get(),
+                                      options.acquisition));
+  return backend;
+}
+
+absl::Status RobotBackend::WaitForSimulatedStream(double timeout_s) {
+  // Loopback: data must flow at once, or something is badly wrong.
+  const double deadline_s = SteadyNowS() + timeout_s;
+  while (ft_->Health().state != netft::StreamState::kStreaming) {
+    if (SteadyNowS() > deadline_s) {
+      return absl::UnavailableError(absl::StrCat(
+          ft_->name(), " (simulated) sent no data in ", timeout_s, " s"));
+    }
+    absl::SleepFor(absl::Milliseconds(5));
+  }
+  // And until the counter has a verdict (ok or fault: a box whose counter
+  // disagrees with the configured rate must still come up, refusing to
+  // move, so that the fault is visible).
+  while (ft_->Health().counter.state == netft::CounterClockState::kVerifying) {
+    if (SteadyNowS() > deadline_s) {
+      return absl::UnavailableError(absl::StrCat(
+          ft_->name(), " (simulated): ", ft_->Health().counter.problem,
+          " after ", timeout_s, " s"));
+    }
+    absl::SleepFor(absl::Milliseconds(5));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status RobotBackend::StartRobot(Arm* arm, SuccessJudge* judge,
+                                      const AcquisitionConfig& acquisition) {
+  RETURN_IF_ERROR(arm->MoveHome());
+  robot_ = std::make_unique<Robot>(arm, ft_.get(), judge, acquisition);
+  return absl::OkStatus();
 }
 
 RobotBackend::~RobotBackend() = default;

@@ -82,7 +82,17 @@ class RobotBackend {
   // Errors: INVALID_ARGUMENT for unknown foods or bad rates; the errors of
   // Jaco2Arm::Open, NetFtRdtClient::Connect and SimNetFtBox::Start;
   // UNAVAILABLE if the simulated box sends nothing in ft_start_timeout_s.
+  // Create is MakeSimBackend or MakeHardwareBackend by options.kind.
   static absl::StatusOr<std::unique_ptr<RobotBackend>> Create(
+      const RobotBackendOptions& options);
+  // The simulated world (plate, arm, Net F/T box on loopback) from
+  // options.sim, options.ft and options.acquisition; ready once the box
+  // streams and its counter has a verdict.
+  static absl::StatusOr<std::unique_ptr<RobotBackend>> MakeSimBackend(
+      const RobotBackendOptions& options);
+  // The JACO2 (options.hardware.arm), the Net F/T box at options.ft and the
+  // camera of options.hardware.
+  static absl::StatusOr<std::unique_ptr<RobotBackend>> MakeHardwareBackend(
       const RobotBackendOptions& options);
   ~RobotBackend();
 
@@ -106,6 +116,13 @@ class RobotBackend {
 
  private:
   RobotBackend() = default;
+
+  // Until the simulated box streams and its counter has a verdict;
+  // UNAVAILABLE after `timeout_s`.
+  absl::Status WaitForSimulatedStream(double timeout_s);
+  // Homes `arm` and builds the Robot over it and the F/T client.
+  absl::Status StartRobot(Arm* arm, SuccessJudge* judge,
+                          const AcquisitionConfig& acquisition);
 
   // Destroyed in reverse: the robot first, the arm last, the box (whose
   // thread reads the world and the arm) before the world.
