@@ -32,11 +32,8 @@ const Scene& RenderedScene() {
     const sim::PlateScene plate =
         sim::RandomPlate(sim::UnseenFoods(), /*allow_touching=*/true, rng);
     s->rendered = sim::RenderPlate(plate, sim::D415Intrinsics(), 7);
-    const sim::PinholeIntrinsics& k = s->rendered.intrinsics;
-    s->frame.rgb = cv::Mat(k.height, k.width, CV_8UC3, s->rendered.rgb.data());
-    s->frame.depth_mm =
-        cv::Mat(k.height, k.width, CV_16UC1, s->rendered.depth_mm.data());
-    s->frame.intrinsics = {k.fx, k.fy, k.cx, k.cy};
+    s->frame = ViewFrame(s->rendered.intrinsics, s->rendered.rgb,
+                         s->rendered.depth_mm);
     const sim::ItemTruth& t = s->rendered.truth.front();
     s->first_item = {t.x, t.y, t.width, t.height};
     return s;

@@ -78,12 +78,9 @@ int main(int argc, char** argv) {
         bitewise::sim::RandomPlate(foods, /*allow_touching=*/true, rng);
     bitewise::sim::RenderedFrame rendered = bitewise::sim::RenderPlate(
         scene, bitewise::sim::D415Intrinsics(), rng());
-    bitewise::perception::DecodedFrame frame;
-    const auto& k = rendered.intrinsics;
-    frame.rgb = cv::Mat(k.height, k.width, CV_8UC3, rendered.rgb.data());
-    frame.depth_mm =
-        cv::Mat(k.height, k.width, CV_16UC1, rendered.depth_mm.data());
-    frame.intrinsics = {k.fx, k.fy, k.cx, k.cy};
+    const bitewise::perception::DecodedFrame frame =
+        bitewise::perception::ViewFrame(rendered.intrinsics, rendered.rgb,
+                                        rendered.depth_mm);
     const auto start = std::chrono::steady_clock::now();
     auto detected = detector.Detect(frame);
     latency_ms.push_back(std::chrono::duration<double, std::milli>(

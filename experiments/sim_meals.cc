@@ -54,13 +54,8 @@ int FoodIndex(const std::vector<const sim::FoodType*>& foods,
 }  // namespace
 
 perception::DecodedFrame ToDecodedFrame(sim::RenderedFrame& rendered) {
-  const sim::PinholeIntrinsics& k = rendered.intrinsics;
-  perception::DecodedFrame frame;
-  frame.rgb = cv::Mat(k.height, k.width, CV_8UC3, rendered.rgb.data());
-  frame.depth_mm =
-      cv::Mat(k.height, k.width, CV_16UC1, rendered.depth_mm.data());
-  frame.intrinsics = {k.fx, k.fy, k.cx, k.cy};
-  return frame;
+  return perception::ViewFrame(rendered.intrinsics, rendered.rgb,
+                               rendered.depth_mm);
 }
 
 absl::StatusOr<std::vector<std::vector<double>>> FeaturizeScene(

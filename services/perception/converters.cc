@@ -24,8 +24,10 @@ FrameBytes FrameBytesFromProto(const v1::Frame& frame) {
   }
   bytes.rgb = frame.rgb();
   bytes.depth_mm = frame.depth_mm();
-  bytes.intrinsics = {frame.intrinsics().fx(), frame.intrinsics().fy(),
-                      frame.intrinsics().cx(), frame.intrinsics().cy()};
+  bytes.intrinsics.fx = frame.intrinsics().fx();
+  bytes.intrinsics.fy = frame.intrinsics().fy();
+  bytes.intrinsics.cx = frame.intrinsics().cx();
+  bytes.intrinsics.cy = frame.intrinsics().cy();
   return bytes;
 }
 

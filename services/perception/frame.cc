@@ -181,6 +181,8 @@ absl::StatusOr<DecodedFrame> DecodeFrame(const FrameBytes& bytes) {
 
   DecodedFrame frame;
   frame.intrinsics = k;
+  frame.intrinsics.width = width;
+  frame.intrinsics.height = height;
   absl::StatusOr<cv::Mat> rgb = DecodeRgb(bytes, width, height);
   if (!rgb.ok()) return rgb.status();
   frame.rgb = *std::move(rgb);
@@ -225,6 +227,19 @@ absl::Status ValidateBox(const PixelBox& box, int frame_width,
 std::string BoxToString(const PixelBox& box) {
   return absl::StrCat("{x=", box.x, ", y=", box.y, ", width=", box.width,
                       ", height=", box.height, "}");
+}
+
+DecodedFrame ViewFrame(const CameraIntrinsics& intrinsics,
+                       std::vector<uint8_t>& rgb,
+                       std::vector<uint16_t>& depth_mm) {
+  DecodedFrame frame;
+  frame.intrinsics = intrinsics;
+  frame.rgb = cv::Mat(intrinsics.height, intrinsics.width, CV_8UC3, rgb.data());
+  if (!depth_mm.empty()) {
+    frame.depth_mm =
+        cv::Mat(intrinsics.height, intrinsics.width, CV_16UC1, depth_mm.data());
+  }
+  return frame;
 }
 
 }  // namespace bitewise::perception

@@ -8,6 +8,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -17,14 +18,9 @@
 
 namespace bitewise::perception {
 
-// Pinhole intrinsics in pixels (OpenCV convention: pixel centres at integer
-// coordinates).
-struct CameraIntrinsics {
-  double fx = 0.0;
-  double fy = 0.0;
-  double cx = 0.0;
-  double cy = 0.0;
-};
+// Pinhole intrinsics in pixels (pixel centres at integer coordinates): the
+// vocabulary's type. In a DecodedFrame, width and height are the frame's.
+using CameraIntrinsics = domain::CameraIntrinsics;
 
 enum class ImageEncoding { kUnspecified, kRgb8, kPng, kJpeg };
 
@@ -38,6 +34,8 @@ struct FrameBytes {
   // width*height little-endian uint16 millimetres, 0 = no depth; may be
   // empty when the camera had no depth.
   absl::string_view depth_mm;
+  // fx, fy, cx, cy as sent (checked by DecodeFrame); width and height are
+  // the fields above.
   CameraIntrinsics intrinsics;
 };
 
@@ -69,6 +67,14 @@ constexpr int64_t kMaxFramePixels = int64_t{1} << 23;
 // depth of the wrong length; non-finite or non-positive focal lengths or a
 // non-finite principal point.
 absl::StatusOr<DecodedFrame> DecodeFrame(const FrameBytes& bytes);
+
+// A DecodedFrame viewing pixels that are already in memory and need no
+// checks (the simulated camera, experiments, benchmarks): `rgb` holds
+// intrinsics.width * intrinsics.height RGB8 pixels, `depth_mm` as many
+// millimetre values or nothing. No copy: the vectors must outlive the view.
+DecodedFrame ViewFrame(const CameraIntrinsics& intrinsics,
+                       std::vector<uint8_t>& rgb,
+                       std::vector<uint16_t>& depth_mm);
 
 // An axis-aligned pixel box: columns [x, x + width), rows [y, y + height).
 struct PixelBox {

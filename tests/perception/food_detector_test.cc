@@ -178,7 +178,7 @@ TEST(FoodDetectorTest, FrameWithoutPlateHasNoItems) {
   DecodedFrame frame;
   frame.rgb = cv::Mat(480, 640, CV_8UC3, cv::Scalar(90, 120, 200));
   frame.depth_mm = cv::Mat(480, 640, CV_16UC1, cv::Scalar(0));
-  frame.intrinsics = {615, 615, 320, 240};
+  frame.intrinsics = CameraIntrinsics();  // the D415's at 640x480
   absl::StatusOr<std::vector<DetectedFood>> detected =
       FoodDetector().Detect(frame);
   ASSERT_TRUE(detected.ok()) << detected.status();

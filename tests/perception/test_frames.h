@@ -37,13 +37,7 @@ inline TestScene RenderTestScene(uint64_t seed, int n_items, bool touching) {
 
 // Views into `rendered`, which must outlive the result.
 inline DecodedFrame ToDecoded(sim::RenderedFrame& rendered) {
-  const sim::PinholeIntrinsics& k = rendered.intrinsics;
-  DecodedFrame frame;
-  frame.rgb = cv::Mat(k.height, k.width, CV_8UC3, rendered.rgb.data());
-  frame.depth_mm =
-      cv::Mat(k.height, k.width, CV_16UC1, rendered.depth_mm.data());
-  frame.intrinsics = {k.fx, k.fy, k.cx, k.cy};
-  return frame;
+  return ViewFrame(rendered.intrinsics, rendered.rgb, rendered.depth_mm);
 }
 
 inline std::string Encode(const sim::RenderedFrame& rendered,
