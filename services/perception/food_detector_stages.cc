@@ -1,0 +1,568 @@
+#include "services/perception/food_detector_stages.h"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <optional>
+#include <random>
+#include <utility>
+#include <vector>
+
+#include "opencv2/imgproc.hpp"
+#include "services/domain/random.h"
+
+namespace bitewise::perception::detection {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+std::optional<Plane> PlaneThrough(const cv::Vec3d& a, const cv::Vec3d& b,
+                                  const cv::Vec3d& c) {
+  cv::Vec3d n = (b - a).cross(c - a);
+  const double norm = cv::norm(n);
+  if (norm < 1e-6) return std::nullopt;
+  n /= norm;
+  Plane plane{n, -n.dot(a)};
+  if (plane.d < 0) {
+    plane.n = -plane.n;
+    plane.d = -plane.d;
+  }
+  return plane;
+}
+
+// Least-squares plane through points: the normal is the direction of least
+// spread.
+std::optional<Plane> FitLeastSquares(const std::vector<cv::Vec3d>& points) {
+  if (points.size() < 3) return std::nullopt;
+  cv::Vec3d mean(0, 0, 0);
+  for (const cv::Vec3d& p : points) mean += p;
+  mean /= static_cast<double>(points.size());
+  cv::Matx33d cov = cv::Matx33d::zeros();
+  for (const cv::Vec3d& p : points) {
+    const cv::Vec3d q = p - mean;
+    cov += q * q.t();
+  }
+  cv::Mat values, vectors;
+  cv::eigen(cv::Mat(cov), values, vectors);  // descending eigenvalues
+  cv::Vec3d n(vectors.at<double>(2, 0), vectors.at<double>(2, 1),
+              vectors.at<double>(2, 2));
+  Plane plane{n, -n.dot(mean)};
+  if (plane.d < 0) {
+    plane.n = -plane.n;
+    plane.d = -plane.d;
+  }
+  return plane;
+}
+
+// The plate's surface plane, from points in the middle of the image, where
+// the plate is when the camera looks at it. RANSAC because food covers part
+// of that window.
+std::optional<Plane> FitPlatePlane(const cv::Mat& depth_mm,
+                                   const CameraIntrinsics& k,
+                                   const FoodDetectorOptions& options) {
+  const int w = depth_mm.cols, h = depth_mm.rows;
+  std::vector<cv::Vec3d> points;
+  const int step = std::max(1, std::min(w, h) / 160);
+  for (int v = h * 3 / 10; v < h * 7 / 10; v += step) {
+    const auto* row = depth_mm.ptr<uint16_t>(v);
+    for (int u = w * 3 / 10; u < w * 7 / 10; u += step) {
+      if (row[u] > 0) points.push_back(Deproject(k, u, v, row[u]));
+    }
+  }
+  if (points.size() < 50) return std::nullopt;
+  std::mt19937_64 rng(options.ransac_seed);
+  auto pick = [&] {
+    return static_cast<size_t>(
+        random::UniformInt(rng, 0, static_cast<int64_t>(points.size()) - 1));
+  };
+  std::optional<Plane> best;
+  size_t best_inliers = 0;
+  const size_t check_step = std::max<size_t>(1, points.size() / 1500);
+  for (int it = 0; it < options.ransac_iterations; ++it) {
+    std::optional<Plane> plane =
+        PlaneThrough(points[pick()], points[pick()], points[pick()]);
+    if (!plane) continue;
+    size_t inliers = 0;
+    for (size_t i = 0; i < points.size(); i += check_step) {
+      if (std::abs(plane->Height(points[i])) < options.plate_tolerance_mm) {
+        ++inliers;
+      }
+    }
+    if (inliers > best_inliers) {
+      best_inliers = inliers;
+      best = plane;
+    }
+  }
+  if (!best) return std::nullopt;
+  std::vector<cv::Vec3d> inliers;
+  for (const cv::Vec3d& p : points) {
+    if (std::abs(best->Height(p)) < options.plate_tolerance_mm) {
+      inliers.push_back(p);
+    }
+  }
+  return FitLeastSquares(inliers);
+}
+
+double Median(std::vector<double>& values) {
+  if (values.empty()) return 0.0;
+  const size_t mid = values.size() / 2;
+  std::nth_element(values.begin(), values.begin() + mid, values.end());
+  return values[mid];
+}
+
+// Fills every hole inside the blobs of a binary mask.
+cv::Mat FillHoles(const cv::Mat& mask) {
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask.clone(), contours, cv::RETR_EXTERNAL,
+                   cv::CHAIN_APPROX_SIMPLE);
+  cv::Mat filled = cv::Mat::zeros(mask.size(), CV_8UC1);
+  cv::drawContours(filled, contours, -1, cv::Scalar(255), cv::FILLED);
+  return filled;
+}
+
+double MajorAxisAngle(const std::vector<cv::Point>& points) {
+  const cv::RotatedRect rect = cv::minAreaRect(points);
+  cv::Point2f corners[4];
+  rect.points(corners);
+  const cv::Point2f e1 = corners[1] - corners[0];
+  const cv::Point2f e2 = corners[2] - corners[1];
+  const cv::Point2f major = cv::norm(e1) >= cv::norm(e2) ? e1 : e2;
+  double angle = std::atan2(major.y, major.x);
+  if (angle <= -kPi / 2) angle += kPi;
+  if (angle > kPi / 2) angle -= kPi;
+  return angle;
+}
+
+}  // namespace
+
+cv::Vec3d Deproject(const CameraIntrinsics& k, double u, double v,
+                    double z_mm) {
+  return {(u - k.cx) * z_mm / k.fx, (v - k.cy) * z_mm / k.fy, z_mm};
+}
+
+std::optional<HeightMap> MeasureHeight(const cv::Mat& depth_mm,
+                                       const CameraIntrinsics& k,
+                                       const FoodDetectorOptions& options) {
+  const int w = depth_mm.cols, h = depth_mm.rows;
+  // Speckle holes and single-pixel noise out; larger holes stay holes.
+  cv::Mat depth;
+  cv::medianBlur(depth_mm, depth, 5);
+  const std::optional<Plane> plane = FitPlatePlane(depth, k, options);
+  if (!plane) return std::nullopt;
+  HeightMap map;
+  map.plane = *plane;
+  map.height_mm = cv::Mat(h, w, CV_32FC1, cv::Scalar(0));
+  map.valid = cv::Mat(h, w, CV_8UC1, cv::Scalar(0));
+  for (int v = 0; v < h; ++v) {
+    const auto* d = depth.ptr<uint16_t>(v);
+    auto* out = map.height_mm.ptr<float>(v);
+    auto* ok = map.valid.ptr<uint8_t>(v);
+    for (int u = 0; u < w; ++u) {
+      if (d[u] == 0) continue;
+      ok[u] = 255;
+      out[u] = static_cast<float>(plane->Height(Deproject(k, u, v, d[u])));
+    }
+  }
+  return map;
+}
+
+std::optional<PlateRegion> FindPlate(const HeightMap& heights,
+                                     const FoodDetectorOptions& options) {
+  const int w = heights.height_mm.cols, h = heights.height_mm.rows;
+  // The plate: the largest flat region, closed over its food (convex hull).
+  cv::Mat surface =
+      heights.valid & (cv::abs(heights.height_mm) < options.plate_tolerance_mm);
+  cv::morphologyEx(surface, surface, cv::MORPH_CLOSE,
+                   cv::getStructuringElement(cv::MORPH_ELLIPSE, {5, 5}));
+  cv::Mat labels, stats, centroids;
+  const int n_surface =
+      cv::connectedComponentsWithStats(surface, labels, stats, centroids, 8);
+  int plate_label = -1;
+  int plate_area = 0;
+  for (int i = 1; i < n_surface; ++i) {
+    if (stats.at<int>(i, cv::CC_STAT_AREA) > plate_area) {
+      plate_area = stats.at<int>(i, cv::CC_STAT_AREA);
+      plate_label = i;
+    }
+  }
+  if (plate_label < 0 || plate_area < w * h / 10) return std::nullopt;
+  const cv::Mat plate_surface_full = labels == plate_label;
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(plate_surface_full.clone(), contours, cv::RETR_EXTERNAL,
+                   cv::CHAIN_APPROX_SIMPLE);
+  std::vector<cv::Point> outline;
+  for (const auto& c : contours)
+    outline.insert(outline.end(), c.begin(), c.end());
+  std::vector<cv::Point> hull;
+  cv::convexHull(outline, hull);
+  cv::Mat plate = cv::Mat::zeros(h, w, CV_8UC1);
+  cv::fillConvexPoly(plate, hull, cv::Scalar(255));
+  cv::erode(plate, plate, cv::getStructuringElement(cv::MORPH_ELLIPSE, {7, 7}));
+  PlateRegion region;
+  region.roi = cv::boundingRect(hull) & cv::Rect(0, 0, w, h);
+  region.plate = plate(region.roi);
+  region.surface = plate_surface_full(region.roi);
+  return region;
+}
+
+FoodEvidence FindEvidence(const cv::Mat& rgb, const cv::Mat& height_mm,
+                          const cv::Mat& valid, const PlateRegion& region,
+                          const FoodDetectorOptions& options) {
+  const int w = rgb.cols, h = rgb.rows;
+  const cv::Mat& plate = region.plate;
+  const cv::Mat& plate_surface = region.surface;
+  FoodEvidence evidence;
+  // Food by depth: above the plate surface, inside the plate.
+  cv::Mat& above = evidence.above;
+  above = valid & (height_mm > options.min_height_mm) & plate;
+  cv::morphologyEx(above, above, cv::MORPH_OPEN,
+                   cv::getStructuringElement(cv::MORPH_ELLIPSE, {3, 3}));
+  above = FillHoles(above) & plate;
+
+  // Food by colour: far from the plate's own colour in CIELAB.
+  cv::Mat rgb_f;
+  cv::Mat& lab = evidence.lab;
+  rgb.convertTo(rgb_f, CV_32FC3, 1.0 / 255.0);
+  cv::cvtColor(rgb_f, lab, cv::COLOR_RGB2Lab);
+  std::vector<double> ls, as, bs;
+  for (int v = 0; v < h; v += 3) {
+    const auto* s = plate_surface.ptr<uint8_t>(v);
+    const auto* px = lab.ptr<cv::Vec3f>(v);
+    for (int u = 0; u < w; u += 3) {
+      if (!s[u]) continue;
+      ls.push_back(px[u][0]);
+      as.push_back(px[u][1]);
+      bs.push_back(px[u][2]);
+    }
+  }
+  const cv::Vec3f plate_lab(static_cast<float>(Median(ls)),
+                            static_cast<float>(Median(as)),
+                            static_cast<float>(Median(bs)));
+  cv::Mat& colour = evidence.colour;
+  colour = cv::Mat(h, w, CV_8UC1, cv::Scalar(0));
+  const float min_de2 = static_cast<float>(options.min_colour_distance *
+                                           options.min_colour_distance);
+  for (int v = 0; v < h; ++v) {
+    const auto* px = lab.ptr<cv::Vec3f>(v);
+    const auto* in = plate.ptr<uint8_t>(v);
+    auto* out = colour.ptr<uint8_t>(v);
+    for (int u = 0; u < w; ++u) {
+      if (!in[u]) continue;
+      const cv::Vec3f diff = px[u] - plate_lab;
+      if (diff.dot(diff) > min_de2) out[u] = 255;
+    }
+  }
+  cv::morphologyEx(colour, colour, cv::MORPH_OPEN,
+                   cv::getStructuringElement(cv::MORPH_ELLIPSE, {3, 3}));
+
+  return evidence;
+}
+
+std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
+                                  const cv::Mat& height_mm,
+                                  const FoodDetectorOptions& options) {
+  const int w = height_mm.cols, h = height_mm.rows;
+  const cv::Mat& lab = evidence.lab;
+  const cv::Mat& above = evidence.above;
+  // Seeds: the upper part of every bump in the height map, cut along strong
+  // colour edges. Touching items meet low down, where their rounded sides
+  // touch, so keeping only what is at least half as high as the highest
+  // point nearby leaves one seed per item, whatever the items' colours; the
+  // colour edges split items whose sides touch high up. An item cut into
+  // several seeds is merged again below.
+  cv::Mat smooth, gx, gy;
+  cv::GaussianBlur(lab, smooth, {3, 3}, 0);
+  cv::Sobel(smooth, gx, CV_32F, 1, 0, 3, 1.0 / 8);
+  cv::Sobel(smooth, gy, CV_32F, 0, 1, 3, 1.0 / 8);
+  cv::Mat local_top;
+  cv::dilate(height_mm, local_top,
+             cv::getStructuringElement(cv::MORPH_RECT, {21, 21}));
+  // Height valleys: how far a closing (which bridges a seam narrower than
+  // its element) lifts each pixel. Two rounded items side by side meet in
+  // a valley as deep as their curvature makes it (two cylinders: half
+  // their height); the top of one item is not lifted at all.
+  Regions regions;
+  cv::Mat& valley = regions.valley_mm;
+  cv::morphologyEx(
+      height_mm, valley, cv::MORPH_CLOSE,
+      cv::getStructuringElement(cv::MORPH_ELLIPSE, {options.valley_width_px,
+                                                    options.valley_width_px}));
+  valley -= height_mm;
+  cv::Mat cores(h, w, CV_8UC1, cv::Scalar(0));
+  cv::Mat seams(h, w, CV_8UC1, cv::Scalar(0));
+  const float min_valley = static_cast<float>(options.min_valley_mm);
+  const float valley_fraction = static_cast<float>(options.valley_fraction);
+  const float edge2 =
+      static_cast<float>(options.min_edge_strength * options.min_edge_strength);
+  for (int v = 0; v < h; ++v) {
+    const auto* a = gx.ptr<cv::Vec3f>(v);
+    const auto* b = gy.ptr<cv::Vec3f>(v);
+    const auto* in = above.ptr<uint8_t>(v);
+    const auto* hv = height_mm.ptr<float>(v);
+    const auto* top = local_top.ptr<float>(v);
+    const auto* dip = valley.ptr<float>(v);
+    auto* out = cores.ptr<uint8_t>(v);
+    auto* seam = seams.ptr<uint8_t>(v);
+    for (int u = 0; u < w; ++u) {
+      if (in[u] && hv[u] >= 0.5f * top[u] &&
+          a[u].dot(a[u]) + b[u].dot(b[u]) <= edge2) {
+        out[u] = 255;
+        seam[u] = dip[u] > std::max(min_valley, valley_fraction * top[u]);
+      }
+    }
+  }
+  const cv::Mat open3 = cv::getStructuringElement(cv::MORPH_ELLIPSE, {3, 3});
+  cv::morphologyEx(cores, cores, cv::MORPH_OPEN, open3);
+  // Cut the cores along the valleys, but only where that splits one core
+  // into two or more substantial parts (items that touch). Elsewhere the
+  // core stays whole: a small, low item next to a tall one is a valley in
+  // height too, and cutting its seed would hand it to the neighbour.
+  {
+    cv::Mat whole;
+    const int n_whole = cv::connectedComponents(cores, whole, 4, CV_32S);
+    cv::Mat cut = cores & (seams == 0);
+    cv::morphologyEx(cut, cut, cv::MORPH_OPEN, open3);
+    cv::Mat parts, part_stats, part_centroids;
+    const int n_parts = cv::connectedComponentsWithStats(
+        cut, parts, part_stats, part_centroids, 4, CV_32S);
+    // Substantial parts per original core.
+    std::vector<int> split(n_whole, 0);
+    std::vector<int> part_owner(n_parts, 0);
+    for (int v = 0; v < h; ++v) {
+      const auto* label = whole.ptr<int>(v);
+      const auto* part = parts.ptr<int>(v);
+      for (int u = 0; u < w; ++u) {
+        if (part[u] > 0) part_owner[part[u]] = label[u];
+      }
+    }
+    for (int p = 1; p < n_parts; ++p) {
+      if (part_stats.at<int>(p, cv::CC_STAT_AREA) >= options.min_seed_px) {
+        ++split[part_owner[p]];
+      }
+    }
+    for (int v = 0; v < h; ++v) {
+      const auto* label = whole.ptr<int>(v);
+      const auto* core = cores.ptr<uint8_t>(v);
+      auto* kept = cut.ptr<uint8_t>(v);
+      for (int u = 0; u < w; ++u) {
+        if (core[u] && split[label[u]] < 2) kept[u] = 255;
+      }
+    }
+    cores = cut;
+  }
+  const int n_cores =
+      cv::connectedComponents(cores, regions.markers, 4, CV_32S);
+  if (n_cores <= 1) return std::nullopt;
+  regions.background = n_cores;
+  return regions;
+}
+
+void GrowRegions(const cv::Mat& rgb, const FoodEvidence& evidence,
+                 const cv::Mat& plate, Regions& regions) {
+  // Background seed: plate well away from anything food-like, and all that
+  // is off the plate.
+  cv::Mat& markers = regions.markers;
+  const int background = regions.background;
+  cv::Mat food_like = evidence.above | evidence.colour;
+  cv::Mat near_food;
+  cv::dilate(food_like, near_food,
+             cv::getStructuringElement(cv::MORPH_ELLIPSE, {15, 15}));
+  markers.setTo(background, ~near_food | ~plate);
+  // The outlines come from colour edges: flooding the RGB image from the
+  // seeds stops where item meets plate or item meets item.
+  cv::Mat rgb_copy = rgb.clone();  // watershed wants continuous data
+  cv::watershed(rgb_copy, markers);
+}
+
+void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
+                     const cv::Mat& valid, const FoodDetectorOptions& options,
+                     Regions& regions) {
+  const int w = height_mm.cols, h = height_mm.rows;
+  const cv::Mat& lab = evidence.lab;
+  cv::Mat& markers = regions.markers;
+  const cv::Mat& valley = regions.valley_mm;
+  const int background = regions.background;
+  const int n_cores = background;
+  // Merge neighbours that are one item cut in two: similar colour and no
+  // valley in height along the boundary between them (touching items meet
+  // low down, where their rounded sides touch).
+  std::vector<cv::Vec3d> lab_sum(n_cores, cv::Vec3d(0, 0, 0));
+  std::vector<int> lab_count(n_cores, 0);
+  std::vector<std::vector<double>> heights(n_cores);
+  for (int v = 0; v < h; ++v) {
+    const auto* m = markers.ptr<int>(v);
+    const auto* px = lab.ptr<cv::Vec3f>(v);
+    const auto* hv = height_mm.ptr<float>(v);
+    const auto* ok = valid.ptr<uint8_t>(v);
+    for (int u = 0; u < w; ++u) {
+      if (m[u] <= 0 || m[u] >= background) continue;
+      lab_sum[m[u]] += cv::Vec3d(px[u][0], px[u][1], px[u][2]);
+      ++lab_count[m[u]];
+      if (ok[u]) heights[m[u]].push_back(hv[u]);
+    }
+  }
+  std::vector<double> top_mm(n_cores, 0.0);
+  for (int i = 1; i < background; ++i) {
+    std::vector<double>& hs = heights[i];
+    if (hs.empty()) continue;
+    const size_t q = hs.size() * 9 / 10;
+    std::nth_element(hs.begin(), hs.begin() + q, hs.end());
+    top_mm[i] = hs[q];
+  }
+  // Boundary statistics per pair of neighbouring regions.
+  struct Seam {
+    double height_sum = 0.0;
+    double dip_sum = 0.0;
+    int count = 0;
+  };
+  std::map<std::pair<int, int>, Seam> boundary;
+  for (int v = 1; v + 1 < h; ++v) {
+    const auto* m = markers.ptr<int>(v);
+    const auto* hv = height_mm.ptr<float>(v);
+    const auto* ok = valid.ptr<uint8_t>(v);
+    const auto* dip = valley.ptr<float>(v);
+    for (int u = 1; u + 1 < w; ++u) {
+      if (m[u] != -1) continue;
+      int found[4];
+      int n_found = 0;
+      for (const int n : {m[u - 1], m[u + 1], markers.at<int>(v - 1, u),
+                          markers.at<int>(v + 1, u)}) {
+        if (n > 0 && n < background &&
+            std::find(found, found + n_found, n) == found + n_found) {
+          found[n_found++] = n;
+        }
+      }
+      for (int a = 0; a < n_found; ++a) {
+        for (int b = a + 1; b < n_found; ++b) {
+          auto& entry = boundary[std::minmax(found[a], found[b])];
+          if (ok[u]) {
+            entry.height_sum += hv[u];
+            entry.dip_sum += dip[u];
+            ++entry.count;
+          }
+        }
+      }
+    }
+  }
+  std::vector<int> parent(n_cores);
+  for (int i = 0; i < n_cores; ++i) parent[i] = i;
+  auto root = [&](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  for (const auto& [pair, seam] : boundary) {
+    const auto [a, b] = pair;
+    if (seam.count < 3 || lab_count[a] == 0 || lab_count[b] == 0) continue;
+    const cv::Vec3d diff =
+        lab_sum[a] / lab_count[a] - lab_sum[b] / lab_count[b];
+    const double seam_mm = seam.height_sum / seam.count;
+    const double lower_top = std::min(top_mm[a], top_mm[b]);
+    // No valley between them, by height and by the closing's lift.
+    if (cv::norm(diff) < options.min_colour_distance &&
+        seam_mm > 0.8 * lower_top &&
+        seam.dip_sum / seam.count <=
+            std::max(options.min_valley_mm,
+                     options.valley_fraction * lower_top)) {
+      parent[root(a)] = root(b);
+    }
+  }
+  for (int v = 0; v < h; ++v) {
+    auto* m = markers.ptr<int>(v);
+    for (int u = 0; u < w; ++u) {
+      if (m[u] > 0 && m[u] < background) m[u] = root(m[u]);
+    }
+  }
+}
+
+std::vector<DetectedFood> DescribeItems(const Regions& regions,
+                                        const FoodEvidence& evidence,
+                                        const cv::Mat& raw_depth,
+                                        const cv::Rect& roi, const Plane& plane,
+                                        const CameraIntrinsics& k,
+                                        const FoodDetectorOptions& options) {
+  const cv::Mat& markers = regions.markers;
+  const cv::Mat& above = evidence.above;
+  const cv::Mat& colour = evidence.colour;
+  const int w = markers.cols, h = markers.rows;
+  const int background = regions.background;
+  const int n_cores = background;
+  std::vector<DetectedFood> items;
+  // Per item: its pixels, depths and evidence. Watershed leaves its ridge
+  // pixels (-1) unlabelled; those that look like food join a neighbour.
+  struct Accumulator {
+    std::vector<cv::Point> points;
+    std::vector<double> depths_mm;
+    double evidence = 0.0;
+  };
+  std::vector<Accumulator> acc(n_cores);
+  for (int v = 0; v < h; ++v) {
+    const auto* m = markers.ptr<int>(v);
+    const auto* a = above.ptr<uint8_t>(v);
+    const auto* c = colour.ptr<uint8_t>(v);
+    const auto* raw = raw_depth.ptr<uint16_t>(v);
+    for (int u = 0; u < w; ++u) {
+      int label = m[u];
+      if (label == -1 && (a[u] || c[u])) {
+        for (const auto& [du, dv] :
+             {std::pair{-1, 0}, {1, 0}, {0, -1}, {0, 1}}) {
+          const int uu = u + du, vv = v + dv;
+          if (uu < 0 || vv < 0 || uu >= w || vv >= h) continue;
+          const int n = markers.at<int>(vv, uu);
+          if (n > 0 && n < background) {
+            label = n;
+            break;
+          }
+        }
+      }
+      if (label <= 0 || label >= background) continue;
+      Accumulator& item = acc[label];
+      item.points.emplace_back(u, v);
+      if (raw[u] > 0) item.depths_mm.push_back(raw[u]);
+      item.evidence += ((a[u] ? 1.0 : 0.0) + (c[u] ? 1.0 : 0.0)) / 2.0;
+    }
+  }
+
+  for (int label = 1; label < background; ++label) {
+    Accumulator& item = acc[label];
+    if (item.points.empty()) continue;
+    DetectedFood food;
+    for (cv::Point& p : item.points) p += roi.tl();
+    const cv::Rect box = cv::boundingRect(item.points);
+    food.bbox = {box.x, box.y, box.width, box.height};
+    food.area_px = static_cast<int>(item.points.size());
+    double su = 0, sv = 0;
+    for (const cv::Point& p : item.points) {
+      su += p.x;
+      sv += p.y;
+    }
+    food.center_u_px = su / food.area_px;
+    food.center_v_px = sv / food.area_px;
+    double z_mm = Median(item.depths_mm);
+    if (z_mm <= 0) {
+      // No depth on the item at all: the plate's depth along its centre ray
+      // is the best estimate left.
+      const cv::Vec3d ray = Deproject(k, food.center_u_px, food.center_v_px, 1);
+      z_mm = -plane.d / plane.n.dot(ray);
+    }
+    food.depth_m = z_mm / 1000.0;
+    const double pixel_area_m2 = (food.depth_m / k.fx) * (food.depth_m / k.fy);
+    if (food.area_px * pixel_area_m2 < options.min_item_area_m2) continue;
+    const cv::Vec3d centre =
+        Deproject(k, food.center_u_px, food.center_v_px, z_mm) / 1000.0;
+    food.center_x_m = centre[0];
+    food.center_y_m = centre[1];
+    food.center_z_m = centre[2];
+    food.major_axis_angle_rad = MajorAxisAngle(item.points);
+    food.score = item.evidence / food.area_px;
+    items.push_back(food);
+  }
+  std::sort(items.begin(), items.end(),
+            [](const DetectedFood& a, const DetectedFood& b) {
+              if (a.score != b.score) return a.score > b.score;
+              if (a.bbox.y != b.bbox.y) return a.bbox.y < b.bbox.y;
+              return a.bbox.x < b.bbox.x;
+            });
+  return items;
+}
+
+}  // namespace bitewise::perception::detection

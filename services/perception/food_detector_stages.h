@@ -1,0 +1,117 @@
+// The stages of FoodDetector::Detect, each a function of its inputs so it
+// can be read and tested alone (tests/perception/food_detector_stages_test):
+//
+//   MeasureHeight   depth -> the plate's plane and every pixel's height
+//   FindPlate       heights -> the plate (its region and visible surface)
+//   FindEvidence    colour and heights inside the plate -> food-like pixels
+//   PlantSeeds      one seed per item: bump tops, cut at colour edges and
+//                   at height valleys between touching items
+//   GrowRegions     watershed on the RGB image from the seeds
+//   MergeSplitItems neighbours that are one item cut in two become one
+//   DescribeItems   each region -> a DetectedFood (box, centre, depth, ...)
+//
+// Images after FindPlate are the plate's bounding box (roi) of the frame.
+// All stages are pure and thread-compatible.
+#ifndef BITEWISE_SERVICES_PERCEPTION_FOOD_DETECTOR_STAGES_H_
+#define BITEWISE_SERVICES_PERCEPTION_FOOD_DETECTOR_STAGES_H_
+
+#include <optional>
+#include <vector>
+
+#include "opencv2/core.hpp"
+#include "services/perception/food_detector.h"
+#include "services/perception/frame.h"
+
+namespace bitewise::perception::detection {
+
+// A plane n.P + d = 0 in camera coordinates (millimetres), |n| = 1, oriented
+// so that the camera (the origin) has positive height.
+struct Plane {
+  cv::Vec3d n;
+  double d = 0.0;
+  double Height(const cv::Vec3d& p) const { return n.dot(p) + d; }
+};
+
+// The camera-frame point (mm) of pixel (u, v) at depth z_mm.
+cv::Vec3d Deproject(const CameraIntrinsics& k, double u, double v, double z_mm);
+
+struct HeightMap {
+  Plane plane;
+  cv::Mat height_mm;  // CV_32FC1: height above the plane, 0 without depth
+  cv::Mat valid;      // CV_8UC1: 255 where the median-filtered depth exists
+};
+
+// The plate's plane (RANSAC over the middle of the image, then least
+// squares on its inliers) and each pixel's height above it, after a 5x5
+// median filter takes out speckle holes. nullopt when no plane is found.
+std::optional<HeightMap> MeasureHeight(const cv::Mat& depth_mm,
+                                       const CameraIntrinsics& k,
+                                       const FoodDetectorOptions& options);
+
+struct PlateRegion {
+  cv::Rect roi;     // the plate's bounding box in the frame
+  cv::Mat plate;    // CV_8UC1 over roi: inside the plate's outline
+  cv::Mat surface;  // CV_8UC1 over roi: the plate's own visible surface
+};
+
+// The largest flat region (within plate_tolerance_mm of the plane), closed
+// over its food by its convex hull and eroded from the rim. nullopt when it
+// covers less than a tenth of the image.
+std::optional<PlateRegion> FindPlate(const HeightMap& heights,
+                                     const FoodDetectorOptions& options);
+
+struct FoodEvidence {
+  cv::Mat lab;     // CV_32FC3: CIELAB of the roi
+  cv::Mat above;   // CV_8UC1: higher than min_height_mm, holes filled
+  cv::Mat colour;  // CV_8UC1: farther than min_colour_distance from the
+                   // plate's median colour
+};
+
+// Food by depth and by colour, inside the plate. `rgb`, `height_mm` and
+// `valid` are the roi's.
+FoodEvidence FindEvidence(const cv::Mat& rgb, const cv::Mat& height_mm,
+                          const cv::Mat& valid, const PlateRegion& plate,
+                          const FoodDetectorOptions& options);
+
+struct Regions {
+  // CV_32SC1 labels: 1..background-1 items; background; 0 unlabelled
+  // before GrowRegions, -1 on watershed ridges after it.
+  cv::Mat markers;
+  int background = 0;
+  // CV_32FC1: how far a closing lifts each pixel (height valleys).
+  cv::Mat valley_mm;
+};
+
+// Seeds: the upper half of every bump in the height map (at least half its
+// local top within 21 px), not on a strong colour edge, cut along height
+// valleys only where that splits a seed into two or more parts of
+// min_seed_px. nullopt when there is no seed.
+std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
+                                  const cv::Mat& height_mm,
+                                  const FoodDetectorOptions& options);
+
+// Marks the background (plate well away from food-like pixels, and all
+// that is off the plate) and floods the RGB image from the seeds.
+void GrowRegions(const cv::Mat& rgb, const FoodEvidence& evidence,
+                 const cv::Mat& plate, Regions& regions);
+
+// Joins neighbouring regions of similar colour with no valley in height
+// along their shared boundary (one item cut in two).
+void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
+                     const cv::Mat& valid, const FoodDetectorOptions& options,
+                     Regions& regions);
+
+// One DetectedFood per region of at least min_item_area_m2 on the plate
+// (ridge pixels that look like food join a neighbour), in frame pixels,
+// sorted by score, then top to bottom, then left to right. `raw_depth_mm`
+// is the roi of the unfiltered depth.
+std::vector<DetectedFood> DescribeItems(const Regions& regions,
+                                        const FoodEvidence& evidence,
+                                        const cv::Mat& raw_depth_mm,
+                                        const cv::Rect& roi, const Plane& plane,
+                                        const CameraIntrinsics& k,
+                                        const FoodDetectorOptions& options);
+
+}  // namespace bitewise::perception::detection
+
+#endif  // BITEWISE_SERVICES_PERCEPTION_FOOD_DETECTOR_STAGES_H_

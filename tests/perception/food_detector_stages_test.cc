@@ -1,0 +1,217 @@
+// FoodDetector's stages one by one, on synthetic inputs whose answer is
+// known by construction (the whole detector on rendered plates is
+// food_detector_test.cc).
+#include "services/perception/food_detector_stages.h"
+
+#include <cmath>
+#include <set>
+
+#include "gtest/gtest.h"
+#include "opencv2/imgproc.hpp"
+
+namespace bitewise::perception::detection {
+namespace {
+
+constexpr int kW = 640, kH = 480;
+
+// A fronto-parallel plate 400 mm from the camera with a 20 mm tall box on
+// it (pixels [300, 340) x [220, 260)) and a 10x10 hole (no depth).
+cv::Mat PlateWithBox() {
+  cv::Mat depth(kH, kW, CV_16UC1, cv::Scalar(400));
+  depth(cv::Rect(300, 220, 40, 40)).setTo(380);
+  depth(cv::Rect(100, 100, 10, 10)).setTo(0);
+  return depth;
+}
+
+TEST(DetectorStagesTest, MeasureHeightFindsThePlaneAndEachPixelsHeight) {
+  const CameraIntrinsics k;
+  const std::optional<HeightMap> map =
+      MeasureHeight(PlateWithBox(), k, FoodDetectorOptions());
+  ASSERT_TRUE(map.has_value());
+  EXPECT_NEAR(std::abs(map->plane.n[2]), 1.0, 1e-9);
+  EXPECT_NEAR(map->plane.d, 400.0, 1e-6);
+  EXPECT_NEAR(map->height_mm.at<float>(240, 320), 20.0, 1e-3);
+  EXPECT_NEAR(map->height_mm.at<float>(50, 50), 0.0, 1e-3);
+  EXPECT_EQ(map->valid.at<uint8_t>(105, 105), 0);  // the hole
+  EXPECT_EQ(map->valid.at<uint8_t>(50, 50), 255);
+
+  const cv::Mat empty(kH, kW, CV_16UC1, cv::Scalar(0));
+  EXPECT_FALSE(MeasureHeight(empty, k, FoodDetectorOptions()).has_value());
+}
+
+TEST(DetectorStagesTest, FindPlateIsTheLargeFlatRegionOrNothing) {
+  const std::optional<HeightMap> map =
+      MeasureHeight(PlateWithBox(), CameraIntrinsics(), FoodDetectorOptions());
+  ASSERT_TRUE(map.has_value());
+  const std::optional<PlateRegion> plate =
+      FindPlate(*map, FoodDetectorOptions());
+  ASSERT_TRUE(plate.has_value());
+  EXPECT_EQ(plate->roi, cv::Rect(0, 0, kW, kH));
+  // Closed over its food: the box is inside the plate, not its surface.
+  EXPECT_EQ(plate->plate.at<uint8_t>(240, 320), 255);
+  EXPECT_EQ(plate->surface.at<uint8_t>(240, 320), 0);
+  EXPECT_EQ(plate->surface.at<uint8_t>(240, 200), 255);
+
+  // Flat only in a small patch: not a plate.
+  HeightMap bumpy = *map;
+  bumpy.height_mm.setTo(50.0f);
+  bumpy.height_mm(cv::Rect(0, 0, 100, 100)).setTo(0.0f);
+  EXPECT_FALSE(FindPlate(bumpy, FoodDetectorOptions()).has_value());
+}
+
+// A white plate covering the frame with one red item whose height map the
+// test chooses; evidence from FindEvidence.
+struct Scene {
+  cv::Mat rgb;
+  cv::Mat height_mm;
+  cv::Mat valid;
+  PlateRegion plate;
+  FoodEvidence evidence;
+};
+
+Scene MakeScene(const cv::Mat& height_mm, const cv::Mat& item_mask) {
+  Scene scene;
+  scene.height_mm = height_mm;
+  scene.valid = cv::Mat(kH, kW, CV_8UC1, cv::Scalar(255));
+  scene.rgb = cv::Mat(kH, kW, CV_8UC3, cv::Scalar(230, 230, 230));
+  scene.rgb.setTo(cv::Scalar(200, 60, 50), item_mask);
+  scene.plate.roi = cv::Rect(0, 0, kW, kH);
+  scene.plate.plate = cv::Mat(kH, kW, CV_8UC1, cv::Scalar(255));
+  scene.plate.surface = ~item_mask;
+  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                scene.plate, FoodDetectorOptions());
+  return scene;
+}
+
+// Domes of radius 30 px and 20 mm at the given centres (the higher wins
+// where they overlap).
+cv::Mat Domes(const std::vector<cv::Point>& centres, cv::Mat* mask) {
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  for (int v = 0; v < kH; ++v) {
+    for (int u = 0; u < kW; ++u) {
+      for (const cv::Point& c : centres) {
+        const double r2 = (u - c.x) * (u - c.x) + (v - c.y) * (v - c.y);
+        if (r2 < 900.0) {
+          height.at<float>(v, u) =
+              std::max(height.at<float>(v, u),
+                       static_cast<float>(20.0 * std::sqrt(1.0 - r2 / 900.0)));
+        }
+      }
+    }
+  }
+  *mask = height > 0.0f;
+  return height;
+}
+
+int ItemLabels(const Regions& regions) {
+  std::set<int> labels;
+  for (int v = 0; v < regions.markers.rows; ++v) {
+    for (int u = 0; u < regions.markers.cols; ++u) {
+      const int m = regions.markers.at<int>(v, u);
+      if (m > 0 && m < regions.background) labels.insert(m);
+    }
+  }
+  return static_cast<int>(labels.size());
+}
+
+TEST(DetectorStagesTest, FindEvidenceSeesTheItemByHeightAndByColour) {
+  cv::Mat mask;
+  const Scene scene = MakeScene(Domes({{320, 240}}, &mask), mask);
+  EXPECT_EQ(scene.evidence.above.at<uint8_t>(240, 320), 255);
+  EXPECT_EQ(scene.evidence.colour.at<uint8_t>(240, 320), 255);
+  EXPECT_EQ(scene.evidence.above.at<uint8_t>(100, 100), 0);
+  EXPECT_EQ(scene.evidence.colour.at<uint8_t>(100, 100), 0);
+}
+
+TEST(DetectorStagesTest, PlantSeedsCutsTwoTouchingDomesOfOneColourApart) {
+  // 45 px apart: the seam is 13 mm high, above half of their 20 mm tops, so
+  // only the height-valley cut separates them.
+  cv::Mat mask;
+  const Scene touching =
+      MakeScene(Domes({{300, 240}, {345, 240}}, &mask), mask);
+  std::optional<Regions> seeds =
+      PlantSeeds(touching.evidence, touching.height_mm, FoodDetectorOptions());
+  ASSERT_TRUE(seeds.has_value());
+  EXPECT_EQ(seeds->background, 3);  // two seeds
+  FoodDetectorOptions no_cut;
+  no_cut.min_valley_mm = 100.0;  // no valley deep enough
+  seeds = PlantSeeds(touching.evidence, touching.height_mm, no_cut);
+  ASSERT_TRUE(seeds.has_value());
+  EXPECT_EQ(seeds->background, 2);  // one seed for both
+
+  const Scene single = MakeScene(Domes({{320, 240}}, &mask), mask);
+  seeds = PlantSeeds(single.evidence, single.height_mm, FoodDetectorOptions());
+  ASSERT_TRUE(seeds.has_value());
+  EXPECT_EQ(seeds->background, 2);
+
+  const cv::Mat flat(kH, kW, CV_32FC1, cv::Scalar(0));
+  const Scene empty = MakeScene(flat, flat > 1.0f);
+  EXPECT_FALSE(
+      PlantSeeds(empty.evidence, empty.height_mm, FoodDetectorOptions())
+          .has_value());
+}
+
+TEST(DetectorStagesTest, GrowAndMergeJoinOneItemSeededTwice) {
+  // One flat-topped item (15 mm) seeded at both ends by hand.
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  const cv::Rect item(260, 220, 120, 40);
+  height(item).setTo(15.0f);
+  const Scene scene = MakeScene(height, height > 0.0f);
+  Regions regions;
+  regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(0));
+  regions.markers(cv::Rect(270, 230, 10, 20)).setTo(1);
+  regions.markers(cv::Rect(360, 230, 10, 20)).setTo(2);
+  regions.background = 3;
+  regions.valley_mm = cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0));
+  GrowRegions(scene.rgb, scene.evidence, scene.plate.plate, regions);
+  EXPECT_EQ(ItemLabels(regions), 2);
+  EXPECT_EQ(regions.markers.at<int>(240, 300), 1);
+  EXPECT_EQ(regions.markers.at<int>(240, 350), 2);
+  EXPECT_EQ(regions.markers.at<int>(100, 100), regions.background);
+  MergeSplitItems(scene.evidence, scene.height_mm, scene.valid,
+                  FoodDetectorOptions(), regions);
+  EXPECT_EQ(ItemLabels(regions), 1);
+}
+
+TEST(DetectorStagesTest, DescribeItemsGivesBoxCentreAndDepth) {
+  const cv::Rect item(300, 220, 40, 20);
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  height(item).setTo(20.0f);
+  const Scene scene = MakeScene(height, height > 0.0f);
+  Regions regions;
+  regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(2));
+  regions.markers(item).setTo(1);
+  regions.background = 2;
+  cv::Mat raw_depth(kH, kW, CV_16UC1, cv::Scalar(400));
+  raw_depth(item).setTo(380);
+  Plane plane;
+  plane.n = cv::Vec3d(0, 0, -1);
+  plane.d = 400.0;
+  const CameraIntrinsics k;
+  const std::vector<DetectedFood> foods =
+      DescribeItems(regions, scene.evidence, raw_depth, scene.plate.roi, plane,
+                    k, FoodDetectorOptions());
+  ASSERT_EQ(foods.size(), 1u);
+  EXPECT_EQ(foods[0].bbox.x, 300);
+  EXPECT_EQ(foods[0].bbox.y, 220);
+  EXPECT_EQ(foods[0].bbox.width, 40);
+  EXPECT_EQ(foods[0].bbox.height, 20);
+  EXPECT_EQ(foods[0].area_px, 800);
+  EXPECT_DOUBLE_EQ(foods[0].center_u_px, 319.5);
+  EXPECT_DOUBLE_EQ(foods[0].center_v_px, 229.5);
+  EXPECT_DOUBLE_EQ(foods[0].depth_m, 0.38);
+  EXPECT_NEAR(foods[0].center_x_m, (319.5 - k.cx) * 0.38 / k.fx, 1e-12);
+  EXPECT_NEAR(std::abs(foods[0].major_axis_angle_rad), 0.0, 1e-6);
+  // Height and colour agree on all but the corners (opened masks).
+  EXPECT_GT(foods[0].score, 0.99);
+
+  // Below min_item_area_m2 (a 3x3 crumb at 0.38 m is 0.03 cm^2): dropped.
+  regions.markers.setTo(2);
+  regions.markers(cv::Rect(300, 220, 3, 3)).setTo(1);
+  EXPECT_TRUE(DescribeItems(regions, scene.evidence, raw_depth, scene.plate.roi,
+                            plane, k, FoodDetectorOptions())
+                  .empty());
+}
+
+}  // namespace
+}  // namespace bitewise::perception::detection
