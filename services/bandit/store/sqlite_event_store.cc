@@ -19,99 +19,29 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/string_view.h"
+#include "services/bandit/store/sqlite_helpers.h"
+#include "services/bandit/store/sqlite_schema.h"
 #include "services/common/status_macros.h"
 
 namespace bitewise::bandit {
 namespace {
 
-// Bumped whenever the schema changes incompatibly; a file with a larger
-// version was written by a newer build and must not be touched.
-// 2: users.prior and population_pools (the population prior); a version 1
-// file is migrated when opened.
-constexpr int kSchemaVersion = 2;
-// 'BiTe': marks the file as ours, so a SQLite file of another application is
-// refused instead of having tables added to it.
-constexpr int kApplicationId = 0x42695465;
+using sqlite::CheckIntegrity;
+using sqlite::Exec;
+using sqlite::InitializeDatabase;
+using sqlite::LockStoreFile;
+using sqlite::SqliteCloser;
+using sqlite::SqliteError;
+using sqlite::Statement;
+using sqlite::Transaction;
 
 constexpr int kDefaultPageSize = 100;
 constexpr int kMaxPageSize = 1000;
 
-// Scalar doubles are declared ANY with a type check rather than REAL: SQLite
-// stores an integral REAL as an integer on disk, which turns -0.0 into 0.0.
-// ANY in a STRICT table keeps the bound value exactly, and STRICT makes every
-// other column reject values of the wrong type.
-constexpr char kSchemaSql[] = R"sql(
-CREATE TABLE users (
-  user_id TEXT PRIMARY KEY NOT NULL,
-  learner INTEGER NOT NULL,
-  strategy INTEGER NOT NULL,
-  alpha ANY NOT NULL CHECK (typeof(alpha) = 'real'),
-  lambda_c ANY NOT NULL CHECK (typeof(lambda_c) = 'real'),
-  lambda_p ANY NOT NULL CHECK (typeof(lambda_p) = 'real'),
-  epsilon ANY NOT NULL CHECK (typeof(epsilon) = 'real'),
-  importance_weighting INTEGER NOT NULL CHECK (importance_weighting IN (0, 1)),
-  context_dim INTEGER NOT NULL,
-  posthoc_dim INTEGER NOT NULL,
-  action_names TEXT NOT NULL,  -- JSON array of strings
-  seed INTEGER NOT NULL,       -- the uint64 seed bit-cast to int64
-  created_at_us INTEGER NOT NULL,
-  model_version INTEGER NOT NULL DEFAULT 0,
-  prior BLOB  -- the user's population prior (EncodePrior), NULL: none
-) STRICT;
-
--- AUTOINCREMENT: ids are never reused after ResetUser or DeleteUser, so an id
--- a client still holds cannot silently name someone else's new event.
-CREATE TABLE events (
-  event_id INTEGER PRIMARY KEY AUTOINCREMENT,
-  user_id TEXT NOT NULL REFERENCES users (user_id) ON DELETE CASCADE,
-  meal_id TEXT NOT NULL,
-  item_label TEXT NOT NULL,
-  context BLOB NOT NULL,  -- little-endian IEEE-754 float64 array
-  action INTEGER NOT NULL,
-  propensity ANY NOT NULL CHECK (typeof(propensity) = 'real'),
-  selected_at_us INTEGER NOT NULL,
-  completed INTEGER NOT NULL DEFAULT 0 CHECK (completed IN (0, 1)),
-  -- The outcome: NULL while pending, all set once completed.
-  loss ANY CHECK (typeof(loss) IN ('real', 'null')),
-  posthoc BLOB,  -- little-endian IEEE-754 float64 array
-  weight ANY CHECK (typeof(weight) IN ('real', 'null')),
-  model_version INTEGER,
-  updated_at_us INTEGER,
-  CHECK ((completed = 1) = (model_version IS NOT NULL))
-) STRICT;
-
-CREATE INDEX events_by_user ON events (user_id, event_id);
-CREATE INDEX events_by_meal ON events (user_id, meal_id, event_id);
--- Unique: two completed events of a user can never share a model_version
--- (pending rows have NULL there, and NULLs do not collide).
-CREATE UNIQUE INDEX events_by_completion
-  ON events (user_id, completed, model_version);
-)sql";
-
-// The population pools (schema 2), created with a new store and by the
-// migration from version 1.
-constexpr char kPoolsSql[] = R"sql(
-CREATE TABLE population_pools (
-  pool_version INTEGER PRIMARY KEY AUTOINCREMENT,
-  created_at_us INTEGER NOT NULL,
-  users INTEGER NOT NULL,
-  learner INTEGER NOT NULL,
-  context_dim INTEGER NOT NULL,
-  posthoc_dim INTEGER NOT NULL,
-  action_names TEXT NOT NULL,  -- JSON array of strings
-  prior BLOB NOT NULL          -- EncodePrior with rounds 0
-) STRICT;
-)sql";
-
-// Version 1 -> 2: the users' priors, then kPoolsSql.
-constexpr char kMigrateTo2Sql[] = R"sql(
-ALTER TABLE users ADD COLUMN prior BLOB;
-)sql";
-
 constexpr char kUserColumns[] = R"sql(
 SELECT u.user_id, u.learner, u.strategy, u.alpha, u.lambda_c, u.lambda_p,
        u.epsilon, u.importance_weighting, u.context_dim, u.posthoc_dim,
-       u.action_names, u.seed, u.created_at_us, u.model_version,
+       u.seed, u.created_at_us, u.model_version,
        (SELECT COUNT(*) FROM events e
         WHERE e.user_id = u.user_id AND e.completed = 0),
        u.prior
@@ -124,47 +54,6 @@ SELECT event_id, user_id, meal_id, item_label, context, action, propensity,
        updated_at_us
 FROM events
 )sql";
-
-// ---------------------------------------------------------------------------
-// Errors
-
-absl::StatusCode CodeForSqlite(int rc) {
-  switch (rc & 0xff) {
-    case SQLITE_BUSY:
-    case SQLITE_LOCKED:
-      return absl::StatusCode::kUnavailable;  // retrying later can succeed
-    case SQLITE_CONSTRAINT:
-      return absl::StatusCode::kFailedPrecondition;
-    case SQLITE_CORRUPT:
-    case SQLITE_NOTADB:
-      return absl::StatusCode::kDataLoss;
-    case SQLITE_FULL:
-    case SQLITE_NOMEM:
-      return absl::StatusCode::kResourceExhausted;
-    case SQLITE_CANTOPEN:
-    case SQLITE_READONLY:
-    case SQLITE_PERM:
-    case SQLITE_AUTH:
-      return absl::StatusCode::kFailedPrecondition;
-    case SQLITE_TOOBIG:
-    case SQLITE_RANGE:
-    case SQLITE_MISMATCH:
-      return absl::StatusCode::kInvalidArgument;
-    default:
-      return absl::StatusCode::kInternal;
-  }
-}
-
-absl::Status SqliteError(sqlite3* db, int rc, absl::string_view op) {
-  // The connection's message is more specific than the code's, but only if it
-  // belongs to this failure; sqlite3_errcode tells.
-  const char* message = (db != nullptr && sqlite3_extended_errcode(db) == rc)
-                            ? sqlite3_errmsg(db)
-                            : sqlite3_errstr(rc);
-  return absl::Status(
-      CodeForSqlite(rc),
-      absl::StrCat(op, ": ", message, " (sqlite code ", rc, ")"));
-}
 
 // ---------------------------------------------------------------------------
 // Encodings
@@ -255,134 +144,6 @@ absl::StatusOr<PopulationPrior> DecodePrior(absl::string_view bytes,
   return prior;
 }
 
-// Action names may hold any byte, so no separator is safe; a JSON array of
-// strings is unambiguous and still readable in the sqlite3 shell.
-std::string EncodeNames(const std::vector<std::string>& names) {
-  static constexpr char kHex[] = "0123456789abcdef";
-  std::string out = "[";
-  for (size_t i = 0; i < names.size(); ++i) {
-    if (i > 0) out += ',';
-    out += '"';
-    for (const char ch : names[i]) {
-      const auto c = static_cast<unsigned char>(ch);
-      if (c == '"' || c == '\\') {
-        out += '\\';
-        out += ch;
-      } else if (c < 0x20) {
-        out += "\\u00";
-        out += kHex[c >> 4];
-        out += kHex[c & 0xf];
-      } else {
-        out += ch;
-      }
-    }
-    out += '"';
-  }
-  out += ']';
-  return out;
-}
-
-void AppendUtf8(uint32_t cp, std::string& out) {
-  if (cp < 0x80) {
-    out += static_cast<char>(cp);
-  } else if (cp < 0x800) {
-    out += static_cast<char>(0xc0 | (cp >> 6));
-    out += static_cast<char>(0x80 | (cp & 0x3f));
-  } else {
-    out += static_cast<char>(0xe0 | (cp >> 12));
-    out += static_cast<char>(0x80 | ((cp >> 6) & 0x3f));
-    out += static_cast<char>(0x80 | (cp & 0x3f));
-  }
-}
-
-// Parses what EncodeNames writes plus the other JSON string escapes (the
-// column may have been edited by hand); anything else is DATA_LOSS.
-absl::StatusOr<std::vector<std::string>> DecodeNames(absl::string_view text) {
-  const absl::Status bad = absl::DataLossError(
-      absl::StrCat("malformed action_names column: ", text));
-  std::vector<std::string> names;
-  size_t pos = 0;
-  auto at = [&](char c) { return pos < text.size() && text[pos] == c; };
-  if (!at('[')) return bad;
-  ++pos;
-  if (at(']')) {
-    ++pos;
-    return pos == text.size() ? absl::StatusOr<std::vector<std::string>>(names)
-                              : bad;
-  }
-  while (true) {
-    if (!at('"')) return bad;
-    ++pos;
-    std::string name;
-    while (true) {
-      if (pos >= text.size()) return bad;
-      const char c = text[pos++];
-      if (c == '"') break;
-      if (static_cast<unsigned char>(c) < 0x20) return bad;
-      if (c != '\\') {
-        name += c;
-        continue;
-      }
-      if (pos >= text.size()) return bad;
-      const char e = text[pos++];
-      switch (e) {
-        case '"':
-        case '\\':
-        case '/':
-          name += e;
-          break;
-        case 'b':
-          name += '\b';
-          break;
-        case 'f':
-          name += '\f';
-          break;
-        case 'n':
-          name += '\n';
-          break;
-        case 'r':
-          name += '\r';
-          break;
-        case 't':
-          name += '\t';
-          break;
-        case 'u': {
-          if (pos + 4 > text.size()) return bad;
-          uint32_t cp = 0;
-          for (int k = 0; k < 4; ++k) {
-            const char h = text[pos++];
-            cp <<= 4;
-            if (h >= '0' && h <= '9') {
-              cp |= static_cast<uint32_t>(h - '0');
-            } else if (h >= 'a' && h <= 'f') {
-              cp |= static_cast<uint32_t>(h - 'a' + 10);
-            } else if (h >= 'A' && h <= 'F') {
-              cp |= static_cast<uint32_t>(h - 'A' + 10);
-            } else {
-              return bad;
-            }
-          }
-          // EncodeNames never writes surrogates; pairs are not worth parsing.
-          if (cp >= 0xd800 && cp <= 0xdfff) return bad;
-          AppendUtf8(cp, name);
-          break;
-        }
-        default:
-          return bad;
-      }
-    }
-    names.push_back(std::move(name));
-    if (at(',')) {
-      ++pos;
-      continue;
-    }
-    if (!at(']')) return bad;
-    ++pos;
-    if (pos != text.size()) return bad;
-    return names;
-  }
-}
-
 // Page tokens are opaque to clients: a kind tag keeps a user token from being
 // replayed against an event listing, and base64 keeps arbitrary user ids
 // printable.
@@ -417,152 +178,6 @@ int ClampPageSize(int page_size) {
 }
 
 // ---------------------------------------------------------------------------
-// RAII over the SQLite C API
-
-// A prepared statement, finalized on destruction. Bind errors are remembered
-// and reported by the next Step, which keeps call sites to one check.
-class Statement {
- public:
-  static absl::StatusOr<Statement> Prepare(sqlite3* db, absl::string_view sql,
-                                           absl::string_view op) {
-    sqlite3_stmt* stmt = nullptr;
-    const int rc = sqlite3_prepare_v2(
-        db, sql.data(), static_cast<int>(sql.size()), &stmt, nullptr);
-    if (rc != SQLITE_OK) {
-      sqlite3_finalize(stmt);
-      return SqliteError(db, rc, op);
-    }
-    return Statement(db, stmt, op);
-  }
-
-  Statement(Statement&& other) noexcept
-      : db_(other.db_),
-        stmt_(std::exchange(other.stmt_, nullptr)),
-        op_(other.op_),
-        bind_rc_(other.bind_rc_) {}
-  Statement& operator=(Statement&&) = delete;
-  ~Statement() { sqlite3_finalize(stmt_); }
-
-  // Parameters are 1-based, as in SQL.
-  void BindInt64(int index, int64_t value) {
-    Check(sqlite3_bind_int64(stmt_, index, value));
-  }
-  void BindDouble(int index, double value) {
-    Check(sqlite3_bind_double(stmt_, index, value));
-  }
-  void BindText(int index, absl::string_view value) {
-    Check(sqlite3_bind_text64(stmt_, index, value.data(), value.size(),
-                              SQLITE_TRANSIENT, SQLITE_UTF8));
-  }
-  void BindBlob(int index, absl::string_view value) {
-    // A non-null pointer even for an empty value: a zero-length blob, not
-    // NULL.
-    Check(sqlite3_bind_blob64(stmt_, index, value.empty() ? "" : value.data(),
-                              value.size(), SQLITE_TRANSIENT));
-  }
-
-  // true: a row is ready; false: done.
-  absl::StatusOr<bool> Step() {
-    if (bind_rc_ != SQLITE_OK) return SqliteError(db_, bind_rc_, op_);
-    const int rc = sqlite3_step(stmt_);
-    if (rc == SQLITE_ROW) return true;
-    if (rc == SQLITE_DONE) return false;
-    return SqliteError(db_, rc, op_);
-  }
-
-  // Steps to completion; for statements whose rows (if any) are not needed,
-  // or after the one row that was.
-  absl::Status Run() {
-    while (true) {
-      ASSIGN_OR_RETURN(const bool row, Step());
-      if (!row) return absl::OkStatus();
-    }
-  }
-
-  // Columns are 0-based, as in the SQLite API.
-  bool IsNull(int col) {
-    return sqlite3_column_type(stmt_, col) == SQLITE_NULL;
-  }
-  int64_t Int64(int col) { return sqlite3_column_int64(stmt_, col); }
-  double Double(int col) { return sqlite3_column_double(stmt_, col); }
-  std::string Text(int col) {
-    const auto* data =
-        reinterpret_cast<const char*>(sqlite3_column_text(stmt_, col));
-    const int size = sqlite3_column_bytes(stmt_, col);
-    return data == nullptr ? std::string() : std::string(data, size);
-  }
-  absl::string_view Blob(int col) {
-    const auto* data =
-        static_cast<const char*>(sqlite3_column_blob(stmt_, col));
-    const int size = sqlite3_column_bytes(stmt_, col);
-    return data == nullptr ? absl::string_view()
-                           : absl::string_view(data, size);
-  }
-
- private:
-  Statement(sqlite3* db, sqlite3_stmt* stmt, absl::string_view op)
-      : db_(db), stmt_(stmt), op_(op) {}
-
-  void Check(int rc) {
-    if (rc != SQLITE_OK && bind_rc_ == SQLITE_OK) bind_rc_ = rc;
-  }
-
-  sqlite3* db_;
-  sqlite3_stmt* stmt_;
-  absl::string_view op_;  // a literal at every call site
-  int bind_rc_ = SQLITE_OK;
-};
-
-// Runs SQL without parameters (constants only, never user data).
-absl::Status Exec(sqlite3* db, const char* sql, absl::string_view op) {
-  const int rc = sqlite3_exec(db, sql, nullptr, nullptr, nullptr);
-  if (rc != SQLITE_OK) return SqliteError(db, rc, op);
-  return absl::OkStatus();
-}
-
-// A transaction that rolls back unless committed, so every early return of a
-// failed operation leaves the database as it was.
-class Transaction {
- public:
-  // Immediate transactions take the write lock up front; a deferred one that
-  // later writes could fail to upgrade its lock halfway through.
-  enum class Kind { kRead, kWrite };
-
-  static absl::StatusOr<Transaction> Begin(sqlite3* db, Kind kind,
-                                           absl::string_view op) {
-    RETURN_IF_ERROR(Exec(
-        db, kind == Kind::kWrite ? "BEGIN IMMEDIATE" : "BEGIN DEFERRED", op));
-    return Transaction(db, op);
-  }
-
-  Transaction(Transaction&& other) noexcept
-      : db_(std::exchange(other.db_, nullptr)), op_(other.op_) {}
-  Transaction& operator=(Transaction&&) = delete;
-
-  ~Transaction() {
-    // SQLite rolls back by itself after some errors (e.g. SQLITE_FULL);
-    // autocommit mode tells whether anything is left to undo.
-    if (db_ != nullptr && sqlite3_get_autocommit(db_) == 0) {
-      sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
-    }
-  }
-
-  absl::Status Commit() {
-    // On failure (e.g. SQLITE_BUSY) the transaction stays open and the
-    // destructor rolls it back.
-    RETURN_IF_ERROR(Exec(db_, "COMMIT", op_));
-    db_ = nullptr;
-    return absl::OkStatus();
-  }
-
- private:
-  Transaction(sqlite3* db, absl::string_view op) : db_(db), op_(op) {}
-
-  sqlite3* db_;
-  absl::string_view op_;
-};
-
-// ---------------------------------------------------------------------------
 // Rows
 
 absl::StatusOr<int> ToInt(int64_t value, absl::string_view what) {
@@ -574,8 +189,58 @@ absl::StatusOr<int> ToInt(int64_t value, absl::string_view what) {
   return static_cast<int>(value);
 }
 
-// Reads a row selected with kUserColumns.
-absl::StatusOr<UserRecord> ReadUser(Statement& st) {
+// The action names of one user or pool, stored one row per action in
+// `table` (user_actions, pool_actions) under `key_column`.
+absl::Status WriteActionNames(sqlite3* db, const char* table,
+                              const char* key_column, absl::string_view key,
+                              const std::vector<std::string>& names,
+                              absl::string_view op) {
+  for (size_t i = 0; i < names.size(); ++i) {
+    ASSIGN_OR_RETURN(
+        Statement row,
+        Statement::Prepare(db,
+                           absl::StrCat("INSERT INTO ", table, " (", key_column,
+                                        ", action, name) VALUES (?1, ?2, ?3)"),
+                           op));
+    row.BindText(1, key);
+    row.BindInt64(2, static_cast<int64_t>(i));
+    row.BindText(3, names[i]);
+    RETURN_IF_ERROR(row.Run());
+  }
+  return absl::OkStatus();
+}
+
+// Reads them back in action order; DATA_LOSS unless the actions are
+// 0, 1, ... with at least one.
+absl::StatusOr<std::vector<std::string>> ReadActionNames(
+    sqlite3* db, const char* table, const char* key_column,
+    absl::string_view key, absl::string_view what, absl::string_view op) {
+  ASSIGN_OR_RETURN(Statement st,
+                   Statement::Prepare(db,
+                                      absl::StrCat("SELECT action, name FROM ",
+                                                   table, " WHERE ", key_column,
+                                                   " = ?1 ORDER BY action"),
+                                      op));
+  st.BindText(1, key);
+  std::vector<std::string> names;
+  while (true) {
+    ASSIGN_OR_RETURN(const bool row, st.Step());
+    if (!row) break;
+    if (st.Int64(0) != static_cast<int64_t>(names.size())) {
+      return absl::DataLossError(absl::StrCat(what, ": action ", names.size(),
+                                              " has no name in ", table));
+    }
+    names.push_back(st.Text(1));
+  }
+  if (names.empty()) {
+    return absl::DataLossError(
+        absl::StrCat(what, ": no action names in ", table));
+  }
+  return names;
+}
+
+// Reads a row selected with kUserColumns (and its action names).
+absl::StatusOr<UserRecord> ReadUser(sqlite3* db, Statement& st) {
   UserRecord user;
   user.user_id = st.Text(0);
   const std::string what = absl::StrCat("user \"", user.user_id, "\"");
@@ -603,14 +268,16 @@ absl::StatusOr<UserRecord> ReadUser(Statement& st) {
                    ToInt(st.Int64(8), absl::StrCat(what, " context_dim")));
   ASSIGN_OR_RETURN(config.posthoc_dim,
                    ToInt(st.Int64(9), absl::StrCat(what, " posthoc_dim")));
-  ASSIGN_OR_RETURN(config.action_names, DecodeNames(st.Text(10)));
-  config.seed = static_cast<uint64_t>(st.Int64(11));
-  user.created_at = FromMicros(st.Int64(12));
-  user.model_version = st.Int64(13);
-  user.pending_events = st.Int64(14);
-  if (!st.IsNull(15)) {
+  ASSIGN_OR_RETURN(config.action_names,
+                   ReadActionNames(db, "user_actions", "user_id", user.user_id,
+                                   what, "reading action names"));
+  config.seed = static_cast<uint64_t>(st.Int64(10));
+  user.created_at = FromMicros(st.Int64(11));
+  user.model_version = st.Int64(12);
+  user.pending_events = st.Int64(13);
+  if (!st.IsNull(14)) {
     ASSIGN_OR_RETURN(config.prior,
-                     DecodePrior(st.Blob(15), absl::StrCat(what, " prior")));
+                     DecodePrior(st.Blob(14), absl::StrCat(what, " prior")));
     RETURN_IF_ERROR(ValidateConfig(config));
   }
   return user;
@@ -651,178 +318,6 @@ absl::Status UserNotFound(const std::string& user_id) {
 
 absl::Status EventNotFound(int64_t event_id) {
   return absl::NotFoundError(absl::StrCat("event ", event_id, " not found"));
-}
-
-// ---------------------------------------------------------------------------
-// Opening
-
-struct SqliteCloser {
-  void operator()(sqlite3* db) const { sqlite3_close_v2(db); }
-};
-
-absl::StatusOr<int64_t> ReadInt(sqlite3* db, const char* sql,
-                                absl::string_view op) {
-  ASSIGN_OR_RETURN(Statement st, Statement::Prepare(db, sql, op));
-  ASSIGN_OR_RETURN(const bool row, st.Step());
-  if (!row) return absl::InternalError(absl::StrCat(op, ": no result"));
-  return st.Int64(0);
-}
-
-// Returns the file's schema version after checking that this build may use
-// the file: 0 for a brand-new (empty) database, kSchemaVersion for a store.
-absl::StatusOr<int64_t> CheckExistingFile(sqlite3* db,
-                                          const std::string& path) {
-  // The first read of the file is where SQLite notices it is not a database.
-  const int rc = sqlite3_exec(db, "SELECT COUNT(*) FROM sqlite_schema", nullptr,
-                              nullptr, nullptr);
-  if ((rc & 0xff) == SQLITE_NOTADB) {
-    return absl::FailedPreconditionError(
-        absl::StrCat(path, " is not a SQLite database"));
-  }
-  if (rc != SQLITE_OK) {
-    return SqliteError(db, rc, absl::StrCat("opening ", path));
-  }
-  const std::string op = absl::StrCat("opening ", path);
-  ASSIGN_OR_RETURN(const int64_t version,
-                   ReadInt(db, "PRAGMA user_version", op));
-  ASSIGN_OR_RETURN(const int64_t app_id,
-                   ReadInt(db, "PRAGMA application_id", op));
-  ASSIGN_OR_RETURN(const int64_t objects,
-                   ReadInt(db, "SELECT COUNT(*) FROM sqlite_schema", op));
-  if (app_id != 0 && app_id != kApplicationId) {
-    return absl::FailedPreconditionError(
-        absl::StrCat(path,
-                     " is a SQLite database of another application "
-                     "(application_id ",
-                     app_id, ")"));
-  }
-  if (version == 0) {
-    if (objects != 0) {
-      return absl::FailedPreconditionError(
-          absl::StrCat(path,
-                       " is a SQLite database but not a bitewise bandit store "
-                       "(it has tables and no schema version)"));
-    }
-    return 0;
-  }
-  if (version != kSchemaVersion && version != 1) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        path, " has bandit store schema version ", version,
-        "; this build knows version ", kSchemaVersion,
-        version > kSchemaVersion ? " (written by a newer build?)" : ""));
-  }
-  if (app_id != kApplicationId) {
-    return absl::FailedPreconditionError(
-        absl::StrCat(path, " has schema version ", version,
-                     " but is not marked as a bitewise bandit store"));
-  }
-  return version;
-}
-
-absl::Status InitializeDatabase(sqlite3* db,
-                                const SqliteStoreOptions& options) {
-  const std::string& path = options.path;
-  const std::string op = absl::StrCat("opening ", path);
-  // Check before changing anything: a foreign file must stay untouched, and
-  // switching to WAL rewrites the header.
-  RETURN_IF_ERROR(CheckExistingFile(db, path).status());
-
-  {
-    ASSIGN_OR_RETURN(Statement st,
-                     Statement::Prepare(db, "PRAGMA journal_mode = WAL", op));
-    ASSIGN_OR_RETURN(const bool row, st.Step());
-    const std::string mode = row ? st.Text(0) : "";
-    RETURN_IF_ERROR(st.Run());
-    // An in-memory database reports "memory" and has no journal to speak of.
-    if (mode != "wal" && mode != "memory") {
-      return absl::FailedPreconditionError(absl::StrCat(
-          path, ": cannot switch to WAL journal mode (got \"", mode, "\")"));
-    }
-  }
-  RETURN_IF_ERROR(Exec(db, "PRAGMA foreign_keys = ON", op));
-  ASSIGN_OR_RETURN(const int64_t foreign_keys,
-                   ReadInt(db, "PRAGMA foreign_keys", op));
-  if (foreign_keys != 1) {
-    // DeleteUser relies on ON DELETE CASCADE.
-    return absl::FailedPreconditionError(
-        absl::StrCat(op, ": this SQLite build cannot enforce foreign keys"));
-  }
-  RETURN_IF_ERROR(Exec(db,
-                       options.synchronous_full ? "PRAGMA synchronous = FULL"
-                                                : "PRAGMA synchronous = NORMAL",
-                       op));
-
-  // Check again under the write lock: another process may have created the
-  // schema since the first look.
-  ASSIGN_OR_RETURN(Transaction txn,
-                   Transaction::Begin(db, Transaction::Kind::kWrite, op));
-  ASSIGN_OR_RETURN(const int64_t version, CheckExistingFile(db, path));
-  if (version == 0) {
-    RETURN_IF_ERROR(Exec(db, kSchemaSql, op));
-    RETURN_IF_ERROR(Exec(db, kPoolsSql, op));
-    RETURN_IF_ERROR(Exec(
-        db, absl::StrCat("PRAGMA application_id = ", kApplicationId).c_str(),
-        op));
-    RETURN_IF_ERROR(
-        Exec(db, absl::StrCat("PRAGMA user_version = ", kSchemaVersion).c_str(),
-             op));
-  } else if (version == 1) {
-    RETURN_IF_ERROR(Exec(db, kMigrateTo2Sql, op));
-    RETURN_IF_ERROR(Exec(db, kPoolsSql, op));
-    RETURN_IF_ERROR(Exec(db, "PRAGMA user_version = 2", op));
-  }
-  return txn.Commit();
-}
-
-// Takes an exclusive advisory lock on "<path>.lock" (released by the
-// kernel when the process ends, however it ends) and writes our pid into
-// it. ":memory:" needs none (-1). FAILED_PRECONDITION naming the holder when
-// another process has the store open; UNAVAILABLE if the lock file cannot
-// be made.
-absl::StatusOr<int> LockStoreFile(const std::string& path) {
-  if (path == ":memory:") return -1;
-  const std::string lock_path = path + ".lock";
-  const int fd = open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
-  if (fd < 0) {
-    return absl::UnavailableError(absl::StrCat(
-        "cannot create the lock file ", lock_path, ": ", std::strerror(errno)));
-  }
-  if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
-    char holder[32] = {0};
-    const ssize_t n = pread(fd, holder, sizeof(holder) - 1, 0);
-    close(fd);
-    return absl::FailedPreconditionError(absl::StrCat(
-        path, " is already open in another process (pid ",
-        n > 0 ? absl::StripAsciiWhitespace(holder) : "unknown", ", holding ",
-        lock_path,
-        "); one BanditService per database file: two would serve models that "
-        "miss each other's updates"));
-  }
-  const std::string pid = absl::StrCat(getpid(), "\n");
-  if (ftruncate(fd, 0) != 0 || pwrite(fd, pid.data(), pid.size(), 0) !=
-                                   static_cast<ssize_t>(pid.size())) {
-    // The lock is what matters; the pid is for the message.
-  }
-  return fd;
-}
-
-// PRAGMA integrity_check: a file whose structure is damaged (flipped bytes,
-// a torn copy) must not be served as if it were whole. DATA_LOSS naming the
-// path and SQLite's first findings.
-absl::Status CheckIntegrity(sqlite3* db, const std::string& path) {
-  const std::string op = absl::StrCat("checking ", path);
-  ASSIGN_OR_RETURN(Statement st,
-                   Statement::Prepare(db, "PRAGMA integrity_check(5)", op));
-  std::vector<std::string> findings;
-  while (true) {
-    ASSIGN_OR_RETURN(const bool row, st.Step());
-    if (!row) break;
-    findings.push_back(st.Text(0));
-  }
-  if (findings.size() == 1 && findings[0] == "ok") return absl::OkStatus();
-  return absl::DataLossError(absl::StrCat(
-      path, " failed SQLite's integrity check: ", absl::StrJoin(findings, "; "),
-      ". Restore the last backup (docs/operations.md)"));
 }
 
 }  // namespace
@@ -921,6 +416,9 @@ absl::Status SqliteEventStore::CreateUser(const UserRecord& user) {
   RETURN_IF_ERROR(ValidateConfig(user.config));
   const BanditConfig& c = user.config;
   absl::MutexLock lock(&mu_);
+  ASSIGN_OR_RETURN(
+      Transaction txn,
+      Transaction::Begin(db_, Transaction::Kind::kWrite, "CreateUser"));
   // model_version and pending_events describe stored events, of which a new
   // user has none; the caller's values are ignored.
   ASSIGN_OR_RETURN(
@@ -929,9 +427,9 @@ absl::Status SqliteEventStore::CreateUser(const UserRecord& user) {
           db_,
           "INSERT INTO users (user_id, learner, strategy, alpha, lambda_c, "
           "lambda_p, epsilon, importance_weighting, context_dim, posthoc_dim, "
-          "action_names, seed, created_at_us, model_version, prior) "
-          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, 0, "
-          "?14) ON CONFLICT (user_id) DO NOTHING RETURNING user_id",
+          "seed, created_at_us, model_version, prior) "
+          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, 0, "
+          "?13) ON CONFLICT (user_id) DO NOTHING RETURNING user_id",
           "CreateUser"));
   st.BindText(1, user.user_id);
   st.BindInt64(2, static_cast<int64_t>(c.learner));
@@ -943,19 +441,20 @@ absl::Status SqliteEventStore::CreateUser(const UserRecord& user) {
   st.BindInt64(8, c.importance_weighting ? 1 : 0);
   st.BindInt64(9, c.context_dim);
   st.BindInt64(10, c.posthoc_dim);
-  st.BindText(11, EncodeNames(c.action_names));
-  st.BindInt64(12, static_cast<int64_t>(c.seed));
-  st.BindInt64(13, ToMicros(user.created_at));
+  st.BindInt64(11, static_cast<int64_t>(c.seed));
+  st.BindInt64(12, ToMicros(user.created_at));
   const std::string prior =
       c.prior.enabled() ? EncodePrior(c.prior) : std::string();
-  if (c.prior.enabled()) st.BindBlob(14, prior);  // else NULL
+  if (c.prior.enabled()) st.BindBlob(13, prior);  // else NULL
   ASSIGN_OR_RETURN(const bool inserted, st.Step());
   RETURN_IF_ERROR(st.Run());
   if (!inserted) {
     return absl::AlreadyExistsError(
         absl::StrCat("user \"", user.user_id, "\" already exists"));
   }
-  return absl::OkStatus();
+  RETURN_IF_ERROR(WriteActionNames(db_, "user_actions", "user_id", user.user_id,
+                                   c.action_names, "CreateUser"));
+  return txn.Commit();
 }
 
 absl::StatusOr<UserRecord> SqliteEventStore::GetUserLocked(
@@ -967,7 +466,7 @@ absl::StatusOr<UserRecord> SqliteEventStore::GetUserLocked(
   st.BindText(1, user_id);
   ASSIGN_OR_RETURN(const bool row, st.Step());
   if (!row) return UserNotFound(user_id);
-  return ReadUser(st);
+  return ReadUser(db_, st);
 }
 
 absl::StatusOr<UserRecord> SqliteEventStore::GetUser(
@@ -1003,7 +502,7 @@ absl::StatusOr<PageResult<UserRecord>> SqliteEventStore::ListUsers(
       result.next_page_token = MakePageToken('u', result.items.back().user_id);
       break;
     }
-    ASSIGN_OR_RETURN(UserRecord user, ReadUser(st));
+    ASSIGN_OR_RETURN(UserRecord user, ReadUser(db_, st));
     result.items.push_back(std::move(user));
   }
   return result;
@@ -1184,12 +683,15 @@ absl::StatusOr<int64_t> SqliteEventStore::AddPool(const PoolRecord& pool) {
   RETURN_IF_ERROR(CheckHealth());
   absl::MutexLock lock(&mu_);
   ASSIGN_OR_RETURN(
+      Transaction txn,
+      Transaction::Begin(db_, Transaction::Kind::kWrite, "AddPool"));
+  ASSIGN_OR_RETURN(
       Statement st,
       Statement::Prepare(
           db_,
           "INSERT INTO population_pools (created_at_us, users, learner, "
-          "context_dim, posthoc_dim, action_names, prior) "
-          "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7) RETURNING pool_version",
+          "context_dim, posthoc_dim, prior) "
+          "VALUES (?1, ?2, ?3, ?4, ?5, ?6) RETURNING pool_version",
           "AddPool"));
   PopulationPrior stored = pool.prior;
   stored.pool_version = 0;
@@ -1200,12 +702,16 @@ absl::StatusOr<int64_t> SqliteEventStore::AddPool(const PoolRecord& pool) {
   st.BindInt64(3, static_cast<int64_t>(pool.learner));
   st.BindInt64(4, pool.context_dim);
   st.BindInt64(5, pool.posthoc_dim);
-  st.BindText(6, EncodeNames(pool.action_names));
-  st.BindBlob(7, prior);
+  st.BindBlob(6, prior);
   ASSIGN_OR_RETURN(const bool row, st.Step());
   if (!row) return absl::InternalError("AddPool: no pool_version returned");
   const int64_t version = st.Int64(0);
   RETURN_IF_ERROR(st.Run());
+  // Bound as text like any key; the column's INTEGER affinity converts it.
+  RETURN_IF_ERROR(WriteActionNames(db_, "pool_actions", "pool_version",
+                                   absl::StrCat(version), pool.action_names,
+                                   "AddPool"));
+  RETURN_IF_ERROR(txn.Commit());
   return version;
 }
 
@@ -1213,42 +719,48 @@ absl::StatusOr<PoolRecord> SqliteEventStore::LatestPool(
     const BanditConfig& config) {
   absl::MutexLock lock(&mu_);
   ASSIGN_OR_RETURN(
+      Transaction txn,
+      Transaction::Begin(db_, Transaction::Kind::kRead, "LatestPool"));
+  // The newest pool of this learner and these dimensions whose actions are
+  // the user's, name for name.
+  ASSIGN_OR_RETURN(
       Statement st,
       Statement::Prepare(
           db_,
           "SELECT pool_version, created_at_us, users, prior "
           "FROM population_pools WHERE learner = ?1 AND context_dim = ?2 AND "
-          "posthoc_dim = ?3 AND action_names = ?4 "
-          "ORDER BY pool_version DESC LIMIT 1",
+          "posthoc_dim = ?3 ORDER BY pool_version DESC",
           "LatestPool"));
   const int posthoc_dim =
       config.learner == Learner::kPostHoc ? config.posthoc_dim : 0;
   st.BindInt64(1, static_cast<int64_t>(config.learner));
   st.BindInt64(2, config.context_dim);
   st.BindInt64(3, posthoc_dim);
-  st.BindText(4, EncodeNames(config.action_names));
-  ASSIGN_OR_RETURN(const bool row, st.Step());
-  if (!row) {
-    return absl::NotFoundError(absl::StrCat(
-        "no population pool for ", LearnerName(config.learner),
-        " users with context_dim ", config.context_dim, ", posthoc_dim ",
-        posthoc_dim, " and these ", config.num_actions(),
-        " actions; build one with BuildPopulationPrior"));
+  while (true) {
+    ASSIGN_OR_RETURN(const bool row, st.Step());
+    if (!row) break;
+    PoolRecord pool;
+    pool.pool_version = st.Int64(0);
+    const std::string what = absl::StrCat("pool ", pool.pool_version);
+    ASSIGN_OR_RETURN(
+        pool.action_names,
+        ReadActionNames(db_, "pool_actions", "pool_version",
+                        absl::StrCat(pool.pool_version), what, "LatestPool"));
+    if (pool.action_names != config.action_names) continue;
+    pool.created_at = FromMicros(st.Int64(1));
+    pool.users = st.Int64(2);
+    pool.learner = config.learner;
+    pool.context_dim = config.context_dim;
+    pool.posthoc_dim = posthoc_dim;
+    ASSIGN_OR_RETURN(pool.prior, DecodePrior(st.Blob(3), what));
+    pool.prior.pool_version = pool.pool_version;
+    return pool;
   }
-  PoolRecord pool;
-  pool.pool_version = st.Int64(0);
-  pool.created_at = FromMicros(st.Int64(1));
-  pool.users = st.Int64(2);
-  pool.learner = config.learner;
-  pool.context_dim = config.context_dim;
-  pool.posthoc_dim = posthoc_dim;
-  pool.action_names = config.action_names;
-  ASSIGN_OR_RETURN(
-      pool.prior,
-      DecodePrior(st.Blob(3), absl::StrCat("pool ", pool.pool_version)));
-  pool.prior.pool_version = pool.pool_version;
-  RETURN_IF_ERROR(st.Run());
-  return pool;
+  return absl::NotFoundError(absl::StrCat(
+      "no population pool for ", LearnerName(config.learner),
+      " users with context_dim ", config.context_dim, ", posthoc_dim ",
+      posthoc_dim, " and these ", config.num_actions(),
+      " actions; build one with BuildPopulationPrior"));
 }
 
 absl::Status SqliteEventStore::CheckUserExistsLocked(

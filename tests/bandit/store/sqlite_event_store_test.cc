@@ -706,7 +706,7 @@ TEST_F(SqliteEventStoreTest, AcknowledgedUpdateSurvivesKill9) {
 TEST_F(SqliteEventStoreTest, FileIsWalWithSchemaVersion) {
   RawDb raw(path_);
   EXPECT_EQ(raw.Text("PRAGMA journal_mode"), "wal");
-  EXPECT_EQ(raw.Text("PRAGMA user_version"), "2");
+  EXPECT_EQ(raw.Text("PRAGMA user_version"), "3");
   EXPECT_NE(raw.Text("PRAGMA application_id"), "0");
 }
 
@@ -755,14 +755,14 @@ TEST_F(SqliteEventStoreTest, NotADatabaseIsFailedPrecondition) {
 
 TEST_F(SqliteEventStoreTest, NewerSchemaVersionIsFailedPrecondition) {
   store_.reset();
-  RawDb(path_).Exec("PRAGMA user_version = 3");
+  RawDb(path_).Exec("PRAGMA user_version = 4");
   SqliteStoreOptions options;
   options.path = path_;
   auto store = SqliteEventStore::Open(options);
   EXPECT_EQ(store.status().code(), absl::StatusCode::kFailedPrecondition)
       << store.status();
   EXPECT_THAT(store.status().message(), HasSubstr(path_));
-  EXPECT_THAT(store.status().message(), HasSubstr("version 3"));
+  EXPECT_THAT(store.status().message(), HasSubstr("version 4"));
 }
 
 PopulationPrior SmallPrior(int64_t version, double rounds) {
@@ -891,13 +891,33 @@ TEST_F(SqliteEventStoreTest, ADamagedFileIsDataLossNotAnEmptyStore) {
   EXPECT_THAT(store.status().message(), HasSubstr(path_));
 }
 
+// Turns the current store at `path` back into what a version 2 build wrote:
+// action names as a JSON column of users and pools, no child tables.
+void RewriteAsVersion2(const std::string& path,
+                       const std::string& user_names_json,
+                       const std::string& pool_names_json) {
+  RawDb raw(path);
+  raw.Exec(
+      "ALTER TABLE users ADD COLUMN action_names TEXT NOT NULL DEFAULT ''");
+  raw.Exec("UPDATE users SET action_names = '" + user_names_json + "'");
+  raw.Exec(
+      "ALTER TABLE population_pools ADD COLUMN action_names TEXT NOT NULL "
+      "DEFAULT ''");
+  raw.Exec("UPDATE population_pools SET action_names = '" + pool_names_json +
+           "'");
+  raw.Exec("DROP TABLE user_actions");
+  raw.Exec("DROP TABLE pool_actions");
+  raw.Exec("PRAGMA user_version = 2");
+}
+
 TEST_F(SqliteEventStoreTest, VersionOneFilesAreMigratedKeepingEverything) {
   ASSERT_TRUE(store_->CreateUser(MakeUser("old")).ok());
   auto id = store_->AppendPending(MakeEvent("old", "m1"));
   ASSERT_TRUE(id.ok());
   store_.reset();
+  RewriteAsVersion2(path_, R"(["VS0","VS90","TV0","TV90","TA0","TA90"])", "[]");
   {
-    RawDb raw(path_);  // what a version 1 build wrote
+    RawDb raw(path_);  // and back to what a version 1 build wrote
     raw.Exec("DROP TABLE population_pools");
     raw.Exec("ALTER TABLE users DROP COLUMN prior");
     raw.Exec("PRAGMA user_version = 1");
@@ -906,13 +926,79 @@ TEST_F(SqliteEventStoreTest, VersionOneFilesAreMigratedKeepingEverything) {
   options.path = path_;
   auto store = SqliteEventStore::Open(options);
   ASSERT_TRUE(store.ok()) << store.status();
-  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "2");
+  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "3");
   auto user = (*store)->GetUser("old");
   ASSERT_TRUE(user.ok()) << user.status();
   EXPECT_EQ(user->pending_events, 1);
+  EXPECT_EQ(user->config.action_names, SmallConfig().action_names);
   EXPECT_FALSE(user->config.prior.enabled());
   EXPECT_EQ((*store)->LatestPool(SmallConfig()).status().code(),
             absl::StatusCode::kNotFound);
+}
+
+// Version 2 kept action names as JSON; version 3 moves them, byte for byte
+// (quotes, backslashes, control characters, NUL, non-ASCII), into
+// user_actions and pool_actions and drops the columns.
+TEST_F(SqliteEventStoreTest, VersionTwoActionNamesMoveIntoChildTables) {
+  BanditConfig config = SmallConfig();
+  config.action_names = {"a\"b",     "c\\d",      std::string("\0x", 2),
+                         "\xc3\xa9", "tab\there", "/"};
+  UserRecord user = MakeUser("v2");
+  user.config = config;
+  ASSERT_TRUE(store_->CreateUser(user).ok());
+  PoolRecord pool;
+  pool.users = 4;
+  pool.learner = config.learner;
+  pool.context_dim = config.context_dim;
+  pool.posthoc_dim = config.posthoc_dim;
+  pool.action_names = config.action_names;
+  pool.prior = SmallPrior(0, 0.0);
+  ASSERT_TRUE(store_->AddPool(pool).ok());
+  store_.reset();
+  const std::string json =
+      R"(["a\"b","c\\d","\u0000x","\u00e9","tab\there","\/"])";
+  RewriteAsVersion2(path_, json, json);
+
+  SqliteStoreOptions options;
+  options.path = path_;
+  auto store = SqliteEventStore::Open(options);
+  ASSERT_TRUE(store.ok()) << store.status();
+  auto migrated = (*store)->GetUser("v2");
+  ASSERT_TRUE(migrated.ok()) << migrated.status();
+  EXPECT_EQ(migrated->config.action_names, config.action_names);
+  auto found = (*store)->LatestPool(config);
+  ASSERT_TRUE(found.ok()) << found.status();
+  EXPECT_EQ(found->action_names, config.action_names);
+  RawDb raw(path_);
+  EXPECT_EQ(raw.Text("SELECT COUNT(*) FROM pragma_table_info('users') "
+                     "WHERE name = 'action_names'"),
+            "0");
+  EXPECT_EQ(raw.Text("SELECT COUNT(*) FROM user_actions"), "6");
+  EXPECT_EQ(raw.Text("SELECT COUNT(*) FROM pool_actions"), "6");
+}
+
+TEST_F(SqliteEventStoreTest, MalformedVersionTwoNamesAreDataLossAndUntouched) {
+  ASSERT_TRUE(store_->CreateUser(MakeUser("broken")).ok());
+  store_.reset();
+  RewriteAsVersion2(path_, R"(["VS0","VS90)", "[]");
+  SqliteStoreOptions options;
+  options.path = path_;
+  auto store = SqliteEventStore::Open(options);
+  EXPECT_EQ(store.status().code(), absl::StatusCode::kDataLoss)
+      << store.status();
+  EXPECT_THAT(store.status().message(), HasSubstr("broken"));
+  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "2");  // rolled back
+}
+
+// The child tables are the truth: a missing name is DATA_LOSS naming the
+// user, not a shorter action list.
+TEST_F(SqliteEventStoreTest, MissingActionNameIsDataLoss) {
+  ASSERT_TRUE(store_->CreateUser(MakeUser("alice")).ok());
+  RawDb(path_).Exec("DELETE FROM user_actions WHERE action = 2");
+  auto user = store_->GetUser("alice");
+  EXPECT_EQ(user.status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(user.status().message(), HasSubstr("alice"));
+  EXPECT_THAT(user.status().message(), HasSubstr("action 2"));
 }
 
 TEST_F(SqliteEventStoreTest, ForeignDatabaseIsFailedPreconditionAndUntouched) {

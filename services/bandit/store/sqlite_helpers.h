@@ -1,0 +1,179 @@
+// RAII over the SQLite C API for the bandit store (internal to
+// services/bandit/store): prepared statements, transactions that roll back
+// unless committed, and SQLite result codes as absl::Status.
+#ifndef BITEWISE_SERVICES_BANDIT_STORE_SQLITE_HELPERS_H_
+#define BITEWISE_SERVICES_BANDIT_STORE_SQLITE_HELPERS_H_
+
+#include <sqlite3.h>
+
+#include <cstdint>
+#include <string>
+#include <utility>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "services/common/status_macros.h"
+
+namespace bitewise::bandit::sqlite {
+
+// The absl code for a SQLite result code: BUSY/LOCKED UNAVAILABLE (retrying
+// later can succeed), CORRUPT/NOTADB DATA_LOSS, FULL/NOMEM
+// RESOURCE_EXHAUSTED, CONSTRAINT and permission problems
+// FAILED_PRECONDITION, TOOBIG/RANGE/MISMATCH INVALID_ARGUMENT, else INTERNAL.
+absl::StatusCode CodeForSqlite(int rc);
+
+// `op`: SQLite's message for `rc` (the connection's when it is this
+// failure's), with the code.
+absl::Status SqliteError(sqlite3* db, int rc, absl::string_view op);
+
+// A prepared statement, finalized on destruction. Bind errors are remembered
+// and reported by the next Step, which keeps call sites to one check.
+class Statement {
+ public:
+  static absl::StatusOr<Statement> Prepare(sqlite3* db, absl::string_view sql,
+                                           absl::string_view op) {
+    sqlite3_stmt* stmt = nullptr;
+    const int rc = sqlite3_prepare_v2(
+        db, sql.data(), static_cast<int>(sql.size()), &stmt, nullptr);
+    if (rc != SQLITE_OK) {
+      sqlite3_finalize(stmt);
+      return SqliteError(db, rc, op);
+    }
+    return Statement(db, stmt, op);
+  }
+
+  Statement(Statement&& other) noexcept
+      : db_(other.db_),
+        stmt_(std::exchange(other.stmt_, nullptr)),
+        op_(other.op_),
+        bind_rc_(other.bind_rc_) {}
+  Statement& operator=(Statement&&) = delete;
+  ~Statement() { sqlite3_finalize(stmt_); }
+
+  // Parameters are 1-based, as in SQL.
+  void BindInt64(int index, int64_t value) {
+    Check(sqlite3_bind_int64(stmt_, index, value));
+  }
+  void BindDouble(int index, double value) {
+    Check(sqlite3_bind_double(stmt_, index, value));
+  }
+  void BindText(int index, absl::string_view value) {
+    Check(sqlite3_bind_text64(stmt_, index, value.data(), value.size(),
+                              SQLITE_TRANSIENT, SQLITE_UTF8));
+  }
+  void BindBlob(int index, absl::string_view value) {
+    // A non-null pointer even for an empty value: a zero-length blob, not
+    // NULL.
+    Check(sqlite3_bind_blob64(stmt_, index, value.empty() ? "" : value.data(),
+                              value.size(), SQLITE_TRANSIENT));
+  }
+
+  // true: a row is ready; false: done.
+  absl::StatusOr<bool> Step() {
+    if (bind_rc_ != SQLITE_OK) return SqliteError(db_, bind_rc_, op_);
+    const int rc = sqlite3_step(stmt_);
+    if (rc == SQLITE_ROW) return true;
+    if (rc == SQLITE_DONE) return false;
+    return SqliteError(db_, rc, op_);
+  }
+
+  // Steps to completion; for statements whose rows (if any) are not needed,
+  // or after the one row that was.
+  absl::Status Run() {
+    while (true) {
+      ASSIGN_OR_RETURN(const bool row, Step());
+      if (!row) return absl::OkStatus();
+    }
+  }
+
+  // Columns are 0-based, as in the SQLite API.
+  bool IsNull(int col) {
+    return sqlite3_column_type(stmt_, col) == SQLITE_NULL;
+  }
+  int64_t Int64(int col) { return sqlite3_column_int64(stmt_, col); }
+  double Double(int col) { return sqlite3_column_double(stmt_, col); }
+  std::string Text(int col) {
+    const auto* data =
+        reinterpret_cast<const char*>(sqlite3_column_text(stmt_, col));
+    const int size = sqlite3_column_bytes(stmt_, col);
+    return data == nullptr ? std::string() : std::string(data, size);
+  }
+  absl::string_view Blob(int col) {
+    const auto* data =
+        static_cast<const char*>(sqlite3_column_blob(stmt_, col));
+    const int size = sqlite3_column_bytes(stmt_, col);
+    return data == nullptr ? absl::string_view()
+                           : absl::string_view(data, size);
+  }
+
+ private:
+  Statement(sqlite3* db, sqlite3_stmt* stmt, absl::string_view op)
+      : db_(db), stmt_(stmt), op_(op) {}
+
+  void Check(int rc) {
+    if (rc != SQLITE_OK && bind_rc_ == SQLITE_OK) bind_rc_ = rc;
+  }
+
+  sqlite3* db_;
+  sqlite3_stmt* stmt_;
+  absl::string_view op_;  // a literal at every call site
+  int bind_rc_ = SQLITE_OK;
+};
+
+// Runs SQL without parameters (constants only, never user data).
+absl::Status Exec(sqlite3* db, const char* sql, absl::string_view op);
+
+// The single integer a query returns (a PRAGMA, a COUNT).
+absl::StatusOr<int64_t> ReadInt(sqlite3* db, const char* sql,
+                                absl::string_view op);
+
+// A transaction that rolls back unless committed, so every early return of a
+// failed operation leaves the database as it was.
+class Transaction {
+ public:
+  // Immediate transactions take the write lock up front; a deferred one that
+  // later writes could fail to upgrade its lock halfway through.
+  enum class Kind { kRead, kWrite };
+
+  static absl::StatusOr<Transaction> Begin(sqlite3* db, Kind kind,
+                                           absl::string_view op) {
+    RETURN_IF_ERROR(Exec(
+        db, kind == Kind::kWrite ? "BEGIN IMMEDIATE" : "BEGIN DEFERRED", op));
+    return Transaction(db, op);
+  }
+
+  Transaction(Transaction&& other) noexcept
+      : db_(std::exchange(other.db_, nullptr)), op_(other.op_) {}
+  Transaction& operator=(Transaction&&) = delete;
+
+  ~Transaction() {
+    // SQLite rolls back by itself after some errors (e.g. SQLITE_FULL);
+    // autocommit mode tells whether anything is left to undo.
+    if (db_ != nullptr && sqlite3_get_autocommit(db_) == 0) {
+      sqlite3_exec(db_, "ROLLBACK", nullptr, nullptr, nullptr);
+    }
+  }
+
+  absl::Status Commit() {
+    // On failure (e.g. SQLITE_BUSY) the transaction stays open and the
+    // destructor rolls it back.
+    RETURN_IF_ERROR(Exec(db_, "COMMIT", op_));
+    db_ = nullptr;
+    return absl::OkStatus();
+  }
+
+ private:
+  Transaction(sqlite3* db, absl::string_view op) : db_(db), op_(op) {}
+
+  sqlite3* db_;
+  absl::string_view op_;
+};
+
+struct SqliteCloser {
+  void operator()(sqlite3* db) const { sqlite3_close_v2(db); }
+};
+
+}  // namespace bitewise::bandit::sqlite
+
+#endif  // BITEWISE_SERVICES_BANDIT_STORE_SQLITE_HELPERS_H_

@@ -1,0 +1,43 @@
+// The bandit store's file: its schema and migrations, and the checks made
+// when it is opened (internal to services/bandit/store).
+//
+// Schema versions: 1 events and users; 2 adds the users' population priors
+// and the pools; 3 moves action names from JSON columns into the child
+// tables user_actions and pool_actions. Older files are migrated in one
+// transaction when opened; a newer file is refused untouched.
+#ifndef BITEWISE_SERVICES_BANDIT_STORE_SQLITE_SCHEMA_H_
+#define BITEWISE_SERVICES_BANDIT_STORE_SQLITE_SCHEMA_H_
+
+#include <sqlite3.h>
+
+#include <string>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "services/bandit/store/sqlite_event_store.h"
+
+namespace bitewise::bandit::sqlite {
+
+inline constexpr int kSchemaVersion = 3;
+
+// Checks that the file is a bitewise store (or empty), switches to WAL with
+// foreign keys and the options' synchronous mode, then creates the schema or
+// migrates an older one. FAILED_PRECONDITION naming the path for a foreign
+// file, an unknown version, or a SQLite build without foreign keys;
+// DATA_LOSS for unreadable version-2 action names.
+absl::Status InitializeDatabase(sqlite3* db, const SqliteStoreOptions& options);
+
+// Takes an exclusive advisory lock on "<path>.lock" (released by the kernel
+// when the process ends, however it ends) and writes our pid into it.
+// ":memory:" needs none (-1). FAILED_PRECONDITION naming the holder when
+// another process has the store open; UNAVAILABLE if the lock file cannot be
+// made.
+absl::StatusOr<int> LockStoreFile(const std::string& path);
+
+// PRAGMA integrity_check: DATA_LOSS naming the path and SQLite's first
+// findings when the file's structure is damaged.
+absl::Status CheckIntegrity(sqlite3* db, const std::string& path);
+
+}  // namespace bitewise::bandit::sqlite
+
+#endif  // BITEWISE_SERVICES_BANDIT_STORE_SQLITE_SCHEMA_H_
