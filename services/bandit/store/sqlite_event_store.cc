@@ -19,6 +19,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/string_view.h"
+#include "services/bandit/store/event_checksum.h"
 #include "services/bandit/store/sqlite_helpers.h"
 #include "services/bandit/store/sqlite_schema.h"
 #include "services/common/status_macros.h"
@@ -51,7 +52,7 @@ FROM users u
 constexpr char kEventColumns[] = R"sql(
 SELECT event_id, user_id, meal_id, item_label, context, action, propensity,
        selected_at_us, completed, loss, posthoc, weight, model_version,
-       updated_at_us
+       updated_at_us, selection_checksum, outcome_checksum
 FROM events
 )sql";
 
@@ -298,6 +299,26 @@ absl::StatusOr<EventRecord> ReadEvent(Statement& st) {
   event.propensity = st.Double(6);
   event.selected_at = FromMicros(st.Int64(7));
   event.completed = st.Int64(8) != 0;
+  if (st.Int64(14) != SelectionChecksum(event.user_id, event.meal_id,
+                                        event.item_label, st.Blob(4),
+                                        event.action, event.propensity,
+                                        st.Int64(7))) {
+    return absl::DataLossError(absl::StrCat(
+        what, " of user \"", event.user_id,
+        "\": its selection does not match its checksum (altered or damaged "
+        "on disk); it is not learned from. Restore the last backup or "
+        "ResetUser (docs/operations.md)"));
+  }
+  if (event.completed &&
+      (st.IsNull(15) ||
+       st.Int64(15) != OutcomeChecksum(st.Double(9), st.Blob(10), st.Double(11),
+                                       st.Int64(12), st.Int64(13)))) {
+    return absl::DataLossError(absl::StrCat(
+        what, " of user \"", event.user_id,
+        "\": its outcome does not match its checksum (altered or damaged "
+        "on disk); it is not learned from. Restore the last backup or "
+        "ResetUser (docs/operations.md)"));
+  }
   if (event.completed) {
     event.loss = st.Double(9);
     if (!st.IsNull(10)) {
@@ -572,8 +593,8 @@ absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
       Statement::Prepare(
           db_,
           "INSERT INTO events (user_id, meal_id, item_label, context, action, "
-          "propensity, selected_at_us, completed) "
-          "SELECT ?1, ?2, ?3, ?4, ?5, ?6, ?7, 0 "
+          "propensity, selected_at_us, completed, selection_checksum) "
+          "SELECT ?1, ?2, ?3, ?4, ?5, ?6, ?7, 0, ?8 "
           "WHERE EXISTS (SELECT 1 FROM users WHERE user_id = ?1) "
           "RETURNING event_id",
           "AppendPending"));
@@ -584,6 +605,10 @@ absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
   st.BindInt64(5, event.action);
   st.BindDouble(6, event.propensity);
   st.BindInt64(7, ToMicros(event.selected_at));
+  st.BindInt64(8,
+               SelectionChecksum(event.user_id, event.meal_id, event.item_label,
+                                 context, event.action, event.propensity,
+                                 ToMicros(event.selected_at)));
   ASSIGN_OR_RETURN(const bool inserted, st.Step());
   const int64_t event_id = inserted ? st.Int64(0) : 0;
   RETURN_IF_ERROR(st.Run());
@@ -646,8 +671,8 @@ absl::StatusOr<EventRecord> SqliteEventStore::CompleteEvent(
         Statement::Prepare(
             db_,
             "UPDATE events SET completed = 1, loss = ?2, posthoc = ?3, "
-            "weight = ?4, model_version = ?5, updated_at_us = ?6 "
-            "WHERE event_id = ?1",
+            "weight = ?4, model_version = ?5, updated_at_us = ?6, "
+            "outcome_checksum = ?7 WHERE event_id = ?1",
             "CompleteEvent"));
     st.BindInt64(1, event_id);
     st.BindDouble(2, loss);
@@ -655,6 +680,8 @@ absl::StatusOr<EventRecord> SqliteEventStore::CompleteEvent(
     st.BindDouble(4, weight);
     st.BindInt64(5, event.model_version);
     st.BindInt64(6, ToMicros(updated_at));
+    st.BindInt64(7, OutcomeChecksum(loss, posthoc_bytes, weight,
+                                    event.model_version, ToMicros(updated_at)));
     RETURN_IF_ERROR(st.Run());
   }
   RETURN_IF_ERROR(txn.Commit());

@@ -11,6 +11,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
+#include "services/bandit/store/event_checksum.h"
 #include "services/bandit/store/sqlite_helpers.h"
 #include "services/common/status_macros.h"
 
@@ -61,6 +62,10 @@ CREATE TABLE events (
   weight ANY CHECK (typeof(weight) IN ('real', 'null')),
   model_version INTEGER,
   updated_at_us INTEGER,
+  -- event_checksum.h: of the selection's columns, and of the outcome's
+  -- (NULL while pending).
+  selection_checksum INTEGER NOT NULL,
+  outcome_checksum INTEGER,
   CHECK ((completed = 1) = (model_version IS NOT NULL))
 ) STRICT;
 
@@ -251,7 +256,46 @@ absl::Status CopyVersion2Names(sqlite3* db, const char* select,
   }
 }
 
+// Version 2 -> 3 also gives every event its checksums.
+absl::Status AddEventChecksums(sqlite3* db, const std::string& op) {
+  RETURN_IF_ERROR(Exec(db,
+                       "ALTER TABLE events ADD COLUMN selection_checksum "
+                       "INTEGER NOT NULL DEFAULT 0",
+                       op));
+  RETURN_IF_ERROR(
+      Exec(db, "ALTER TABLE events ADD COLUMN outcome_checksum INTEGER", op));
+  ASSIGN_OR_RETURN(
+      Statement rows,
+      Statement::Prepare(db,
+                         "SELECT event_id, user_id, meal_id, item_label, "
+                         "context, action, propensity, selected_at_us, "
+                         "completed, loss, posthoc, weight, model_version, "
+                         "updated_at_us FROM events",
+                         op));
+  while (true) {
+    ASSIGN_OR_RETURN(const bool row, rows.Step());
+    if (!row) return absl::OkStatus();
+    ASSIGN_OR_RETURN(Statement st,
+                     Statement::Prepare(db,
+                                        "UPDATE events SET selection_checksum "
+                                        "= ?2, outcome_checksum = ?3 WHERE "
+                                        "event_id = ?1",
+                                        op));
+    st.BindInt64(1, rows.Int64(0));
+    st.BindInt64(2, SelectionChecksum(rows.Text(1), rows.Text(2), rows.Text(3),
+                                      rows.Blob(4), rows.Int64(5),
+                                      rows.Double(6), rows.Int64(7)));
+    if (rows.Int64(8) != 0) {
+      st.BindInt64(
+          3, OutcomeChecksum(rows.Double(9), rows.Blob(10), rows.Double(11),
+                             rows.Int64(12), rows.Int64(13)));
+    }
+    RETURN_IF_ERROR(st.Run());
+  }
+}
+
 absl::Status MigrateTo3(sqlite3* db, const std::string& op) {
+  RETURN_IF_ERROR(AddEventChecksums(db, op));
   RETURN_IF_ERROR(Exec(db, kUserActionsSql, op));
   RETURN_IF_ERROR(Exec(db, kPoolActionsSql, op));
   RETURN_IF_ERROR(CopyVersion2Names(

@@ -3,7 +3,8 @@
 //
 // Schema versions: 1 events and users; 2 adds the users' population priors
 // and the pools; 3 moves action names from JSON columns into the child
-// tables user_actions and pool_actions. Older files are migrated in one
+// tables user_actions and pool_actions and gives every event its checksums
+// (event_checksum.h). Older files are migrated in one
 // transaction when opened; a newer file is refused untouched.
 #ifndef BITEWISE_SERVICES_BANDIT_STORE_SQLITE_SCHEMA_H_
 #define BITEWISE_SERVICES_BANDIT_STORE_SQLITE_SCHEMA_H_

@@ -907,6 +907,8 @@ void RewriteAsVersion2(const std::string& path,
            "'");
   raw.Exec("DROP TABLE user_actions");
   raw.Exec("DROP TABLE pool_actions");
+  raw.Exec("ALTER TABLE events DROP COLUMN selection_checksum");
+  raw.Exec("ALTER TABLE events DROP COLUMN outcome_checksum");
   raw.Exec("PRAGMA user_version = 2");
 }
 
@@ -931,6 +933,13 @@ TEST_F(SqliteEventStoreTest, VersionOneFilesAreMigratedKeepingEverything) {
   ASSERT_TRUE(user.ok()) << user.status();
   EXPECT_EQ(user->pending_events, 1);
   EXPECT_EQ(user->config.action_names, SmallConfig().action_names);
+  // The migration gave the event its checksum: it reads back, and completes.
+  ASSERT_TRUE((*store)->GetEvent(*id).ok());
+  ASSERT_TRUE((*store)
+                  ->CompleteEvent(*id, 1.0, {0.5, -0.5}, 1.0,
+                                  absl::FromUnixSeconds(1700000100))
+                  .ok());
+  EXPECT_TRUE((*store)->CompletedEvents("old").ok());
   EXPECT_FALSE(user->config.prior.enabled());
   EXPECT_EQ((*store)->LatestPool(SmallConfig()).status().code(),
             absl::StatusCode::kNotFound);
@@ -988,6 +997,40 @@ TEST_F(SqliteEventStoreTest, MalformedVersionTwoNamesAreDataLossAndUntouched) {
       << store.status();
   EXPECT_THAT(store.status().message(), HasSubstr("broken"));
   EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "2");  // rolled back
+}
+
+// An event altered on disk is DATA_LOSS naming it, for its selection and
+// for its outcome, wherever it is read, so it is never learned from.
+TEST_F(SqliteEventStoreTest, AlteredEventIsDataLossNamingIt) {
+  ASSERT_TRUE(store_->CreateUser(MakeUser("alice")).ok());
+  const int64_t id = MustAppend(MakeEvent("alice", "m"));
+  ASSERT_TRUE(store_
+                  ->CompleteEvent(id, 1.0, {0.25, 0.75}, 1.0,
+                                  absl::FromUnixSeconds(1700000100))
+                  .ok());
+  ASSERT_TRUE(store_->GetEvent(id).ok());
+  RawDb(path_).Exec(absl::StrCat(
+      "UPDATE events SET loss = 0.0 WHERE event_id = ", id));  // "success"
+  auto event = store_->GetEvent(id);
+  EXPECT_EQ(event.status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(event.status().message(),
+              HasSubstr(absl::StrCat("event ", id, " of user \"alice\"")));
+  EXPECT_THAT(event.status().message(), HasSubstr("outcome"));
+  EXPECT_EQ(store_->CompletedEvents("alice").status().code(),
+            absl::StatusCode::kDataLoss);
+
+  const int64_t other = MustAppend(MakeEvent("alice", "m"));
+  RawDb(path_).Exec(
+      absl::StrCat("UPDATE events SET action = 5 WHERE event_id = ", other));
+  auto pending = store_->GetEvent(other);
+  EXPECT_EQ(pending.status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(pending.status().message(), HasSubstr("selection"));
+  EXPECT_EQ(store_
+                ->CompleteEvent(other, 0.0, {0.5, 0.5}, 1.0,
+                                absl::FromUnixSeconds(1700000200))
+                .status()
+                .code(),
+            absl::StatusCode::kDataLoss);
 }
 
 // The child tables are the truth: a missing name is DATA_LOSS naming the
