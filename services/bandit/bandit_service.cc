@@ -38,17 +38,20 @@ grpc::Status BanditServiceImpl::Update(grpc::ServerContext* context,
 grpc::Status BanditServiceImpl::CreateUser(grpc::ServerContext* context,
                                            const v1::CreateUserRequest* request,
                                            v1::User* response) {
-  return RunRpc("BanditService/CreateUser", context, [&]() -> absl::Status {
-    RETURN_IF_ERROR(ValidateUserId(request->user_id()));
-    ASSIGN_OR_RETURN(
-        const BanditConfig config,
-        ConfigFromProto(request->config(), defaults_, request->user_id()));
-    ASSIGN_OR_RETURN(const UserRecord user,
-                     engine_->CreateUser(request->user_id(), config,
-                                         request->config().prior_rounds()));
-    UserToProto(user, response);
-    return absl::OkStatus();
-  });
+  return RunRpc(
+      "BanditService/CreateUser", context,
+      [&]() -> absl::Status {
+        RETURN_IF_ERROR(ValidateUserId(request->user_id()));
+        ASSIGN_OR_RETURN(
+            const BanditConfig config,
+            ConfigFromProto(request->config(), defaults_, request->user_id()));
+        ASSIGN_OR_RETURN(const UserRecord user,
+                         engine_->CreateUser(request->user_id(), config,
+                                             request->config().prior_rounds()));
+        UserToProto(user, response);
+        return absl::OkStatus();
+      },
+      RpcPolicy::kNormal, request->user_id());
 }
 
 grpc::Status BanditServiceImpl::GetUser(grpc::ServerContext* context,
@@ -80,19 +83,24 @@ grpc::Status BanditServiceImpl::ListUsers(grpc::ServerContext* context,
 grpc::Status BanditServiceImpl::ResetUser(grpc::ServerContext* context,
                                           const v1::ResetUserRequest* request,
                                           v1::User* response) {
-  return RunRpc("BanditService/ResetUser", context, [&]() -> absl::Status {
-    ASSIGN_OR_RETURN(const UserRecord user,
-                     engine_->ResetUser(request->user_id()));
-    UserToProto(user, response);
-    return absl::OkStatus();
-  });
+  return RunRpc(
+      "BanditService/ResetUser", context,
+      [&]() -> absl::Status {
+        ASSIGN_OR_RETURN(const UserRecord user,
+                         engine_->ResetUser(request->user_id()));
+        UserToProto(user, response);
+        return absl::OkStatus();
+      },
+      RpcPolicy::kNormal, request->user_id());
 }
 
 grpc::Status BanditServiceImpl::DeleteUser(grpc::ServerContext* context,
                                            const v1::DeleteUserRequest* request,
                                            v1::DeleteUserResponse*) {
-  return RunRpc("BanditService/DeleteUser", context,
-                [&] { return engine_->DeleteUser(request->user_id()); });
+  return RunRpc(
+      "BanditService/DeleteUser", context,
+      [&] { return engine_->DeleteUser(request->user_id()); },
+      RpcPolicy::kNormal, request->user_id());
 }
 
 grpc::Status BanditServiceImpl::GetModel(grpc::ServerContext* context,
@@ -136,6 +144,44 @@ grpc::Status BanditServiceImpl::BuildPopulationPrior(
         PoolToProto(pool, response);
         return absl::OkStatus();
       });
+}
+
+grpc::Status BanditServiceImpl::CheckStore(grpc::ServerContext* context,
+                                           const v1::CheckStoreRequest*,
+                                           v1::CheckStoreResponse* response) {
+  return RunRpc("BanditService/CheckStore", context, [&]() -> absl::Status {
+    const absl::Time start = absl::Now();
+    ASSIGN_OR_RETURN(const StoreCheckReport report, engine_->CheckStore());
+    CheckReportToProto(report, absl::Now() - start, response);
+    return absl::OkStatus();
+  });
+}
+
+grpc::Status BanditServiceImpl::ListAudit(grpc::ServerContext* context,
+                                          const v1::ListAuditRequest* request,
+                                          v1::ListAuditResponse* response) {
+  return RunRpc("BanditService/ListAudit", context, [&]() -> absl::Status {
+    ASSIGN_OR_RETURN(const PageResult<AuditEntry> page,
+                     engine_->ListAudit(PageFromProto(request->page_size(),
+                                                      request->page_token())));
+    for (const AuditEntry& entry : page.items) {
+      AuditToProto(entry, response->add_records());
+    }
+    response->set_next_page_token(page.next_page_token);
+    return absl::OkStatus();
+  });
+}
+
+absl::Status StoreAuditSink::Record(const AuditEvent& event) {
+  AuditEntry entry;
+  entry.time = event.time;
+  entry.method = event.method;
+  entry.target = event.target;
+  entry.identity = event.identity;
+  entry.role = event.role;
+  entry.peer = event.peer;
+  entry.result = event.result;
+  return store_->AppendAudit(entry).status();
 }
 
 }  // namespace bitewise::bandit

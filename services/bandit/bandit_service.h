@@ -8,6 +8,7 @@
 #include "bitewise/v1/bandit.grpc.pb.h"
 #include "services/bandit/core/config.h"
 #include "services/bandit/engine.h"
+#include "services/common/audit.h"
 
 namespace bitewise::bandit {
 
@@ -48,10 +49,27 @@ class BanditServiceImpl final : public v1::BanditService::Service {
       grpc::ServerContext* context,
       const v1::BuildPopulationPriorRequest* request,
       v1::PopulationPool* response) override;
+  grpc::Status CheckStore(grpc::ServerContext* context,
+                          const v1::CheckStoreRequest* request,
+                          v1::CheckStoreResponse* response) override;
+  grpc::Status ListAudit(grpc::ServerContext* context,
+                         const v1::ListAuditRequest* request,
+                         v1::ListAuditResponse* response) override;
 
  private:
   BanditEngine* const engine_;
   const BanditConfig defaults_;
+};
+
+// Keeps the audit trail (services/common/audit.h) in the event store, where
+// ListAudit reads it. `store` must outlive the sink.
+class StoreAuditSink final : public AuditSink {
+ public:
+  explicit StoreAuditSink(EventStore* store) : store_(store) {}
+  absl::Status Record(const AuditEvent& event) override;
+
+ private:
+  EventStore* const store_;
 };
 
 }  // namespace bitewise::bandit

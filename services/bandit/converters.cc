@@ -235,4 +235,26 @@ void UpdateToProto(const UpdateResult& result, v1::UpdateResponse* proto) {
   proto->set_user_id(result.user_id);
 }
 
+void CheckReportToProto(const StoreCheckReport& report, absl::Duration took,
+                        v1::CheckStoreResponse* proto) {
+  proto->set_ok(report.findings.empty());
+  for (const std::string& finding : report.findings) {
+    proto->add_findings(finding);
+  }
+  proto->set_users_checked(report.users_checked);
+  proto->set_events_checked(report.events_checked);
+  proto->set_seconds(absl::ToDoubleSeconds(took));
+}
+
+void AuditToProto(const AuditEntry& entry, v1::AuditRecord* proto) {
+  proto->set_audit_id(entry.audit_id);
+  TimeToProto(entry.time, proto->mutable_time());
+  proto->set_method(entry.method);
+  proto->set_target(entry.target);
+  proto->set_identity(entry.identity);
+  proto->set_role(entry.role);
+  proto->set_peer(entry.peer);
+  proto->set_result(entry.result);
+}
+
 }  // namespace bitewise::bandit

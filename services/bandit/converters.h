@@ -38,6 +38,10 @@ absl::StatusOr<UpdateInput> UpdateInputFromProto(
 void UpdateToProto(const UpdateResult& result, v1::UpdateResponse* proto);
 Page PageFromProto(int32_t page_size, const std::string& page_token);
 
+void CheckReportToProto(const StoreCheckReport& report, absl::Duration took,
+                        v1::CheckStoreResponse* proto);
+void AuditToProto(const AuditEntry& entry, v1::AuditRecord* proto);
+
 }  // namespace bitewise::bandit
 
 #endif  // BITEWISE_SERVICES_BANDIT_CONVERTERS_H_

@@ -130,6 +130,12 @@ class BanditEngine {
                                                      const std::string& meal_id,
                                                      const Page& page);
 
+  // The store's full check (EventStore::CheckStore) and its audit log.
+  absl::StatusOr<StoreCheckReport> CheckStore() { return store_->CheckStore(); }
+  absl::StatusOr<PageResult<AuditEntry>> ListAudit(const Page& page) {
+    return store_->ListAudit(page);
+  }
+
   // Bytes held by loaded models, and how many are loaded.
   size_t CachedBytes() const;
   int CachedModels() const;

@@ -120,6 +120,9 @@ int main(int argc, char** argv) {
       static_cast<size_t>(absl::GetFlag(FLAGS_max_model_mb)) << 20;
   bitewise::bandit::BanditEngine engine(store->get(), engine_options);
   bitewise::bandit::BanditServiceImpl service(&engine, *defaults);
+  // Administrative calls are kept in the store (ListAudit) as well as logged.
+  bitewise::bandit::StoreAuditSink audit(store->get());
+  bitewise::SetAuditSink(&audit);
 
   auto server = bitewise::ServiceServer::Start(
       bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},

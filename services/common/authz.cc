@@ -72,7 +72,7 @@ bool Audited(const std::string& method) {
          method == "BanditService/ResetUser" ||
          method == "BanditService/DeleteUser" ||
          method == "BanditService/BuildPopulationPrior" ||
-         method == "RobotService/Tare";
+         method == "BanditService/CheckStore" || method == "RobotService/Tare";
 }
 
 absl::StatusOr<std::map<std::string, Role>> Authorizer::Parse(

@@ -21,7 +21,7 @@
 // handler; a refused call is PERMISSION_DENIED naming the identity, the
 // role and the method, and nothing runs. Administrative and destructive
 // calls (CreateUser, ResetUser, DeleteUser, BuildPopulationPrior, Tare) are
-// written to the audit log (stderr: who, role, peer, method, time, result).
+// written to the audit trail (audit.h: stderr, and the BanditService's store).
 //
 // Thread-safe.
 #ifndef BITEWISE_SERVICES_COMMON_AUTHZ_H_

@@ -1,6 +1,7 @@
 #include "services/common/rpc_handler.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -16,6 +17,8 @@
 
 namespace bitewise {
 namespace {
+
+std::atomic<AuditSink*> audit_sink{nullptr};
 
 // Longest message written to the log for one failure.
 constexpr size_t kMaxLoggedMessage = 300;
@@ -72,9 +75,13 @@ std::map<std::string, RpcMethodStats> RpcStats::Snapshot() const {
   return methods_;
 }
 
+void SetAuditSink(AuditSink* sink) { audit_sink.store(sink); }
+
+AuditSink* GetAuditSink() { return audit_sink.load(); }
+
 grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
                     const std::function<absl::Status()>& handler,
-                    RpcPolicy policy) {
+                    RpcPolicy policy, absl::string_view target) {
   const absl::Time start = absl::Now();
   absl::Status status = Precheck(method, context);
   // Authorization comes before everything, Stop included: a refused call
@@ -93,13 +100,28 @@ grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
   }
   if (status.ok() || policy == RpcPolicy::kAlwaysRun) status = handler();
   if (Audited(method) && context != nullptr) {
+    AuditEvent event;
+    event.time = absl::Now();
+    event.method = method;
+    event.target = std::string(target);
+    event.identity = absl::StrJoin(identities, ",");
+    event.role = role;
+    event.peer = context->peer();
+    event.result = status.ok() ? "OK" : absl::StatusCodeToString(status.code());
     std::fprintf(
-        stderr, "audit: %s %s by %s (role %s) from %s: %s\n",
-        absl::FormatTime(absl::Now()).c_str(), method,
-        identities.empty() ? "(no certificate)"
-                           : absl::StrJoin(identities, ",").c_str(),
-        role.empty() ? "none" : role.c_str(), context->peer().c_str(),
-        status.ok() ? "OK" : absl::StatusCodeToString(status.code()).c_str());
+        stderr, "audit: %s %s%s%s by %s (role %s) from %s: %s\n",
+        absl::FormatTime(event.time).c_str(), method,
+        event.target.empty() ? "" : " ", event.target.c_str(),
+        event.identity.empty() ? "(no certificate)" : event.identity.c_str(),
+        role.empty() ? "none" : role.c_str(), event.peer.c_str(),
+        event.result.c_str());
+    if (AuditSink* sink = GetAuditSink(); sink != nullptr) {
+      absl::Status kept = sink->Record(event);
+      if (!kept.ok()) {
+        std::fprintf(stderr, "audit record of %s not kept: %s\n", method,
+                     kept.ToString().c_str());
+      }
+    }
   }
   const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
   RpcStats::Global().Record(method, status.code(), seconds);

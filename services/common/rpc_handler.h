@@ -7,7 +7,8 @@
 //  - logs every failure with the method, code, latency and message (cut to
 //    a few hundred characters, so an oversized value cannot flood the log);
 //  - records each call's outcome and latency in RpcStats, the hook that
-//    metrics exporters read.
+//    metrics exporters read;
+//  - writes administrative calls to the audit trail (audit.h).
 // Thread-safe.
 #ifndef BITEWISE_SERVICES_COMMON_RPC_HANDLER_H_
 #define BITEWISE_SERVICES_COMMON_RPC_HANDLER_H_
@@ -22,7 +23,9 @@
 
 #include "absl/base/thread_annotations.h"
 #include "absl/status/status.h"
+#include "absl/strings/string_view.h"
 #include "absl/synchronization/mutex.h"
+#include "services/common/audit.h"
 
 namespace bitewise {
 
@@ -59,10 +62,13 @@ enum class RpcPolicy {
 };
 
 // Runs `handler` for `method` ("Service/Method") as described above.
-// `context` may be null (tests that call a handler directly).
+// `context` may be null (tests that call a handler directly). An audited
+// method (authz.h) is written to the audit trail (audit.h) with `target`,
+// what the call concerned (a user id), once the handler has run.
 grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
                     const std::function<absl::Status()>& handler,
-                    RpcPolicy policy = RpcPolicy::kNormal);
+                    RpcPolicy policy = RpcPolicy::kNormal,
+                    absl::string_view target = "");
 
 }  // namespace bitewise
 

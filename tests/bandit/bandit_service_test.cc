@@ -94,6 +94,43 @@ class BanditServiceTest : public ::testing::Test {
   std::unique_ptr<v1::BanditService::Stub> stub_;
 };
 
+// Administrative calls land in the store's audit log with what they
+// concerned; ListAudit reads them; CheckStore reports on the whole store.
+TEST_F(BanditServiceTest, AdministrativeCallsAreAuditedAndTheStoreCheckable) {
+  StoreAuditSink sink(store_.get());
+  SetAuditSink(&sink);
+  CreateUser("alice");
+  v1::SelectResponse chosen;
+  ASSERT_TRUE(Select("alice", {1, 0, 0, 0, 0, 0}, &chosen).ok());
+  v1::DeleteUserRequest remove;
+  remove.set_user_id("nobody");
+  v1::DeleteUserResponse removed;
+  EXPECT_EQ(stub_->DeleteUser(Ctx().get(), remove, &removed).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  v1::CheckStoreResponse check;
+  ASSERT_TRUE(
+      stub_->CheckStore(Ctx().get(), v1::CheckStoreRequest(), &check).ok());
+  SetAuditSink(nullptr);
+  EXPECT_TRUE(check.ok());
+  EXPECT_EQ(check.findings_size(), 0);
+  EXPECT_EQ(check.users_checked(), 1);
+  EXPECT_EQ(check.events_checked(), 1);
+
+  v1::ListAuditResponse audit;
+  ASSERT_TRUE(
+      stub_->ListAudit(Ctx().get(), v1::ListAuditRequest(), &audit).ok());
+  ASSERT_EQ(audit.records_size(), 3);  // Select and ListAudit are not audited
+  EXPECT_EQ(audit.records(0).method(), "BanditService/CreateUser");
+  EXPECT_EQ(audit.records(0).target(), "alice");
+  EXPECT_EQ(audit.records(0).result(), "OK");
+  EXPECT_EQ(audit.records(1).method(), "BanditService/DeleteUser");
+  EXPECT_EQ(audit.records(1).target(), "nobody");
+  EXPECT_EQ(audit.records(1).result(), "NOT_FOUND");
+  EXPECT_EQ(audit.records(2).method(), "BanditService/CheckStore");
+  EXPECT_NE(audit.records(2).peer(), "");
+  EXPECT_GT(audit.records(2).time().seconds(), 1700000000);
+}
+
 TEST_F(BanditServiceTest, CreateUserTakesServerDefaults) {
   const v1::User user = CreateUser("alice");
   EXPECT_EQ(user.config().context_dim(), 6u);

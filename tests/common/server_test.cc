@@ -763,6 +763,15 @@ TEST(AuthorizationTest, TheRoleTableMatchesTheIssue) {
   EXPECT_FALSE(RoleAllows(Role::kRobot, "SomeService/Unknown"));
   EXPECT_TRUE(OpenToEveryIdentity("RobotService/Stop"));
   EXPECT_TRUE(Audited("BanditService/DeleteUser"));
+  // The store's check and its audit log are the admin's alone.
+  for (const char* method :
+       {"BanditService/CheckStore", "BanditService/ListAudit"}) {
+    EXPECT_FALSE(RoleAllows(Role::kRobot, method)) << method;
+    EXPECT_FALSE(RoleAllows(Role::kResearcher, method)) << method;
+    EXPECT_TRUE(RoleAllows(Role::kAdmin, method)) << method;
+  }
+  EXPECT_TRUE(Audited("BanditService/CheckStore"));
+  EXPECT_FALSE(Audited("BanditService/ListAudit"));
 }
 
 }  // namespace

@@ -62,6 +62,25 @@ struct PoolRecord {
   PopulationPrior prior;
 };
 
+// One administrative call, as the audit log keeps it.
+struct AuditEntry {
+  int64_t audit_id = 0;  // assigned by the store, increasing from 1
+  absl::Time time;
+  std::string method;    // "BanditService/DeleteUser"
+  std::string target;    // the user the call concerned, if any
+  std::string identity;  // client certificate identities; "" without mTLS
+  std::string role;      // "" when authorization is off
+  std::string peer;      // the caller's address
+  std::string result;    // "OK" or the status code's name
+};
+
+// What a full storage check found.
+struct StoreCheckReport {
+  std::vector<std::string> findings;  // empty when all is well (at most 100)
+  int64_t users_checked = 0;
+  int64_t events_checked = 0;
+};
+
 struct Page {
   int page_size = 100;     // clamped to [1, 1000]
   std::string page_token;  // empty: from the start
@@ -126,6 +145,18 @@ class EventStore {
   // The newest pool for users like `config` (learner, context_dim,
   // posthoc_dim, action names). NOT_FOUND if there is none.
   virtual absl::StatusOr<PoolRecord> LatestPool(const BanditConfig& config) = 0;
+
+  // Durably appends an audit entry (audit_id ignored) and returns its id.
+  virtual absl::StatusOr<int64_t> AppendAudit(const AuditEntry& entry) = 0;
+  // The audit log in audit_id order (oldest first).
+  virtual absl::StatusOr<PageResult<AuditEntry>> ListAudit(
+      const Page& page) = 0;
+
+  // The full check, on demand: the storage's own consistency check over
+  // everything, and every user and event read back as the service would
+  // (action names, priors, vectors, checksums). Problems are findings, not
+  // errors; an error means the check itself could not run.
+  virtual absl::StatusOr<StoreCheckReport> CheckStore() = 0;
 };
 
 }  // namespace bitewise::bandit

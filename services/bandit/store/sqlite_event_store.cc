@@ -875,4 +875,122 @@ absl::StatusOr<std::vector<EventRecord>> SqliteEventStore::CompletedEvents(
   return events;
 }
 
+absl::StatusOr<int64_t> SqliteEventStore::AppendAudit(const AuditEntry& entry) {
+  RETURN_IF_ERROR(CheckHealth());
+  absl::MutexLock lock(&mu_);
+  ASSIGN_OR_RETURN(
+      Statement st,
+      Statement::Prepare(db_,
+                         "INSERT INTO audit (at_us, method, target, identity, "
+                         "role, peer, result) VALUES (?1, ?2, ?3, ?4, ?5, ?6, "
+                         "?7) RETURNING audit_id",
+                         "AppendAudit"));
+  st.BindInt64(1, ToMicros(entry.time));
+  st.BindText(2, entry.method);
+  st.BindText(3, entry.target);
+  st.BindText(4, entry.identity);
+  st.BindText(5, entry.role);
+  st.BindText(6, entry.peer);
+  st.BindText(7, entry.result);
+  ASSIGN_OR_RETURN(const bool row, st.Step());
+  if (!row) return absl::InternalError("AppendAudit: no audit_id returned");
+  const int64_t id = st.Int64(0);
+  RETURN_IF_ERROR(st.Run());
+  return id;
+}
+
+absl::StatusOr<PageResult<AuditEntry>> SqliteEventStore::ListAudit(
+    const Page& page) {
+  const int page_size = ClampPageSize(page.page_size);
+  int64_t after = 0;
+  if (!page.page_token.empty()) {
+    ASSIGN_OR_RETURN(const std::string key,
+                     ParsePageToken(page.page_token, 'a'));
+    if (!absl::SimpleAtoi(key, &after) || after <= 0) {
+      return absl::InvalidArgumentError("invalid page_token");
+    }
+  }
+  absl::MutexLock lock(&mu_);
+  ASSIGN_OR_RETURN(
+      Statement st,
+      Statement::Prepare(db_,
+                         "SELECT audit_id, at_us, method, target, identity, "
+                         "role, peer, result FROM audit WHERE audit_id > ?1 "
+                         "ORDER BY audit_id LIMIT ?2",
+                         "ListAudit"));
+  st.BindInt64(1, after);
+  st.BindInt64(2, page_size + 1);
+  PageResult<AuditEntry> result;
+  while (true) {
+    ASSIGN_OR_RETURN(const bool row, st.Step());
+    if (!row) break;
+    if (static_cast<int>(result.items.size()) == page_size) {
+      result.next_page_token =
+          MakePageToken('a', absl::StrCat(result.items.back().audit_id));
+      break;
+    }
+    AuditEntry entry;
+    entry.audit_id = st.Int64(0);
+    entry.time = FromMicros(st.Int64(1));
+    entry.method = st.Text(2);
+    entry.target = st.Text(3);
+    entry.identity = st.Text(4);
+    entry.role = st.Text(5);
+    entry.peer = st.Text(6);
+    entry.result = st.Text(7);
+    result.items.push_back(std::move(entry));
+  }
+  return result;
+}
+
+absl::StatusOr<StoreCheckReport> SqliteEventStore::CheckStore() {
+  constexpr int kMaxFindings = 100;
+  absl::MutexLock lock(&mu_);
+  StoreCheckReport report;
+  ASSIGN_OR_RETURN(report.findings,
+                   sqlite::IntegrityFindings(db_, kMaxFindings));
+  auto note = [&](const absl::Status& status) {
+    if (static_cast<int>(report.findings.size()) < kMaxFindings) {
+      report.findings.push_back(std::string(status.message()));
+    }
+  };
+  ASSIGN_OR_RETURN(
+      Transaction txn,
+      Transaction::Begin(db_, Transaction::Kind::kRead, "CheckStore"));
+  {
+    ASSIGN_OR_RETURN(
+        Statement users,
+        Statement::Prepare(db_, absl::StrCat(kUserColumns, "ORDER BY user_id"),
+                           "CheckStore"));
+    while (true) {
+      ASSIGN_OR_RETURN(const bool row, users.Step());
+      if (!row) break;
+      ++report.users_checked;
+      absl::StatusOr<UserRecord> user = ReadUser(db_, users);
+      if (!user.ok()) {
+        note(user.status());
+      } else if (absl::Status valid = ValidateConfig(user->config);
+                 !valid.ok()) {
+        note(absl::DataLossError(
+            absl::StrCat("user \"", user->user_id, "\": ", valid.message())));
+      }
+    }
+  }
+  {
+    ASSIGN_OR_RETURN(Statement events,
+                     Statement::Prepare(
+                         db_, absl::StrCat(kEventColumns, "ORDER BY event_id"),
+                         "CheckStore"));
+    while (true) {
+      ASSIGN_OR_RETURN(const bool row, events.Step());
+      if (!row) break;
+      ++report.events_checked;
+      absl::StatusOr<EventRecord> event = ReadEvent(events);
+      if (!event.ok()) note(event.status());
+    }
+  }
+  RETURN_IF_ERROR(txn.Commit());
+  return report;
+}
+
 }  // namespace bitewise::bandit

@@ -96,6 +96,11 @@ class SqliteEventStore final : public EventStore {
   // lost at the next start. Every write checks this first.
   absl::Status CheckHealth() override;
   absl::StatusOr<PoolRecord> LatestPool(const BanditConfig& config) override;
+  absl::StatusOr<int64_t> AppendAudit(const AuditEntry& entry) override;
+  absl::StatusOr<PageResult<AuditEntry>> ListAudit(const Page& page) override;
+  // PRAGMA integrity_check over the whole file (up to 100 findings), then
+  // every user and event read back.
+  absl::StatusOr<StoreCheckReport> CheckStore() override;
   absl::StatusOr<PageResult<EventRecord>> ListEvents(const std::string& user_id,
                                                      const std::string& meal_id,
                                                      const Page& page) override;

@@ -111,6 +111,20 @@ CREATE TABLE pool_actions (
 ) STRICT, WITHOUT ROWID;
 )sql";
 
+// The audit log of administrative calls (schema 3).
+constexpr char kAuditSql[] = R"sql(
+CREATE TABLE audit (
+  audit_id INTEGER PRIMARY KEY AUTOINCREMENT,
+  at_us INTEGER NOT NULL,
+  method TEXT NOT NULL,
+  target TEXT NOT NULL,
+  identity TEXT NOT NULL,
+  role TEXT NOT NULL,
+  peer TEXT NOT NULL,
+  result TEXT NOT NULL
+) STRICT;
+)sql";
+
 // Version 1 -> 2 added the users' priors and the pools, whose action names
 // were then a JSON column like the users'.
 constexpr char kMigrateTo2Sql[] = R"sql(
@@ -296,6 +310,7 @@ absl::Status AddEventChecksums(sqlite3* db, const std::string& op) {
 
 absl::Status MigrateTo3(sqlite3* db, const std::string& op) {
   RETURN_IF_ERROR(AddEventChecksums(db, op));
+  RETURN_IF_ERROR(Exec(db, kAuditSql, op));
   RETURN_IF_ERROR(Exec(db, kUserActionsSql, op));
   RETURN_IF_ERROR(Exec(db, kPoolActionsSql, op));
   RETURN_IF_ERROR(CopyVersion2Names(
@@ -408,6 +423,7 @@ absl::Status InitializeDatabase(sqlite3* db,
     RETURN_IF_ERROR(Exec(db, kUserActionsSql, op));
     RETURN_IF_ERROR(Exec(db, kPoolsSql, op));
     RETURN_IF_ERROR(Exec(db, kPoolActionsSql, op));
+    RETURN_IF_ERROR(Exec(db, kAuditSql, op));
     RETURN_IF_ERROR(Exec(
         db, absl::StrCat("PRAGMA application_id = ", kApplicationId).c_str(),
         op));
@@ -463,17 +479,27 @@ absl::StatusOr<int> LockStoreFile(const std::string& path) {
 // PRAGMA integrity_check: a file whose structure is damaged (flipped bytes,
 // a torn copy) must not be served as if it were whole. DATA_LOSS naming the
 // path and SQLite's first findings.
-absl::Status CheckIntegrity(sqlite3* db, const std::string& path) {
-  const std::string op = absl::StrCat("checking ", path);
-  ASSIGN_OR_RETURN(Statement st,
-                   Statement::Prepare(db, "PRAGMA integrity_check(5)", op));
+absl::StatusOr<std::vector<std::string>> IntegrityFindings(sqlite3* db,
+                                                           int max_findings) {
+  ASSIGN_OR_RETURN(
+      Statement st,
+      Statement::Prepare(
+          db, absl::StrCat("PRAGMA integrity_check(", max_findings, ")"),
+          "integrity check"));
   std::vector<std::string> findings;
   while (true) {
     ASSIGN_OR_RETURN(const bool row, st.Step());
     if (!row) break;
     findings.push_back(st.Text(0));
   }
-  if (findings.size() == 1 && findings[0] == "ok") return absl::OkStatus();
+  if (findings.size() == 1 && findings[0] == "ok") findings.clear();
+  return findings;
+}
+
+absl::Status CheckIntegrity(sqlite3* db, const std::string& path) {
+  ASSIGN_OR_RETURN(const std::vector<std::string> findings,
+                   IntegrityFindings(db, 5));
+  if (findings.empty()) return absl::OkStatus();
   return absl::DataLossError(absl::StrCat(
       path, " failed SQLite's integrity check: ", absl::StrJoin(findings, "; "),
       ". Restore the last backup (docs/operations.md)"));

@@ -3,8 +3,8 @@
 //
 // Schema versions: 1 events and users; 2 adds the users' population priors
 // and the pools; 3 moves action names from JSON columns into the child
-// tables user_actions and pool_actions and gives every event its checksums
-// (event_checksum.h). Older files are migrated in one
+// tables user_actions and pool_actions, gives every event its checksums
+// (event_checksum.h) and adds the audit log. Older files are migrated in one
 // transaction when opened; a newer file is refused untouched.
 #ifndef BITEWISE_SERVICES_BANDIT_STORE_SQLITE_SCHEMA_H_
 #define BITEWISE_SERVICES_BANDIT_STORE_SQLITE_SCHEMA_H_
@@ -12,6 +12,7 @@
 #include <sqlite3.h>
 
 #include <string>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -38,6 +39,11 @@ absl::StatusOr<int> LockStoreFile(const std::string& path);
 // PRAGMA integrity_check: DATA_LOSS naming the path and SQLite's first
 // findings when the file's structure is damaged.
 absl::Status CheckIntegrity(sqlite3* db, const std::string& path);
+
+// SQLite's full integrity check: its findings (at most `max_findings`),
+// none when the file is whole.
+absl::StatusOr<std::vector<std::string>> IntegrityFindings(sqlite3* db,
+                                                           int max_findings);
 
 }  // namespace bitewise::bandit::sqlite
 

@@ -909,6 +909,7 @@ void RewriteAsVersion2(const std::string& path,
   raw.Exec("DROP TABLE pool_actions");
   raw.Exec("ALTER TABLE events DROP COLUMN selection_checksum");
   raw.Exec("ALTER TABLE events DROP COLUMN outcome_checksum");
+  raw.Exec("DROP TABLE audit");
   raw.Exec("PRAGMA user_version = 2");
 }
 
@@ -1031,6 +1032,63 @@ TEST_F(SqliteEventStoreTest, AlteredEventIsDataLossNamingIt) {
                 .status()
                 .code(),
             absl::StatusCode::kDataLoss);
+}
+
+TEST_F(SqliteEventStoreTest, AuditEntriesAreKeptAndPaged) {
+  for (int i = 0; i < 3; ++i) {
+    AuditEntry entry;
+    entry.time = absl::FromUnixSeconds(1700000000 + i);
+    entry.method = "BanditService/DeleteUser";
+    entry.target = absl::StrCat("user", i);
+    entry.identity = "admin.lab";
+    entry.role = "admin";
+    entry.peer = "ipv4:10.0.0.2:5000";
+    entry.result = i == 2 ? "NOT_FOUND" : "OK";
+    auto id = store_->AppendAudit(entry);
+    ASSERT_TRUE(id.ok()) << id.status();
+    EXPECT_EQ(*id, i + 1);
+  }
+  Page page;
+  page.page_size = 2;
+  auto first = store_->ListAudit(page);
+  ASSERT_TRUE(first.ok()) << first.status();
+  ASSERT_EQ(first->items.size(), 2u);
+  EXPECT_EQ(first->items[0].target, "user0");
+  EXPECT_EQ(first->items[1].time, absl::FromUnixSeconds(1700000001));
+  page.page_token = first->next_page_token;
+  auto second = store_->ListAudit(page);
+  ASSERT_TRUE(second.ok()) << second.status();
+  ASSERT_EQ(second->items.size(), 1u);
+  EXPECT_EQ(second->items[0].result, "NOT_FOUND");
+  EXPECT_TRUE(second->next_page_token.empty());
+  page.page_token = "bm90IGEgdG9rZW4";
+  EXPECT_EQ(store_->ListAudit(page).status().code(),
+            absl::StatusCode::kInvalidArgument);
+}
+
+TEST_F(SqliteEventStoreTest, CheckStoreReadsEverythingAndNamesWhatIsWrong) {
+  ASSERT_TRUE(store_->CreateUser(MakeUser("alice")).ok());
+  ASSERT_TRUE(store_->CreateUser(MakeUser("bob")).ok());
+  const int64_t a = MustAppend(MakeEvent("alice", "m"));
+  MustAppend(MakeEvent("bob", "m"));
+  auto clean = store_->CheckStore();
+  ASSERT_TRUE(clean.ok()) << clean.status();
+  EXPECT_TRUE(clean->findings.empty());
+  EXPECT_EQ(clean->users_checked, 2);
+  EXPECT_EQ(clean->events_checked, 2);
+
+  RawDb raw(path_);
+  raw.Exec(
+      absl::StrCat("UPDATE events SET item_label = 'grape' WHERE "
+                   "event_id = ",
+                   a));
+  raw.Exec("DELETE FROM user_actions WHERE user_id = 'bob' AND action = 0");
+  auto damaged = store_->CheckStore();
+  ASSERT_TRUE(damaged.ok()) << damaged.status();
+  ASSERT_EQ(damaged->findings.size(), 2u);
+  EXPECT_THAT(damaged->findings[0], HasSubstr("bob"));
+  EXPECT_THAT(damaged->findings[1],
+              HasSubstr(absl::StrCat("event ", a, " of user \"alice\"")));
 }
 
 // The child tables are the truth: a missing name is DATA_LOSS naming the
