@@ -126,6 +126,7 @@ grpc::Status BanditServiceImpl::ListEvents(grpc::ServerContext* context,
       EventToProto(event, response->add_events());
     }
     response->set_next_page_token(page.next_page_token);
+    if (!CallerMayReadContexts()) WithholdContexts(response);
     return absl::OkStatus();
   });
 }

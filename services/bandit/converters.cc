@@ -257,4 +257,12 @@ void AuditToProto(const AuditEntry& entry, v1::AuditRecord* proto) {
   proto->set_result(entry.result);
 }
 
+void WithholdContexts(v1::ListEventsResponse* response) {
+  for (v1::Event& event : *response->mutable_events()) {
+    event.clear_context();
+    event.clear_posthoc();
+  }
+  response->set_contexts_withheld(true);
+}
+
 }  // namespace bitewise::bandit

@@ -42,6 +42,10 @@ void CheckReportToProto(const StoreCheckReport& report, absl::Duration took,
                         v1::CheckStoreResponse* proto);
 void AuditToProto(const AuditEntry& entry, v1::AuditRecord* proto);
 
+// Leaves every event's raw context and post hoc vector out and says so
+// (contexts_withheld), for a "researcher without_contexts" caller.
+void WithholdContexts(v1::ListEventsResponse* response);
+
 }  // namespace bitewise::bandit
 
 #endif  // BITEWISE_SERVICES_BANDIT_CONVERTERS_H_

@@ -75,14 +75,14 @@ bool Audited(const std::string& method) {
          method == "BanditService/CheckStore" || method == "RobotService/Tare";
 }
 
-absl::StatusOr<std::map<std::string, Role>> Authorizer::Parse(
+absl::StatusOr<std::map<std::string, Authorizer::Grant>> Authorizer::Parse(
     const std::string& path) {
   std::ifstream in(path);
   if (!in) {
     return absl::NotFoundError(
         absl::StrCat("roles file \"", path, "\" cannot be read"));
   }
-  std::map<std::string, Role> roles;
+  std::map<std::string, Grant> roles;
   std::string line;
   for (int n = 1; std::getline(in, line); ++n) {
     absl::string_view text = line;
@@ -96,7 +96,11 @@ absl::StatusOr<std::map<std::string, Role>> Authorizer::Parse(
       return absl::InvalidArgumentError(
           absl::StrCat("roles file \"", path, "\" line ", n, ": ", why));
     };
-    if (words.size() != 2) return bad("expected \"<identity> <role>\"");
+    if (words.size() != 2 && words.size() != 3) {
+      return bad(
+          "expected \"<identity> <role>\" or \"<identity> researcher "
+          "without_contexts\"");
+    }
     Role role;
     if (words[1] == "robot") {
       role = Role::kRobot;
@@ -108,7 +112,16 @@ absl::StatusOr<std::map<std::string, Role>> Authorizer::Parse(
       return bad(absl::StrCat("unknown role \"", words[1],
                               "\" (robot, researcher or admin)"));
     }
-    if (!roles.emplace(words[0], role).second) {
+    Grant grant{role, false};
+    if (words.size() == 3) {
+      if (role != Role::kResearcher || words[2] != "without_contexts") {
+        return bad(absl::StrCat("unknown option \"", words[2], "\" for role ",
+                                words[1],
+                                " (only researcher takes without_contexts)"));
+      }
+      grant.withhold_contexts = true;
+    }
+    if (!roles.emplace(words[0], grant).second) {
       return bad(absl::StrCat("identity \"", words[0], "\" listed twice"));
     }
   }
@@ -135,8 +148,9 @@ absl::Status Authorizer::Reload() {
 
 absl::Status Authorizer::Check(const std::string& method,
                                const std::vector<std::string>& identities,
-                               const std::string& peer,
-                               std::string* role_out) const {
+                               const std::string& peer, std::string* role_out,
+                               bool* withhold_contexts) const {
+  if (withhold_contexts != nullptr) *withhold_contexts = false;
   const std::string who =
       identities.empty()
           ? std::string("(no certificate identity)")
@@ -150,11 +164,14 @@ absl::Status Authorizer::Check(const std::string& method,
   for (const std::string& identity : identities) {
     auto it = roles_.find(identity);
     if (it == roles_.end()) continue;
-    if (RoleAllows(it->second, method)) {
-      *role_out = RoleName(it->second);
+    if (RoleAllows(it->second.role, method)) {
+      *role_out = RoleName(it->second.role);
+      if (withhold_contexts != nullptr) {
+        *withhold_contexts = it->second.withhold_contexts;
+      }
       return absl::OkStatus();
     }
-    found = &it->second;
+    found = &it->second.role;
   }
   if (found == nullptr) {
     return absl::PermissionDeniedError(

@@ -52,8 +52,10 @@ bool Audited(const std::string& method);
 
 class Authorizer {
  public:
-  // Reads the roles file. INVALID_ARGUMENT naming the line of a malformed
-  // entry or an unknown role; NOT_FOUND when the file cannot be read.
+  // Reads the roles file: "<identity> <role>" per line, or "<identity>
+  // researcher without_contexts". INVALID_ARGUMENT naming the line of a
+  // malformed entry or an unknown role; NOT_FOUND when the file cannot be
+  // read.
   static absl::StatusOr<std::unique_ptr<Authorizer>> Load(
       const std::string& path);
 
@@ -62,10 +64,13 @@ class Authorizer {
 
   // OK when one of `identities` has a role that allows `method`; else
   // PERMISSION_DENIED naming the identities, the role (if any), the method
-  // and the peer.
+  // and the peer. `withhold_contexts`, if given, says whether that grant is
+  // "researcher without_contexts" (events without their raw context and
+  // post hoc vectors).
   absl::Status Check(const std::string& method,
                      const std::vector<std::string>& identities,
-                     const std::string& peer, std::string* role_out) const;
+                     const std::string& peer, std::string* role_out,
+                     bool* withhold_contexts = nullptr) const;
 
   const std::string& path() const { return path_; }
 
@@ -75,13 +80,17 @@ class Authorizer {
   static void SetGlobal(Authorizer* authorizer);
 
  private:
+  struct Grant {
+    Role role;
+    bool withhold_contexts;
+  };
   explicit Authorizer(std::string path) : path_(std::move(path)) {}
-  static absl::StatusOr<std::map<std::string, Role>> Parse(
+  static absl::StatusOr<std::map<std::string, Grant>> Parse(
       const std::string& path);
 
   const std::string path_;
   mutable absl::Mutex mu_;
-  std::map<std::string, Role> roles_ ABSL_GUARDED_BY(mu_);
+  std::map<std::string, Grant> roles_ ABSL_GUARDED_BY(mu_);
 };
 
 }  // namespace bitewise

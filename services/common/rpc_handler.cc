@@ -20,6 +20,10 @@ namespace {
 
 std::atomic<AuditSink*> audit_sink{nullptr};
 
+// Whether the call running on this thread withholds raw contexts (set by
+// RunRpc around its handler).
+thread_local bool call_withholds_contexts = false;
+
 // Longest message written to the log for one failure.
 constexpr size_t kMaxLoggedMessage = 300;
 
@@ -77,6 +81,8 @@ std::map<std::string, RpcMethodStats> RpcStats::Snapshot() const {
 
 void SetAuditSink(AuditSink* sink) { audit_sink.store(sink); }
 
+bool CallerMayReadContexts() { return !call_withholds_contexts; }
+
 AuditSink* GetAuditSink() { return audit_sink.load(); }
 
 grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
@@ -89,16 +95,21 @@ grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
   const Authorizer* authorizer = Authorizer::Global();
   std::vector<std::string> identities;
   std::string role;
+  bool withhold = false;
   if (authorizer != nullptr && context != nullptr) {
     identities = PeerIdentities(*context);
-    absl::Status allowed =
-        authorizer->Check(method, identities, context->peer(), &role);
+    absl::Status allowed = authorizer->Check(method, identities,
+                                             context->peer(), &role, &withhold);
     if (!allowed.ok()) {
       status = allowed;
       policy = RpcPolicy::kNormal;  // not even Stop runs for a refused call
     }
   }
-  if (status.ok() || policy == RpcPolicy::kAlwaysRun) status = handler();
+  if (status.ok() || policy == RpcPolicy::kAlwaysRun) {
+    call_withholds_contexts = withhold;
+    status = handler();
+    call_withholds_contexts = false;
+  }
   if (Audited(method) && context != nullptr) {
     AuditEvent event;
     event.time = absl::Now();

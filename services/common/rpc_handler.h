@@ -70,6 +70,12 @@ grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
                     RpcPolicy policy = RpcPolicy::kNormal,
                     absl::string_view target = "");
 
+// Inside a handler run by RunRpc: false when the caller's grant is
+// "researcher without_contexts" (authz.h), so the handler must leave raw
+// context and post hoc vectors out of its reply; true otherwise (and with
+// authorization off).
+bool CallerMayReadContexts();
+
 }  // namespace bitewise
 
 #endif  // BITEWISE_SERVICES_COMMON_RPC_HANDLER_H_

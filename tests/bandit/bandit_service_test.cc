@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "gtest/gtest.h"
+#include "services/bandit/converters.h"
 #include "services/bandit/store/sqlite_event_store.h"
 #include "services/common/channel.h"
 #include "services/common/server.h"
@@ -129,6 +130,21 @@ TEST_F(BanditServiceTest, AdministrativeCallsAreAuditedAndTheStoreCheckable) {
   EXPECT_EQ(audit.records(2).method(), "BanditService/CheckStore");
   EXPECT_NE(audit.records(2).peer(), "");
   EXPECT_GT(audit.records(2).time().seconds(), 1700000000);
+}
+
+TEST(WithholdContextsTest, LeavesVectorsOutAndSaysSo) {
+  v1::ListEventsResponse response;
+  v1::Event* event = response.add_events();
+  event->set_event_id("7");
+  event->add_context(0.5);
+  event->add_posthoc(-1.0);
+  event->set_action(3);
+  WithholdContexts(&response);
+  EXPECT_TRUE(response.contexts_withheld());
+  EXPECT_EQ(response.events(0).context_size(), 0);
+  EXPECT_EQ(response.events(0).posthoc_size(), 0);
+  EXPECT_EQ(response.events(0).action(), 3);
+  EXPECT_EQ(response.events(0).event_id(), "7");
 }
 
 TEST_F(BanditServiceTest, CreateUserTakesServerDefaults) {

@@ -680,11 +680,13 @@ class AuthzProbeService final : public v1::HapticService::Service {
                         v1::ClassifyResponse*) override {
     return RunRpc(method.c_str(), context, [this] {
       ++ran;
+      may_read_contexts = CallerMayReadContexts();
       return absl::OkStatus();
     });
   }
   std::string method = "HapticService/Classify";
   std::atomic<int> ran{0};
+  std::atomic<bool> may_read_contexts{false};
 };
 
 std::string WriteRoles(const std::string& text) {
@@ -708,9 +710,10 @@ TEST(AuthorizationTest, RolesDecideWhatAClientCertificateMayCall) {
   channel.tls_server_name_override = "localhost";
   auto connected = Connect((*server)->address(), channel);
 
-  // A researcher reads ...
+  // A researcher reads, raw contexts included ...
   EXPECT_TRUE(CallClassify(connected, 1).ok());
   EXPECT_EQ(service.ran, 1);
+  EXPECT_TRUE(service.may_read_contexts);
   // ... but does not delete, and nothing runs.
   service.method = "BanditService/DeleteUser";
   absl::Status denied = CallClassify(connected, 1);
@@ -734,6 +737,15 @@ TEST(AuthorizationTest, RolesDecideWhatAClientCertificateMayCall) {
   service.method = "HapticService/Classify";
   EXPECT_THAT(CallClassify(connected, 1).message(),
               HasSubstr("has no role in"));
+  // A researcher without contexts reads, but the handler is told to leave
+  // raw contexts out.
+  WriteRoles("bitewise-client researcher without_contexts\n");
+  ASSERT_TRUE((*server)->ReloadAuthorization().ok());
+  EXPECT_TRUE(CallClassify(connected, 1).ok());
+  EXPECT_FALSE(service.may_read_contexts);
+  WriteRoles("bitewise-client robot without_contexts\n");
+  EXPECT_THAT((*server)->ReloadAuthorization().message(),
+              HasSubstr("only researcher takes without_contexts"));
   // A broken file is refused and the roles in force stay.
   WriteRoles("somebody-else superuser\n");
   absl::Status bad = (*server)->ReloadAuthorization();
