@@ -206,6 +206,8 @@ Page PageFromProto(int32_t page_size, const std::string& page_token) {
   Page page;
   if (page_size > 0) page.page_size = page_size;
   page.page_token = page_token;
+  // Below the default 4 MiB message limit, so every page can be sent.
+  page.max_bytes = int64_t{3} << 20;
   return page;
 }
 

@@ -36,6 +36,7 @@ SelectInput SelectInputFromProto(const v1::SelectRequest& proto);
 absl::StatusOr<UpdateInput> UpdateInputFromProto(
     const v1::UpdateRequest& proto);
 void UpdateToProto(const UpdateResult& result, v1::UpdateResponse* proto);
+// A page of at most page_size items (default 100) and about 3 MiB.
 Page PageFromProto(int32_t page_size, const std::string& page_token);
 
 void CheckReportToProto(const StoreCheckReport& report, absl::Duration took,

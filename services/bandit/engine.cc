@@ -143,6 +143,17 @@ size_t MaxModelBytes(const BanditConfig& config) {
              : static_cast<size_t>(bytes);
 }
 
+size_t ModelReplyBytes(const BanditConfig& config) {
+  size_t names = 0;
+  for (const std::string& name : config.action_names) names += name.size();
+  const size_t doubles = static_cast<size_t>(config.num_actions()) *
+                         (static_cast<size_t>(config.context_dim) +
+                          static_cast<size_t>(config.posthoc_dim));
+  // Twice: the model and a prior of the same shape; 32 bytes of tags and
+  // lengths per action; 1 KB for the rest of the config.
+  return 2 * (8 * doubles + names + 32 * config.action_names.size()) + 1024;
+}
+
 absl::StatusOr<UserRecord> BanditEngine::CreateUser(
     const std::string& user_id, const BanditConfig& requested,
     double prior_rounds) {
@@ -155,6 +166,15 @@ absl::StatusOr<UserRecord> BanditEngine::CreateUser(
         "(--max_model_mb); use fewer dimensions or actions",
         requested.context_dim, requested.posthoc_dim, requested.num_actions(),
         bytes / 1e9, options_.max_model_bytes / 1e9));
+  }
+  if (const size_t bytes = ModelReplyBytes(requested);
+      bytes > options_.max_reply_bytes) {
+    return absl::InvalidArgumentError(absl::StrFormat(
+        "config: GetModel's reply for context_dim %d, posthoc_dim %d and %d "
+        "actions would take about %.1f MB, over the %.1f MB a reply may take "
+        "(4 MiB message limit); use fewer dimensions or actions",
+        requested.context_dim, requested.posthoc_dim, requested.num_actions(),
+        bytes / 1e6, options_.max_reply_bytes / 1e6));
   }
   if (!std::isfinite(prior_rounds) || prior_rounds < 0.0) {
     return absl::InvalidArgumentError(absl::StrCat(

@@ -41,7 +41,16 @@ struct EngineOptions {
   // (MaxModelBytes), so that no user's model can take the machine's
   // memory (d = 65536 would need terabytes in primal form).
   size_t max_model_bytes = size_t{2} << 30;
+  // CreateUser refuses a configuration whose GetModel reply (ModelReplyBytes)
+  // would pass this, so that every user's model can be read under the
+  // default 4 MiB message limit.
+  size_t max_reply_bytes = size_t{3} << 20;
 };
+
+// About how many bytes GetModel's reply for `config` takes at most: per
+// action its name, theta (d) and phi (q) doubles, and the same again for a
+// population prior in the config, with the message overhead.
+size_t ModelReplyBytes(const BanditConfig& config);
 
 // The most memory a model of `config` can need, in bytes: per action, the
 // primal form's d x d and q x q matrices and the d x q cross terms, with

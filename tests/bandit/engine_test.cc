@@ -221,6 +221,37 @@ TEST_F(EngineTest, ConfigsWhoseModelCouldOutgrowTheLimitAreRefused) {
   EXPECT_THAT(over.status().message(), ::testing::HasSubstr("limit of 0.1 GB"));
 }
 
+// Every model a user can have must be readable with GetModel under the
+// 4 MiB message limit. Under the default memory limit every model is (the
+// widest, 256 actions at d = 700, replies in under 3 MB); with a raised
+// --max_model_mb, many actions with wide contexts are refused up front,
+// naming the reply's size.
+TEST_F(EngineTest, ConfigsWhoseModelCannotBeExportedAreRefused) {
+  BanditConfig widest = SmallConfig();
+  widest.context_dim = 700;
+  widest.action_names.clear();
+  for (int a = 0; a < 256; ++a) {
+    widest.action_names.push_back(absl::StrCat("action", a));
+  }
+  EXPECT_LT(MaxModelBytes(widest), EngineOptions().max_model_bytes);
+  EXPECT_LT(ModelReplyBytes(widest), EngineOptions().max_reply_bytes);
+  EngineOptions roomy;
+  roomy.max_model_bytes = size_t{1} << 40;
+  Reopen(roomy);
+  BanditConfig wide = widest;
+  wide.context_dim = 2048;
+  EXPECT_GT(ModelReplyBytes(wide), EngineOptions().max_reply_bytes);
+  absl::StatusOr<UserRecord> refused = engine_->CreateUser("wide", wide);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(refused.status().message(),
+              ::testing::HasSubstr("GetModel's reply for context_dim 2048"));
+  // The paper's SPANet size with six actions exports in well under 1 MB.
+  BanditConfig spanet = SmallConfig();
+  spanet.context_dim = 2048;
+  EXPECT_LT(ModelReplyBytes(spanet), size_t{1} << 20);
+  EXPECT_TRUE(engine_->CreateUser("spanet", spanet).ok());
+}
+
 TEST_F(EngineTest, ModelSurvivesReopenWithin1e12) {
   BanditConfig config = SmallConfig();
   config.lambda_c = 1000.0;  // the default

@@ -84,6 +84,10 @@ struct StoreCheckReport {
 struct Page {
   int page_size = 100;     // clamped to [1, 1000]
   std::string page_token;  // empty: from the start
+  // Also ends the page before the items' encoded size (about) passes this,
+  // after at least one item; 0: no limit. Services set it below their
+  // message limit so every page can be sent.
+  int64_t max_bytes = 0;
 };
 
 template <typename T>

@@ -173,6 +173,31 @@ absl::StatusOr<int64_t> ParseEventPageToken(const std::string& token) {
   return last_event_id;
 }
 
+// About the encoded size of a user (ListUsers) and of an event
+// (ListEvents): their strings and doubles and some overhead.
+int64_t ApproxBytes(const UserRecord& user) {
+  int64_t bytes = 256 + static_cast<int64_t>(user.user_id.size());
+  for (const std::string& name : user.config.action_names) {
+    bytes += static_cast<int64_t>(name.size()) + 4;
+  }
+  for (const auto& row : user.config.prior.theta0) bytes += 8 * row.size();
+  for (const auto& row : user.config.prior.phi0) bytes += 8 * row.size();
+  return bytes;
+}
+
+int64_t ApproxBytes(const EventRecord& event) {
+  return 128 +
+         static_cast<int64_t>(event.user_id.size() + event.meal_id.size() +
+                              event.item_label.size()) +
+         8 * static_cast<int64_t>(event.context.size() + event.posthoc.size());
+}
+
+// Whether a page of `count` items and `bytes` so far is full.
+bool PageFull(const Page& page, int page_size, size_t count, int64_t bytes) {
+  return static_cast<int>(count) == page_size ||
+         (page.max_bytes > 0 && count > 0 && bytes >= page.max_bytes);
+}
+
 int ClampPageSize(int page_size) {
   if (page_size <= 0) return kDefaultPageSize;
   return std::min(page_size, kMaxPageSize);
@@ -516,14 +541,17 @@ absl::StatusOr<PageResult<UserRecord>> SqliteEventStore::ListUsers(
   st.BindInt64(1, page_size + 1);
   if (!page.page_token.empty()) st.BindText(2, after);
   PageResult<UserRecord> result;
+  int64_t bytes = 0;
   while (true) {
     ASSIGN_OR_RETURN(const bool row, st.Step());
     if (!row) break;
-    if (static_cast<int>(result.items.size()) == page_size) {
+    ASSIGN_OR_RETURN(UserRecord user, ReadUser(db_, st));
+    if (PageFull(page, page_size, result.items.size(),
+                 bytes + ApproxBytes(user))) {
       result.next_page_token = MakePageToken('u', result.items.back().user_id);
       break;
     }
-    ASSIGN_OR_RETURN(UserRecord user, ReadUser(db_, st));
+    bytes += ApproxBytes(user);
     result.items.push_back(std::move(user));
   }
   return result;
@@ -831,15 +859,18 @@ absl::StatusOr<PageResult<EventRecord>> SqliteEventStore::ListEvents(
     st.BindInt64(2, after);
     st.BindInt64(3, page_size + 1);
     if (!meal_id.empty()) st.BindText(4, meal_id);
+    int64_t bytes = 0;
     while (true) {
       ASSIGN_OR_RETURN(const bool row, st.Step());
       if (!row) break;
-      if (static_cast<int>(result.items.size()) == page_size) {
+      ASSIGN_OR_RETURN(EventRecord event, ReadEvent(st));
+      if (PageFull(page, page_size, result.items.size(),
+                   bytes + ApproxBytes(event))) {
         result.next_page_token =
             MakePageToken('e', absl::StrCat(result.items.back().event_id));
         break;
       }
-      ASSIGN_OR_RETURN(EventRecord event, ReadEvent(st));
+      bytes += ApproxBytes(event);
       result.items.push_back(std::move(event));
     }
   }

@@ -1034,6 +1034,41 @@ TEST_F(SqliteEventStoreTest, AlteredEventIsDataLossNamingIt) {
             absl::StatusCode::kDataLoss);
 }
 
+// Pages end by size as well as by count, never empty, and still cover
+// everything.
+TEST_F(SqliteEventStoreTest, PagesEndByBytesToo) {
+  ASSERT_TRUE(store_->CreateUser(MakeUser("alice")).ok());
+  for (int i = 0; i < 10; ++i) MustAppend(MakeEvent("alice", "m"));
+  Page page;
+  page.max_bytes = 500;  // an event here is about 160 bytes
+  int pages = 0, seen = 0;
+  do {
+    auto result = store_->ListEvents("alice", "", page);
+    ASSERT_TRUE(result.ok()) << result.status();
+    EXPECT_GE(result->items.size(), 1u);
+    EXPECT_LE(result->items.size(), 4u);
+    seen += static_cast<int>(result->items.size());
+    page.page_token = result->next_page_token;
+    ++pages;
+  } while (!page.page_token.empty());
+  EXPECT_EQ(seen, 10);
+  EXPECT_GE(pages, 3);
+  page.page_token.clear();
+  page.max_bytes = 1;  // smaller than any event: one per page
+  auto one = store_->ListEvents("alice", "", page);
+  ASSERT_TRUE(one.ok());
+  EXPECT_EQ(one->items.size(), 1u);
+  EXPECT_FALSE(one->next_page_token.empty());
+
+  ASSERT_TRUE(store_->CreateUser(MakeUser("bob")).ok());
+  Page users;
+  users.max_bytes = 1;
+  auto first = store_->ListUsers(users);
+  ASSERT_TRUE(first.ok());
+  EXPECT_EQ(first->items.size(), 1u);
+  EXPECT_FALSE(first->next_page_token.empty());
+}
+
 TEST_F(SqliteEventStoreTest, AuditEntriesAreKeptAndPaged) {
   for (int i = 0; i < 3; ++i) {
     AuditEntry entry;
