@@ -120,3 +120,7 @@ printf '\n==> Running tests\n'
 (cd build && ctest --output-on-failure -j "$JOBS" --timeout 300)
 
 sanitize_core
+
+# The decoders and converters under libFuzzer, a few seconds each from the
+# committed corpus (docs/security.md has the long run).
+scripts/fuzz.sh --seconds=5
