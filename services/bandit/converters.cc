@@ -1,5 +1,7 @@
 #include "services/bandit/converters.h"
 
+#include <algorithm>
+
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "google/protobuf/timestamp.pb.h"
@@ -193,8 +195,14 @@ void ModelToProto(const ModelExport& model, v1::Model* proto) {
 }
 
 absl::StatusOr<int64_t> ParseEventId(const std::string& event_id) {
+  // Exactly what Select returns: decimal digits, no sign, spaces or leading
+  // zeros (SimpleAtoi alone would take " 1" and "+5").
   int64_t id = 0;
-  if (!absl::SimpleAtoi(event_id, &id) || id <= 0) {
+  const bool canonical =
+      !event_id.empty() && event_id.size() <= 19 && event_id[0] != '0' &&
+      std::all_of(event_id.begin(), event_id.end(),
+                  [](char c) { return c >= '0' && c <= '9'; });
+  if (!canonical || !absl::SimpleAtoi(event_id, &id) || id <= 0) {
     return absl::InvalidArgumentError(absl::StrCat(
         "event_id: expected the decimal id returned by Select, got \"",
         event_id.substr(0, 64), "\""));

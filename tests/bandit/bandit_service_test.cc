@@ -132,6 +132,16 @@ TEST_F(BanditServiceTest, AdministrativeCallsAreAuditedAndTheStoreCheckable) {
   EXPECT_GT(audit.records(2).time().seconds(), 1700000000);
 }
 
+TEST(ParseEventIdTest, TakesOnlyWhatSelectReturns) {
+  EXPECT_EQ(*ParseEventId("1"), 1);
+  EXPECT_EQ(*ParseEventId("9223372036854775807"), INT64_MAX);
+  for (const char* bad : {"", " 1", "1 ", "+5", "-5", "05", "0", "1e3", "0x10",
+                          "9223372036854775808", "12345678901234567890"}) {
+    absl::StatusOr<int64_t> id = ParseEventId(bad);
+    EXPECT_EQ(id.status().code(), absl::StatusCode::kInvalidArgument) << bad;
+  }
+}
+
 TEST(WithholdContextsTest, LeavesVectorsOutAndSaysSo) {
   v1::ListEventsResponse response;
   v1::Event* event = response.add_events();

@@ -97,6 +97,68 @@ TEST(PerceptionBinaryTest, UnknownFeaturizerStopsTheStart) {
   EXPECT_THAT(child.log(), HasSubstr("unknown featurizer \"resnet\""));
 }
 
+// The child's peak resident memory (VmHWM) in MB, from /proc.
+double PeakRssMb(pid_t pid) {
+  std::ifstream status(absl::StrCat("/proc/", pid, "/status"));
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("VmHWM:", 0) == 0) return std::stod(line.substr(6)) / 1024;
+  }
+  return -1.0;
+}
+
+// A small PNG whose header claims 20000x20000 once made every DetectFood
+// take 1.2 GB before it was refused. Now the header is read first: three
+// such calls are INVALID_ARGUMENT and the real binary's peak memory does
+// not move.
+TEST(PerceptionBinaryTest, DecompressionBombIsRefusedWithoutMemory) {
+  const absl::StatusOr<int> port = bitewise::testing::PickFreePort();
+  ASSERT_TRUE(port.ok()) << port.status();
+  const std::string log = LogPath();
+  ChildProcess child;
+  ASSERT_NO_FATAL_FAILURE(
+      Spawn(child, {absl::StrCat("--listen=127.0.0.1:", *port)}, log));
+  auto channel = MakeChannel(absl::StrCat("127.0.0.1:", *port), {});
+  ASSERT_TRUE(channel.ok());
+  ASSERT_TRUE(WaitForServing(*channel, kService, absl::Seconds(60)).ok())
+      << child.log();
+  auto stub = v1::PerceptionService::NewStub(*channel);
+  testing::TestScene scene = testing::RenderTestScene(5, 3, false);
+  v1::DetectFoodRequest request;
+  *request.mutable_frame() =
+      testing::ToProto(scene.rendered, v1::IMAGE_ENCODING_PNG);
+  {  // One real call first, so the baseline includes a decode.
+    v1::DetectFoodResponse items;
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() +
+                         std::chrono::seconds(30));
+    ASSERT_TRUE(stub->DetectFood(&context, request, &items).ok());
+  }
+  const double before_mb = PeakRssMb(child.pid());
+  ASSERT_GT(before_mb, 0.0);
+  std::string png = request.frame().rgb();
+  for (int i = 0; i < 2; ++i) {  // IHDR width and height: 20000
+    png[16 + 4 * i] = 0;
+    png[17 + 4 * i] = 0;
+    png[18 + 4 * i] = static_cast<char>(20000 >> 8);
+    png[19 + 4 * i] = static_cast<char>(20000 & 0xFF);
+  }
+  request.mutable_frame()->set_rgb(png);
+  for (int i = 0; i < 3; ++i) {
+    v1::DetectFoodResponse items;
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() +
+                         std::chrono::seconds(30));
+    const grpc::Status status = stub->DetectFood(&context, request, &items);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_THAT(status.error_message(), HasSubstr("20000x20000"));
+  }
+  EXPECT_LT(PeakRssMb(child.pid()) - before_mb, 20.0)
+      << "peak RSS " << before_mb << " MB before the three calls";
+  kill(child.pid(), SIGTERM);
+  ASSERT_TRUE(child.Wait(absl::Seconds(30)).ok());
+}
+
 TEST(PerceptionBinaryTest, ServesSpanetFeaturesAndDrainsOnSigterm) {
   const absl::StatusOr<int> port = bitewise::testing::PickFreePort();
   ASSERT_TRUE(port.ok()) << port.status();
