@@ -15,6 +15,7 @@
 #include "gtest/gtest.h"
 #include "services/bandit/store/sqlite_event_store.h"
 #include "tests/bandit/dense_reference.h"
+#include "tests/common/near.h"
 #include "tests/common/status_matchers.h"
 
 namespace bitewise::bandit {
@@ -275,8 +276,8 @@ TEST_F(EngineTest, ModelSurvivesReopenWithin1e12) {
   for (int a = 0; a < 6; ++a) {
     EXPECT_EQ(after->actions[a].count, before->actions[a].count);
     for (int i = 0; i < 8; ++i) {
-      EXPECT_NEAR(after->actions[a].theta[i], before->actions[a].theta[i],
-                  1e-12 * std::max(1.0, std::abs(before->actions[a].theta[i])));
+      EXPECT_TRUE(bitewise::testing::RelNear(
+          after->actions[a].theta[i], before->actions[a].theta[i], 1e-12));
     }
   }
   absl::StatusOr<SelectResult> select_after =
@@ -286,8 +287,8 @@ TEST_F(EngineTest, ModelSurvivesReopenWithin1e12) {
   for (int a = 0; a < 6; ++a) {
     const ActionEstimate& x = select_before->estimates[a];
     const ActionEstimate& y = select_after->estimates[a];
-    EXPECT_NEAR(y.lcb, x.lcb, 1e-12 * std::max(1.0, std::abs(x.lcb)));
-    EXPECT_NEAR(y.width, x.width, 1e-12 * std::max(1.0, x.width));
+    EXPECT_TRUE(bitewise::testing::RelNear(y.lcb, x.lcb, 1e-12));
+    EXPECT_TRUE(bitewise::testing::RelNear(y.width, x.width, 1e-12));
   }
   EXPECT_TRUE(engine_->Update({pending->event_id, 1.0, {0, 1, 0, 0}}).ok());
   EXPECT_EQ(engine_->GetUser("carol")->model_version, 121);

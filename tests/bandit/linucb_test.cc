@@ -10,6 +10,7 @@
 #include "services/bandit/core/policy.h"
 #include "services/bandit/core/population_prior.h"
 #include "tests/bandit/dense_reference.h"
+#include "tests/common/near.h"
 
 namespace bitewise::bandit {
 namespace {
@@ -75,16 +76,6 @@ std::vector<double> RandomVector(int n, std::mt19937_64& rng) {
   return v;
 }
 
-// Relative difference with a floor of 1 on the scale, so that values near
-// zero are compared absolutely.
-double RelErr(double got, double want) {
-  return std::abs(got - want) / std::max(1.0, std::abs(want));
-}
-
-double RelErr(const Eigen::VectorXd& got, const Eigen::VectorXd& want) {
-  return (got - want).norm() / std::max(1.0, want.norm());
-}
-
 void ExpectMatchesReference(const LinUcbModel& model,
                             const std::vector<Round>& rounds,
                             const std::vector<double>& probe,
@@ -98,12 +89,12 @@ void ExpectMatchesReference(const LinUcbModel& model,
     const double pred = ref[a].theta.dot(c);
     const double width = std::sqrt(c.dot(ref[a].sigma * c));
     const double lcb = pred - config.alpha * width;
-    EXPECT_LT(RelErr(model.Theta(a), ref[a].theta), 1e-8);
-    EXPECT_LT(RelErr(est[a].predicted_loss, pred), 1e-8);
-    EXPECT_LT(RelErr(est[a].width, width), 1e-8);
-    EXPECT_LT(RelErr(est[a].lcb, lcb), 1e-8);
+    EXPECT_TRUE(bitewise::testing::RelNear(model.Theta(a), ref[a].theta, 1e-8));
+    EXPECT_TRUE(bitewise::testing::RelNear(est[a].predicted_loss, pred, 1e-8));
+    EXPECT_TRUE(bitewise::testing::RelNear(est[a].width, width, 1e-8));
+    EXPECT_TRUE(bitewise::testing::RelNear(est[a].lcb, lcb, 1e-8));
     if (config.learner == Learner::kPostHoc) {
-      EXPECT_LT(RelErr(model.Phi(a), ref[a].phi), 1e-8);
+      EXPECT_TRUE(bitewise::testing::RelNear(model.Phi(a), ref[a].phi, 1e-8));
     }
   }
 }
@@ -160,9 +151,11 @@ TEST_P(LinUcbReferenceTest, MatchesDenseReferenceThroughout) {
   const std::vector<ActionEstimate> a = model.Estimate(probe);
   const std::vector<ActionEstimate> b = rebuilt->Estimate(probe);
   for (int i = 0; i < p.k; ++i) {
-    EXPECT_LT(RelErr(b[i].predicted_loss, a[i].predicted_loss), 1e-10);
-    EXPECT_LT(RelErr(b[i].width, a[i].width), 1e-10);
-    EXPECT_LT(RelErr(rebuilt->Theta(i), model.Theta(i)), 1e-10);
+    EXPECT_TRUE(bitewise::testing::RelNear(b[i].predicted_loss,
+                                           a[i].predicted_loss, 1e-10));
+    EXPECT_TRUE(bitewise::testing::RelNear(b[i].width, a[i].width, 1e-10));
+    EXPECT_TRUE(
+        bitewise::testing::RelNear(rebuilt->Theta(i), model.Theta(i), 1e-10));
     EXPECT_EQ(rebuilt->Count(i), model.Count(i));
     EXPECT_EQ(rebuilt->IsPrimal(i), model.IsPrimal(i));
   }
@@ -238,7 +231,7 @@ TEST(PopulationPriorTest, PoolsModelsAndStartsNewUsersFromThem) {
       }
       if (n > 0) expected /= n;
       const Eigen::Map<const Eigen::VectorXd> got(prior->theta0[a].data(), 5);
-      EXPECT_LT(RelErr(got, expected), 1e-12) << a;
+      EXPECT_TRUE(bitewise::testing::RelNear(got, expected, 1e-12)) << a;
     }
     BanditConfig newcomer = config;
     newcomer.prior = *prior;
@@ -249,7 +242,8 @@ TEST(PopulationPriorTest, PoolsModelsAndStartsNewUsersFromThem) {
       const double kappa = prior->rounds * prior->context_msn;
       const Eigen::Map<const Eigen::VectorXd> theta0(prior->theta0[1].data(),
                                                      5);
-      EXPECT_LT(RelErr(fresh.Theta(1), kappa / (2.0 + kappa) * theta0), 1e-12);
+      EXPECT_TRUE(bitewise::testing::RelNear(
+          fresh.Theta(1), kappa / (2.0 + kappa) * theta0, 1e-12));
     }
   }
 }
@@ -318,12 +312,15 @@ TEST(LinUcbTest, RebuildEqualsIncrementalWithDefaults) {
       const std::vector<ActionEstimate> b = rebuilt->Estimate(probe);
       for (int i = 0; i < 6; ++i) {
         EXPECT_EQ(model->IsPrimal(i), d == 16);
-        EXPECT_LT(RelErr(b[i].predicted_loss, a[i].predicted_loss), 1e-12);
-        EXPECT_LT(RelErr(b[i].width, a[i].width), 1e-12);
-        EXPECT_LT(RelErr(b[i].lcb, a[i].lcb), 1e-12);
-        EXPECT_LT(RelErr(rebuilt->Theta(i), model->Theta(i)), 1e-12);
+        EXPECT_TRUE(bitewise::testing::RelNear(b[i].predicted_loss,
+                                               a[i].predicted_loss, 1e-12));
+        EXPECT_TRUE(bitewise::testing::RelNear(b[i].width, a[i].width, 1e-12));
+        EXPECT_TRUE(bitewise::testing::RelNear(b[i].lcb, a[i].lcb, 1e-12));
+        EXPECT_TRUE(bitewise::testing::RelNear(rebuilt->Theta(i),
+                                               model->Theta(i), 1e-12));
         if (learner == Learner::kPostHoc) {
-          EXPECT_LT(RelErr(rebuilt->Phi(i), model->Phi(i)), 1e-12);
+          EXPECT_TRUE(bitewise::testing::RelNear(rebuilt->Phi(i), model->Phi(i),
+                                                 1e-12));
         }
       }
     }

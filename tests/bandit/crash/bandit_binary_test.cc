@@ -45,6 +45,7 @@
 #include "services/common/status_macros.h"
 #include "tests/bandit/dense_reference.h"
 #include "tests/common/child_process.h"
+#include "tests/common/near.h"
 
 namespace bitewise {
 namespace {
@@ -216,18 +217,6 @@ std::vector<double> RandomVector(int n, std::mt19937_64& rng) {
   return v;
 }
 
-// Agreement relative to the larger magnitude, with a floor of 1 so values
-// near zero are compared absolutely.
-::testing::AssertionResult Near(double actual, double expected, double tol) {
-  const double scale = std::max({1.0, std::abs(actual), std::abs(expected)});
-  if (std::abs(actual - expected) <= tol * scale) {
-    return ::testing::AssertionSuccess();
-  }
-  return ::testing::AssertionFailure()
-         << actual << " vs " << expected << " (difference "
-         << std::abs(actual - expected) << ", tolerance " << tol * scale << ")";
-}
-
 // Bit-for-bit equality, so that -0.0, subnormals and the last ulp count.
 template <typename Container>
 ::testing::AssertionResult BitEqual(const Container& actual,
@@ -287,10 +276,13 @@ void ExpectEstimatesMatchReference(
     const double width = std::sqrt(c.dot(reference[a].sigma * c));
     const double lcb = predicted - alpha * width;
     EXPECT_EQ(got.action(), a);
-    EXPECT_TRUE(Near(got.predicted_loss(), predicted, tol))
+    EXPECT_TRUE(
+        bitewise::testing::RelNear(got.predicted_loss(), predicted, tol))
         << "action " << a << " predicted_loss";
-    EXPECT_TRUE(Near(got.width(), width, tol)) << "action " << a << " width";
-    EXPECT_TRUE(Near(got.lcb(), lcb, tol)) << "action " << a << " lcb";
+    EXPECT_TRUE(bitewise::testing::RelNear(got.width(), width, tol))
+        << "action " << a << " width";
+    EXPECT_TRUE(bitewise::testing::RelNear(got.lcb(), lcb, tol))
+        << "action " << a << " lcb";
   }
 }
 
@@ -308,7 +300,8 @@ void ExpectModelMatchesReference(
     EXPECT_EQ(got.count(), counts[a]) << "action " << a;
     ASSERT_EQ(got.theta_size(), reference[a].theta.size()) << "action " << a;
     for (int i = 0; i < got.theta_size(); ++i) {
-      EXPECT_TRUE(Near(got.theta(i), reference[a].theta(i), tol))
+      EXPECT_TRUE(
+          bitewise::testing::RelNear(got.theta(i), reference[a].theta(i), tol))
           << "action " << a << " theta[" << i << "]";
     }
     if (!posthoc) {
@@ -317,7 +310,8 @@ void ExpectModelMatchesReference(
     }
     ASSERT_EQ(got.phi_size(), reference[a].phi.size()) << "action " << a;
     for (int i = 0; i < got.phi_size(); ++i) {
-      EXPECT_TRUE(Near(got.phi(i), reference[a].phi(i), tol))
+      EXPECT_TRUE(
+          bitewise::testing::RelNear(got.phi(i), reference[a].phi(i), tol))
           << "action " << a << " phi[" << i << "]";
     }
   }
@@ -519,18 +513,21 @@ TEST_F(BanditBinaryTest, SigkillLosesNoAcknowledgedUpdate) {
     const v1::ActionModel& before = model_before->actions(a);
     const v1::ActionModel& after = model_after->actions(a);
     EXPECT_EQ(after.count(), before.count()) << "action " << a;
-    EXPECT_TRUE(Near(after.mean_loss(), before.mean_loss(), 1e-12))
+    EXPECT_TRUE(bitewise::testing::RelNear(after.mean_loss(),
+                                           before.mean_loss(), 1e-12))
         << "action " << a;
     ASSERT_EQ(after.theta_size(), kDim);
     ASSERT_EQ(before.theta_size(), kDim);
     for (int i = 0; i < kDim; ++i) {
-      EXPECT_TRUE(Near(after.theta(i), before.theta(i), 1e-12))
+      EXPECT_TRUE(
+          bitewise::testing::RelNear(after.theta(i), before.theta(i), 1e-12))
           << "action " << a << " theta[" << i << "]";
     }
     ASSERT_EQ(after.phi_size(), kPostHocDim);
     ASSERT_EQ(before.phi_size(), kPostHocDim);
     for (int i = 0; i < kPostHocDim; ++i) {
-      EXPECT_TRUE(Near(after.phi(i), before.phi(i), 1e-12))
+      EXPECT_TRUE(
+          bitewise::testing::RelNear(after.phi(i), before.phi(i), 1e-12))
           << "action " << a << " phi[" << i << "]";
     }
   }
@@ -543,10 +540,14 @@ TEST_F(BanditBinaryTest, SigkillLosesNoAcknowledgedUpdate) {
   for (int a = 0; a < probe_after->estimates_size(); ++a) {
     const v1::ActionEstimate& before = probe_before->estimates(a);
     const v1::ActionEstimate& after = probe_after->estimates(a);
-    EXPECT_TRUE(Near(after.predicted_loss(), before.predicted_loss(), 1e-12))
+    EXPECT_TRUE(bitewise::testing::RelNear(after.predicted_loss(),
+                                           before.predicted_loss(), 1e-12))
         << "action " << a;
-    EXPECT_TRUE(Near(after.width(), before.width(), 1e-12)) << "action " << a;
-    EXPECT_TRUE(Near(after.lcb(), before.lcb(), 1e-12)) << "action " << a;
+    EXPECT_TRUE(
+        bitewise::testing::RelNear(after.width(), before.width(), 1e-12))
+        << "action " << a;
+    EXPECT_TRUE(bitewise::testing::RelNear(after.lcb(), before.lcb(), 1e-12))
+        << "action " << a;
   }
 
   // A bite selected before the crash can still be reported: Select stored
