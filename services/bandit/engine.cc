@@ -74,9 +74,14 @@ absl::StatusOr<std::shared_ptr<BanditEngine::UserSlot>> BanditEngine::Slot(
 absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
                                         UserSlot& slot) {
   if (slot.model.has_value()) {
+    {
+      absl::MutexLock lock(&cache_mu_);
+      ++counters_.hits;
+    }
     Touch(slot);
     return absl::OkStatus();
   }
+  const absl::Time start = absl::Now();
   ASSIGN_OR_RETURN(UserRecord record, store_->GetUser(user_id));
   ASSIGN_OR_RETURN(std::vector<EventRecord> events,
                    store_->CompletedEvents(user_id));
@@ -90,6 +95,11 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
   slot.select_count = record.model_version + record.pending_events;
   slot.record = std::move(record);
   slot.model.emplace(std::move(model));
+  {
+    absl::MutexLock lock(&cache_mu_);
+    ++counters_.rebuilds;
+    counters_.rebuild_seconds += absl::ToDoubleSeconds(absl::Now() - start);
+  }
   Touch(slot);
   return absl::OkStatus();
 }
@@ -128,6 +138,7 @@ void BanditEngine::Touch(UserSlot& slot) {
     cached_bytes_ -= victim->bytes;
     victim->bytes = 0;
     victim->in_lru = false;
+    ++counters_.evictions;
     it = lru_.erase(it);
     victim->mu.Unlock();
   }
@@ -398,6 +409,11 @@ absl::StatusOr<PageResult<EventRecord>> BanditEngine::ListEvents(
 size_t BanditEngine::CachedBytes() const {
   absl::MutexLock lock(&cache_mu_);
   return cached_bytes_;
+}
+
+BanditEngine::CacheCounters BanditEngine::Counters() const {
+  absl::MutexLock lock(&cache_mu_);
+  return counters_;
 }
 
 int BanditEngine::CachedModels() const {

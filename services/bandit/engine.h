@@ -149,6 +149,15 @@ class BanditEngine {
   size_t CachedBytes() const;
   int CachedModels() const;
 
+  // Cache activity since the engine started (for metrics).
+  struct CacheCounters {
+    int64_t hits = 0;      // a model was already loaded
+    int64_t rebuilds = 0;  // a model was rebuilt from the event log
+    double rebuild_seconds = 0.0;
+    int64_t evictions = 0;  // models dropped for the cache budget
+  };
+  CacheCounters Counters() const;
+
  private:
   struct UserSlot {
     absl::Mutex mu;
@@ -183,6 +192,7 @@ class BanditEngine {
   mutable absl::Mutex cache_mu_;
   std::list<UserSlot*> lru_ ABSL_GUARDED_BY(cache_mu_);  // front: newest
   size_t cached_bytes_ ABSL_GUARDED_BY(cache_mu_) = 0;
+  CacheCounters counters_ ABSL_GUARDED_BY(cache_mu_);
 };
 
 }  // namespace bitewise::bandit

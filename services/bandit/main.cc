@@ -12,6 +12,7 @@
 #include "services/bandit/engine.h"
 #include "services/bandit/store/sqlite_event_store.h"
 #include "services/common/flags_usage.h"
+#include "services/common/metrics.h"
 #include "services/common/readiness_monitor.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
@@ -120,6 +121,44 @@ int main(int argc, char** argv) {
       static_cast<size_t>(absl::GetFlag(FLAGS_max_model_mb)) << 20;
   bitewise::bandit::BanditEngine engine(store->get(), engine_options);
   bitewise::bandit::BanditServiceImpl service(&engine, *defaults);
+  // Metrics read at scrape time (docs/operations.md).
+  {
+    using bitewise::ScrapeType;
+    using bitewise::ScrapeValue;
+    bitewise::bandit::BanditEngine* e = &engine;
+    bitewise::AddScrapeValues(
+        "bitewise_bandit_cached_models", "User models loaded in memory",
+        ScrapeType::kGauge, [e]() -> std::vector<ScrapeValue> {
+          return {{{}, static_cast<double>(e->CachedModels())}};
+        });
+    bitewise::AddScrapeValues(
+        "bitewise_bandit_cached_bytes", "Bytes of the loaded user models",
+        ScrapeType::kGauge, [e]() -> std::vector<ScrapeValue> {
+          return {{{}, static_cast<double>(e->CachedBytes())}};
+        });
+    bitewise::AddScrapeValues(
+        "bitewise_bandit_model_cache_total",
+        "Model cache events: hit (already loaded), rebuild (from the event "
+        "log), eviction (for the cache budget)",
+        ScrapeType::kCounter, [e]() -> std::vector<ScrapeValue> {
+          const auto c = e->Counters();
+          return {{{{"event", "hit"}}, static_cast<double>(c.hits)},
+                  {{{"event", "rebuild"}}, static_cast<double>(c.rebuilds)},
+                  {{{"event", "eviction"}}, static_cast<double>(c.evictions)}};
+        });
+    bitewise::AddScrapeValues("bitewise_bandit_rebuild_seconds_total",
+                              "Time spent rebuilding models from the event log",
+                              ScrapeType::kCounter,
+                              [e]() -> std::vector<ScrapeValue> {
+                                return {{{}, e->Counters().rebuild_seconds}};
+                              });
+    bitewise::AddScrapeValues(
+        "bitewise_bandit_store_healthy",
+        "1 while the store can durably accept writes", ScrapeType::kGauge,
+        [s = store->get()]() -> std::vector<ScrapeValue> {
+          return {{{}, s->CheckHealth().ok() ? 1.0 : 0.0}};
+        });
+  }
   // Administrative calls are kept in the store (ListAudit) as well as logged.
   bitewise::bandit::StoreAuditSink audit(store->get());
   bitewise::SetAuditSink(&audit);

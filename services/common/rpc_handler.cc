@@ -14,6 +14,7 @@
 #include "absl/time/time.h"
 #include "services/common/authz.h"
 #include "services/common/grpc_status.h"
+#include "services/common/metrics.h"
 
 namespace bitewise {
 namespace {
@@ -136,6 +137,7 @@ grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
   }
   const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
   RpcStats::Global().Record(method, status.code(), seconds);
+  RecordRpcMetric(method, status.code(), seconds);
   if (!status.ok()) {
     std::string message(status.message().substr(0, kMaxLoggedMessage));
     if (status.message().size() > kMaxLoggedMessage) {

@@ -132,15 +132,21 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
                                                           : "mutual TLS";
   // Built before the call: the authorizer is moved in the same argument
   // list, and argument evaluation order is unspecified.
+  std::unique_ptr<MetricsServer> metrics;
+  if (!options.metrics_listen.empty()) {
+    ASSIGN_OR_RETURN(metrics, MetricsServer::Start(options.metrics_listen));
+  }
   std::string description =
       absl::StrCat(host, ":", port, " (", mode, ", ",
                    authorizer ? absl::StrCat("roles from ", options.authz_file)
                               : std::string("authorization off"),
+                   metrics ? absl::StrCat(", metrics on port ", metrics->port())
+                           : std::string(),
                    ")");
   auto result = std::unique_ptr<ServiceServer>(new ServiceServer(
       std::move(server), std::move(health_names), port,
       DialableAddress(options.listen_address, port), std::move(description),
-      options.drain_timeout, std::move(authorizer)));
+      options.drain_timeout, std::move(authorizer), std::move(metrics)));
   result->SetServing(false);
   return result;
 }
@@ -149,13 +155,15 @@ ServiceServer::ServiceServer(std::unique_ptr<grpc::Server> server,
                              std::vector<std::string> health_names, int port,
                              std::string address, std::string description,
                              absl::Duration drain_timeout,
-                             std::unique_ptr<Authorizer> authorizer)
+                             std::unique_ptr<Authorizer> authorizer,
+                             std::unique_ptr<MetricsServer> metrics)
     : server_(std::move(server)),
       health_names_(std::move(health_names)),
       port_(port),
       address_(std::move(address)),
       description_(std::move(description)),
       authorizer_(std::move(authorizer)),
+      metrics_(std::move(metrics)),
       drain_timeout_(drain_timeout) {
   if (authorizer_) Authorizer::SetGlobal(authorizer_.get());
 }

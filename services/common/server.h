@@ -18,6 +18,7 @@
 #include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
 #include "services/common/authz.h"
+#include "services/common/metrics.h"
 
 namespace bitewise {
 
@@ -46,6 +47,9 @@ struct ServerOptions {
   // Roles file (authz.h). Requires mutual TLS. Empty: authorization off,
   // which the start-up line says.
   std::string authz_file;
+  // Prometheus metrics (metrics.h) on their own HTTP port, "host:port"
+  // (port 0 picks one). Empty: no metrics endpoint.
+  std::string metrics_listen;
 };
 
 // A running gRPC server hosting one or more bitewise services plus health and
@@ -86,6 +90,8 @@ class ServiceServer {
   // For the start-up line: the address actually bound (wildcards as
   // given) and the transport security, e.g. "0.0.0.0:50051 (mutual TLS)".
   std::string description() const { return description_; }
+  // The metrics endpoint's port; 0 without options.metrics_listen.
+  int metrics_port() const { return metrics_ ? metrics_->port() : 0; }
   // Reloads the roles file (on SIGHUP); OK when authorization is off.
   absl::Status ReloadAuthorization();
 
@@ -107,7 +113,8 @@ class ServiceServer {
                 std::vector<std::string> health_names, int port,
                 std::string address, std::string description,
                 absl::Duration drain_timeout,
-                std::unique_ptr<Authorizer> authorizer);
+                std::unique_ptr<Authorizer> authorizer,
+                std::unique_ptr<MetricsServer> metrics);
 
   const std::unique_ptr<grpc::Server> server_;
   const std::vector<std::string> health_names_;
@@ -115,6 +122,7 @@ class ServiceServer {
   const std::string address_;
   const std::string description_;
   const std::unique_ptr<Authorizer> authorizer_;
+  const std::unique_ptr<MetricsServer> metrics_;
   const absl::Duration drain_timeout_;
 
   absl::Mutex mu_;

@@ -22,6 +22,9 @@ ABSL_FLAG(std::string, authz_file, "",
           "Roles file: which client certificate identity may call what "
           "(docs/security.md). Needs mutual TLS; re-read on SIGHUP. Empty: "
           "authorization off.");
+ABSL_FLAG(std::string, metrics_listen, "",
+          "Serve Prometheus metrics (docs/operations.md) on this host:port, "
+          "e.g. 127.0.0.1:9101. Empty: no metrics endpoint.");
 ABSL_FLAG(int, drain_timeout_s, 10,
           "Seconds in-flight calls may take to finish after SIGTERM.");
 
@@ -40,6 +43,7 @@ ServerOptions ServerOptionsFromFlags(int default_port) {
   options.tls_client_ca_file = absl::GetFlag(FLAGS_tls_client_ca);
   options.max_message_bytes = absl::GetFlag(FLAGS_max_message_bytes);
   options.drain_timeout = absl::Seconds(absl::GetFlag(FLAGS_drain_timeout_s));
+  options.metrics_listen = absl::GetFlag(FLAGS_metrics_listen);
   return options;
 }
 

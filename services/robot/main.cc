@@ -17,6 +17,7 @@
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "services/common/flags_usage.h"
+#include "services/common/metrics.h"
 #include "services/common/readiness_monitor.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
@@ -283,6 +284,52 @@ int main(int argc, char** argv) {
   if (!server.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot start the server",
                                  server.status());
+  }
+  // Metrics read at scrape time (docs/operations.md).
+  {
+    using bitewise::ScrapeType;
+    using bitewise::ScrapeValue;
+    bitewise::robot::RobotBackend* b = backend->get();
+    auto status_value = [b](auto field) {
+      return [b, field]() -> std::vector<ScrapeValue> {
+        return {{{}, field(b->robot().Status())}};
+      };
+    };
+    using Info = bitewise::robot::RobotStatusInfo;
+    bitewise::AddScrapeValues(
+        "bitewise_robot_ft_rate_hz", "F/T samples accepted per second",
+        ScrapeType::kGauge,
+        status_value([](const Info& i) { return i.ft_health.rate_hz; }));
+    bitewise::AddScrapeValues(
+        "bitewise_robot_ft_silent_seconds",
+        "Seconds since the last accepted F/T sample", ScrapeType::kGauge,
+        status_value([](const Info& i) { return i.ft_health.silent_for_s; }));
+    bitewise::AddScrapeValues(
+        "bitewise_robot_ft_live", "1 while the F/T stream is live",
+        ScrapeType::kGauge, [b]() -> std::vector<ScrapeValue> {
+          return {{{}, b->FtLive() ? 1.0 : 0.0}};
+        });
+    bitewise::AddScrapeValues(
+        "bitewise_robot_ft_packets_lost_total", "RDT packets lost",
+        ScrapeType::kCounter, status_value([](const Info& i) {
+          return static_cast<double>(i.ft_stats.packets_lost);
+        }));
+    bitewise::AddScrapeValues("bitewise_robot_acquisitions_total",
+                              "Acquisitions run", ScrapeType::kCounter,
+                              status_value([](const Info& i) {
+                                return static_cast<double>(i.acquisitions);
+                              }));
+    bitewise::AddScrapeValues(
+        "bitewise_robot_acquisitions_failed_total",
+        "Acquisitions that ended in an error", ScrapeType::kCounter,
+        status_value([](const Info& i) {
+          return static_cast<double>(i.acquisitions_failed);
+        }));
+    bitewise::AddScrapeValues("bitewise_robot_force_limit_trips_total",
+                              "Force-limit trips", ScrapeType::kCounter,
+                              status_value([](const Info& i) {
+                                return static_cast<double>(i.force_limit_trips);
+                              }));
   }
   // Ready exactly while the F/T stream is live.
   bitewise::ReadinessMonitor readiness(

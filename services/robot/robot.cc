@@ -6,6 +6,7 @@
 #include <limits>
 #include <utility>
 
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "services/common/status_macros.h"
@@ -377,6 +378,13 @@ absl::StatusOr<AcquireOutcome> Robot::Acquire(
   std::lock_guard<std::mutex> lock(mu_);
   busy_ = false;
   phase_ = AcquirePhase::kIdle;
+  ++acquisitions_;
+  if (!result.ok()) ++acquisitions_failed_;
+  if ((result.ok() && result->force_limit_reached) ||
+      (absl::IsAborted(result.status()) &&
+       absl::StrContains(result.status().message(), "exceeded the"))) {
+    ++force_limit_trips_;
+  }
   return result;
 }
 
@@ -414,6 +422,9 @@ RobotStatusInfo Robot::Status() {
   info.ft_name = ft_->name();
   std::lock_guard<std::mutex> lock(mu_);
   info.busy_with = phase_;
+  info.acquisitions = acquisitions_;
+  info.acquisitions_failed = acquisitions_failed_;
+  info.force_limit_trips = force_limit_trips_;
   return info;
 }
 

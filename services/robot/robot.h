@@ -118,6 +118,12 @@ struct RobotStatusInfo {
   netft::RdtStats ft_stats;
   std::string ft_name;
   AcquirePhase busy_with = AcquirePhase::kIdle;
+  // Since the Robot was made (for metrics): acquisitions run (dry runs
+  // included), those that ended in an error, and force-limit trips (the
+  // descent stopped at the limit, or an ABORTED naming the force limit).
+  int64_t acquisitions = 0;
+  int64_t acquisitions_failed = 0;
+  int64_t force_limit_trips = 0;
 };
 
 class Robot {
@@ -173,6 +179,9 @@ class Robot {
   bool busy_ = false;
   bool stop_requested_ = false;
   AcquirePhase phase_ = AcquirePhase::kIdle;
+  int64_t acquisitions_ = 0;
+  int64_t acquisitions_failed_ = 0;
+  int64_t force_limit_trips_ = 0;
 };
 
 }  // namespace bitewise::robot

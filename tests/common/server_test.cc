@@ -4,13 +4,17 @@
 // draining shutdown.
 #include "services/common/server.h"
 
+#include <arpa/inet.h>
 #include <grpcpp/client_context.h>
 #include <grpcpp/completion_queue.h>
 #include <grpcpp/generic/generic_stub.h>
 #include <grpcpp/support/byte_buffer.h>
+#include <netinet/in.h>
 #include <pthread.h>
 #include <signal.h>
 #include <stdlib.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cstdlib>
@@ -41,6 +45,7 @@
 #include "services/common/authz.h"
 #include "services/common/channel.h"
 #include "services/common/grpc_status.h"
+#include "services/common/metrics.h"
 #include "services/common/rpc_handler.h"
 
 namespace bitewise {
@@ -768,6 +773,68 @@ TEST(AuthorizationTest, RolesNeedMutualTls) {
       ServiceServer::Start(options, {&service}, {"bitewise.v1.HapticService"});
   EXPECT_EQ(server.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(server.status().message(), HasSubstr("needs mutual TLS"));
+}
+
+// GET /metrics over a plain TCP socket; the body, or "" on failure.
+std::string ScrapeMetrics(int port) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0) {
+    close(fd);
+    return "";
+  }
+  const std::string request =
+      "GET /metrics HTTP/1.0\r\nHost: localhost\r\n\r\n";
+  if (write(fd, request.data(), request.size()) < 0) {
+    close(fd);
+    return "";
+  }
+  std::string response;
+  char buffer[4096];
+  ssize_t n;
+  while ((n = read(fd, buffer, sizeof(buffer))) > 0) response.append(buffer, n);
+  close(fd);
+  return response;
+}
+
+TEST(MetricsTest, RpcCountsLatencyAndScrapeValuesAreServed) {
+  AuthzProbeService probe;
+  ServerOptions options;
+  options.metrics_listen = "127.0.0.1:0";
+  auto server =
+      ServiceServer::Start(options, {&probe}, {"bitewise.v1.HapticService"});
+  ASSERT_TRUE(server.ok()) << server.status();
+  ASSERT_GT((*server)->metrics_port(), 0);
+  EXPECT_THAT(
+      (*server)->description(),
+      HasSubstr(absl::StrCat("metrics on port ", (*server)->metrics_port())));
+  int scrapes = 0;
+  AddScrapeValues("bitewise_test_value", "A value read at scrape time",
+                  ScrapeType::kGauge, [&scrapes]() -> std::vector<ScrapeValue> {
+                    return {{{{"kind", "probe"}}, 42.0 + scrapes++}};
+                  });
+  auto connected = Connect((*server)->address());
+  probe.method = "HapticService/MetricsProbe";
+  EXPECT_TRUE(CallClassify(connected, 1).ok());
+  EXPECT_TRUE(CallClassify(connected, 1).ok());
+  const std::string body = ScrapeMetrics((*server)->metrics_port());
+  EXPECT_THAT(body, HasSubstr("200 OK"));
+  EXPECT_THAT(body, HasSubstr("bitewise_rpc_requests_total{code=\"OK\","
+                              "method=\"HapticService/MetricsProbe\"} 2"));
+  EXPECT_THAT(body, HasSubstr("bitewise_rpc_latency_seconds_count{method="
+                              "\"HapticService/MetricsProbe\"} 2"));
+  EXPECT_THAT(body, HasSubstr("bitewise_test_value{kind=\"probe\"} 42"));
+  (*server)->Shutdown();
+
+  ServerOptions taken;
+  taken.metrics_listen = "256.0.0.1:1";
+  EXPECT_EQ(ServiceServer::Start(taken, {&probe}, {"bitewise.v1.HapticService"})
+                .status()
+                .code(),
+            absl::StatusCode::kUnavailable);
 }
 
 // Every method of every service, for each role, over real mutual TLS: the

@@ -1,0 +1,64 @@
+// Prometheus metrics an operator can watch (Debian's prometheus-cpp),
+// served on a port of their own by ServiceServer when --metrics_listen is
+// set (off by default; on in deploy/). Every service exports, from RunRpc:
+//   bitewise_rpc_requests_total{method, code}     counter
+//   bitewise_rpc_latency_seconds{method}          histogram
+// and each main adds its own values read at scrape time (AddScrapeValues):
+// the bandit's model cache, the robot's F/T stream and force-limit trips.
+// docs/operations.md lists them with the alert rules worth setting.
+// Thread-safe.
+#ifndef BITEWISE_SERVICES_COMMON_METRICS_H_
+#define BITEWISE_SERVICES_COMMON_METRICS_H_
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+
+namespace prometheus {
+class Exposer;
+}  // namespace prometheus
+
+namespace bitewise {
+
+// Counts one call of `method` ("Service/Method") ending with `code` after
+// `seconds`.
+void RecordRpcMetric(const std::string& method, absl::StatusCode code,
+                     double seconds);
+
+// One sample read at scrape time: labels and value.
+struct ScrapeValue {
+  std::map<std::string, std::string> labels;
+  double value = 0.0;
+};
+enum class ScrapeType { kGauge, kCounter };
+
+// Adds a metric family whose samples `read` returns at every scrape (it
+// must stay callable for the process's lifetime and be thread-safe).
+void AddScrapeValues(const std::string& name, const std::string& help,
+                     ScrapeType type,
+                     std::function<std::vector<ScrapeValue>()> read);
+
+// The HTTP endpoint (/metrics) over the process's metrics.
+class MetricsServer {
+ public:
+  // Listens on `address` ("host:port"; port 0 picks one). UNAVAILABLE naming
+  // the address if it cannot listen.
+  static absl::StatusOr<std::unique_ptr<MetricsServer>> Start(
+      const std::string& address);
+  ~MetricsServer();
+  int port() const { return port_; }
+
+ private:
+  MetricsServer(std::unique_ptr<prometheus::Exposer> exposer, int port);
+  std::unique_ptr<prometheus::Exposer> exposer_;
+  int port_;
+};
+
+}  // namespace bitewise
+
+#endif  // BITEWISE_SERVICES_COMMON_METRICS_H_
