@@ -153,6 +153,23 @@ int main(int argc, char** argv) {
                                 return {{{}, e->Counters().rebuild_seconds}};
                               });
     bitewise::AddScrapeValues(
+        "bitewise_bandit_store_writes_total",
+        "Durable writes of the hot path: append (Select) and complete "
+        "(Update)",
+        ScrapeType::kCounter, [s = store->get()]() -> std::vector<ScrapeValue> {
+          const auto w = s->write_stats();
+          return {{{{"op", "append"}}, static_cast<double>(w.appends)},
+                  {{{"op", "complete"}}, static_cast<double>(w.completions)}};
+        });
+    bitewise::AddScrapeValues(
+        "bitewise_bandit_store_write_seconds_total",
+        "Time those writes held the store, commit and fsync included",
+        ScrapeType::kCounter, [s = store->get()]() -> std::vector<ScrapeValue> {
+          const auto w = s->write_stats();
+          return {{{{"op", "append"}}, w.append_seconds},
+                  {{{"op", "complete"}}, w.completion_seconds}};
+        });
+    bitewise::AddScrapeValues(
         "bitewise_bandit_store_healthy",
         "1 while the store can durably accept writes", ScrapeType::kGauge,
         [s = store->get()]() -> std::vector<ScrapeValue> {

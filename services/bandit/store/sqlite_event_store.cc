@@ -19,6 +19,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/string_view.h"
+#include "absl/time/clock.h"
 #include "services/bandit/store/event_checksum.h"
 #include "services/bandit/store/sqlite_helpers.h"
 #include "services/bandit/store/sqlite_schema.h"
@@ -613,6 +614,7 @@ absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
     return absl::InvalidArgumentError("propensity must not be NaN");
   }
   const std::string context = EncodeDoubles(event.context);
+  const absl::Time start = absl::Now();
   absl::MutexLock lock(&mu_);
   // One statement, hence atomic on its own: the row is inserted only if the
   // user exists, and no row back means it does not.
@@ -641,6 +643,11 @@ absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
   const int64_t event_id = inserted ? st.Int64(0) : 0;
   RETURN_IF_ERROR(st.Run());
   if (!inserted) return UserNotFound(event.user_id);
+  {
+    absl::MutexLock stats(&stats_mu_);
+    ++write_stats_.appends;
+    write_stats_.append_seconds += absl::ToDoubleSeconds(absl::Now() - start);
+  }
   return event_id;
 }
 
@@ -655,6 +662,7 @@ absl::StatusOr<EventRecord> SqliteEventStore::CompleteEvent(
     return absl::InvalidArgumentError("weight must not be NaN");
   }
   const std::string posthoc_bytes = EncodeDoubles(posthoc);
+  const absl::Time start = absl::Now();
   absl::MutexLock lock(&mu_);
   ASSIGN_OR_RETURN(
       Transaction txn,
@@ -713,6 +721,12 @@ absl::StatusOr<EventRecord> SqliteEventStore::CompleteEvent(
     RETURN_IF_ERROR(st.Run());
   }
   RETURN_IF_ERROR(txn.Commit());
+  {
+    absl::MutexLock stats(&stats_mu_);
+    ++write_stats_.completions;
+    write_stats_.completion_seconds +=
+        absl::ToDoubleSeconds(absl::Now() - start);
+  }
   event.completed = true;
   event.loss = loss;
   event.posthoc = posthoc;
@@ -904,6 +918,11 @@ absl::StatusOr<std::vector<EventRecord>> SqliteEventStore::CompletedEvents(
   }
   RETURN_IF_ERROR(txn.Commit());
   return events;
+}
+
+SqliteEventStore::WriteStats SqliteEventStore::write_stats() const {
+  absl::MutexLock lock(&stats_mu_);
+  return write_stats_;
 }
 
 absl::StatusOr<int64_t> SqliteEventStore::AppendAudit(const AuditEntry& entry) {

@@ -107,6 +107,18 @@ class SqliteEventStore final : public EventStore {
   absl::StatusOr<std::vector<EventRecord>> CompletedEvents(
       const std::string& user_id) override;
 
+  // Durable writes of the hot path since the store was opened (for
+  // metrics): each AppendPending (a Select's event) and CompleteEvent (an
+  // Update), with the time spent holding the store, its commit (and fsync
+  // with synchronous_full) included.
+  struct WriteStats {
+    int64_t appends = 0;
+    double append_seconds = 0.0;
+    int64_t completions = 0;
+    double completion_seconds = 0.0;
+  };
+  WriteStats write_stats() const;
+
  private:
   SqliteEventStore(sqlite3* db, int lock_fd, std::string path, uint64_t device,
                    uint64_t inode);
@@ -119,6 +131,8 @@ class SqliteEventStore final : public EventStore {
 
   absl::Mutex mu_;
   sqlite3* const db_ ABSL_PT_GUARDED_BY(mu_);
+  mutable absl::Mutex stats_mu_;
+  WriteStats write_stats_ ABSL_GUARDED_BY(stats_mu_);
   // The store's lock file, held while the store is open; -1 for ":memory:".
   const int lock_fd_;
   // The database file as opened (device and inode; both 0 for ":memory:").

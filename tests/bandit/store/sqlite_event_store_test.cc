@@ -1069,6 +1069,26 @@ TEST_F(SqliteEventStoreTest, PagesEndByBytesToo) {
   EXPECT_FALSE(first->next_page_token.empty());
 }
 
+TEST_F(SqliteEventStoreTest, WriteStatsCountTheHotPath) {
+  ASSERT_TRUE(store_->CreateUser(MakeUser("alice")).ok());
+  const int64_t id = MustAppend(MakeEvent("alice", "m"));
+  MustAppend(MakeEvent("alice", "m"));
+  ASSERT_TRUE(store_
+                  ->CompleteEvent(id, 1.0, {0.5, 0.5}, 1.0,
+                                  absl::FromUnixSeconds(1700000100))
+                  .ok());
+  // A refused completion is not a write.
+  EXPECT_FALSE(store_
+                   ->CompleteEvent(id, 1.0, {0.5, 0.5}, 1.0,
+                                   absl::FromUnixSeconds(1700000100))
+                   .ok());
+  const SqliteEventStore::WriteStats stats = store_->write_stats();
+  EXPECT_EQ(stats.appends, 2);
+  EXPECT_EQ(stats.completions, 1);
+  EXPECT_GT(stats.append_seconds, 0.0);
+  EXPECT_GT(stats.completion_seconds, 0.0);
+}
+
 TEST_F(SqliteEventStoreTest, AuditEntriesAreKeptAndPaged) {
   for (int i = 0; i < 3; ++i) {
     AuditEntry entry;
