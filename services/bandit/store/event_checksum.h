@@ -1,9 +1,10 @@
 // Per-event checksums of the bandit store (internal to services/bandit/store):
 // an event's selection (what Select stored) and its outcome (what Update
-// added) each carry a 64-bit FNV-1a checksum of their stored bytes, so a row
-// altered or damaged on disk is reported as DATA_LOSS naming the event
-// instead of being learned from. They detect accidents (flipped bits, a hand
-// edit), not an attacker who can rewrite the file and the checksum alike.
+// added) each carry a 64-bit checksum (FNV-1a's step over 8-byte words) of
+// their stored bytes, so a row altered or damaged on disk is reported as
+// DATA_LOSS naming the event instead of being learned from. They detect
+// accidents (flipped bits, a hand edit), not an attacker who can rewrite the
+// file and the checksum alike.
 #ifndef BITEWISE_SERVICES_BANDIT_STORE_EVENT_CHECKSUM_H_
 #define BITEWISE_SERVICES_BANDIT_STORE_EVENT_CHECKSUM_H_
 
