@@ -193,10 +193,11 @@ int64_t ApproxBytes(const EventRecord& event) {
          8 * static_cast<int64_t>(event.context.size() + event.posthoc.size());
 }
 
-// Whether a page of `count` items and `bytes` so far is full.
+// Whether adding an item would take a page of `count` items to `bytes`,
+// past its byte budget (never before its first item).
 bool PageFull(const Page& page, int page_size, size_t count, int64_t bytes) {
   return static_cast<int>(count) == page_size ||
-         (page.max_bytes > 0 && count > 0 && bytes >= page.max_bytes);
+         (page.max_bytes > 0 && count > 0 && bytes > page.max_bytes);
 }
 
 int ClampPageSize(int page_size) {
@@ -546,6 +547,13 @@ absl::StatusOr<PageResult<UserRecord>> SqliteEventStore::ListUsers(
   while (true) {
     ASSIGN_OR_RETURN(const bool row, st.Step());
     if (!row) break;
+    // The extra row past a full page is not read: it only says there is more.
+    const bool counted_full =
+        static_cast<int>(result.items.size()) == page_size;
+    if (counted_full) {
+      result.next_page_token = MakePageToken('u', result.items.back().user_id);
+      break;
+    }
     ASSIGN_OR_RETURN(UserRecord user, ReadUser(db_, st));
     if (PageFull(page, page_size, result.items.size(),
                  bytes + ApproxBytes(user))) {
@@ -877,6 +885,13 @@ absl::StatusOr<PageResult<EventRecord>> SqliteEventStore::ListEvents(
     while (true) {
       ASSIGN_OR_RETURN(const bool row, st.Step());
       if (!row) break;
+      const bool counted_full =
+          static_cast<int>(result.items.size()) == page_size;
+      if (counted_full) {
+        result.next_page_token =
+            MakePageToken('e', absl::StrCat(result.items.back().event_id));
+        break;
+      }
       ASSIGN_OR_RETURN(EventRecord event, ReadEvent(st));
       if (PageFull(page, page_size, result.items.size(),
                    bytes + ApproxBytes(event))) {
