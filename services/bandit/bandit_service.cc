@@ -175,13 +175,7 @@ grpc::Status BanditServiceImpl::ListAudit(grpc::ServerContext* context,
 
 absl::Status StoreAuditSink::Record(const AuditEvent& event) {
   AuditEntry entry;
-  entry.time = event.time;
-  entry.method = event.method;
-  entry.target = event.target;
-  entry.identity = event.identity;
-  entry.role = event.role;
-  entry.peer = event.peer;
-  entry.result = event.result;
+  static_cast<AuditEvent&>(entry) = event;
   return store_->AppendAudit(entry).status();
 }
 

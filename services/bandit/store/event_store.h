@@ -17,6 +17,7 @@
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
 #include "services/bandit/core/config.h"
+#include "services/common/audit.h"
 
 namespace bitewise::bandit {
 
@@ -62,16 +63,10 @@ struct PoolRecord {
   PopulationPrior prior;
 };
 
-// One administrative call, as the audit log keeps it.
-struct AuditEntry {
+// One administrative call as the audit log keeps it: the trail's own
+// record (services/common/audit.h, a plain struct) with its id in the log.
+struct AuditEntry : AuditEvent {
   int64_t audit_id = 0;  // assigned by the store, increasing from 1
-  absl::Time time;
-  std::string method;    // "BanditService/DeleteUser"
-  std::string target;    // the user the call concerned, if any
-  std::string identity;  // client certificate identities; "" without mTLS
-  std::string role;      // "" when authorization is off
-  std::string peer;      // the caller's address
-  std::string result;    // "OK" or the status code's name
 };
 
 // What a full storage check found.
