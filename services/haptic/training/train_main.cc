@@ -184,12 +184,18 @@ int main(int argc, char** argv) {
   std::printf("best epoch %d, softmax temperature %.2f (folded into fc3)\n",
               result->best_epoch, result->temperature);
 
+  // The trainer's reference pass over `windows`, scored.
+  auto score_windows =
+      [&](const LabelledWindows& windows,
+          std::vector<std::array<double, kHapticClasses>>* probabilities) {
+        for (const auto& window : windows.inputs) {
+          probabilities->push_back(
+              ReferenceProbabilities(result->weights, window));
+        }
+        return ScorePredictions(*probabilities, windows.labels);
+      };
   std::vector<std::array<double, kHapticClasses>> reference;
-  for (const auto& window : test_windows.inputs) {
-    reference.push_back(ReferenceProbabilities(result->weights, window));
-  }
-  const ProbabilisticScore score =
-      ScorePredictions(reference, test_windows.labels);
+  const ProbabilisticScore score = score_windows(test_windows, &reference);
   std::printf(
       "\nheld-out test set (trainer's reference pass): accuracy %.2f%%, log "
       "loss %.4f, calibration error %.4f\n%s",
@@ -205,11 +211,7 @@ int main(int argc, char** argv) {
     const LabelledWindows windows = WindowsFromTraces(
         StoryTraces(story, per_class, seed + 1000), pipeline, &skipped);
     std::vector<std::array<double, kHapticClasses>> probabilities;
-    for (const auto& window : windows.inputs) {
-      probabilities.push_back(ReferenceProbabilities(result->weights, window));
-    }
-    const ProbabilisticScore held =
-        ScorePredictions(probabilities, windows.labels);
+    const ProbabilisticScore held = score_windows(windows, &probabilities);
     std::printf(
         "\nheld-out story %s (never trained on; %d per class, seed %lu, %d "
         "without contact): accuracy %.2f%%, log loss %.4f, calibration error "
