@@ -37,6 +37,10 @@ ABSL_FLAG(
     "(default) or <spanet_model>.stats (spanet).");
 ABSL_FLAG(std::string, featurizer, "default", "default or spanet.");
 ABSL_FLAG(std::string, spanet_model, "", "spanet: the ONNX model.");
+ABSL_FLAG(bool, appearance_report, false,
+          "Instead of writing statistics, report how much the shipped "
+          "(standardised) features say about an unseen food's haptic "
+          "category: each unseen piece's nearest seen-food centroid.");
 
 namespace {
 
@@ -49,23 +53,152 @@ int Fail(const std::string& what) {
   return 1;
 }
 
-// Contexts of every visible item on `plates` plates of seen foods.
-absl::StatusOr<std::vector<std::vector<double>>> SeenFoodContexts(
+struct FoodContext {
+  const sim::FoodType* food;
+  std::vector<double> context;
+};
+
+// Contexts of every visible item on `plates` plates of `foods`.
+absl::StatusOr<std::vector<FoodContext>> FoodContexts(
+    const std::vector<const sim::FoodType*>& foods,
     const perception::Featurizer& featurizer, int plates, uint64_t seed) {
-  const std::vector<const sim::FoodType*> seen = sim::SeenFoods();
   std::mt19937_64 plate_rng(bitewise::random::MixSeed(seed, 1));
-  std::vector<std::vector<double>> contexts;
+  std::vector<FoodContext> contexts;
   for (int plate = 0; plate < plates; ++plate) {
     const sim::PlateScene scene =
-        sim::RandomPlate(seen, /*allow_touching=*/false, plate_rng);
+        sim::RandomPlate(foods, /*allow_touching=*/false, plate_rng);
     auto featurized = FeaturizeScene(
         scene, bitewise::random::MixSeed(seed, 100 + plate), featurizer);
     if (!featurized.ok()) return featurized.status();
-    for (std::vector<double>& c : *featurized) {
-      if (!c.empty()) contexts.push_back(std::move(c));
+    for (size_t i = 0; i < featurized->size(); ++i) {
+      if ((*featurized)[i].empty()) continue;
+      contexts.push_back({scene.items[i].food, std::move((*featurized)[i])});
     }
   }
   return contexts;
+}
+
+// Contexts of every visible item on `plates` plates of seen foods.
+absl::StatusOr<std::vector<std::vector<double>>> SeenFoodContexts(
+    const perception::Featurizer& featurizer, int plates, uint64_t seed) {
+  auto contexts = FoodContexts(sim::SeenFoods(), featurizer, plates, seed);
+  if (!contexts.ok()) return contexts.status();
+  std::vector<std::vector<double>> out;
+  for (FoodContext& c : *contexts) out.push_back(std::move(c.context));
+  return out;
+}
+
+double Cosine(const std::vector<double>& a, const std::vector<double>& b) {
+  double ab = 0.0, aa = 0.0, bb = 0.0;
+  for (size_t k = 0; k < a.size(); ++k) {
+    ab += a[k] * b[k];
+    aa += a[k] * a[k];
+    bb += b[k] * b[k];
+  }
+  return ab / std::sqrt(aa * bb);
+}
+
+double SquaredDistance(const std::vector<double>& a,
+                       const std::vector<double>& b) {
+  double s = 0.0;
+  for (size_t k = 0; k < a.size(); ++k) s += (a[k] - b[k]) * (a[k] - b[k]);
+  return s;
+}
+
+// How informative the shipped features are about an unseen food's haptic
+// category: the seen foods' centroids (plates of seen foods, `seed`) and,
+// for each unseen piece (plates of unseen foods, another seed range), the
+// category of the nearest seen-food centroid. Chance is 1 in 4.
+int AppearanceReport(int plates, uint64_t seed) {
+  const perception::DefaultFeaturizer featurizer;  // standardised, as shipped
+  auto seen = FoodContexts(sim::SeenFoods(), featurizer, plates, seed);
+  if (!seen.ok()) return Fail(seen.status().ToString());
+  auto unseen = FoodContexts(sim::UnseenFoods(), featurizer, plates,
+                             bitewise::random::MixSeed(seed, 2));
+  if (!unseen.ok()) return Fail(unseen.status().ToString());
+  auto centroids = [](const std::vector<FoodContext>& contexts,
+                      const std::vector<const sim::FoodType*>& foods) {
+    std::vector<std::vector<double>> out(foods.size());
+    for (size_t f = 0; f < foods.size(); ++f) {
+      int n = 0;
+      for (const FoodContext& c : contexts) {
+        if (c.food != foods[f]) continue;
+        if (out[f].empty()) out[f].assign(c.context.size(), 0.0);
+        for (size_t k = 0; k < c.context.size(); ++k) {
+          out[f][k] += c.context[k];
+        }
+        ++n;
+      }
+      for (double& v : out[f]) v /= n;
+    }
+    return out;
+  };
+  const std::vector<const sim::FoodType*> seen_foods = sim::SeenFoods();
+  const std::vector<const sim::FoodType*> unseen_foods = sim::UnseenFoods();
+  const auto seen_centroids = centroids(*seen, seen_foods);
+  const auto unseen_centroids = centroids(*unseen, unseen_foods);
+  std::printf(
+      "Appearance of the unseen foods through the shipped default features\n"
+      "(standardised; seen-food plates seed %llu, unseen-food plates a "
+      "seed mixed from it; %d plates each). Per unseen food: its pieces'\n"
+      "nearest seen-food centroid's category (right = the food's own "
+      "category; chance 25%%), the seen food its centroid is nearest to,\n"
+      "and their cosine; and the most alike other unseen food (centroid "
+      "cosine).\n\n",
+      static_cast<unsigned long long>(seed), plates);
+  std::printf("%-14s %-10s %7s %6s  %-14s %-10s %6s  %-14s %-10s %6s\n",
+              "unseen food", "category", "pieces", "right", "nearest seen",
+              "its cat.", "cosine", "most alike", "its cat.", "cosine");
+  int total = 0, right_total = 0, foods_right = 0;
+  for (size_t u = 0; u < unseen_foods.size(); ++u) {
+    int pieces = 0, right = 0;
+    for (const FoodContext& c : *unseen) {
+      if (c.food != unseen_foods[u]) continue;
+      size_t best = 0;
+      for (size_t s = 1; s < seen_foods.size(); ++s) {
+        if (SquaredDistance(c.context, seen_centroids[s]) <
+            SquaredDistance(c.context, seen_centroids[best])) {
+          best = s;
+        }
+      }
+      ++pieces;
+      right += seen_foods[best]->category == unseen_foods[u]->category;
+    }
+    size_t nearest = 0;
+    for (size_t s = 1; s < seen_foods.size(); ++s) {
+      if (SquaredDistance(unseen_centroids[u], seen_centroids[s]) <
+          SquaredDistance(unseen_centroids[u], seen_centroids[nearest])) {
+        nearest = s;
+      }
+    }
+    foods_right += seen_foods[nearest]->category == unseen_foods[u]->category;
+    // The most similar other unseen food: a look-alike on the plate.
+    size_t alike = u == 0 ? 1 : 0;
+    for (size_t v = 0; v < unseen_foods.size(); ++v) {
+      if (v != u && Cosine(unseen_centroids[u], unseen_centroids[v]) >
+                        Cosine(unseen_centroids[u], unseen_centroids[alike])) {
+        alike = v;
+      }
+    }
+    total += pieces;
+    right_total += right;
+    std::printf(
+        "%-14s %-10s %7d %5.1f%%  %-14s %-10s %6.3f  %-14s %-10s %6.3f\n",
+        unseen_foods[u]->name.c_str(),
+        bitewise::domain::HapticClassName(unseen_foods[u]->category), pieces,
+        100.0 * right / pieces, seen_foods[nearest]->name.c_str(),
+        bitewise::domain::HapticClassName(seen_foods[nearest]->category),
+        Cosine(unseen_centroids[u], seen_centroids[nearest]),
+        unseen_foods[alike]->name.c_str(),
+        bitewise::domain::HapticClassName(unseen_foods[alike]->category),
+        Cosine(unseen_centroids[u], unseen_centroids[alike]));
+  }
+  std::printf(
+      "\nall unseen pieces: %d, nearest seen centroid of the right category "
+      "%.1f%%; foods whose centroid is nearest a seen food of their own "
+      "category: %d of %zu\n",
+      total, 100.0 * right_total / total, foods_right, unseen_foods.size());
+  return 0;
 }
 
 bool WriteFile(const std::string& path, const std::string& text) {
@@ -112,6 +245,9 @@ int main(int argc, char** argv) {
   const int plates = absl::GetFlag(FLAGS_plates);
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
   if (plates < 10) return Fail("--plates must be at least 10");
+  if (absl::GetFlag(FLAGS_appearance_report)) {
+    return AppearanceReport(plates, seed);
+  }
 
   if (absl::GetFlag(FLAGS_featurizer) == "spanet") {
     return SpanetStats(plates, seed);
