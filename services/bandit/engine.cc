@@ -106,6 +106,8 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
 
 void BanditEngine::Unload(UserSlot& slot) {
   slot.model.reset();
+  slot.products_event = 0;
+  slot.products = SelectProducts();
   absl::MutexLock lock(&cache_mu_);
   if (slot.in_lru) {
     lru_.erase(slot.lru_pos);
@@ -135,6 +137,8 @@ void BanditEngine::Touch(UserSlot& slot) {
     UserSlot* victim = *it;
     if (victim == &slot || !victim->mu.TryLock()) continue;
     victim->model.reset();
+    victim->products_event = 0;
+    victim->products = SelectProducts();
     cached_bytes_ -= victim->bytes;
     victim->bytes = 0;
     victim->in_lru = false;
@@ -299,7 +303,8 @@ absl::StatusOr<SelectResult> BanditEngine::Select(const SelectInput& input) {
   RETURN_IF_ERROR(model.ValidateContext(input.context));
 
   SelectResult result;
-  result.estimates = model.Estimate(input.context);
+  SelectProducts products;
+  result.estimates = model.Estimate(input.context, &products);
   std::mt19937_64 rng = SelectRng(slot->record.config.seed, slot->select_count);
   const Choice choice = ChooseAction(model.config(), result.estimates, rng);
 
@@ -313,6 +318,8 @@ absl::StatusOr<SelectResult> BanditEngine::Select(const SelectInput& input) {
   event.selected_at = absl::Now();
   ASSIGN_OR_RETURN(result.event_id, store_->AppendPending(event));
   ++slot->select_count;
+  slot->products_event = result.event_id;
+  slot->products = std::move(products);
 
   result.action = choice.action;
   result.action_name = model.config().action_names[choice.action];
@@ -369,7 +376,10 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
       const EventRecord completed,
       store_->CompleteEvent(event.event_id, round.loss, round.posthoc,
                             round.weight, absl::Now()));
-  model.Update(round);
+  model.Update(round, slot->products_event == event.event_id ? &slot->products
+                                                             : nullptr);
+  slot->products_event = 0;
+  slot->products = SelectProducts();
   slot->record.model_version = completed.model_version;
   Touch(*slot);
   result.model_version = completed.model_version;

@@ -165,6 +165,10 @@ class BanditEngine {
     std::optional<LinUcbModel> model ABSL_GUARDED_BY(mu);
     UserRecord record ABSL_GUARDED_BY(mu);
     int64_t select_count ABSL_GUARDED_BY(mu) = 0;
+    // The latest Select's products, for the Update of that event (reused
+    // only while the model has not changed; dropped with the model).
+    int64_t products_event ABSL_GUARDED_BY(mu) = 0;
+    SelectProducts products ABSL_GUARDED_BY(mu);
     // Cache bookkeeping, guarded by the engine's cache_mu_.
     size_t bytes = 0;
     bool in_lru = false;

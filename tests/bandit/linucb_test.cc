@@ -178,6 +178,11 @@ INSTANTIATE_TEST_SUITE_P(
         Problem{16, 4, 6, 200, Learner::kPostHoc, false, 5},
         Problem{64, 1, 2, 150, Learner::kPostHoc, true, 0},
         Problem{64, 4, 6, 300, Learner::kPostHoc, true, 100000},
+        // Through the amortised switch to primal form (d = 64: conversion
+        // from 56 rounds of an action, primal from 63), several updates in.
+        Problem{64, 4, 2, 300, Learner::kPostHoc, true, 0},
+        Problem{64, 4, 2, 300, Learner::kContextOnly, false, 0},
+        Problem{48, 3, 3, 300, Learner::kPostHoc, false, 40},
         // With a population prior: dual, primal, both learners.
         Problem{8, 3, 4, 300, Learner::kPostHoc, true, 0, true},
         Problem{8, 3, 4, 300, Learner::kContextOnly, true, 0, true},
@@ -325,6 +330,107 @@ TEST(LinUcbTest, RebuildEqualsIncrementalWithDefaults) {
       }
     }
   }
+}
+
+Round RandomRound(int d, int q, int k, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  Round round;
+  round.context = RandomVector(d, rng);
+  round.posthoc = RandomVector(q, rng);
+  round.action = static_cast<int>(u(rng) * k) % k;
+  round.loss = u(rng) < 0.4 ? 1.0 : 0.0;
+  round.weight = 1.0 + u(rng);
+  return round;
+}
+
+void ExpectSameEstimates(const LinUcbModel& a, const LinUcbModel& b,
+                         const std::vector<double>& probe) {
+  const std::vector<ActionEstimate> ea = a.Estimate(probe);
+  const std::vector<ActionEstimate> eb = b.Estimate(probe);
+  for (size_t i = 0; i < ea.size(); ++i) {
+    EXPECT_EQ(ea[i].predicted_loss, eb[i].predicted_loss) << i;
+    EXPECT_EQ(ea[i].width, eb[i].width) << i;
+    EXPECT_EQ(a.IsPrimal(i), b.IsPrimal(i)) << i;
+  }
+}
+
+// An Update handed its Select's products computes exactly what it would
+// compute on its own, bit for bit, in both forms and through the switch;
+// products from another model state or another context are ignored.
+TEST(LinUcbTest, UpdateReusesSelectProductsWithoutChangingTheResult) {
+  for (const Learner learner : {Learner::kPostHoc, Learner::kContextOnly}) {
+    BanditConfig config;
+    config.learner = learner;
+    config.context_dim = 24;
+    config.posthoc_dim = 3;
+    config.lambda_c = 2.0;
+    config.action_names = {"a", "b", "c"};
+    LinUcbModel reusing = *LinUcbModel::Create(config);
+    LinUcbModel plain = *LinUcbModel::Create(config);
+    std::mt19937_64 rng(11);
+    for (int t = 0; t < 120; ++t) {
+      const Round round = RandomRound(24, 3, 3, rng);
+      SelectProducts products;
+      reusing.Estimate(round.context, &products);
+      if (t % 10 == 3) {
+        // Stale: the model changes between the Select and this Update.
+        const Round other = RandomRound(24, 3, 3, rng);
+        reusing.Update(other);
+        plain.Update(other);
+      }
+      if (t % 10 == 7) {
+        // Another context's products.
+        SelectProducts wrong;
+        reusing.Estimate(RandomVector(24, rng), &wrong);
+        reusing.Update(round, &wrong);
+      } else {
+        reusing.Update(round, &products);
+      }
+      plain.Update(round);
+      ExpectSameEstimates(reusing, plain, RandomVector(24, rng));
+    }
+    for (int a = 0; a < 3; ++a) EXPECT_TRUE(plain.IsPrimal(a)) << a;
+  }
+}
+
+// While an action converts, it is still in dual form and exact; a model
+// rebuilt at any point of the conversion is in the same state (same form,
+// same progress) and equal to the incremental one.
+TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
+  BanditConfig config;
+  config.context_dim = 64;
+  config.lambda_c = 3.0;
+  config.action_names = {"only"};
+  LinUcbModel model = *LinUcbModel::Create(config);
+  std::mt19937_64 rng(5);
+  std::vector<Round> rounds;
+  int converting_updates = 0;
+  for (int t = 0; t < 70; ++t) {
+    Round round = RandomRound(64, 4, 1, rng);
+    model.Update(round);
+    rounds.push_back(round);
+    converting_updates += model.IsConverting(0);
+    // Conversion starts at 56 = ceil(64 * 7/8) rounds; primal from
+    // 56 + 56/7 - 1 = 63.
+    EXPECT_EQ(model.IsConverting(0), t + 1 >= 56 && t + 1 < 63) << t;
+    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 63) << t;
+    if (t + 1 >= 54 && t + 1 <= 64) {
+      ExpectMatchesReference(model, rounds, RandomVector(64, rng),
+                             "round " + std::to_string(t + 1));
+      LinUcbModel rebuilt = *LinUcbModel::Rebuild(config, rounds);
+      EXPECT_EQ(rebuilt.IsConverting(0), model.IsConverting(0)) << t;
+      EXPECT_EQ(rebuilt.IsPrimal(0), model.IsPrimal(0)) << t;
+      // Continue both by one round: still equal.
+      const Round next = RandomRound(64, 4, 1, rng);
+      LinUcbModel live = *LinUcbModel::Rebuild(config, rounds);
+      rebuilt.Update(next);
+      std::vector<Round> more = rounds;
+      more.push_back(next);
+      ExpectMatchesReference(rebuilt, more, RandomVector(64, rng),
+                             "rebuilt then updated at " + std::to_string(t));
+    }
+  }
+  EXPECT_EQ(converting_updates, 7);
 }
 
 TEST(LinUcbTest, FreshModelPredictsZeroWithPriorWidth) {

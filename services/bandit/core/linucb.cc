@@ -39,6 +39,48 @@ absl::Status ValidateVector(const char* field, absl::Span<const double> v,
 
 }  // namespace
 
+double* RowBlocks::Append(int n) {
+  if (blocks_.empty() || blocks_.back().capacity - blocks_.back().used < n) {
+    Block block;
+    block.capacity = std::max(n, std::max(8, rows_ / 8));
+    block.data.reset(new double[static_cast<size_t>(block.capacity) * cols_]);
+    block.first = rows_;
+    blocks_.push_back(std::move(block));
+  }
+  Block& last = blocks_.back();
+  double* out = last.data.get() + static_cast<size_t>(last.used) * cols_;
+  last.used += n;
+  rows_ += n;
+  return out;
+}
+
+const double* RowBlocks::Row(int i) const {
+  auto it = std::upper_bound(
+      blocks_.begin(), blocks_.end(), i,
+      [](int row, const Block& block) { return row < block.first; });
+  const Block& block = *std::prev(it);
+  return block.data.get() + static_cast<size_t>(i - block.first) * cols_;
+}
+
+size_t RowBlocks::CapacityDoubles() const {
+  size_t n = 0;
+  for (const Block& block : blocks_) {
+    n += static_cast<size_t>(block.capacity) * cols_;
+  }
+  return n;
+}
+
+void RowBlocks::Clear() {
+  std::vector<Block>().swap(blocks_);
+  rows_ = 0;
+}
+
+size_t SelectProducts::Bytes() const {
+  size_t doubles = context.size();
+  for (const VectorXd& v : per_action) doubles += v.size();
+  return doubles * sizeof(double);
+}
+
 LinUcbModel::LinUcbModel(const BanditConfig& config, int primal_threshold)
     : config_(config),
       d_(config.context_dim),
@@ -50,19 +92,21 @@ LinUcbModel::LinUcbModel(const BanditConfig& config, int primal_threshold)
   const PopulationPrior& prior = config_.prior;
   for (size_t a = 0; a < actions_.size(); ++a) {
     ActionState& s = actions_[a];
+    s.w = RowBlocks(d_);
     s.b = VectorXd::Zero(d_);
     if (prior.enabled()) s.b = prior.kappa_c() * AsVector(prior.theta0[a]);
-    s.zb.resize(0);
+    s.wb.resize(0);
     if (posthoc()) {
       s.M = (config_.lambda_p + prior.kappa_p()) * MatrixXd::Identity(q_, q_);
       s.r = VectorXd::Zero(q_);
       if (prior.enabled()) s.r = prior.kappa_p() * AsVector(prior.phi0[a]);
-      s.e.resize(0, q_);
+      s.y.resize(0, q_);
       s.z.resize(0, q_);
     }
   }
   if (posthoc()) {
     s_pp_ = config_.lambda_p * MatrixXd::Identity(q_, q_);
+    s_pp_llt_.compute(s_pp_);
     s_pc_ = MatrixXd::Zero(q_, d_);
     h_ = MatrixXd::Zero(q_, d_);
     hht_ = MatrixXd::Zero(q_, q_);
@@ -77,9 +121,8 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Create(const BanditConfig& config,
     return absl::InvalidArgumentError("primal_threshold: must be >= 0");
   }
   LinUcbModel model(config, primal_threshold);
-  for (ActionState& s : model.actions_) {
-    model.RefreshLossCache(s);
-    if (model.posthoc()) model.RefreshPostHocCache(s);
+  if (model.posthoc()) {
+    for (ActionState& s : model.actions_) model.RefreshPostHocCache(s);
   }
   return model;
 }
@@ -114,83 +157,86 @@ absl::Status LinUcbModel::ValidateRound(const Round& round) const {
   return ValidateOutcome(round.loss, round.posthoc);
 }
 
-LinUcbModel::ConstRowMap LinUcbModel::Rows(const ActionState& s) const {
-  return ConstRowMap(s.rows.data(), n(s), d_);
+int LinUcbModel::ConversionStart() const {
+  constexpr int r = kConversionRowsPerUpdate;
+  return static_cast<int>((static_cast<int64_t>(primal_threshold_) * r + r) /
+                          (r + 1));
+}
+
+int LinUcbModel::PrimalFrom() const {
+  constexpr int r = kConversionRowsPerUpdate;
+  const int start = ConversionStart();
+  return start + (start + r - 1) / r - 1;
+}
+
+VectorXd LinUcbModel::Product(const ActionState& s,
+                              const Eigen::Ref<const VectorXd>& x) const {
+  if (s.primal) return s.a_inv.selfadjointView<Eigen::Lower>() * x;
+  VectorXd v(s.w.rows());
+  s.w.ForEachBlock([&](int first, int rows, const double* data) {
+    v.segment(first, rows).noalias() = ConstRowMap(data, rows, d_) * x;
+  });
+  return v;
+}
+
+VectorXd LinUcbModel::WTranspose(const ActionState& s,
+                                 const VectorXd& v) const {
+  VectorXd out = VectorXd::Zero(d_);
+  s.w.ForEachBlock([&](int first, int rows, const double* data) {
+    out.noalias() +=
+        ConstRowMap(data, rows, d_).transpose() * v.segment(first, rows);
+  });
+  return out;
 }
 
 VectorXd LinUcbModel::ApplyAInverse(const ActionState& s,
                                     const VectorXd& x) const {
-  if (s.primal) return s.a_inv * x;
-  const int m = n(s);
-  if (m == 0) return x / lambda_a_;
-  const ConstRowMap c = Rows(s);
-  const auto l = s.chol.topLeftCorner(m, m).triangularView<Eigen::Lower>();
-  VectorXd t = c * x;
-  l.solveInPlace(t);
-  l.transpose().solveInPlace(t);
-  return (x - c.transpose() * t) / lambda_a_;
+  if (s.primal) return s.a_inv.selfadjointView<Eigen::Lower>() * x;
+  if (s.w.rows() == 0) return x / lambda_a_;
+  return (x - WTranspose(s, Product(s, x))) / lambda_a_;
 }
 
-void LinUcbModel::AppendDualRow(ActionState& s, const VectorXd& x) {
-  const int m = n(s);
-  // Extend the Cholesky factor of K by one row: [L 0; l^T delta] with
-  // L l = C x and delta^2 = lambda + x^T x - l^T l.
-  VectorXd l_row(m);
-  if (m > 0) {
-    l_row.noalias() = Rows(s) * x;
-    s.chol.topLeftCorner(m, m).triangularView<Eigen::Lower>().solveInPlace(
-        l_row);
+void LinUcbModel::FoldRows(ActionState& s, int first, int count,
+                           const double* extra) {
+  const int k = count + (extra != nullptr ? 1 : 0);
+  if (k == 0) return;
+  RowMatrix rows(k, d_);
+  for (int i = 0; i < count; ++i) {
+    rows.row(i) = Eigen::Map<const Eigen::RowVectorXd>(s.w.Row(first + i), d_);
   }
-  const double delta2 = lambda_a_ + x.squaredNorm() - l_row.squaredNorm();
-  if (s.chol.rows() < m + 1) {
-    const int cap = std::max(8, 2 * (m + 1));
-    MatrixXd grown = MatrixXd::Zero(cap, cap);
-    grown.topLeftCorner(m, m) = s.chol.topLeftCorner(m, m);
-    s.chol = std::move(grown);
-    if (posthoc()) {
-      MatrixXd grown_e = MatrixXd::Zero(cap, q_);
-      grown_e.topRows(m) = s.e.topRows(m);
-      s.e = std::move(grown_e);
-    }
+  if (extra != nullptr) {
+    rows.row(count) = Eigen::Map<const Eigen::RowVectorXd>(extra, d_);
   }
-  s.chol.block(m, 0, 1, m) = l_row.transpose();
-  // K is lambda-regularised, so delta2 >= lambda > 0 up to rounding.
-  s.chol(m, m) = std::sqrt(std::max(delta2, lambda_a_ * 1e-300));
-  if (posthoc()) s.e.row(m) = (s_pc_ * x).transpose();
-  s.rows.insert(s.rows.end(), x.data(), x.data() + d_);
+  s.candidate.selfadjointView<Eigen::Lower>().rankUpdate(rows.transpose(),
+                                                         -1.0 / lambda_a_);
+}
+
+void LinUcbModel::StartConversion(ActionState& s) {
+  s.candidate = MatrixXd::Identity(d_, d_) / lambda_a_;
+  s.converting = true;
+  s.conversion_rows = s.w.rows();
+  s.converted = 0;
 }
 
 void LinUcbModel::SwitchToPrimal(ActionState& s) {
-  const int m = n(s);
-  MatrixXd a = lambda_a_ * MatrixXd::Identity(d_, d_);
-  if (m > 0) {
-    a.selfadjointView<Eigen::Lower>().rankUpdate(Rows(s).transpose());
-  }
-  s.a_inv =
-      a.selfadjointView<Eigen::Lower>().llt().solve(MatrixXd::Identity(d_, d_));
+  s.a_inv = std::move(s.candidate);
+  s.candidate = MatrixXd();
   s.primal = true;
-  std::vector<double>().swap(s.rows);
-  s.chol.resize(0, 0);
-  s.e.resize(0, q_);
+  s.converting = false;
+  s.beta = s.a_inv.selfadjointView<Eigen::Lower>() * s.b;
+  if (posthoc()) {
+    s.p = s.a_inv.selfadjointView<Eigen::Lower>() * s_pc_.transpose();
+  }
+  s.w.Clear();
+  s.wb.resize(0);
+  s.y.resize(0, q_);
   s.z.resize(0, q_);
-  s.zb.resize(0);
 }
 
 void LinUcbModel::RecomputeH() {
-  h_ = s_pp_.llt().solve(s_pc_);
+  s_pp_llt_.compute(s_pp_);
+  h_ = s_pp_llt_.solve(s_pc_);
   hht_.noalias() = h_ * h_.transpose();
-}
-
-void LinUcbModel::RefreshLossCache(ActionState& s) {
-  if (s.primal) {
-    s.beta.noalias() = s.a_inv * s.b;
-    return;
-  }
-  const int m = n(s);
-  s.zb.resize(m);
-  if (m == 0) return;
-  s.zb.noalias() = Rows(s) * s.b;
-  s.chol.topLeftCorner(m, m).triangularView<Eigen::Lower>().solveInPlace(s.zb);
 }
 
 void LinUcbModel::RefreshPostHocCache(ActionState& s) {
@@ -198,18 +244,16 @@ void LinUcbModel::RefreshPostHocCache(ActionState& s) {
   MatrixXd q_mat(q_, q_);  // H A^-1 H^T
   VectorXd hab(q_);        // H A^-1 b
   if (s.primal) {
-    s.a_inv_ht.noalias() = s.a_inv * h_.transpose();
+    s.a_inv_ht = s_pp_llt_.solve(s.p.transpose()).transpose();
     q_mat.noalias() = h_ * s.a_inv_ht;
     hab.noalias() = h_ * s.beta;
   } else {
-    const int m = n(s);
-    // C H^T = C S_pc^T S_pp^-1 = E S_pp^-1. No Eigen solve on an empty
-    // matrix (an action without rounds): that binds a reference to a null
-    // pointer inside Eigen, undefined behaviour that only works by luck.
+    const int m = s.w.rows();
+    // Z = W H^T = Y S_pp^-1. No Eigen solve on an empty matrix (an action
+    // without rounds): that binds a reference to a null pointer inside
+    // Eigen, undefined behaviour that only works by luck.
     if (m > 0) {
-      s.z = s_pp_.llt().solve(s.e.topRows(m).transpose()).transpose();
-      s.chol.topLeftCorner(m, m).triangularView<Eigen::Lower>().solveInPlace(
-          s.z);
+      s.z = s_pp_llt_.solve(s.y.transpose()).transpose();
     } else {
       s.z.resize(0, q_);
     }
@@ -217,7 +261,7 @@ void LinUcbModel::RefreshPostHocCache(ActionState& s) {
     hab = (h_ * s.b) / lambda;
     if (m > 0) {
       q_mat.noalias() -= (s.z.transpose() * s.z) / lambda;
-      hab.noalias() -= (s.z.transpose() * s.zb) / lambda;
+      hab.noalias() -= (s.z.transpose() * s.wb) / lambda;
     }
   }
   s.r_factor = s.M.llt().matrixU();
@@ -229,39 +273,35 @@ void LinUcbModel::RefreshPostHocCache(ActionState& s) {
 }
 
 std::vector<ActionEstimate> LinUcbModel::Estimate(
-    absl::Span<const double> context) const {
+    absl::Span<const double> context, SelectProducts* products) const {
   const Eigen::Map<const VectorXd> c = AsVector(context);
   const double lambda = lambda_a_;
   const double cc = c.squaredNorm();
   VectorXd hc;
   if (posthoc()) hc.noalias() = h_ * c;
+  if (products != nullptr) {
+    products->total_rounds = total_rounds_;
+    products->context.assign(context.begin(), context.end());
+    products->per_action.resize(actions_.size());
+  }
   std::vector<ActionEstimate> out(actions_.size());
-  VectorXd z, u;
   for (size_t a = 0; a < actions_.size(); ++a) {
     const ActionState& s = actions_[a];
+    VectorXd v = Product(s, c);
     double s1 = 0.0;  // c^T A^-1 c
     double s3 = 0.0;  // b^T A^-1 c
     VectorXd s2;      // H A^-1 c
     if (s.primal) {
-      u.noalias() = s.a_inv * c;
-      s1 = c.dot(u);
+      s1 = c.dot(v);
       s3 = s.beta.dot(c);
       if (posthoc()) s2.noalias() = s.a_inv_ht.transpose() * c;
     } else {
-      const int m = n(s);
-      double zz = 0.0, zbz = 0.0;
-      if (m > 0) {
-        z.noalias() = Rows(s) * c;
-        s.chol.topLeftCorner(m, m).triangularView<Eigen::Lower>().solveInPlace(
-            z);
-        zz = z.squaredNorm();
-        zbz = s.zb.dot(z);
-      }
-      s1 = (cc - zz) / lambda;
-      s3 = (s.b.dot(c) - zbz) / lambda;
+      const bool any = s.w.rows() > 0;
+      s1 = (cc - (any ? v.squaredNorm() : 0.0)) / lambda;
+      s3 = (s.b.dot(c) - (any ? s.wb.dot(v) : 0.0)) / lambda;
       if (posthoc()) {
         s2 = hc;
-        if (m > 0) s2.noalias() -= s.z.transpose() * z;
+        if (any) s2.noalias() -= s.z.transpose() * v;
         s2 /= lambda;
       }
     }
@@ -276,47 +316,118 @@ std::vector<ActionEstimate> LinUcbModel::Estimate(
     e.predicted_loss = pred;
     e.width = std::sqrt(std::max(var, 0.0));
     e.lcb = pred - config_.alpha * e.width;
+    if (products != nullptr) products->per_action[a] = std::move(v);
   }
   return out;
 }
 
-void LinUcbModel::Update(const Round& round) {
+void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
   const Eigen::Map<const VectorXd> c = AsVector(round.context);
   const double w = round.weight;
-  ActionState& taken = actions_[round.action];
-  const VectorXd x = std::sqrt(w) * c;
+  const double sw = std::sqrt(w);
+  const int a = round.action;
+  ActionState& taken = actions_[a];
+
+  // Every action's product with c before this round: the Select's if they
+  // are for this model state and context, otherwise computed here.
+  bool reuse = products != nullptr && products->total_rounds == total_rounds_ &&
+               products->per_action.size() == actions_.size() &&
+               products->context == round.context;
+  for (size_t i = 0; reuse && i < actions_.size(); ++i) {
+    const ActionState& s = actions_[i];
+    reuse = products->per_action[i].size() == (s.primal ? d_ : s.w.rows());
+  }
+  std::vector<VectorXd> computed;
+  if (!reuse) {
+    computed.resize(actions_.size());
+    for (size_t i = 0; i < actions_.size(); ++i) {
+      if (posthoc() || static_cast<int>(i) == a) {
+        computed[i] = Product(actions_[i], c);
+      }
+    }
+  }
+  const std::vector<VectorXd>& prod = reuse ? products->per_action : computed;
+  const VectorXd& v = prod[a];
+
+  const VectorXd x = sw * c;
+  VectorXd ainv_c;  // primal: the new A^-1 c
+  VectorXd w_row;   // dual: the new row of W
+  const int m = taken.primal ? 0 : taken.w.rows();
   if (taken.primal) {
-    const VectorXd u = taken.a_inv * x;
+    const VectorXd u = sw * v;  // A^-1 x
     const double scale = 1.0 / (1.0 + x.dot(u));
-    taken.a_inv.noalias() -= scale * (u * u.transpose());
+    VectorXd pu;
+    if (posthoc()) pu.noalias() = s_pc_ * u;
+    const double bu = taken.b.dot(u);
+    taken.a_inv.selfadjointView<Eigen::Lower>().rankUpdate(u, -scale);
+    ainv_c = v - (scale * u.dot(c)) * u;
+    taken.beta.noalias() -= (scale * bu) * u;
+    taken.beta.noalias() += (w * round.loss) * ainv_c;
+    if (posthoc()) taken.p.noalias() -= (scale * u) * pu.transpose();
   } else {
-    AppendDualRow(taken, x);
+    // New Cholesky row [l^T delta] with L l = C x, so l = W x; the new row
+    // of W is (x - W^T l) / delta.
+    const VectorXd l = sw * v;
+    const double delta2 = lambda_a_ + x.squaredNorm() - l.squaredNorm();
+    // K is lambda-regularised, so delta2 >= lambda > 0 up to rounding.
+    const double delta = std::sqrt(std::max(delta2, lambda_a_ * 1e-300));
+    w_row = (m > 0 ? VectorXd(x - WTranspose(taken, l)) : VectorXd(x)) / delta;
+    if (m > 0) taken.wb.noalias() += (w * round.loss) * v;
+    std::copy(w_row.data(), w_row.data() + d_, taken.w.Append(1));
   }
   ++taken.count;
   ++total_rounds_;
   AddScale(round);
   taken.loss_sum += round.loss;
   taken.b.noalias() += (w * round.loss) * c;
-  if (!taken.primal && taken.count >= primal_threshold_) {
-    SwitchToPrimal(taken);
+  if (!taken.primal) {
+    taken.wb.conservativeResize(m + 1);
+    taken.wb(m) = w_row.dot(taken.b);
   }
-  RefreshLossCache(taken);
-  if (!posthoc()) return;
 
-  const Eigen::Map<const VectorXd> p = AsVector(round.posthoc);
-  const VectorXd wp = w * p;
-  taken.M.noalias() += wp * p.transpose();
-  taken.r.noalias() += round.loss * wp;
-  // S_pc gains w p c^T, so every dual E = C S_pc^T gains (C c)(w p)^T.
-  for (ActionState& s : actions_) {
-    const int m = n(s);
-    if (s.primal || m == 0) continue;
-    s.e.topRows(m).noalias() += (Rows(s) * c) * wp.transpose();
+  if (posthoc()) {
+    const Eigen::Map<const VectorXd> p = AsVector(round.posthoc);
+    const VectorXd wp = w * p;
+    taken.M.noalias() += wp * p.transpose();
+    taken.r.noalias() += round.loss * wp;
+    // S_pc gains w p c^T: every P = A^-1 S_pc^T gains (A^-1 c)(w p)^T and
+    // every Y = W S_pc^T gains (W c)(w p)^T on its existing rows.
+    for (size_t i = 0; i < actions_.size(); ++i) {
+      ActionState& s = actions_[i];
+      if (s.primal) {
+        s.p.noalias() +=
+            (static_cast<int>(i) == a ? ainv_c : prod[i]) * wp.transpose();
+      } else {
+        const int rows = static_cast<int>(i) == a ? m : s.w.rows();
+        if (rows > 0) s.y.topRows(rows).noalias() += prod[i] * wp.transpose();
+      }
+    }
+    s_pc_.noalias() += wp * c.transpose();
+    s_pp_.noalias() += wp * p.transpose();
+    RecomputeH();
+    if (!taken.primal) {
+      taken.y.conservativeResize(m + 1, q_);
+      taken.y.row(m).noalias() = (s_pc_ * w_row).transpose();
+    }
   }
-  s_pc_.noalias() += wp * c.transpose();
-  s_pp_.noalias() += wp * p.transpose();
-  RecomputeH();
-  for (ActionState& s : actions_) RefreshPostHocCache(s);
+
+  if (!taken.primal) {
+    const double* extra = taken.w.Row(m);
+    if (!taken.converting && taken.count >= ConversionStart()) {
+      StartConversion(taken);
+      extra = nullptr;  // the new row is one of the rows to fold
+    }
+    if (taken.converting) {
+      const int fold = std::min(kConversionRowsPerUpdate,
+                                taken.conversion_rows - taken.converted);
+      FoldRows(taken, taken.converted, fold, extra);
+      taken.converted += fold;
+      if (taken.converted == taken.conversion_rows) SwitchToPrimal(taken);
+    }
+  }
+  if (posthoc()) {
+    for (ActionState& s : actions_) RefreshPostHocCache(s);
+  }
 }
 
 absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
@@ -332,13 +443,21 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
                           absl::StrCat("round ", i, ": ", status.message()));
     }
   }
-  // Accumulate every sum first, then factor each action once.
+  // Each action's rows sqrt(w) c in one block, and every sum, then one
+  // factorisation per action.
+  const int d = model.d_;
+  std::vector<int> counts(model.actions_.size(), 0);
+  for (const Round& round : rounds) ++counts[round.action];
+  std::vector<double*> next(model.actions_.size(), nullptr);
+  for (size_t a = 0; a < counts.size(); ++a) {
+    if (counts[a] > 0) next[a] = model.actions_[a].w.Append(counts[a]);
+  }
   for (const Round& round : rounds) {
     ActionState& s = model.actions_[round.action];
     const Eigen::Map<const VectorXd> c = AsVector(round.context);
     const double w = round.weight;
-    const VectorXd x = std::sqrt(w) * c;
-    s.rows.insert(s.rows.end(), x.data(), x.data() + model.d_);
+    Eigen::Map<VectorXd>(next[round.action], d) = std::sqrt(w) * c;
+    next[round.action] += d;
     ++s.count;
     ++model.total_rounds_;
     model.AddScale(round);
@@ -357,16 +476,39 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
   const double lambda = model.lambda_a_;
   for (ActionState& s : model.actions_) {
     const int m = static_cast<int>(s.count);
-    if (m >= model.primal_threshold_) {
+    if (m == 0) {
+      if (model.posthoc()) model.RefreshPostHocCache(s);
+      continue;
+    }
+    double* data = s.w.MutableRow(0);
+    Eigen::Map<RowMatrix> rows(data, m, d);
+    if (m >= model.PrimalFrom()) {
+      MatrixXd a = lambda * MatrixXd::Identity(d, d);
+      a.selfadjointView<Eigen::Lower>().rankUpdate(rows.transpose());
+      s.candidate = a.selfadjointView<Eigen::Lower>().llt().solve(
+          MatrixXd::Identity(d, d));
+      a = MatrixXd();
       model.SwitchToPrimal(s);
-    } else if (m > 0) {
-      const ConstRowMap rows(s.rows.data(), m, model.d_);
+    } else {
+      // W = L^-1 C with L L^T = lambda I + C C^T, in place.
       MatrixXd k = lambda * MatrixXd::Identity(m, m);
       k.selfadjointView<Eigen::Lower>().rankUpdate(rows);
-      s.chol = k.selfadjointView<Eigen::Lower>().llt().matrixL();
-      if (model.posthoc()) s.e = rows * model.s_pc_.transpose();
+      const Eigen::LLT<MatrixXd> llt(k);
+      k = MatrixXd();
+      llt.matrixL().solveInPlace(rows);
+      s.wb = rows * s.b;
+      if (model.posthoc()) s.y = rows * model.s_pc_.transpose();
+      // Where the Updates would have left the conversion.
+      const int start = model.ConversionStart();
+      if (m >= start) {
+        model.StartConversion(s);
+        s.conversion_rows = start;
+        s.converted =
+            std::min(start, kConversionRowsPerUpdate * (m - start + 1));
+        model.FoldRows(s, 0, s.converted, nullptr);
+        model.FoldRows(s, start, m - start, nullptr);
+      }
     }
-    model.RefreshLossCache(s);
     if (model.posthoc()) model.RefreshPostHocCache(s);
   }
   return model;
@@ -399,11 +541,13 @@ size_t LinUcbModel::MemoryBytes() const {
   size_t doubles = static_cast<size_t>(s_pc_.size() + h_.size() + s_pp_.size() +
                                        hht_.size());
   for (const ActionState& s : actions_) {
-    doubles += s.rows.capacity() + s.chol.size() + s.e.size() + s.a_inv.size() +
-               s.z.size() + s.a_inv_ht.size() + s.b.size() + s.beta.size() +
-               s.zb.size() + s.M.size() + 2 * q_ * q_;
+    doubles += s.w.CapacityDoubles() + s.wb.size() + s.y.size() + s.z.size() +
+               s.candidate.size() + s.a_inv.size() + s.beta.size() +
+               s.p.size() + s.a_inv_ht.size() + s.b.size() + s.M.size() +
+               s.r.size() + 2 * q_ * q_ + q_;
   }
-  return doubles * sizeof(double) + sizeof(*this);
+  return doubles * sizeof(double) + sizeof(*this) +
+         actions_.size() * sizeof(ActionState);
 }
 
 }  // namespace bitewise::bandit

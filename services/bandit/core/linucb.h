@@ -2,19 +2,32 @@
 // or post hoc augmented LinUCB (Gordon et al., ICRA 2021), exactly as in
 // docs/algorithms.md, updated incrementally without O(d^3) work per round.
 //
-// Representation. Every action keeps A_a = lambda_c I + sum w c c^T (with a
-// population prior, lambda_c + kappa_c; see PopulationPrior) in one of two
-// forms:
-//  - dual (while the action has fewer rounds than its primal threshold,
-//    by default d): the weighted contexts C_a (n x d) and the Cholesky
-//    factor of the kernel K_a = lambda_c I + C_a C_a^T (n x n), so that
-//    A_a^-1 x = (x - C_a^T K_a^-1 C_a x) / lambda_c in O(n d);
-//  - primal: A_a^-1 itself (d x d), kept by Sherman-Morrison updates.
+// Representation. Every action keeps A_a = lambda I + sum w c c^T (lambda =
+// lambda_c, plus kappa_c with a population prior; see PopulationPrior) in
+// the cheaper of two forms:
+//  - dual, while the action has few rounds (n_a < d): the whitened rows
+//    W_a = L_a^-1 C_a (n x d), where C_a holds the rows sqrt(w) c and L_a is
+//    the Cholesky factor of K_a = lambda I + C_a C_a^T. Then
+//    A_a^-1 x = (x - W_a^T W_a x) / lambda, so a Select costs one pass over
+//    the action's rows (n d), an appended row costs two, and nothing of size
+//    n^2 is stored. Earlier rows of W never change when a row is appended,
+//    so the rows live in blocks that never move (no doubling copies);
+//  - primal: A_a^-1 itself (d x d, lower triangle), kept by Sherman-Morrison.
+// The switch is amortised: from about 7/8 of the threshold on, each Update
+// of the action folds its new row and kConversionRowsPerUpdate earlier rows
+// into A_a^-1 = (I - sum_i w_i w_i^T) / lambda, while the dual form keeps
+// answering; the action turns primal when every row is in.
 // The post hoc term H^T M_a H is folded in by Woodbury with R_a^T R_a = M_a,
 // so N_a^-1 = A_a^-1 - A_a^-1 G^T (I + G A_a^-1 G^T)^-1 G A_a^-1 with
-// G = R_a H costs O(q) extra applications of A_a^-1, and only q x q
-// quantities are cached per action. Memory grows with rounds x d while
-// rounds < d, not with K x d^2.
+// G = R_a H, and only products with S_pc^T (n x q dual, d x q primal) and
+// q x q quantities are cached per action; each is updated by a rank-one
+// term per round, not recomputed.
+//
+// A Select's per-action products (W_a c or A_a^-1 c) are what the Update of
+// the same context needs: Estimate can hand them out (SelectProducts) and
+// Update reuses them when the model has not changed since, so an Update
+// costs one d x d rank-one update (primal) or one pass over the taken
+// action's rows (dual), plus O(K (n or d) q^2).
 //
 // Thread-compatible: const methods may run concurrently; Update needs
 // exclusive access.
@@ -22,6 +35,7 @@
 #define BITEWISE_SERVICES_BANDIT_CORE_LINUCB_H_
 
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "Eigen/Core"
@@ -63,10 +77,68 @@ struct InputScale {
 // c c^T and would turn every later estimate into NaN for good.
 inline constexpr double kMaxInputMagnitude = 1e6;
 
+class LinUcbModel;
+
+// Rows of a matrix with a fixed number of columns in blocks that never move:
+// appending copies nothing already stored, and spare capacity stays within
+// an eighth of the rows (or one block of 8 rows while the matrix is small).
+class RowBlocks {
+ public:
+  explicit RowBlocks(int cols = 0) : cols_(cols) {}
+  RowBlocks(RowBlocks&&) = default;
+  RowBlocks& operator=(RowBlocks&&) = default;
+
+  int rows() const { return rows_; }
+  // Room for `n` more rows, contiguous; they count once written.
+  double* Append(int n);
+  const double* Row(int i) const;
+  double* MutableRow(int i) { return const_cast<double*>(Row(i)); }
+  size_t CapacityDoubles() const;
+  void Clear();
+  // Calls f(first_row, rows, data) for each block's contiguous rows.
+  template <typename F>
+  void ForEachBlock(F f) const {
+    for (const Block& block : blocks_) {
+      if (block.used > 0) f(block.first, block.used, block.data.get());
+    }
+  }
+
+ private:
+  struct Block {
+    std::unique_ptr<double[]> data;
+    int first = 0;
+    int capacity = 0;
+    int used = 0;
+  };
+  int cols_ = 0;
+  int rows_ = 0;
+  std::vector<Block> blocks_;
+};
+
+// What one Estimate computed per action (W_a c in dual form, A_a^-1 c in
+// primal form) for one context, tagged with the model state it belongs to.
+// Update reuses it for the same context if the model has not changed since.
+class SelectProducts {
+ public:
+  size_t Bytes() const;
+
+ private:
+  friend class LinUcbModel;
+  int64_t total_rounds = -1;
+  std::vector<double> context;
+  std::vector<Eigen::VectorXd> per_action;
+};
+
 class LinUcbModel {
  public:
-  // `primal_threshold`: an action switches from dual to primal form when
-  // its round count reaches this; 0 means d (the cost crossover).
+  // Earlier rows folded into the primal form per Update while an action
+  // converts (besides its new row).
+  static constexpr int kConversionRowsPerUpdate = 7;
+
+  // `primal_threshold` T: an action starts converting to primal form at
+  // ceil(T * 7/8) rounds and is primal from T - 1 or T rounds on (the
+  // conversion takes an eighth of T updates of that action); 0 means d,
+  // where one pass over the rows costs what one over A^-1 does.
   static absl::StatusOr<LinUcbModel> Create(const BanditConfig& config,
                                             int primal_threshold = 0);
 
@@ -95,11 +167,16 @@ class LinUcbModel {
   // Everything Update needs, plus the action index and a positive weight.
   absl::Status ValidateRound(const Round& round) const;
 
-  // Estimates for every action at context `c` (already validated).
-  std::vector<ActionEstimate> Estimate(absl::Span<const double> c) const;
+  // Estimates for every action at context `c` (already validated). With
+  // `products`, also leaves there what Update can reuse for this context.
+  std::vector<ActionEstimate> Estimate(
+      absl::Span<const double> c, SelectProducts* products = nullptr) const;
 
-  // Adds one round. The round must pass ValidateRound.
-  void Update(const Round& round);
+  // Adds one round. The round must pass ValidateRound. `products` from an
+  // Estimate of the same context are used if the model has not changed
+  // since (otherwise they are ignored and recomputed): the result is the
+  // same either way.
+  void Update(const Round& round, const SelectProducts* products = nullptr);
 
   // theta_a (length d) and phi_a = H theta_a (length q; empty for the
   // context-only learner).
@@ -109,6 +186,7 @@ class LinUcbModel {
   double LossSum(int action) const { return actions_[action].loss_sum; }
   int64_t TotalRounds() const { return total_rounds_; }
   bool IsPrimal(int action) const { return actions_[action].primal; }
+  bool IsConverting(int action) const { return actions_[action].converting; }
   const InputScale& input_scale() const { return scale_; }
 
   // Bytes held by the model's matrices and buffers.
@@ -123,25 +201,31 @@ class LinUcbModel {
     int64_t count = 0;
     double loss_sum = 0.0;
     bool primal = false;
-    Eigen::VectorXd b;  // sum w l c
+    Eigen::VectorXd b;  // sum w l c (plus the prior's kappa_c theta0)
     Eigen::MatrixXd M;  // lambda_p I + sum w p p^T (q x q)
     Eigen::VectorXd r;  // sum w l p
 
-    // Dual form: n = count rows of sqrt(w) c, row-major, with spare
-    // capacity; the lower Cholesky factor of K in the top-left n x n of
-    // `chol`; E = C S_pc^T (n x q) in the top n rows of `e`.
-    std::vector<double> rows;
-    Eigen::MatrixXd chol;
-    Eigen::MatrixXd e;
+    // Dual form: W = L^-1 C (count rows of d), W b, Y = W S_pc^T (n x q).
+    RowBlocks w;
+    Eigen::VectorXd wb;
+    Eigen::MatrixXd y;
 
-    // Primal form.
-    Eigen::MatrixXd a_inv;  // A^-1 (d x d)
+    // Conversion to primal: `candidate` (lower triangle) holds
+    // (I - sum w_i w_i^T) / lambda over rows [0, converted) and every row
+    // appended since the conversion began at `conversion_rows` rows.
+    bool converting = false;
+    int conversion_rows = 0;
+    int converted = 0;
+    Eigen::MatrixXd candidate;
 
-    // Caches refreshed after every update.
-    Eigen::VectorXd zb;               // dual: L^-1 C b
-    Eigen::MatrixXd z;                // dual: L^-1 C H^T (n x q)
-    Eigen::VectorXd beta;             // primal: A^-1 b
-    Eigen::MatrixXd a_inv_ht;         // primal: A^-1 H^T (d x q)
+    // Primal form: A^-1 (lower triangle), A^-1 b, P = A^-1 S_pc^T (d x q).
+    Eigen::MatrixXd a_inv;
+    Eigen::VectorXd beta;
+    Eigen::MatrixXd p;
+
+    // Post hoc caches, refreshed after every update.
+    Eigen::MatrixXd z;                // dual: Y S_pp^-1 = W H^T (n x q)
+    Eigen::MatrixXd a_inv_ht;         // primal: P S_pp^-1 = A^-1 H^T (d x q)
     Eigen::MatrixXd r_factor;         // R with R^T R = M
     Eigen::LLT<Eigen::MatrixXd> cap;  // I + R H A^-1 H^T R^T
     Eigen::VectorXd h;                // cap^-1 R H A^-1 (b + H^T r)
@@ -150,19 +234,26 @@ class LinUcbModel {
   LinUcbModel(const BanditConfig& config, int primal_threshold);
 
   bool posthoc() const { return config_.learner == Learner::kPostHoc; }
-  int n(const ActionState& s) const { return s.primal ? 0 : s.count; }
-  ConstRowMap Rows(const ActionState& s) const;
+  // W x (dual) or A^-1 x (primal) for a d-vector x: the Select product.
+  Eigen::VectorXd Product(const ActionState& s,
+                          const Eigen::Ref<const Eigen::VectorXd>& x) const;
   // A_a^-1 x for a d-vector x.
   Eigen::VectorXd ApplyAInverse(const ActionState& s,
                                 const Eigen::VectorXd& x) const;
-  void AppendDualRow(ActionState& s, const Eigen::VectorXd& x);
+  // W^T v for an n-vector v.
+  Eigen::VectorXd WTranspose(const ActionState& s,
+                             const Eigen::VectorXd& v) const;
+  // Folds rows [first, first + count) of W into the conversion candidate.
+  void FoldRows(ActionState& s, int first, int count, const double* extra);
+  void StartConversion(ActionState& s);
   void SwitchToPrimal(ActionState& s);
   void RecomputeH();
-  // Refreshes b-dependent caches (only needed when the action changed).
-  void RefreshLossCache(ActionState& s);
-  // Refreshes H-dependent caches (after every post hoc update).
+  // Refreshes the H-dependent caches (after every post hoc update).
   void RefreshPostHocCache(ActionState& s);
   void AddScale(const Round& round);
+  // Rounds at which an action starts converting and at which it is primal.
+  int ConversionStart() const;
+  int PrimalFrom() const;
 
   BanditConfig config_;
   int d_ = 0;
@@ -174,6 +265,7 @@ class LinUcbModel {
   InputScale scale_;
   std::vector<ActionState> actions_;
   Eigen::MatrixXd s_pp_;  // lambda_p I + sum w p p^T (q x q)
+  Eigen::LLT<Eigen::MatrixXd> s_pp_llt_;
   Eigen::MatrixXd s_pc_;  // sum w p c^T (q x d)
   Eigen::MatrixXd h_;     // S_pp^-1 S_pc (q x d)
   Eigen::MatrixXd hht_;   // H H^T

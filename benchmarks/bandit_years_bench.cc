@@ -1,0 +1,245 @@
+// bandit_years_bench: one person's model after a month, a year or years of
+// meals (docs/benchmarks.md, "Years of meals"). For each log size it
+// rebuilds the post hoc model from a random log (K = 6, q = 4, d = 2048 by
+// default), then plays Select+Update pairs as the service does (the Update
+// reuses its Select's products) and prints, per size: Select and Update
+// medians, the worst single Update, the model's bytes by the allocator's
+// count (glibc mallinfo2) against the bound 1.3 x 8 x sum_a min(n_a d +
+// n_a^2, d^2), and the rebuild time. With --sweep=N it instead grows one
+// model from 0 to N rounds, timing every Update, and prints per window the
+// median and worst Update (the switch from dual to primal form included).
+// With --check, a sample of the estimates is compared against a dense
+// float64 evaluation of the formulas (docs/algorithms.md) at each size.
+//
+//   build/benchmarks/bandit_years_bench                      # 1k, 10k, 50k
+//   build/benchmarks/bandit_years_bench --sizes=1000,10000 --check
+//   build/benchmarks/bandit_years_bench --sweep=12000 --window=500
+#include <malloc.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "Eigen/Dense"
+#include "absl/flags/flag.h"
+#include "absl/flags/parse.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_split.h"
+#include "services/bandit/core/linucb.h"
+#include "services/bandit/core/policy.h"
+#include "services/domain/random.h"
+#include "tests/bandit/dense_reference.h"
+
+ABSL_FLAG(int, d, 2048, "Context dimension.");
+ABSL_FLAG(std::string, sizes, "1000,10000,50000", "Log sizes (rounds).");
+ABSL_FLAG(int, pairs, 60, "Select+Update pairs timed per size.");
+ABSL_FLAG(int, sweep, 0, "Grow one model to this many rounds instead.");
+ABSL_FLAG(int, window, 1000, "Sweep: rounds per reported window.");
+ABSL_FLAG(bool, check, false,
+          "Compare estimates against a dense float64 reference (slow at "
+          "large sizes: d^3 per action).");
+
+namespace bitewise::bandit {
+namespace {
+
+constexpr int kActions = 6;
+constexpr int kPostHocDim = 4;
+
+using Clock = std::chrono::steady_clock;
+
+double Ms(Clock::duration t) {
+  return std::chrono::duration<double, std::milli>(t).count();
+}
+
+Round RandomRound(int d, std::mt19937_64& rng) {
+  Round round;
+  round.context.resize(d);
+  for (double& x : round.context) x = random::Canonical(rng);
+  round.action = static_cast<int>(random::Canonical(rng) * kActions) % kActions;
+  round.posthoc.assign(kPostHocDim, 0.0);
+  round.posthoc[round.action % kPostHocDim] = 1.0;
+  round.loss = random::Canonical(rng) < 0.3 ? 1.0 : 0.0;
+  return round;
+}
+
+BanditConfig Config(int d) {
+  BanditConfig config;
+  config.context_dim = d;
+  config.posthoc_dim = kPostHocDim;
+  // The shipped rule: lambda_c = rho_c E||c||^2, E||c||^2 = d / 3 here.
+  config.lambda_c = d / 3.0;
+  return config;
+}
+
+size_t AllocatedBytes() {
+  const struct mallinfo2 info = mallinfo2();
+  return info.uordblks + info.hblkhd;
+}
+
+double BoundMb(const LinUcbModel& model) {
+  const double d = model.context_dim();
+  double doubles = 0.0;
+  for (int a = 0; a < model.num_actions(); ++a) {
+    const double n = static_cast<double>(model.Count(a));
+    doubles += std::min(n * d + n * n, d * d);
+  }
+  return 1.3 * 8.0 * doubles / (1 << 20);
+}
+
+double Median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0.0 : v[v.size() / 2];
+}
+
+// One Select (estimates, choice, products) and the Update of its event;
+// returns the round as played.
+Round Pair(LinUcbModel& model, Round round, std::mt19937_64& rng,
+           double* select_ms, double* update_ms) {
+  SelectProducts products;
+  const auto t0 = Clock::now();
+  const std::vector<ActionEstimate> estimates =
+      model.Estimate(round.context, &products);
+  std::mt19937_64 select_rng = SelectRng(1, model.TotalRounds());
+  const Choice choice = ChooseAction(model.config(), estimates, select_rng);
+  const auto t1 = Clock::now();
+  // Spread the log over the actions as the random log does.
+  (void)choice;
+  round.action = static_cast<int>(random::Canonical(rng) * kActions) % kActions;
+  model.Update(round, &products);
+  const auto t2 = Clock::now();
+  *select_ms = Ms(t1 - t0);
+  *update_ms = Ms(t2 - t1);
+  return round;
+}
+
+// Largest relative error of the estimates against the tests' dense
+// float64 evaluation of the formulas on the same log.
+double CheckAgainstDense(const LinUcbModel& model,
+                         const std::vector<Round>& log,
+                         const std::vector<double>& probe) {
+  const std::vector<testing::DenseActionModel> ref =
+      testing::DenseReference(model.config(), log);
+  const Eigen::Map<const Eigen::VectorXd> c(probe.data(), probe.size());
+  const std::vector<ActionEstimate> est = model.Estimate(probe);
+  double worst = 0.0;
+  for (int k = 0; k < model.num_actions(); ++k) {
+    const double pred = ref[k].theta.dot(c);
+    const double width = std::sqrt(c.dot(ref[k].sigma * c));
+    worst = std::max(worst, std::abs(est[k].predicted_loss - pred) /
+                                std::max(1e-300, std::abs(pred)));
+    worst = std::max(worst, std::abs(est[k].width - width) / width);
+  }
+  return worst;
+}
+
+int Sizes(int d) {
+  std::vector<int> sizes;
+  for (absl::string_view s :
+       absl::StrSplit(absl::GetFlag(FLAGS_sizes), ',', absl::SkipEmpty())) {
+    int n = 0;
+    if (!absl::SimpleAtoi(s, &n) || n < 0) {
+      std::fprintf(stderr, "--sizes: not a count: %s\n",
+                   std::string(s).c_str());
+      return 1;
+    }
+    sizes.push_back(n);
+  }
+  const int pairs = absl::GetFlag(FLAGS_pairs);
+  std::printf(
+      "d = %d, K = %d, q = %d, post hoc LinUCB, lambda_c = d/3; %d "
+      "Select+Update pairs per size after the rebuild\n\n",
+      d, kActions, kPostHocDim, pairs);
+  std::printf("%8s %9s %10s %10s %10s %10s %10s %10s %6s %9s%s\n", "rounds",
+              "primal", "select_ms", "update_ms", "upd_worst", "alloc_MB",
+              "model_MB", "bound_MB", "ratio", "rebuild_s",
+              absl::GetFlag(FLAGS_check) ? "  rel_err" : "");
+  for (int n : sizes) {
+    std::mt19937_64 rng(42);
+    std::vector<Round> log;
+    log.reserve(n);
+    for (int t = 0; t < n; ++t) log.push_back(RandomRound(d, rng));
+    const size_t before = AllocatedBytes();
+    const auto t0 = Clock::now();
+    LinUcbModel model = *LinUcbModel::Rebuild(Config(d), log);
+    const double rebuild_s = Ms(Clock::now() - t0) / 1000.0;
+    malloc_trim(0);
+    std::vector<double> selects, updates;
+    for (int i = 0; i < pairs; ++i) {
+      double s = 0, u = 0;
+      const Round played = Pair(model, RandomRound(d, rng), rng, &s, &u);
+      selects.push_back(s);
+      updates.push_back(u);
+      if (absl::GetFlag(FLAGS_check)) log.push_back(played);
+    }
+    const double alloc_mb =
+        static_cast<double>(AllocatedBytes() - before) / (1 << 20);
+    const double model_mb =
+        static_cast<double>(model.MemoryBytes()) / (1 << 20);
+    int primal = 0;
+    for (int a = 0; a < kActions; ++a) primal += model.IsPrimal(a);
+    std::printf(
+        "%8d %7d/6 %10.3f %10.3f %10.3f %10.1f %10.1f %10.1f %6.2f %9.2f", n,
+        primal, Median(selects), Median(updates),
+        *std::max_element(updates.begin(), updates.end()), alloc_mb, model_mb,
+        BoundMb(model), alloc_mb / BoundMb(model), rebuild_s);
+    if (absl::GetFlag(FLAGS_check)) {
+      std::printf("  %.1e",
+                  CheckAgainstDense(model, log, RandomRound(d, rng).context));
+    }
+    std::printf("\n");
+    std::fflush(stdout);
+  }
+  return 0;
+}
+
+int Sweep(int d) {
+  const int total = absl::GetFlag(FLAGS_sweep);
+  const int window = std::max(1, absl::GetFlag(FLAGS_window));
+  std::printf(
+      "d = %d, K = %d, q = %d: one model grown from 0 to %d rounds by "
+      "Select+Update pairs; every Update timed\n\n",
+      d, kActions, kPostHocDim, total);
+  std::printf("%8s %9s %10s %10s %10s %8s %9s\n", "rounds", "primal",
+              "select_ms", "update_ms", "upd_worst", "worst/p50", "model_MB");
+  std::mt19937_64 rng(42);
+  LinUcbModel model = *LinUcbModel::Create(Config(d));
+  std::vector<double> selects, updates;
+  double overall_ratio = 0.0;
+  for (int t = 1; t <= total; ++t) {
+    double s = 0, u = 0;
+    Pair(model, RandomRound(d, rng), rng, &s, &u);
+    selects.push_back(s);
+    updates.push_back(u);
+    if (t % window == 0 || t == total) {
+      int primal = 0;
+      for (int a = 0; a < kActions; ++a) primal += model.IsPrimal(a);
+      const double median = Median(updates);
+      const double worst = *std::max_element(updates.begin(), updates.end());
+      overall_ratio = std::max(overall_ratio, worst / median);
+      std::printf("%8d %7d/6 %10.3f %10.3f %10.3f %8.2f %9.1f\n", t, primal,
+                  Median(selects), median, worst, worst / median,
+                  static_cast<double>(model.MemoryBytes()) / (1 << 20));
+      std::fflush(stdout);
+      selects.clear();
+      updates.clear();
+    }
+  }
+  std::printf(
+      "\nworst single Update / its window's median, over the sweep: %.2f\n",
+      overall_ratio);
+  return 0;
+}
+
+}  // namespace
+}  // namespace bitewise::bandit
+
+int main(int argc, char** argv) {
+  absl::ParseCommandLine(argc, argv);
+  const int d = absl::GetFlag(FLAGS_d);
+  if (absl::GetFlag(FLAGS_sweep) > 0) return bitewise::bandit::Sweep(d);
+  return bitewise::bandit::Sizes(d);
+}
