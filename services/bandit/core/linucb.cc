@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -68,6 +69,13 @@ size_t RowBlocks::CapacityDoubles() const {
     n += static_cast<size_t>(block.capacity) * cols_;
   }
   return n;
+}
+
+void RowBlocks::ReleaseBlocks(int n) {
+  for (; n > 0 && !blocks_.empty(); --n) {
+    rows_ -= blocks_.back().used;
+    blocks_.pop_back();
+  }
 }
 
 void RowBlocks::Clear() {
@@ -196,6 +204,41 @@ VectorXd LinUcbModel::ApplyAInverse(const ActionState& s,
   return (x - WTranspose(s, Product(s, x))) / lambda_a_;
 }
 
+int LinUcbModel::PrepareStart() const {
+  return std::max(1, ConversionStart() - kPrepareUpdates);
+}
+
+int LinUcbModel::PreparedEnd(int step) const {
+  // Columns [0, j) of the lower triangle hold j d - j (j - 1) / 2 entries;
+  // step k of kPrepareUpdates ends where that reaches (k + 1) / steps of the
+  // whole, so each step touches about as many pages.
+  const int steps = std::max(1, ConversionStart() - PrepareStart());
+  if (step + 1 >= steps) return d_;
+  const double n = d_;
+  const double target = n * (n + 1) / 2 * (step + 1) / steps;
+  const double b = 2 * n + 1;
+  const double j = (b - std::sqrt(std::max(0.0, b * b - 8 * target))) / 2;
+  return std::clamp(static_cast<int>(std::ceil(j)), 0, d_);
+}
+
+void LinUcbModel::PrepareCandidate(ActionState& s, int step) {
+  // Allocated, not written: its pages are touched step by step.
+  if (s.candidate.rows() != d_) s.candidate.resize(d_, d_);
+  const int end = PreparedEnd(step);
+  for (int j = s.prepared; j < end; ++j) {
+    s.candidate.col(j).tail(d_ - j).setZero();
+    s.candidate(j, j) = 1.0 / lambda_a_;
+  }
+  s.prepared = std::max(s.prepared, end);
+}
+
+void LinUcbModel::StartConversion(ActionState& s) {
+  PrepareCandidate(s, std::numeric_limits<int>::max() - 1);
+  s.converting = true;
+  s.conversion_rows = s.w.rows();
+  s.converted = 0;
+}
+
 void LinUcbModel::FoldRows(ActionState& s, int first, int count,
                            const double* extra) {
   const int k = count + (extra != nullptr ? 1 : 0);
@@ -211,23 +254,35 @@ void LinUcbModel::FoldRows(ActionState& s, int first, int count,
                                                          -1.0 / lambda_a_);
 }
 
-void LinUcbModel::StartConversion(ActionState& s) {
-  s.candidate = MatrixXd::Identity(d_, d_) / lambda_a_;
-  s.converting = true;
-  s.conversion_rows = s.w.rows();
-  s.converted = 0;
-}
-
 void LinUcbModel::SwitchToPrimal(ActionState& s) {
+  // A^-1 [b S_pc^T], from the dual form while it is there (one pass over
+  // W), else from A^-1 (a rebuild, where it is whole).
+  MatrixXd rhs(d_, 1 + q_);
+  rhs.col(0) = s.b;
+  if (posthoc()) rhs.rightCols(q_) = s_pc_.transpose();
+  MatrixXd product;
+  if (s.w.rows() > 0) {
+    MatrixXd z(s.w.rows(), 1 + q_);
+    z.col(0) = s.wb;
+    if (posthoc()) z.rightCols(q_) = s.y;
+    product = rhs;
+    s.w.ForEachBlock([&](int first, int rows, const double* data) {
+      product.noalias() -=
+          ConstRowMap(data, rows, d_).transpose() * z.middleRows(first, rows);
+    });
+    product /= lambda_a_;
+  } else {
+    product.noalias() = s.candidate * rhs;
+  }
   s.a_inv = std::move(s.candidate);
   s.candidate = MatrixXd();
   s.primal = true;
   s.converting = false;
-  s.beta = s.a_inv.selfadjointView<Eigen::Lower>() * s.b;
-  if (posthoc()) {
-    s.p = s.a_inv.selfadjointView<Eigen::Lower>() * s_pc_.transpose();
-  }
-  s.w.Clear();
+  s.prepared = 0;
+  s.beta = product.col(0);
+  if (posthoc()) s.p = product.rightCols(q_);
+  s.retired = std::move(s.w);
+  s.w = RowBlocks(d_);
   s.wb.resize(0);
   s.y.resize(0, q_);
   s.z.resize(0, q_);
@@ -416,6 +471,8 @@ void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
     if (!taken.converting && taken.count >= ConversionStart()) {
       StartConversion(taken);
       extra = nullptr;  // the new row is one of the rows to fold
+    } else if (!taken.converting && taken.count >= PrepareStart()) {
+      PrepareCandidate(taken, static_cast<int>(taken.count) - PrepareStart());
     }
     if (taken.converting) {
       const int fold = std::min(kConversionRowsPerUpdate,
@@ -425,6 +482,7 @@ void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
       if (taken.converted == taken.conversion_rows) SwitchToPrimal(taken);
     }
   }
+  for (ActionState& s : actions_) s.retired.ReleaseBlocks(2);
   if (posthoc()) {
     for (ActionState& s : actions_) RefreshPostHocCache(s);
   }
@@ -488,6 +546,7 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
       s.candidate = a.selfadjointView<Eigen::Lower>().llt().solve(
           MatrixXd::Identity(d, d));
       a = MatrixXd();
+      s.w.Clear();
       model.SwitchToPrimal(s);
     } else {
       // W = L^-1 C with L L^T = lambda I + C C^T, in place.
@@ -507,6 +566,10 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
             std::min(start, kConversionRowsPerUpdate * (m - start + 1));
         model.FoldRows(s, 0, s.converted, nullptr);
         model.FoldRows(s, start, m - start, nullptr);
+      } else {
+        for (int k = model.PrepareStart(); k <= m; ++k) {
+          model.PrepareCandidate(s, k - model.PrepareStart());
+        }
       }
     }
     if (model.posthoc()) model.RefreshPostHocCache(s);
@@ -541,10 +604,10 @@ size_t LinUcbModel::MemoryBytes() const {
   size_t doubles = static_cast<size_t>(s_pc_.size() + h_.size() + s_pp_.size() +
                                        hht_.size());
   for (const ActionState& s : actions_) {
-    doubles += s.w.CapacityDoubles() + s.wb.size() + s.y.size() + s.z.size() +
-               s.candidate.size() + s.a_inv.size() + s.beta.size() +
-               s.p.size() + s.a_inv_ht.size() + s.b.size() + s.M.size() +
-               s.r.size() + 2 * q_ * q_ + q_;
+    doubles += s.w.CapacityDoubles() + s.retired.CapacityDoubles() +
+               s.wb.size() + s.y.size() + s.z.size() + s.candidate.size() +
+               s.a_inv.size() + s.beta.size() + s.p.size() + s.a_inv_ht.size() +
+               s.b.size() + s.M.size() + s.r.size() + 2 * q_ * q_ + q_;
   }
   return doubles * sizeof(double) + sizeof(*this) +
          actions_.size() * sizeof(ActionState);

@@ -93,6 +93,8 @@ class RowBlocks {
   double* Append(int n);
   const double* Row(int i) const;
   double* MutableRow(int i) { return const_cast<double*>(Row(i)); }
+  // Frees up to `n` blocks from the end (rows in them are gone).
+  void ReleaseBlocks(int n);
   size_t CapacityDoubles() const;
   void Clear();
   // Calls f(first_row, rows, data) for each block's contiguous rows.
@@ -134,6 +136,8 @@ class LinUcbModel {
   // Earlier rows folded into the primal form per Update while an action
   // converts (besides its new row).
   static constexpr int kConversionRowsPerUpdate = 7;
+  // Updates over which the conversion's d x d matrix is first written.
+  static constexpr int kPrepareUpdates = 32;
 
   // `primal_threshold` T: an action starts converting to primal form at
   // ceil(T * 7/8) rounds and is primal from T - 1 or T rounds on (the
@@ -210,13 +214,19 @@ class LinUcbModel {
     Eigen::VectorXd wb;
     Eigen::MatrixXd y;
 
-    // Conversion to primal: `candidate` (lower triangle) holds
-    // (I - sum w_i w_i^T) / lambda over rows [0, converted) and every row
-    // appended since the conversion began at `conversion_rows` rows.
+    // Conversion to primal. First the lower triangle of `candidate` is set
+    // to I / lambda, `prepared` columns at a time over kPrepareUpdates
+    // updates (so that no single call touches all its pages); then it
+    // holds (I - sum w_i w_i^T) / lambda over rows [0, converted) and every
+    // row appended since the conversion began at `conversion_rows` rows.
+    int prepared = 0;
     bool converting = false;
     int conversion_rows = 0;
     int converted = 0;
     Eigen::MatrixXd candidate;
+    // W's blocks after the switch, released a few per Update so that no
+    // single call pays for unmapping them all.
+    RowBlocks retired;
 
     // Primal form: A^-1 (lower triangle), A^-1 b, P = A^-1 S_pc^T (d x q).
     Eigen::MatrixXd a_inv;
@@ -243,9 +253,15 @@ class LinUcbModel {
   // W^T v for an n-vector v.
   Eigen::VectorXd WTranspose(const ActionState& s,
                              const Eigen::VectorXd& v) const;
-  // Folds rows [first, first + count) of W into the conversion candidate.
-  void FoldRows(ActionState& s, int first, int count, const double* extra);
+  // Conversion: the rounds at which the candidate's preparation starts,
+  // the column where preparation step k ends, one preparation step, the
+  // start of folding, and rows [first, first + count) of W (plus `extra`)
+  // folded into the candidate.
+  int PrepareStart() const;
+  int PreparedEnd(int step) const;
+  void PrepareCandidate(ActionState& s, int step);
   void StartConversion(ActionState& s);
+  void FoldRows(ActionState& s, int first, int count, const double* extra);
   void SwitchToPrimal(ActionState& s);
   void RecomputeH();
   // Refreshes the H-dependent caches (after every post hoc update).
