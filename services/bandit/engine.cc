@@ -191,6 +191,17 @@ absl::StatusOr<UserRecord> BanditEngine::CreateUser(
         requested.context_dim, requested.posthoc_dim, requested.num_actions(),
         bytes / 1e6, options_.max_reply_bytes / 1e6));
   }
+  // A model that cannot fit the cache budget on its own would be rebuilt
+  // from the log at every call: refused like one over the limit.
+  if (const size_t bytes = MaxModelBytes(requested);
+      bytes > options_.cache_budget_bytes) {
+    return absl::InvalidArgumentError(absl::StrFormat(
+        "config: a model with context_dim %d, posthoc_dim %d and %d actions "
+        "can grow to %.1f GB, more than this service's whole model cache "
+        "of %.1f GB (--cache_budget_mb); use fewer dimensions or actions",
+        requested.context_dim, requested.posthoc_dim, requested.num_actions(),
+        bytes / 1e9, options_.cache_budget_bytes / 1e9));
+  }
   if (!std::isfinite(prior_rounds) || prior_rounds < 0.0) {
     return absl::InvalidArgumentError(absl::StrCat(
         "prior_rounds: must be finite and >= 0, got ", prior_rounds));

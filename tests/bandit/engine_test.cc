@@ -220,6 +220,17 @@ TEST_F(EngineTest, ConfigsWhoseModelCouldOutgrowTheLimitAreRefused) {
   absl::StatusOr<UserRecord> over = engine_->CreateUser("spanet2", spanet);
   EXPECT_EQ(over.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(over.status().message(), ::testing::HasSubstr("limit of 0.1 GB"));
+  // So does a cache budget it could not fit in, naming the budget.
+  EngineOptions small_cache;
+  small_cache.cache_budget_bytes = size_t{100} << 20;
+  Reopen(small_cache);
+  over = engine_->CreateUser("spanet3", spanet);
+  EXPECT_EQ(over.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(
+      over.status().message(),
+      ::testing::HasSubstr("model cache of 0.1 GB (--cache_budget_mb)"));
+  EXPECT_EQ(store_->GetUser("spanet3").status().code(),
+            absl::StatusCode::kNotFound);
 }
 
 // Every model a user can have must be readable with GetModel under the
@@ -322,12 +333,14 @@ TEST_F(EngineTest, SeededStrategiesAreReproducibleAcrossResetAndRestart) {
 }
 
 TEST_F(EngineTest, CacheBudgetEvictsAndReloadsTransparently) {
-  EngineOptions options;
-  options.cache_budget_bytes = 1;  // at most the model in use stays loaded
-  Reopen(options);
   for (const char* user : {"u1", "u2", "u3"}) {
     ASSERT_TRUE(engine_->CreateUser(user, SmallConfig()).ok());
   }
+  // At most the model in use stays loaded (a budget no model fits: new
+  // users could not be created under it, existing ones still load).
+  EngineOptions options;
+  options.cache_budget_bytes = 1;
+  Reopen(options);
   std::mt19937_64 rng(5);
   for (int t = 0; t < 20; ++t) {
     for (const char* user : {"u1", "u2", "u3"}) Bite(user, rng);
