@@ -433,6 +433,75 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
   EXPECT_EQ(converting_updates, 7);
 }
 
+// A saved state restores the model bit for bit, in every form and in the
+// middle of a conversion, and keeps learning as the original does; a state
+// for another configuration or a damaged one is refused, naming why.
+TEST(LinUcbTest, SavedStateRestoresTheModelExactly) {
+  for (const Learner learner : {Learner::kPostHoc, Learner::kContextOnly}) {
+    BanditConfig config;
+    config.learner = learner;
+    config.context_dim = 64;
+    config.posthoc_dim = 3;
+    config.lambda_c = 3.0;
+    config.action_names = {"a", "b", "c"};
+    LinUcbModel model = *LinUcbModel::Create(config);
+    std::mt19937_64 rng(21);
+    bool saw_converting = false, saw_mixed = false;
+    for (int t = 0; t < 220; ++t) {
+      model.Update(RandomRound(64, 3, 3, rng));
+      bool any_primal = false, any_dual = false;
+      for (int a = 0; a < 3; ++a) {
+        saw_converting |= model.IsConverting(a);
+        (model.IsPrimal(a) ? any_primal : any_dual) = true;
+      }
+      saw_mixed |= any_primal && any_dual;
+      if (t % 23 != 0 && t != 219) continue;
+      const std::string state = model.SaveState();
+      absl::StatusOr<LinUcbModel> loaded =
+          LinUcbModel::LoadState(config, state);
+      ASSERT_TRUE(loaded.ok()) << loaded.status();
+      EXPECT_EQ(loaded->SaveState(), state);
+      ExpectSameEstimates(*loaded, model, RandomVector(64, rng));
+      for (int a = 0; a < 3; ++a) {
+        EXPECT_EQ(loaded->IsConverting(a), model.IsConverting(a));
+        EXPECT_EQ(loaded->Count(a), model.Count(a));
+      }
+      // Both go on learning identically.
+      LinUcbModel copy = *LinUcbModel::LoadState(config, state);
+      const Round next = RandomRound(64, 3, 3, rng);
+      copy.Update(next);
+      LinUcbModel original = *LinUcbModel::LoadState(config, state);
+      original.Update(next);
+      EXPECT_EQ(copy.SaveState(), original.SaveState());
+    }
+    EXPECT_TRUE(saw_converting);
+    EXPECT_TRUE(saw_mixed);
+
+    const std::string state = model.SaveState();
+    BanditConfig other = config;
+    other.lambda_c = 4.0;
+    absl::StatusOr<LinUcbModel> refused = LinUcbModel::LoadState(other, state);
+    EXPECT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition);
+    EXPECT_THAT(refused.status().message(), ::testing::HasSubstr("lambda"));
+    EXPECT_EQ(LinUcbModel::LoadState(config, state, 10).status().code(),
+              absl::StatusCode::kFailedPrecondition);
+    for (size_t cut : {size_t{0}, size_t{3}, size_t{40}, state.size() / 2,
+                       state.size() - 1}) {
+      absl::StatusOr<LinUcbModel> truncated =
+          LinUcbModel::LoadState(config, state.substr(0, cut));
+      EXPECT_EQ(truncated.status().code(), absl::StatusCode::kDataLoss) << cut;
+      EXPECT_THAT(truncated.status().message(),
+                  ::testing::HasSubstr("model state"));
+    }
+    EXPECT_EQ(LinUcbModel::LoadState(config, state + "x").status().code(),
+              absl::StatusCode::kDataLoss);
+    std::string bad_magic = state;
+    bad_magic[0] = 'X';
+    EXPECT_EQ(LinUcbModel::LoadState(config, bad_magic).status().code(),
+              absl::StatusCode::kDataLoss);
+  }
+}
+
 TEST(LinUcbTest, FreshModelPredictsZeroWithPriorWidth) {
   BanditConfig config;
   config.context_dim = 5;

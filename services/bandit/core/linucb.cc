@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "services/common/status_macros.h"
 
 namespace bitewise::bandit {
 namespace {
@@ -37,6 +39,55 @@ absl::Status ValidateVector(const char* field, absl::Span<const double> v,
   }
   return absl::OkStatus();
 }
+
+// Appends raw float64 and integer values (the host's layout; a marker in
+// the header tells another layout apart).
+class StateWriter {
+ public:
+  explicit StateWriter(size_t reserve) { out_.reserve(reserve); }
+  template <typename T>
+  void Value(T v) {
+    out_.append(reinterpret_cast<const char*>(&v), sizeof(v));
+  }
+  void Doubles(const double* data, size_t n) {
+    out_.append(reinterpret_cast<const char*>(data), n * sizeof(double));
+  }
+  std::string Take() { return std::move(out_); }
+
+ private:
+  std::string out_;
+};
+
+class StateReader {
+ public:
+  explicit StateReader(absl::string_view in) : in_(in) {}
+  template <typename T>
+  absl::Status Value(T* v, const char* what) {
+    return Read(v, sizeof(T), what);
+  }
+  absl::Status Doubles(double* data, size_t n, const char* what) {
+    return Read(data, n * sizeof(double), what);
+  }
+  size_t left() const { return in_.size() - pos_; }
+
+ private:
+  absl::Status Read(void* out, size_t bytes, const char* what) {
+    if (left() < bytes) {
+      return absl::DataLossError(absl::StrCat("model state: truncated in ",
+                                              what, " at byte ", pos_, " of ",
+                                              in_.size()));
+    }
+    std::memcpy(out, in_.data() + pos_, bytes);
+    pos_ += bytes;
+    return absl::OkStatus();
+  }
+  absl::string_view in_;
+  size_t pos_ = 0;
+};
+
+constexpr char kStateMagic[4] = {'B', 'W', 'L', 'U'};
+constexpr int32_t kStateFormat = 1;
+constexpr double kLayoutMarker = 1.0 + 1.0 / 1024;  // bytes tell the layout
 
 }  // namespace
 
@@ -611,6 +662,172 @@ size_t LinUcbModel::MemoryBytes() const {
   }
   return doubles * sizeof(double) + sizeof(*this) +
          actions_.size() * sizeof(ActionState);
+}
+
+std::string LinUcbModel::SaveState() const {
+  StateWriter out(MemoryBytes() + 4096);
+  for (char c : kStateMagic) out.Value(c);
+  out.Value(kStateFormat);
+  out.Value(kLayoutMarker);
+  out.Value(static_cast<int32_t>(d_));
+  out.Value(static_cast<int32_t>(q_));
+  out.Value(static_cast<int32_t>(actions_.size()));
+  out.Value(static_cast<int32_t>(primal_threshold_));
+  out.Value(lambda_a_);
+  out.Value(total_rounds_);
+  out.Value(scale_.weight_sum);
+  out.Value(scale_.context_sq_sum);
+  out.Value(scale_.posthoc_sq_sum);
+  if (posthoc()) {
+    out.Doubles(s_pp_.data(), s_pp_.size());
+    out.Doubles(s_pc_.data(), s_pc_.size());
+  }
+  for (const ActionState& s : actions_) {
+    out.Value(s.count);
+    out.Value(s.loss_sum);
+    out.Value(static_cast<int32_t>(s.primal));
+    out.Value(static_cast<int32_t>(s.converting));
+    out.Value(static_cast<int32_t>(s.prepared));
+    out.Value(static_cast<int32_t>(s.conversion_rows));
+    out.Value(static_cast<int32_t>(s.converted));
+    out.Doubles(s.b.data(), d_);
+    if (posthoc()) {
+      out.Doubles(s.M.data(), s.M.size());
+      out.Doubles(s.r.data(), q_);
+    }
+    // The lower triangle of a d x d matrix, columns [0, columns).
+    auto lower = [&](const MatrixXd& m, int columns) {
+      for (int j = 0; j < columns; ++j) out.Doubles(&m(j, j), d_ - j);
+    };
+    if (s.primal) {
+      lower(s.a_inv, d_);
+      out.Doubles(s.beta.data(), d_);
+      if (posthoc()) out.Doubles(s.p.data(), s.p.size());
+      continue;
+    }
+    out.Value(static_cast<int32_t>(s.w.rows()));
+    s.w.ForEachBlock([&](int, int rows, const double* data) {
+      out.Doubles(data, static_cast<size_t>(rows) * d_);
+    });
+    out.Doubles(s.wb.data(), s.wb.size());
+    if (posthoc()) out.Doubles(s.y.data(), s.y.size());
+    lower(s.candidate, s.prepared);
+  }
+  return out.Take();
+}
+
+absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,
+                                                   absl::string_view state,
+                                                   int primal_threshold) {
+  ASSIGN_OR_RETURN(LinUcbModel model, Create(config, primal_threshold));
+  StateReader in(state);
+  char magic[4];
+  for (char& c : magic) RETURN_IF_ERROR(in.Value(&c, "the header"));
+  int32_t format = 0;
+  double marker = 0;
+  RETURN_IF_ERROR(in.Value(&format, "the header"));
+  RETURN_IF_ERROR(in.Value(&marker, "the header"));
+  if (std::memcmp(magic, kStateMagic, 4) != 0 || format != kStateFormat ||
+      marker != kLayoutMarker) {
+    return absl::DataLossError(
+        "model state: not a bitewise model state of format 1 in this host's "
+        "layout");
+  }
+  int32_t d = 0, q = 0, k = 0, threshold = 0;
+  double lambda = 0;
+  RETURN_IF_ERROR(in.Value(&d, "the header"));
+  RETURN_IF_ERROR(in.Value(&q, "the header"));
+  RETURN_IF_ERROR(in.Value(&k, "the header"));
+  RETURN_IF_ERROR(in.Value(&threshold, "the header"));
+  RETURN_IF_ERROR(in.Value(&lambda, "the header"));
+  if (d != model.d_ || q != model.q_ || k != model.num_actions() ||
+      threshold != model.primal_threshold_ || lambda != model.lambda_a_) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("model state: saved for d ", d, ", q ", q, ", ", k,
+                     " actions, primal threshold ", threshold, ", lambda ",
+                     lambda, "; this model has ", model.d_, ", ", model.q_,
+                     ", ", model.num_actions(), ", ", model.primal_threshold_,
+                     ", ", model.lambda_a_));
+  }
+  RETURN_IF_ERROR(in.Value(&model.total_rounds_, "the header"));
+  RETURN_IF_ERROR(in.Value(&model.scale_.weight_sum, "the header"));
+  RETURN_IF_ERROR(in.Value(&model.scale_.context_sq_sum, "the header"));
+  RETURN_IF_ERROR(in.Value(&model.scale_.posthoc_sq_sum, "the header"));
+  if (model.posthoc()) {
+    RETURN_IF_ERROR(in.Doubles(model.s_pp_.data(), model.s_pp_.size(), "S_pp"));
+    RETURN_IF_ERROR(in.Doubles(model.s_pc_.data(), model.s_pc_.size(), "S_pc"));
+    model.RecomputeH();
+  }
+  const int dd = model.d_;
+  for (ActionState& s : model.actions_) {
+    int32_t primal = 0, converting = 0, prepared = 0, rows = 0, converted = 0;
+    RETURN_IF_ERROR(in.Value(&s.count, "an action"));
+    RETURN_IF_ERROR(in.Value(&s.loss_sum, "an action"));
+    RETURN_IF_ERROR(in.Value(&primal, "an action"));
+    RETURN_IF_ERROR(in.Value(&converting, "an action"));
+    RETURN_IF_ERROR(in.Value(&prepared, "an action"));
+    RETURN_IF_ERROR(in.Value(&rows, "an action"));
+    RETURN_IF_ERROR(in.Value(&converted, "an action"));
+    if (s.count < 0 || prepared < 0 || prepared > dd || rows < 0 ||
+        converted < 0 || converted > rows || rows > s.count) {
+      return absl::DataLossError("model state: an action's counts disagree");
+    }
+    s.primal = primal != 0;
+    s.converting = converting != 0;
+    s.prepared = prepared;
+    s.conversion_rows = rows;
+    s.converted = converted;
+    RETURN_IF_ERROR(in.Doubles(s.b.data(), dd, "b"));
+    if (model.posthoc()) {
+      RETURN_IF_ERROR(in.Doubles(s.M.data(), s.M.size(), "M"));
+      RETURN_IF_ERROR(in.Doubles(s.r.data(), s.r.size(), "r"));
+    }
+    auto lower = [&](MatrixXd& m, int columns) -> absl::Status {
+      if (columns == 0) return absl::OkStatus();
+      m.resize(dd, dd);
+      for (int j = 0; j < columns; ++j) {
+        RETURN_IF_ERROR(in.Doubles(&m(j, j), dd - j, "a d x d factor"));
+      }
+      return absl::OkStatus();
+    };
+    if (s.primal) {
+      RETURN_IF_ERROR(lower(s.a_inv, dd));
+      s.beta.resize(dd);
+      RETURN_IF_ERROR(in.Doubles(s.beta.data(), dd, "A^-1 b"));
+      if (model.posthoc()) {
+        s.p.resize(dd, model.q_);
+        RETURN_IF_ERROR(in.Doubles(s.p.data(), s.p.size(), "A^-1 S_pc^T"));
+      }
+    } else {
+      int32_t n = 0;
+      RETURN_IF_ERROR(in.Value(&n, "an action"));
+      if (n != s.count) {
+        return absl::DataLossError(absl::StrCat("model state: an action has ",
+                                                s.count, " rounds and ", n,
+                                                " rows"));
+      }
+      if (in.left() / sizeof(double) / dd < static_cast<size_t>(n)) {
+        return absl::DataLossError("model state: truncated in W");
+      }
+      if (n > 0) {
+        RETURN_IF_ERROR(
+            in.Doubles(s.w.Append(n), static_cast<size_t>(n) * dd, "W"));
+      }
+      s.wb.resize(n);
+      RETURN_IF_ERROR(in.Doubles(s.wb.data(), n, "W b"));
+      if (model.posthoc()) {
+        s.y.resize(n, model.q_);
+        RETURN_IF_ERROR(in.Doubles(s.y.data(), s.y.size(), "W S_pc^T"));
+      }
+      RETURN_IF_ERROR(lower(s.candidate, s.prepared));
+    }
+    if (model.posthoc()) model.RefreshPostHocCache(s);
+  }
+  if (in.left() != 0) {
+    return absl::DataLossError(
+        absl::StrCat("model state: ", in.left(), " bytes past its end"));
+  }
+  return model;
 }
 
 }  // namespace bitewise::bandit

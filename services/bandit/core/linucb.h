@@ -36,12 +36,14 @@
 
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "Eigen/Core"
 #include "Eigen/Dense"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 #include "absl/types/span.h"
 #include "services/bandit/core/config.h"
 
@@ -195,6 +197,17 @@ class LinUcbModel {
 
   // Bytes held by the model's matrices and buffers.
   size_t MemoryBytes() const;
+
+  // The model's whole state (every sum, form and factor; not the config)
+  // as bytes in this host's float64 layout: a checkpoint from which
+  // LoadState restores exactly this model, bit for bit, without its log.
+  std::string SaveState() const;
+  // FAILED_PRECONDITION if `state` was saved for another configuration or
+  // primal threshold; DATA_LOSS naming what is wrong if it is not a whole
+  // state of this format.
+  static absl::StatusOr<LinUcbModel> LoadState(const BanditConfig& config,
+                                               absl::string_view state,
+                                               int primal_threshold = 0);
 
  private:
   using RowMatrix =
