@@ -75,4 +75,10 @@ int64_t OutcomeChecksum(double loss, absl::string_view posthoc_bytes,
   return h.Value();
 }
 
+int64_t BlobChecksum(absl::string_view bytes) {
+  Fnv1a h;
+  h.Bytes(bytes);
+  return h.Value();
+}
+
 }  // namespace bitewise::bandit

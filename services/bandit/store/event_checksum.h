@@ -20,6 +20,9 @@ int64_t SelectionChecksum(absl::string_view user_id, absl::string_view meal_id,
                           absl::string_view context_bytes, int64_t action,
                           double propensity, int64_t selected_at_us);
 
+// Over a blob of any size (a model checkpoint's bytes).
+int64_t BlobChecksum(absl::string_view bytes);
+
 // Over the outcome's columns as stored (post hoc as its float64 blob).
 int64_t OutcomeChecksum(double loss, absl::string_view posthoc_bytes,
                         double weight, int64_t model_version,

@@ -63,6 +63,15 @@ struct PoolRecord {
   PopulationPrior prior;
 };
 
+// A saved model (LinUcbModel::SaveState) and the part of the log it covers:
+// a cold load reads it and the events after it instead of the whole log.
+struct ModelCheckpoint {
+  int64_t model_version = 0;  // completed events it covers, > 0
+  int64_t last_event_id = 0;  // the event at model_version: ties it to the log
+  std::string state;
+  absl::Time created_at;
+};
+
 // One administrative call as the audit log keeps it: the trail's own
 // record (services/common/audit.h, a plain struct) with its id in the log.
 struct AuditEntry : AuditEvent {
@@ -133,6 +142,25 @@ class EventStore {
   // model is rebuilt from.
   virtual absl::StatusOr<std::vector<EventRecord>> CompletedEvents(
       const std::string& user_id) = 0;
+
+  // Completed events of the user with model_version >= `from_version`, in
+  // model_version order.
+  virtual absl::StatusOr<std::vector<EventRecord>> CompletedEventsFrom(
+      const std::string& user_id, int64_t from_version) = 0;
+
+  // Durably replaces the user's checkpoint. Large states are written in
+  // chunks, each its own transaction, so other calls are not held up; the
+  // checkpoint counts once its header is written. FAILED_PRECONDITION if the
+  // log no longer has `last_event_id` at `model_version` (the user was reset
+  // meanwhile): nothing is kept. NOT_FOUND for an unknown user.
+  virtual absl::Status PutCheckpoint(const std::string& user_id,
+                                     const ModelCheckpoint& checkpoint) = 0;
+  // The user's checkpoint. NOT_FOUND if there is none; DATA_LOSS naming the
+  // user if its bytes are incomplete or do not match their checksum.
+  virtual absl::StatusOr<ModelCheckpoint> GetCheckpoint(
+      const std::string& user_id) = 0;
+  // Removes the user's checkpoint, if any (ResetUser and DeleteUser do too).
+  virtual absl::Status DeleteCheckpoint(const std::string& user_id) = 0;
 
   // OK while the store can durably accept writes; otherwise the reason
   // (for the service's health). Default: always OK.

@@ -612,6 +612,7 @@ absl::Status SqliteEventStore::ResetUser(const std::string& user_id) {
     st.BindText(1, user_id);
     RETURN_IF_ERROR(st.Run());
   }
+  RETURN_IF_ERROR(DeleteCheckpointLocked(user_id));
   return txn.Commit();
 }
 
@@ -909,6 +910,11 @@ absl::StatusOr<PageResult<EventRecord>> SqliteEventStore::ListEvents(
 
 absl::StatusOr<std::vector<EventRecord>> SqliteEventStore::CompletedEvents(
     const std::string& user_id) {
+  return CompletedEventsFrom(user_id, 1);
+}
+
+absl::StatusOr<std::vector<EventRecord>> SqliteEventStore::CompletedEventsFrom(
+    const std::string& user_id, int64_t from_version) {
   absl::MutexLock lock(&mu_);
   ASSIGN_OR_RETURN(
       Transaction txn,
@@ -921,9 +927,11 @@ absl::StatusOr<std::vector<EventRecord>> SqliteEventStore::CompletedEvents(
         Statement::Prepare(db_,
                            absl::StrCat(kEventColumns,
                                         "WHERE user_id = ?1 AND completed = 1 "
+                                        "AND model_version >= ?2 "
                                         "ORDER BY model_version"),
                            "CompletedEvents"));
     st.BindText(1, user_id);
+    st.BindInt64(2, from_version);
     while (true) {
       ASSIGN_OR_RETURN(const bool row, st.Step());
       if (!row) break;
@@ -933,6 +941,188 @@ absl::StatusOr<std::vector<EventRecord>> SqliteEventStore::CompletedEvents(
   }
   RETURN_IF_ERROR(txn.Commit());
   return events;
+}
+
+absl::Status SqliteEventStore::PutCheckpoint(
+    const std::string& user_id, const ModelCheckpoint& checkpoint) {
+  RETURN_IF_ERROR(CheckHealth());
+  constexpr char kOp[] = "PutCheckpoint";
+  if (checkpoint.model_version <= 0 || checkpoint.state.empty()) {
+    return absl::InvalidArgumentError(
+        "checkpoint: needs model_version > 0 and a state");
+  }
+  const absl::string_view state = checkpoint.state;
+  const int64_t chunks = static_cast<int64_t>(
+      (state.size() + kCheckpointChunkBytes - 1) / kCheckpointChunkBytes);
+  // The chunks first, one transaction each: other calls run in between.
+  for (int64_t seq = 0; seq < chunks; ++seq) {
+    absl::MutexLock lock(&mu_);
+    ASSIGN_OR_RETURN(Transaction txn,
+                     Transaction::Begin(db_, Transaction::Kind::kWrite, kOp));
+    RETURN_IF_ERROR(CheckUserExistsLocked(user_id));
+    ASSIGN_OR_RETURN(
+        Statement st,
+        Statement::Prepare(db_,
+                           "INSERT OR REPLACE INTO model_checkpoint_chunks "
+                           "(user_id, model_version, seq, data) "
+                           "VALUES (?1, ?2, ?3, ?4)",
+                           kOp));
+    st.BindText(1, user_id);
+    st.BindInt64(2, checkpoint.model_version);
+    st.BindInt64(3, seq);
+    st.BindBlob(
+        4, state.substr(seq * kCheckpointChunkBytes, kCheckpointChunkBytes));
+    RETURN_IF_ERROR(st.Run());
+    RETURN_IF_ERROR(txn.Commit());
+  }
+  // Then the header, if the log still has this event at this version, and
+  // the older checkpoint's chunks go.
+  absl::MutexLock lock(&mu_);
+  ASSIGN_OR_RETURN(Transaction txn,
+                   Transaction::Begin(db_, Transaction::Kind::kWrite, kOp));
+  RETURN_IF_ERROR(CheckUserExistsLocked(user_id));
+  bool current = false;
+  {
+    ASSIGN_OR_RETURN(
+        Statement st,
+        Statement::Prepare(db_,
+                           "SELECT 1 FROM events WHERE user_id = ?1 AND "
+                           "completed = 1 AND model_version = ?2 AND "
+                           "event_id = ?3",
+                           kOp));
+    st.BindText(1, user_id);
+    st.BindInt64(2, checkpoint.model_version);
+    st.BindInt64(3, checkpoint.last_event_id);
+    ASSIGN_OR_RETURN(current, st.Step());
+    RETURN_IF_ERROR(st.Run());
+  }
+  if (current) {
+    ASSIGN_OR_RETURN(
+        Statement st,
+        Statement::Prepare(
+            db_,
+            "INSERT OR REPLACE INTO model_checkpoints (user_id, "
+            "model_version, last_event_id, state_bytes, chunks, checksum, "
+            "created_at_us) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)",
+            kOp));
+    st.BindText(1, user_id);
+    st.BindInt64(2, checkpoint.model_version);
+    st.BindInt64(3, checkpoint.last_event_id);
+    st.BindInt64(4, static_cast<int64_t>(state.size()));
+    st.BindInt64(5, chunks);
+    st.BindInt64(6, BlobChecksum(state));
+    st.BindInt64(7, ToMicros(checkpoint.created_at));
+    RETURN_IF_ERROR(st.Run());
+  }
+  {
+    ASSIGN_OR_RETURN(
+        Statement st,
+        Statement::Prepare(db_,
+                           // Kept: the current header's chunks.
+                           "DELETE FROM model_checkpoint_chunks WHERE "
+                           "user_id = ?1 AND model_version NOT IN (SELECT "
+                           "model_version FROM model_checkpoints WHERE "
+                           "user_id = ?1)",
+                           kOp));
+    st.BindText(1, user_id);
+    RETURN_IF_ERROR(st.Run());
+  }
+  RETURN_IF_ERROR(txn.Commit());
+  if (!current) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "checkpoint of user ", user_id, " at model version ",
+        checkpoint.model_version, ": the log no longer has event ",
+        checkpoint.last_event_id, " there (reset meanwhile?); not kept"));
+  }
+  return absl::OkStatus();
+}
+
+absl::StatusOr<ModelCheckpoint> SqliteEventStore::GetCheckpoint(
+    const std::string& user_id) {
+  constexpr char kOp[] = "GetCheckpoint";
+  absl::MutexLock lock(&mu_);
+  ASSIGN_OR_RETURN(Transaction txn,
+                   Transaction::Begin(db_, Transaction::Kind::kRead, kOp));
+  RETURN_IF_ERROR(CheckUserExistsLocked(user_id));
+  ModelCheckpoint out;
+  int64_t bytes = 0, chunks = 0, checksum = 0;
+  {
+    ASSIGN_OR_RETURN(
+        Statement st,
+        Statement::Prepare(db_,
+                           "SELECT model_version, last_event_id, state_bytes, "
+                           "chunks, checksum, created_at_us FROM "
+                           "model_checkpoints WHERE user_id = ?1",
+                           kOp));
+    st.BindText(1, user_id);
+    ASSIGN_OR_RETURN(const bool row, st.Step());
+    if (!row) {
+      return absl::NotFoundError(
+          absl::StrCat("user ", user_id, " has no model checkpoint"));
+    }
+    out.model_version = st.Int64(0);
+    out.last_event_id = st.Int64(1);
+    bytes = st.Int64(2);
+    chunks = st.Int64(3);
+    checksum = st.Int64(4);
+    out.created_at = FromMicros(st.Int64(5));
+    RETURN_IF_ERROR(st.Run());
+  }
+  {
+    ASSIGN_OR_RETURN(
+        Statement st,
+        Statement::Prepare(db_,
+                           "SELECT seq, data FROM model_checkpoint_chunks "
+                           "WHERE user_id = ?1 AND model_version = ?2 "
+                           "ORDER BY seq",
+                           kOp));
+    st.BindText(1, user_id);
+    st.BindInt64(2, out.model_version);
+    if (bytes > 0) out.state.reserve(static_cast<size_t>(bytes));
+    int64_t expected_seq = 0;
+    while (true) {
+      ASSIGN_OR_RETURN(const bool row, st.Step());
+      if (!row) break;
+      if (st.Int64(0) != expected_seq++) break;
+      const absl::string_view data = st.Blob(1);
+      out.state.append(data.data(), data.size());
+    }
+    if (expected_seq != chunks ||
+        static_cast<int64_t>(out.state.size()) != bytes ||
+        BlobChecksum(out.state) != checksum) {
+      return absl::DataLossError(absl::StrCat(
+          "the model checkpoint of user ", user_id, " at model version ",
+          out.model_version, " is damaged (", out.state.size(), " of ", bytes,
+          " bytes in ", expected_seq, " of ", chunks,
+          " chunks, or a checksum mismatch)"));
+    }
+  }
+  RETURN_IF_ERROR(txn.Commit());
+  return out;
+}
+
+absl::Status SqliteEventStore::DeleteCheckpoint(const std::string& user_id) {
+  RETURN_IF_ERROR(CheckHealth());
+  absl::MutexLock lock(&mu_);
+  ASSIGN_OR_RETURN(
+      Transaction txn,
+      Transaction::Begin(db_, Transaction::Kind::kWrite, "DeleteCheckpoint"));
+  RETURN_IF_ERROR(CheckUserExistsLocked(user_id));
+  RETURN_IF_ERROR(DeleteCheckpointLocked(user_id));
+  return txn.Commit();
+}
+
+absl::Status SqliteEventStore::DeleteCheckpointLocked(
+    const std::string& user_id) {
+  for (const char* sql :
+       {"DELETE FROM model_checkpoints WHERE user_id = ?1",
+        "DELETE FROM model_checkpoint_chunks WHERE user_id = ?1"}) {
+    ASSIGN_OR_RETURN(Statement st,
+                     Statement::Prepare(db_, sql, "DeleteCheckpoint"));
+    st.BindText(1, user_id);
+    RETURN_IF_ERROR(st.Run());
+  }
+  return absl::OkStatus();
 }
 
 SqliteEventStore::WriteStats SqliteEventStore::write_stats() const {

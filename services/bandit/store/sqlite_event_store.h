@@ -106,6 +106,16 @@ class SqliteEventStore final : public EventStore {
                                                      const Page& page) override;
   absl::StatusOr<std::vector<EventRecord>> CompletedEvents(
       const std::string& user_id) override;
+  absl::StatusOr<std::vector<EventRecord>> CompletedEventsFrom(
+      const std::string& user_id, int64_t from_version) override;
+  absl::Status PutCheckpoint(const std::string& user_id,
+                             const ModelCheckpoint& checkpoint) override;
+  absl::StatusOr<ModelCheckpoint> GetCheckpoint(
+      const std::string& user_id) override;
+  absl::Status DeleteCheckpoint(const std::string& user_id) override;
+
+  // A checkpoint's bytes go in chunks of at most this many.
+  static constexpr size_t kCheckpointChunkBytes = size_t{4} << 20;
 
   // Durable writes of the hot path since the store was opened (for
   // metrics): each AppendPending (a Select's event) and CompleteEvent (an
@@ -127,6 +137,8 @@ class SqliteEventStore final : public EventStore {
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // NOT_FOUND unless the user exists.
   absl::Status CheckUserExistsLocked(const std::string& user_id)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  absl::Status DeleteCheckpointLocked(const std::string& user_id)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
 
   absl::Mutex mu_;

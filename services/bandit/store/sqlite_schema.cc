@@ -125,6 +125,28 @@ CREATE TABLE audit (
 ) STRICT;
 )sql";
 
+// Model checkpoints (schema 4): each user's newest, its bytes in chunks
+// written in their own transactions, the header row last. An optimisation
+// only: the event log stays the truth.
+constexpr char kCheckpointsSql[] = R"sql(
+CREATE TABLE model_checkpoints (
+  user_id TEXT PRIMARY KEY REFERENCES users (user_id) ON DELETE CASCADE,
+  model_version INTEGER NOT NULL CHECK (model_version > 0),
+  last_event_id INTEGER NOT NULL,
+  state_bytes INTEGER NOT NULL,
+  chunks INTEGER NOT NULL,
+  checksum INTEGER NOT NULL,
+  created_at_us INTEGER NOT NULL
+) STRICT;
+CREATE TABLE model_checkpoint_chunks (
+  user_id TEXT NOT NULL REFERENCES users (user_id) ON DELETE CASCADE,
+  model_version INTEGER NOT NULL,
+  seq INTEGER NOT NULL,
+  data BLOB NOT NULL,
+  PRIMARY KEY (user_id, model_version, seq)
+) STRICT;
+)sql";
+
 // Version 1 -> 2 added the users' priors and the pools, whose action names
 // were then a JSON column like the users'.
 constexpr char kMigrateTo2Sql[] = R"sql(
@@ -424,6 +446,7 @@ absl::Status InitializeDatabase(sqlite3* db,
     RETURN_IF_ERROR(Exec(db, kPoolsSql, op));
     RETURN_IF_ERROR(Exec(db, kPoolActionsSql, op));
     RETURN_IF_ERROR(Exec(db, kAuditSql, op));
+    RETURN_IF_ERROR(Exec(db, kCheckpointsSql, op));
     RETURN_IF_ERROR(Exec(
         db, absl::StrCat("PRAGMA application_id = ", kApplicationId).c_str(),
         op));
@@ -436,6 +459,9 @@ absl::Status InitializeDatabase(sqlite3* db,
     }
     if (version <= 2) {
       RETURN_IF_ERROR(MigrateTo3(db, op));
+    }
+    if (version <= 3) {
+      RETURN_IF_ERROR(Exec(db, kCheckpointsSql, op));
     }
     RETURN_IF_ERROR(
         Exec(db, absl::StrCat("PRAGMA user_version = ", kSchemaVersion).c_str(),
