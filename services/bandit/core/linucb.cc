@@ -428,6 +428,44 @@ std::vector<ActionEstimate> LinUcbModel::Estimate(
 }
 
 void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
+  Apply(round, products, /*caches=*/true);
+}
+
+void LinUcbModel::Replay(const std::vector<Round>& rounds) {
+  for (const Round& round : rounds) Apply(round, nullptr, /*caches=*/false);
+  // The caches Apply left behind, once.
+  if (posthoc()) RecomputeH();
+  for (ActionState& s : actions_) {
+    if (s.primal) {
+      RefreshPrimalSums(s);
+    } else {
+      RefreshDualSums(s);
+    }
+    if (posthoc()) RefreshPostHocCache(s);
+  }
+}
+
+void LinUcbModel::RefreshDualSums(ActionState& s) {
+  s.wb = Product(s, s.b);
+  if (!posthoc()) return;
+  s.y.resize(s.w.rows(), q_);
+  s.w.ForEachBlock([&](int first, int rows, const double* data) {
+    s.y.middleRows(first, rows).noalias() =
+        ConstRowMap(data, rows, d_) * s_pc_.transpose();
+  });
+}
+
+void LinUcbModel::RefreshPrimalSums(ActionState& s) {
+  MatrixXd rhs(d_, 1 + q_);
+  rhs.col(0) = s.b;
+  if (posthoc()) rhs.rightCols(q_) = s_pc_.transpose();
+  const MatrixXd product = s.a_inv.selfadjointView<Eigen::Lower>() * rhs;
+  s.beta = product.col(0);
+  if (posthoc()) s.p = product.rightCols(q_);
+}
+
+void LinUcbModel::Apply(const Round& round, const SelectProducts* products,
+                        bool caches) {
   const Eigen::Map<const VectorXd> c = AsVector(round.context);
   const double w = round.weight;
   const double sw = std::sqrt(w);
@@ -447,7 +485,7 @@ void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
   if (!reuse) {
     computed.resize(actions_.size());
     for (size_t i = 0; i < actions_.size(); ++i) {
-      if (posthoc() || static_cast<int>(i) == a) {
+      if ((caches && posthoc()) || static_cast<int>(i) == a) {
         computed[i] = Product(actions_[i], c);
       }
     }
@@ -463,13 +501,15 @@ void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
     const VectorXd u = sw * v;  // A^-1 x
     const double scale = 1.0 / (1.0 + x.dot(u));
     VectorXd pu;
-    if (posthoc()) pu.noalias() = s_pc_ * u;
+    if (caches && posthoc()) pu.noalias() = s_pc_ * u;
     const double bu = taken.b.dot(u);
     taken.a_inv.selfadjointView<Eigen::Lower>().rankUpdate(u, -scale);
-    ainv_c = v - (scale * u.dot(c)) * u;
-    taken.beta.noalias() -= (scale * bu) * u;
-    taken.beta.noalias() += (w * round.loss) * ainv_c;
-    if (posthoc()) taken.p.noalias() -= (scale * u) * pu.transpose();
+    if (caches) {
+      ainv_c = v - (scale * u.dot(c)) * u;
+      taken.beta.noalias() -= (scale * bu) * u;
+      taken.beta.noalias() += (w * round.loss) * ainv_c;
+      if (posthoc()) taken.p.noalias() -= (scale * u) * pu.transpose();
+    }
   } else {
     // New Cholesky row [l^T delta] with L l = C x, so l = W x; the new row
     // of W is (x - W^T l) / delta.
@@ -478,7 +518,7 @@ void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
     // K is lambda-regularised, so delta2 >= lambda > 0 up to rounding.
     const double delta = std::sqrt(std::max(delta2, lambda_a_ * 1e-300));
     w_row = (m > 0 ? VectorXd(x - WTranspose(taken, l)) : VectorXd(x)) / delta;
-    if (m > 0) taken.wb.noalias() += (w * round.loss) * v;
+    if (caches && m > 0) taken.wb.noalias() += (w * round.loss) * v;
     std::copy(w_row.data(), w_row.data() + d_, taken.w.Append(1));
   }
   ++taken.count;
@@ -486,7 +526,7 @@ void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
   AddScale(round);
   taken.loss_sum += round.loss;
   taken.b.noalias() += (w * round.loss) * c;
-  if (!taken.primal) {
+  if (caches && !taken.primal) {
     taken.wb.conservativeResize(m + 1);
     taken.wb(m) = w_row.dot(taken.b);
   }
@@ -498,7 +538,7 @@ void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
     taken.r.noalias() += round.loss * wp;
     // S_pc gains w p c^T: every P = A^-1 S_pc^T gains (A^-1 c)(w p)^T and
     // every Y = W S_pc^T gains (W c)(w p)^T on its existing rows.
-    for (size_t i = 0; i < actions_.size(); ++i) {
+    for (size_t i = 0; caches && i < actions_.size(); ++i) {
       ActionState& s = actions_[i];
       if (s.primal) {
         s.p.noalias() +=
@@ -510,8 +550,8 @@ void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
     }
     s_pc_.noalias() += wp * c.transpose();
     s_pp_.noalias() += wp * p.transpose();
-    RecomputeH();
-    if (!taken.primal) {
+    if (caches) RecomputeH();
+    if (caches && !taken.primal) {
       taken.y.conservativeResize(m + 1, q_);
       taken.y.row(m).noalias() = (s_pc_ * w_row).transpose();
     }
@@ -530,11 +570,14 @@ void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
                                 taken.conversion_rows - taken.converted);
       FoldRows(taken, taken.converted, fold, extra);
       taken.converted += fold;
-      if (taken.converted == taken.conversion_rows) SwitchToPrimal(taken);
+      if (taken.converted == taken.conversion_rows) {
+        if (!caches) RefreshDualSums(taken);
+        SwitchToPrimal(taken);
+      }
     }
   }
   for (ActionState& s : actions_) s.retired.ReleaseBlocks(2);
-  if (posthoc()) {
+  if (caches && posthoc()) {
     for (ActionState& s : actions_) RefreshPostHocCache(s);
   }
 }

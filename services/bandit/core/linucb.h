@@ -184,6 +184,12 @@ class LinUcbModel {
   // same either way.
   void Update(const Round& round, const SelectProducts* products = nullptr);
 
+  // Adds rounds in order, as many Updates would, but refreshes the caches
+  // every action keeps only once at the end: a replay of the events after
+  // a checkpoint costs one pass over the taken action's form per round
+  // instead of a Select's. Every round must pass ValidateRound.
+  void Replay(const std::vector<Round>& rounds);
+
   // theta_a (length d) and phi_a = H theta_a (length q; empty for the
   // context-only learner).
   Eigen::VectorXd Theta(int action) const;
@@ -255,6 +261,14 @@ class LinUcbModel {
   };
 
   LinUcbModel(const BanditConfig& config, int primal_threshold);
+
+  // One round; with `caches` false, the per-action caches (W b, W S_pc^T,
+  // A^-1 b, A^-1 S_pc^T, H and the post hoc terms) are left for Replay to
+  // refresh.
+  void Apply(const Round& round, const SelectProducts* products, bool caches);
+  // W b and W S_pc^T, or A^-1 [b S_pc^T], from scratch.
+  void RefreshDualSums(ActionState& s);
+  void RefreshPrimalSums(ActionState& s);
 
   bool posthoc() const { return config_.learner == Learner::kPostHoc; }
   // W x (dual) or A^-1 x (primal) for a d-vector x: the Select product.
