@@ -1,6 +1,7 @@
 #include "services/bandit/engine.h"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <random>
 #include <utility>
@@ -53,7 +54,150 @@ absl::Status ValidateUserId(const std::string& user_id) {
 }
 
 BanditEngine::BanditEngine(EventStore* store, const EngineOptions& options)
-    : store_(store), options_(options) {}
+    : store_(store), options_(options) {
+  if (options_.checkpoint_min_events > 0) {
+    checkpointer_ = std::thread([this] { CheckpointLoop(); });
+  }
+}
+
+BanditEngine::~BanditEngine() {
+  {
+    absl::MutexLock lock(&stop_mu_);
+    stop_ = true;
+  }
+  if (checkpointer_.joinable()) checkpointer_.join();
+}
+
+void BanditEngine::CheckpointLoop() {
+  while (true) {
+    {
+      absl::MutexLock lock(&stop_mu_);
+      const auto stopping = [this]() ABSL_SHARED_LOCKS_REQUIRED(stop_mu_) {
+        return stop_;
+      };
+      stop_mu_.AwaitWithTimeout(absl::Condition(&stopping),
+                                options_.checkpoint_poll);
+      if (stop_) return;
+    }
+    std::vector<std::pair<std::string, std::shared_ptr<UserSlot>>> slots;
+    {
+      absl::MutexLock lock(&slots_mu_);
+      for (const auto& [user_id, slot] : slots_)
+        slots.emplace_back(user_id, slot);
+    }
+    for (const auto& [user_id, slot] : slots) {
+      const absl::Status status = MaybeCheckpoint(user_id, *slot,
+                                                  /*force=*/false,
+                                                  /*wait_for_lock=*/false);
+      if (!status.ok()) {
+        std::fprintf(stderr,
+                     "bitewise-bandit: checkpoint of user %s not written: %s\n",
+                     user_id.c_str(), status.ToString().c_str());
+      }
+    }
+  }
+}
+
+absl::Status BanditEngine::CheckpointUser(const std::string& user_id) {
+  ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
+  return MaybeCheckpoint(user_id, *slot, /*force=*/true,
+                         /*wait_for_lock=*/true);
+}
+
+absl::Status BanditEngine::MaybeCheckpoint(
+    const std::string& user_id, UserSlot& slot, bool force,
+    bool wait_for_lock) ABSL_NO_THREAD_SAFETY_ANALYSIS {
+  ModelCheckpoint checkpoint;
+  if (wait_for_lock) {
+    slot.mu.Lock();
+  } else if (!slot.mu.TryLock()) {
+    return absl::OkStatus();  // in use: next time
+  }
+  {
+    const bool loaded = slot.model.has_value();
+    const int64_t version = loaded ? slot.model->TotalRounds() : 0;
+    const int64_t fresh = version - slot.checkpoint_version;
+    const bool due =
+        force ? fresh > 0
+              : fresh >= options_.checkpoint_min_events &&
+                    (fresh >= options_.checkpoint_max_events ||
+                     absl::Now() - slot.last_used >= options_.checkpoint_idle);
+    if (!loaded || !due || slot.last_event_id == 0) {
+      slot.mu.Unlock();
+      return absl::OkStatus();
+    }
+    checkpoint.model_version = version;
+    checkpoint.last_event_id = slot.last_event_id;
+    checkpoint.created_at = absl::Now();
+    checkpoint.state = slot.model->SaveState();
+  }
+  slot.mu.Unlock();
+  // Written outside the user's lock, in chunks: nobody waits for it.
+  RETURN_IF_ERROR(store_->PutCheckpoint(user_id, checkpoint));
+  {
+    absl::MutexLock lock(&slot.mu);
+    slot.checkpoint_version =
+        std::max(slot.checkpoint_version, checkpoint.model_version);
+  }
+  absl::MutexLock lock(&cache_mu_);
+  ++counters_.checkpoints_written;
+  return absl::OkStatus();
+}
+
+std::optional<LinUcbModel> BanditEngine::LoadFromCheckpoint(
+    const UserRecord& record, int64_t* last_event_id,
+    int64_t* checkpoint_version) {
+  const std::string& user_id = record.user_id;
+  absl::StatusOr<ModelCheckpoint> checkpoint = store_->GetCheckpoint(user_id);
+  if (!checkpoint.ok() && absl::IsNotFound(checkpoint.status())) {
+    return std::nullopt;
+  }
+  absl::Status why = checkpoint.status();
+  std::optional<LinUcbModel> model;
+  if (why.ok() && checkpoint->model_version > record.model_version) {
+    why = absl::FailedPreconditionError("it is newer than the log");
+  }
+  absl::StatusOr<std::vector<EventRecord>> tail;
+  if (why.ok()) {
+    tail = store_->CompletedEventsFrom(user_id, checkpoint->model_version);
+    why = tail.status();
+  }
+  if (why.ok() &&
+      (tail->empty() || tail->front().event_id != checkpoint->last_event_id)) {
+    why = absl::FailedPreconditionError(
+        absl::StrCat("the log has another event at model version ",
+                     checkpoint->model_version));
+  }
+  if (why.ok()) {
+    absl::StatusOr<LinUcbModel> loaded = LinUcbModel::LoadState(
+        record.config, checkpoint->state, options_.primal_threshold);
+    why = loaded.status();
+    if (why.ok()) model.emplace(std::move(loaded).value());
+  }
+  if (why.ok()) {
+    std::vector<Round> rounds;
+    rounds.reserve(tail->size() - 1);
+    for (size_t i = 1; i < tail->size() && why.ok(); ++i) {
+      rounds.push_back(ToRound((*tail)[i]));
+      why = model->ValidateRound(rounds.back());
+    }
+    if (why.ok()) model->Replay(rounds);
+  }
+  if (!why.ok()) {
+    std::fprintf(stderr,
+                 "bitewise-bandit: the model checkpoint of user %s is not "
+                 "used (%s); rebuilding from the whole log\n",
+                 user_id.c_str(), why.ToString().c_str());
+    absl::MutexLock lock(&cache_mu_);
+    ++counters_.checkpoints_ignored;
+    return std::nullopt;
+  }
+  *last_event_id = tail->back().event_id;
+  *checkpoint_version = checkpoint->model_version;
+  absl::MutexLock lock(&cache_mu_);
+  ++counters_.checkpoint_loads;
+  return model;
+}
 
 absl::StatusOr<std::shared_ptr<BanditEngine::UserSlot>> BanditEngine::Slot(
     const std::string& user_id, bool create) {
@@ -83,18 +227,29 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
   }
   const absl::Time start = absl::Now();
   ASSIGN_OR_RETURN(UserRecord record, store_->GetUser(user_id));
-  ASSIGN_OR_RETURN(std::vector<EventRecord> events,
-                   store_->CompletedEvents(user_id));
-  std::vector<Round> rounds;
-  rounds.reserve(events.size());
-  for (const EventRecord& event : events) rounds.push_back(ToRound(event));
-  ASSIGN_OR_RETURN(
-      LinUcbModel model,
-      LinUcbModel::Rebuild(record.config, rounds, options_.primal_threshold));
+  int64_t last_event_id = 0, checkpoint_version = 0;
+  std::optional<LinUcbModel> model;
+  if (record.model_version > 0) {
+    model = LoadFromCheckpoint(record, &last_event_id, &checkpoint_version);
+  }
+  if (!model.has_value()) {
+    ASSIGN_OR_RETURN(std::vector<EventRecord> events,
+                     store_->CompletedEvents(user_id));
+    std::vector<Round> rounds;
+    rounds.reserve(events.size());
+    for (const EventRecord& event : events) rounds.push_back(ToRound(event));
+    ASSIGN_OR_RETURN(
+        LinUcbModel rebuilt,
+        LinUcbModel::Rebuild(record.config, rounds, options_.primal_threshold));
+    model.emplace(std::move(rebuilt));
+    last_event_id = events.empty() ? 0 : events.back().event_id;
+  }
   // Selects since creation or reset index the user's random stream.
   slot.select_count = record.model_version + record.pending_events;
   slot.record = std::move(record);
-  slot.model.emplace(std::move(model));
+  slot.model.emplace(std::move(*model));
+  slot.last_event_id = last_event_id;
+  slot.checkpoint_version = checkpoint_version;
   {
     absl::MutexLock lock(&cache_mu_);
     ++counters_.rebuilds;
@@ -106,6 +261,8 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
 
 void BanditEngine::Unload(UserSlot& slot) {
   slot.model.reset();
+  slot.checkpoint_version = 0;
+  slot.last_event_id = 0;
   slot.products_event = 0;
   slot.products = SelectProducts();
   absl::MutexLock lock(&cache_mu_);
@@ -139,6 +296,8 @@ void BanditEngine::Touch(UserSlot& slot) {
     victim->model.reset();
     victim->products_event = 0;
     victim->products = SelectProducts();
+    victim->checkpoint_version = 0;
+    victim->last_event_id = 0;
     cached_bytes_ -= victim->bytes;
     victim->bytes = 0;
     victim->in_lru = false;
@@ -331,6 +490,7 @@ absl::StatusOr<SelectResult> BanditEngine::Select(const SelectInput& input) {
   ++slot->select_count;
   slot->products_event = result.event_id;
   slot->products = std::move(products);
+  slot->last_used = absl::Now();
 
   result.action = choice.action;
   result.action_name = model.config().action_names[choice.action];
@@ -391,6 +551,8 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
                                                              : nullptr);
   slot->products_event = 0;
   slot->products = SelectProducts();
+  slot->last_event_id = completed.event_id;
+  slot->last_used = absl::Now();
   slot->record.model_version = completed.model_version;
   Touch(*slot);
   result.model_version = completed.model_version;

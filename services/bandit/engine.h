@@ -18,6 +18,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "absl/base/thread_annotations.h"
@@ -25,6 +26,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
+#include "absl/time/time.h"
 #include "services/bandit/core/config.h"
 #include "services/bandit/core/linucb.h"
 #include "services/bandit/store/event_store.h"
@@ -45,6 +47,16 @@ struct EngineOptions {
   // would pass this, so that every user's model can be read under the
   // default 4 MiB message limit.
   size_t max_reply_bytes = size_t{3} << 20;
+  // Model checkpoints (docs/operations.md): a loaded model is saved to the
+  // store when it has at least checkpoint_min_events completed events since
+  // its last checkpoint and its user has been idle for checkpoint_idle (the
+  // end of a meal), or at checkpoint_max_events events regardless; a cold
+  // load then reads the checkpoint and the events after it. A background
+  // thread looks every checkpoint_poll. checkpoint_min_events 0: never.
+  int64_t checkpoint_min_events = 50;
+  int64_t checkpoint_max_events = 1000;
+  absl::Duration checkpoint_idle = absl::Seconds(30);
+  absl::Duration checkpoint_poll = absl::Seconds(1);
 };
 
 // About how many bytes GetModel's reply for `config` takes at most: per
@@ -145,6 +157,13 @@ class BanditEngine {
     return store_->ListAudit(page);
   }
 
+  // Saves the user's loaded model as its checkpoint now if it has events
+  // the last one does not cover (OK and nothing written otherwise, or when
+  // the model is not loaded). What the background thread does when due.
+  absl::Status CheckpointUser(const std::string& user_id);
+
+  ~BanditEngine();
+
   // Bytes held by loaded models, and how many are loaded.
   size_t CachedBytes() const;
   int CachedModels() const;
@@ -152,9 +171,12 @@ class BanditEngine {
   // Cache activity since the engine started (for metrics).
   struct CacheCounters {
     int64_t hits = 0;      // a model was already loaded
-    int64_t rebuilds = 0;  // a model was rebuilt from the event log
+    int64_t rebuilds = 0;  // a model was loaded (checkpoint or full log)
     double rebuild_seconds = 0.0;
-    int64_t evictions = 0;  // models dropped for the cache budget
+    int64_t evictions = 0;            // models dropped for the cache budget
+    int64_t checkpoint_loads = 0;     // loads that started from a checkpoint
+    int64_t checkpoints_ignored = 0;  // damaged, stale or unreadable ones
+    int64_t checkpoints_written = 0;
   };
   CacheCounters Counters() const;
 
@@ -169,6 +191,11 @@ class BanditEngine {
     // only while the model has not changed; dropped with the model).
     int64_t products_event ABSL_GUARDED_BY(mu) = 0;
     SelectProducts products ABSL_GUARDED_BY(mu);
+    // The event at the model's version (what a checkpoint of it names),
+    // the version the newest checkpoint covers, and the last call's time.
+    int64_t last_event_id ABSL_GUARDED_BY(mu) = 0;
+    int64_t checkpoint_version ABSL_GUARDED_BY(mu) = 0;
+    absl::Time last_used ABSL_GUARDED_BY(mu) = absl::InfinitePast();
     // Cache bookkeeping, guarded by the engine's cache_mu_.
     size_t bytes = 0;
     bool in_lru = false;
@@ -179,12 +206,23 @@ class BanditEngine {
   // a slot if the store does not know the user and `create` is false.
   absl::StatusOr<std::shared_ptr<UserSlot>> Slot(const std::string& user_id,
                                                  bool create);
-  // Loads (rebuilds) the user's model if it is not loaded.
+  // Loads the user's model if it is not loaded: from its checkpoint and the
+  // events after it when there is a usable one, else rebuilt from the log.
   absl::Status EnsureLoaded(const std::string& user_id, UserSlot& slot)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
   void Unload(UserSlot& slot) ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
   // Records the slot's size as most recently used and evicts others.
   void Touch(UserSlot& slot) ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
+
+  // Loads from the user's checkpoint and the events after it; nullopt
+  // (after counting it) when there is none or it cannot be used.
+  std::optional<LinUcbModel> LoadFromCheckpoint(const UserRecord& record,
+                                                int64_t* last_event_id,
+                                                int64_t* checkpoint_version);
+  // Saves `slot`'s model if due (or, with `force`, if it has anything new).
+  absl::Status MaybeCheckpoint(const std::string& user_id, UserSlot& slot,
+                               bool force, bool wait_for_lock);
+  void CheckpointLoop();
 
   EventStore* const store_;
   const EngineOptions options_;
@@ -197,6 +235,10 @@ class BanditEngine {
   std::list<UserSlot*> lru_ ABSL_GUARDED_BY(cache_mu_);  // front: newest
   size_t cached_bytes_ ABSL_GUARDED_BY(cache_mu_) = 0;
   CacheCounters counters_ ABSL_GUARDED_BY(cache_mu_);
+
+  absl::Mutex stop_mu_;
+  bool stop_ ABSL_GUARDED_BY(stop_mu_) = false;
+  std::thread checkpointer_;
 };
 
 }  // namespace bitewise::bandit

@@ -32,6 +32,14 @@ ABSL_FLAG(bool, create, false,
 ABSL_FLAG(int64_t, max_model_mb, 2048,
           "CreateUser refuses a configuration whose model could grow beyond "
           "this (all actions in primal form: about 16 d^2 bytes per action).");
+ABSL_FLAG(int64_t, checkpoint_min_events, 50,
+          "Save a loaded model as its checkpoint once it has this many new "
+          "events and its user has been idle --checkpoint_idle_s; a cold "
+          "load then replays only the events after it. 0: never.");
+ABSL_FLAG(int64_t, checkpoint_max_events, 1000,
+          "Save it at this many new events even if its user is not idle.");
+ABSL_FLAG(double, checkpoint_idle_s, 30,
+          "Seconds without a call that count as idle (the end of a meal).");
 ABSL_FLAG(std::string, default_learner, "posthoc",
           "Learner for new users: posthoc or context_only.");
 ABSL_FLAG(std::string, default_strategy, "linucb",
@@ -119,6 +127,22 @@ int main(int argc, char** argv) {
       static_cast<size_t>(absl::GetFlag(FLAGS_cache_budget_mb)) << 20;
   engine_options.max_model_bytes =
       static_cast<size_t>(absl::GetFlag(FLAGS_max_model_mb)) << 20;
+  engine_options.checkpoint_min_events =
+      absl::GetFlag(FLAGS_checkpoint_min_events);
+  engine_options.checkpoint_max_events =
+      absl::GetFlag(FLAGS_checkpoint_max_events);
+  engine_options.checkpoint_idle =
+      absl::Seconds(absl::GetFlag(FLAGS_checkpoint_idle_s));
+  if (engine_options.checkpoint_min_events < 0 ||
+      engine_options.checkpoint_max_events <
+          engine_options.checkpoint_min_events ||
+      !(absl::GetFlag(FLAGS_checkpoint_idle_s) >= 0)) {
+    return bitewise::ReportFatal(
+        kProgram, "bad flags",
+        absl::InvalidArgumentError(
+            "--checkpoint_min_events must be >= 0, --checkpoint_max_events "
+            ">= it, --checkpoint_idle_s >= 0"));
+  }
   bitewise::bandit::BanditEngine engine(store->get(), engine_options);
   bitewise::bandit::BanditServiceImpl service(&engine, *defaults);
   // Metrics read at scrape time (docs/operations.md).
@@ -138,13 +162,26 @@ int main(int argc, char** argv) {
         });
     bitewise::AddScrapeValues(
         "bitewise_bandit_model_cache_total",
-        "Model cache events: hit (already loaded), rebuild (from the event "
-        "log), eviction (for the cache budget)",
+        "Model cache events: hit (already loaded), rebuild (loaded: from a "
+        "checkpoint or the whole log), eviction (for the cache budget)",
         ScrapeType::kCounter, [e]() -> std::vector<ScrapeValue> {
           const auto c = e->Counters();
           return {{{{"event", "hit"}}, static_cast<double>(c.hits)},
                   {{{"event", "rebuild"}}, static_cast<double>(c.rebuilds)},
                   {{{"event", "eviction"}}, static_cast<double>(c.evictions)}};
+        });
+    bitewise::AddScrapeValues(
+        "bitewise_bandit_checkpoints_total",
+        "Model checkpoints: written, loaded (a cold load started from one), "
+        "ignored (damaged or stale; the log was replayed instead)",
+        ScrapeType::kCounter, [e]() -> std::vector<ScrapeValue> {
+          const auto c = e->Counters();
+          return {
+              {{{"event", "written"}},
+               static_cast<double>(c.checkpoints_written)},
+              {{{"event", "loaded"}}, static_cast<double>(c.checkpoint_loads)},
+              {{{"event", "ignored"}},
+               static_cast<double>(c.checkpoints_ignored)}};
         });
     bitewise::AddScrapeValues("bitewise_bandit_rebuild_seconds_total",
                               "Time spent rebuilding models from the event log",

@@ -11,9 +11,11 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "absl/time/clock.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/bandit/store/sqlite_event_store.h"
+#include "sqlite3.h"
 #include "tests/bandit/dense_reference.h"
 #include "tests/common/near.h"
 #include "tests/common/status_matchers.h"
@@ -330,6 +332,113 @@ TEST_F(EngineTest, SeededStrategiesAreReproducibleAcrossResetAndRestart) {
   EXPECT_EQ(split, first);
   // Exploration happened: not every bite took the same action.
   EXPECT_GT(std::set<int>(first.begin(), first.end()).size(), 2u);
+}
+
+// Thetas of every action, as GetModel reports them.
+std::vector<std::vector<double>> Thetas(BanditEngine& engine,
+                                        const std::string& user) {
+  absl::StatusOr<ModelExport> model = engine.GetModel(user);
+  EXPECT_TRUE(model.ok()) << model.status();
+  std::vector<std::vector<double>> out;
+  if (model.ok()) {
+    for (const ActionModelExport& a : model->actions) out.push_back(a.theta);
+  }
+  return out;
+}
+
+void ExpectNear(const std::vector<std::vector<double>>& a,
+                const std::vector<std::vector<double>>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    ASSERT_EQ(a[i].size(), b[i].size());
+    for (size_t k = 0; k < a[i].size(); ++k) {
+      EXPECT_NEAR(a[i][k], b[i][k], 1e-10 * std::max(1.0, std::abs(b[i][k])))
+          << i << "," << k;
+    }
+  }
+}
+
+// A cold load starts from the user's checkpoint and replays only the events
+// after it, and gives the model a full rebuild gives (1e-10), in both forms;
+// a damaged checkpoint is detected and ignored, a deleted one loses nothing,
+// and a reset takes it along.
+TEST_F(EngineTest, ColdLoadsStartFromTheCheckpoint) {
+  EngineOptions options;
+  options.primal_threshold = 20;      // some actions primal, some dual
+  options.checkpoint_min_events = 0;  // only when asked (CheckpointUser)
+  Reopen(options);
+  ASSERT_TRUE(engine_->CreateUser("kim", SmallConfig()).ok());
+  std::mt19937_64 rng(12);
+  for (int t = 0; t < 150; ++t) Bite("kim", rng);
+  ASSERT_TRUE(engine_->CheckpointUser("kim").ok());
+  EXPECT_EQ(engine_->Counters().checkpoints_written, 1);
+  EXPECT_EQ(store_->GetCheckpoint("kim")->model_version, 150);
+  for (int t = 0; t < 17; ++t) Bite("kim", rng);
+  const auto live = Thetas(*engine_, "kim");
+
+  Reopen(options);
+  const auto from_checkpoint = Thetas(*engine_, "kim");
+  EXPECT_EQ(engine_->Counters().checkpoint_loads, 1);
+  EXPECT_EQ(engine_->Counters().checkpoints_ignored, 0);
+  ExpectNear(from_checkpoint, live);
+  // It keeps learning and selecting as the live one would have.
+  Bite("kim", rng);
+
+  // Damaged: ignored (counted, logged), the log rebuilds the same model.
+  const auto before = Thetas(*engine_, "kim");
+  ASSERT_TRUE(engine_->CheckpointUser("kim").ok());
+  Reopen(options);
+  {
+    sqlite3* raw = nullptr;
+    ASSERT_EQ(sqlite3_open(path_.c_str(), &raw), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(raw,
+                           "UPDATE model_checkpoint_chunks SET data = "
+                           "zeroblob(length(data)) WHERE seq = 0",
+                           nullptr, nullptr, nullptr),
+              SQLITE_OK);
+    sqlite3_close(raw);
+  }
+  ExpectNear(Thetas(*engine_, "kim"), before);
+  EXPECT_EQ(engine_->Counters().checkpoint_loads, 0);
+  EXPECT_EQ(engine_->Counters().checkpoints_ignored, 1);
+
+  // Deleted: nothing lost.
+  ASSERT_TRUE(store_->DeleteCheckpoint("kim").ok());
+  Reopen(options);
+  ExpectNear(Thetas(*engine_, "kim"), before);
+  EXPECT_EQ(engine_->Counters().checkpoint_loads, 0);
+  EXPECT_EQ(engine_->Counters().checkpoints_ignored, 0);
+
+  // A reset takes the checkpoint along.
+  ASSERT_TRUE(engine_->CheckpointUser("kim").ok());
+  ASSERT_TRUE(engine_->ResetUser("kim").ok());
+  EXPECT_EQ(store_->GetCheckpoint("kim").status().code(),
+            absl::StatusCode::kNotFound);
+}
+
+// The background thread saves a model once enough events have come in and
+// its user is idle, without anyone asking.
+TEST_F(EngineTest, IdleModelsAreCheckpointedInTheBackground) {
+  EngineOptions options;
+  options.checkpoint_min_events = 5;
+  options.checkpoint_idle = absl::ZeroDuration();
+  options.checkpoint_poll = absl::Milliseconds(5);
+  Reopen(options);
+  ASSERT_TRUE(engine_->CreateUser("lee", SmallConfig()).ok());
+  std::mt19937_64 rng(13);
+  for (int t = 0; t < 4; ++t) Bite("lee", rng);
+  absl::SleepFor(absl::Milliseconds(100));
+  EXPECT_EQ(engine_->Counters().checkpoints_written, 0);  // too few events
+  for (int t = 0; t < 4; ++t) Bite("lee", rng);
+  const absl::Time deadline = absl::Now() + absl::Seconds(10);
+  while (engine_->Counters().checkpoints_written == 0 &&
+         absl::Now() < deadline) {
+    absl::SleepFor(absl::Milliseconds(5));
+  }
+  EXPECT_EQ(engine_->Counters().checkpoints_written, 1);
+  absl::StatusOr<ModelCheckpoint> saved = store_->GetCheckpoint("lee");
+  ASSERT_TRUE(saved.ok()) << saved.status();
+  EXPECT_EQ(saved->model_version, 8);
 }
 
 TEST_F(EngineTest, CacheBudgetEvictsAndReloadsTransparently) {
