@@ -8,18 +8,23 @@
 // n_a^2, d^2), and the rebuild time. With --sweep=N it instead grows one
 // model from 0 to N rounds, timing every Update, and prints per window the
 // median and worst Update (the switch from dual to primal form included).
+// With --cold_load it times the first Select after a restart through a
+// real SQLite store, from a checkpoint and from the whole log.
 // With --check, a sample of the estimates is compared against a dense
 // float64 evaluation of the formulas (docs/algorithms.md) at each size.
 //
 //   build/benchmarks/bandit_years_bench                      # 1k, 10k, 50k
 //   build/benchmarks/bandit_years_bench --sizes=1000,10000 --check
 //   build/benchmarks/bandit_years_bench --sweep=12000 --window=500
+//   build/benchmarks/bandit_years_bench --cold_load --sizes=1000,10000
 #include <malloc.h>
+#include <stdlib.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <random>
 #include <string>
 #include <vector>
@@ -31,6 +36,8 @@
 #include "absl/strings/str_split.h"
 #include "services/bandit/core/linucb.h"
 #include "services/bandit/core/policy.h"
+#include "services/bandit/engine.h"
+#include "services/bandit/store/sqlite_event_store.h"
 #include "services/domain/random.h"
 #include "tests/bandit/dense_reference.h"
 
@@ -39,6 +46,11 @@ ABSL_FLAG(std::string, sizes, "1000,10000,50000", "Log sizes (rounds).");
 ABSL_FLAG(int, pairs, 60, "Select+Update pairs timed per size.");
 ABSL_FLAG(int, sweep, 0, "Grow one model to this many rounds instead.");
 ABSL_FLAG(int, window, 1000, "Sweep: rounds per reported window.");
+ABSL_FLAG(bool, cold_load, false,
+          "Instead: per size, write the log into a real SQLite store, save a "
+          "checkpoint, add --tail events, and time the first Select of a "
+          "restarted engine with and without the checkpoint.");
+ABSL_FLAG(int, tail, 50, "Cold load: events after the checkpoint.");
 ABSL_FLAG(bool, check, false,
           "Compare estimates against a dense float64 reference (slow at "
           "large sizes: d^3 per action).");
@@ -196,6 +208,108 @@ int Sizes(int d) {
   return 0;
 }
 
+// Appends `n` completed random events for `user` straight into the store
+// (what Select and Update would write).
+void WriteEvents(EventStore& store, const std::string& user, int d, int n,
+                 std::mt19937_64& rng) {
+  for (int t = 0; t < n; ++t) {
+    const Round round = RandomRound(d, rng);
+    EventRecord event;
+    event.user_id = user;
+    event.meal_id = "meal";
+    event.item_label = "item";
+    event.context = round.context;
+    event.action = round.action;
+    event.selected_at = absl::Now();
+    const int64_t id = store.AppendPending(event).value();
+    store.CompleteEvent(id, round.loss, round.posthoc, 1.0, absl::Now())
+        .value();
+  }
+}
+
+// Opens the store at `path` and a fresh engine on it, and times the first
+// Select of `user` (its cold load).
+double FirstSelectMs(const std::string& path, const std::string& user, int d,
+                     std::mt19937_64& rng, int64_t* loads) {
+  SqliteStoreOptions options;
+  options.path = path;
+  auto store = SqliteEventStore::Open(options).value();
+  EngineOptions engine_options;
+  engine_options.checkpoint_min_events = 0;
+  BanditEngine engine(store.get(), engine_options);
+  SelectInput select{user, RandomRound(d, rng).context, "meal", "item"};
+  const auto t0 = Clock::now();
+  engine.Select(select).value();
+  const double ms = Ms(Clock::now() - t0);
+  *loads = engine.Counters().checkpoint_loads;
+  return ms;
+}
+
+int ColdLoad(int d) {
+  const int tail = absl::GetFlag(FLAGS_tail);
+  std::printf(
+      "d = %d, K = %d, q = %d, post hoc LinUCB: the first Select after a "
+      "restart, through a real SQLite store (page cache warm), with the "
+      "checkpoint and %d events after it, and from the whole log\n\n",
+      d, kActions, kPostHocDim, tail);
+  std::printf("%8s %14s %16s %16s %12s\n", "events", "checkpoint_MB",
+              "with_ckpt_ms", "whole_log_ms", "store_MB");
+  for (absl::string_view s :
+       absl::StrSplit(absl::GetFlag(FLAGS_sizes), ',', absl::SkipEmpty())) {
+    int n = 0;
+    if (!absl::SimpleAtoi(s, &n) || n < 1) return 1;
+    std::string dir =
+        std::filesystem::temp_directory_path() / "bitewise_cold_load_XXXXXX";
+    if (mkdtemp(dir.data()) == nullptr) return 1;
+    const std::string path = dir + "/bandit.db";
+    std::mt19937_64 rng(42);
+    {
+      SqliteStoreOptions options;
+      options.path = path;
+      options.synchronous_full = false;  // setup only
+      auto store = SqliteEventStore::Open(options).value();
+      UserRecord user;
+      user.user_id = "years";
+      user.config = Config(d);
+      user.created_at = absl::Now();
+      if (!store->CreateUser(user).ok()) return 1;
+      WriteEvents(*store, "years", d, n, rng);
+      EngineOptions engine_options;
+      engine_options.checkpoint_min_events = 0;
+      BanditEngine engine(store.get(), engine_options);
+      engine.GetModel("years").value();
+      if (!engine.CheckpointUser("years").ok()) return 1;
+      WriteEvents(*store, "years", d, tail, rng);
+    }
+    size_t checkpoint_bytes = 0;
+    {
+      SqliteStoreOptions options;
+      options.path = path;
+      auto store = SqliteEventStore::Open(options).value();
+      checkpoint_bytes = store->GetCheckpoint("years").value().state.size();
+    }
+    int64_t loads = 0;
+    const double with = FirstSelectMs(path, "years", d, rng, &loads);
+    if (loads != 1) {
+      std::fprintf(stderr, "the checkpoint was not used\n");
+      return 1;
+    }
+    {
+      SqliteStoreOptions options;
+      options.path = path;
+      auto store = SqliteEventStore::Open(options).value();
+      if (!store->DeleteCheckpoint("years").ok()) return 1;
+    }
+    const double without = FirstSelectMs(path, "years", d, rng, &loads);
+    std::printf("%8d %14.1f %16.1f %16.1f %12.1f\n", n + tail,
+                checkpoint_bytes / 1048576.0, with, without,
+                std::filesystem::file_size(path) / 1048576.0);
+    std::fflush(stdout);
+    std::filesystem::remove_all(dir);
+  }
+  return 0;
+}
+
 int Sweep(int d) {
   const int total = absl::GetFlag(FLAGS_sweep);
   const int window = std::max(1, absl::GetFlag(FLAGS_window));
@@ -241,5 +355,6 @@ int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
   const int d = absl::GetFlag(FLAGS_d);
   if (absl::GetFlag(FLAGS_sweep) > 0) return bitewise::bandit::Sweep(d);
+  if (absl::GetFlag(FLAGS_cold_load)) return bitewise::bandit::ColdLoad(d);
   return bitewise::bandit::Sizes(d);
 }
