@@ -26,6 +26,18 @@ Round ToRound(const EventRecord& event) {
   return round;
 }
 
+// The same, taking the event's vectors instead of copying them (a cold
+// load's log is read once and not kept).
+Round ToRound(EventRecord&& event) {
+  Round round;
+  round.context = std::move(event.context);
+  round.action = event.action;
+  round.loss = event.loss;
+  round.posthoc = std::move(event.posthoc);
+  round.weight = event.weight;
+  return round;
+}
+
 }  // namespace
 
 absl::Status ValidateUserId(const std::string& user_id) {
@@ -178,7 +190,7 @@ std::optional<LinUcbModel> BanditEngine::LoadFromCheckpoint(
     std::vector<Round> rounds;
     rounds.reserve(tail->size() - 1);
     for (size_t i = 1; i < tail->size() && why.ok(); ++i) {
-      rounds.push_back(ToRound((*tail)[i]));
+      rounds.push_back(ToRound(std::move((*tail)[i])));
       why = model->ValidateRound(rounds.back());
     }
     if (why.ok()) model->Replay(rounds);
@@ -242,7 +254,6 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
         LinUcbModel rebuilt,
         LinUcbModel::Rebuild(record.config, rounds, options_.primal_threshold));
     model.emplace(std::move(rebuilt));
-    last_event_id = events.empty() ? 0 : events.back().event_id;
   }
   // Selects since creation or reset index the user's random stream.
   slot.select_count = record.model_version + record.pending_events;
