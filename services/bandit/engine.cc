@@ -247,9 +247,13 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
   if (!model.has_value()) {
     ASSIGN_OR_RETURN(std::vector<EventRecord> events,
                      store_->CompletedEvents(user_id));
+    last_event_id = events.empty() ? 0 : events.back().event_id;
     std::vector<Round> rounds;
     rounds.reserve(events.size());
-    for (const EventRecord& event : events) rounds.push_back(ToRound(event));
+    for (EventRecord& event : events) {
+      rounds.push_back(ToRound(std::move(event)));
+    }
+    std::vector<EventRecord>().swap(events);
     ASSIGN_OR_RETURN(
         LinUcbModel rebuilt,
         LinUcbModel::Rebuild(record.config, rounds, options_.primal_threshold));

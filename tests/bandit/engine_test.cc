@@ -409,8 +409,11 @@ TEST_F(EngineTest, ColdLoadsStartFromTheCheckpoint) {
   EXPECT_EQ(engine_->Counters().checkpoint_loads, 0);
   EXPECT_EQ(engine_->Counters().checkpoints_ignored, 0);
 
-  // A reset takes the checkpoint along.
+  // A model rebuilt from the whole log can be saved again at once; a reset
+  // takes the checkpoint along.
   ASSERT_TRUE(engine_->CheckpointUser("kim").ok());
+  ASSERT_TRUE(store_->GetCheckpoint("kim").ok());
+  EXPECT_EQ(store_->GetCheckpoint("kim")->model_version, 168);
   ASSERT_TRUE(engine_->ResetUser("kim").ok());
   EXPECT_EQ(store_->GetCheckpoint("kim").status().code(),
             absl::StatusCode::kNotFound);
