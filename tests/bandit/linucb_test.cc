@@ -410,10 +410,11 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
     model.Update(round);
     rounds.push_back(round);
     converting_updates += model.IsConverting(0);
-    // Conversion starts at 56 = ceil(64 * 7/8) rounds; primal from
-    // 56 + 56/7 - 1 = 63.
-    EXPECT_EQ(model.IsConverting(0), t + 1 >= 56 && t + 1 < 63) << t;
-    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 63) << t;
+    // Conversion starts at 56 = ceil(64 * 7/8) rounds; every row is folded
+    // in at 56 + 56/7 - 1 = 63, and the action turns primal at the next
+    // update.
+    EXPECT_EQ(model.IsConverting(0), t + 1 >= 56 && t + 1 < 64) << t;
+    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 64) << t;
     if (t + 1 >= 54 && t + 1 <= 64) {
       ExpectMatchesReference(model, rounds, RandomVector(64, rng),
                              "round " + std::to_string(t + 1));
@@ -430,7 +431,7 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
                              "rebuilt then updated at " + std::to_string(t));
     }
   }
-  EXPECT_EQ(converting_updates, 7);
+  EXPECT_EQ(converting_updates, 8);
 }
 
 // A saved state restores the model bit for bit, in every form and in the

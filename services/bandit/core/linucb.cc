@@ -85,6 +85,21 @@ class StateReader {
   size_t pos_ = 0;
 };
 
+// A x for a symmetric A of which only the lower triangle is read, and a
+// thin x (d x k): one pass over the triangle, column by column (Eigen's
+// selfadjoint product takes twice as long for a few columns).
+MatrixXd LowerSymmetricTimes(const MatrixXd& a, const MatrixXd& x) {
+  const int d = static_cast<int>(a.rows());
+  MatrixXd y = a.diagonal().asDiagonal() * x;
+  for (int j = 0; j + 1 < d; ++j) {
+    const int n = d - j - 1;
+    const auto col = a.col(j).tail(n);
+    y.bottomRows(n).noalias() += col * x.row(j);
+    y.row(j).noalias() += col.transpose() * x.bottomRows(n);
+  }
+  return y;
+}
+
 constexpr char kStateMagic[4] = {'B', 'W', 'L', 'U'};
 constexpr int32_t kStateFormat = 1;
 constexpr double kLayoutMarker = 1.0 + 1.0 / 1024;  // bytes tell the layout
@@ -306,32 +321,12 @@ void LinUcbModel::FoldRows(ActionState& s, int first, int count,
 }
 
 void LinUcbModel::SwitchToPrimal(ActionState& s) {
-  // A^-1 [b S_pc^T], from the dual form while it is there (one pass over
-  // W), else from A^-1 (a rebuild, where it is whole).
-  MatrixXd rhs(d_, 1 + q_);
-  rhs.col(0) = s.b;
-  if (posthoc()) rhs.rightCols(q_) = s_pc_.transpose();
-  MatrixXd product;
-  if (s.w.rows() > 0) {
-    MatrixXd z(s.w.rows(), 1 + q_);
-    z.col(0) = s.wb;
-    if (posthoc()) z.rightCols(q_) = s.y;
-    product = rhs;
-    s.w.ForEachBlock([&](int first, int rows, const double* data) {
-      product.noalias() -=
-          ConstRowMap(data, rows, d_).transpose() * z.middleRows(first, rows);
-    });
-    product /= lambda_a_;
-  } else {
-    product.noalias() = s.candidate * rhs;
-  }
   s.a_inv = std::move(s.candidate);
   s.candidate = MatrixXd();
   s.primal = true;
   s.converting = false;
   s.prepared = 0;
-  s.beta = product.col(0);
-  if (posthoc()) s.p = product.rightCols(q_);
+  RefreshPrimalSums(s);
   s.retired = std::move(s.w);
   s.w = RowBlocks(d_);
   s.wb.resize(0);
@@ -459,7 +454,7 @@ void LinUcbModel::RefreshPrimalSums(ActionState& s) {
   MatrixXd rhs(d_, 1 + q_);
   rhs.col(0) = s.b;
   if (posthoc()) rhs.rightCols(q_) = s_pc_.transpose();
-  const MatrixXd product = s.a_inv.selfadjointView<Eigen::Lower>() * rhs;
+  const MatrixXd product = LowerSymmetricTimes(s.a_inv, rhs);
   s.beta = product.col(0);
   if (posthoc()) s.p = product.rightCols(q_);
 }
@@ -471,6 +466,12 @@ void LinUcbModel::Apply(const Round& round, const SelectProducts* products,
   const double sw = std::sqrt(w);
   const int a = round.action;
   ActionState& taken = actions_[a];
+  // Actions whose conversion finished at an earlier update turn primal at
+  // the end of this one (not in the update that did the last fold).
+  std::vector<int> ready;
+  for (size_t i = 0; i < actions_.size(); ++i) {
+    if (Ready(actions_[i])) ready.push_back(static_cast<int>(i));
+  }
 
   // Every action's product with c before this round: the Select's if they
   // are for this model state and context, otherwise computed here.
@@ -570,12 +571,9 @@ void LinUcbModel::Apply(const Round& round, const SelectProducts* products,
                                 taken.conversion_rows - taken.converted);
       FoldRows(taken, taken.converted, fold, extra);
       taken.converted += fold;
-      if (taken.converted == taken.conversion_rows) {
-        if (!caches) RefreshDualSums(taken);
-        SwitchToPrimal(taken);
-      }
     }
   }
+  for (int i : ready) SwitchToPrimal(actions_[i]);
   for (ActionState& s : actions_) s.retired.ReleaseBlocks(2);
   if (caches && posthoc()) {
     for (ActionState& s : actions_) RefreshPostHocCache(s);
@@ -599,7 +597,14 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
   // factorisation per action.
   const int d = model.d_;
   std::vector<int> counts(model.actions_.size(), 0);
-  for (const Round& round : rounds) ++counts[round.action];
+  // Whether an action whose conversion finished is primal yet: it turns at
+  // the next update of any action after its last fold.
+  std::vector<bool> switched(model.actions_.size(), false);
+  for (size_t t = 0; t < rounds.size(); ++t) {
+    if (++counts[rounds[t].action] == model.PrimalFrom()) {
+      switched[rounds[t].action] = t + 1 < rounds.size();
+    }
+  }
   std::vector<double*> next(model.actions_.size(), nullptr);
   for (size_t a = 0; a < counts.size(); ++a) {
     if (counts[a] > 0) next[a] = model.actions_[a].w.Append(counts[a]);
@@ -634,7 +639,7 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
     }
     double* data = s.w.MutableRow(0);
     Eigen::Map<RowMatrix> rows(data, m, d);
-    if (m >= model.PrimalFrom()) {
+    if (m >= model.PrimalFrom() && switched[&s - model.actions_.data()]) {
       MatrixXd a = lambda * MatrixXd::Identity(d, d);
       a.selfadjointView<Eigen::Lower>().rankUpdate(rows.transpose());
       s.candidate = a.selfadjointView<Eigen::Lower>().llt().solve(

@@ -16,7 +16,9 @@
 // The switch is amortised: from about 7/8 of the threshold on, each Update
 // of the action folds its new row and kConversionRowsPerUpdate earlier rows
 // into A_a^-1 = (I - sum_i w_i w_i^T) / lambda, while the dual form keeps
-// answering; the action turns primal when every row is in.
+// answering; once every row is in, the action turns primal at the next
+// Update of any action (so no single Update pays both the last fold and
+// the one pass over A^-1 that the primal caches need).
 // The post hoc term H^T M_a H is folded in by Woodbury with R_a^T R_a = M_a,
 // so N_a^-1 = A_a^-1 - A_a^-1 G^T (I + G A_a^-1 G^T)^-1 G A_a^-1 with
 // G = R_a H, and only products with S_pc^T (n x q dual, d x q primal) and
@@ -142,9 +144,10 @@ class LinUcbModel {
   static constexpr int kPrepareUpdates = 32;
 
   // `primal_threshold` T: an action starts converting to primal form at
-  // ceil(T * 7/8) rounds and is primal from T - 1 or T rounds on (the
-  // conversion takes an eighth of T updates of that action); 0 means d,
-  // where one pass over the rows costs what one over A^-1 does.
+  // ceil(T * 7/8) rounds, has every row folded in at T - 1 or T rounds (an
+  // eighth of T updates of that action) and is primal from the next Update
+  // on; 0 means d, where one pass over the rows costs what one over A^-1
+  // does.
   static absl::StatusOr<LinUcbModel> Create(const BanditConfig& config,
                                             int primal_threshold = 0);
 
@@ -269,6 +272,10 @@ class LinUcbModel {
   // W b and W S_pc^T, or A^-1 [b S_pc^T], from scratch.
   void RefreshDualSums(ActionState& s);
   void RefreshPrimalSums(ActionState& s);
+  // Its conversion has folded every row: primal at the next update.
+  static bool Ready(const ActionState& s) {
+    return s.converting && s.converted == s.conversion_rows;
+  }
 
   bool posthoc() const { return config_.learner == Learner::kPostHoc; }
   // W x (dual) or A^-1 x (primal) for a d-vector x: the Select product.
