@@ -50,6 +50,7 @@ class StateWriter {
     out_.append(reinterpret_cast<const char*>(&v), sizeof(v));
   }
   void Doubles(const double* data, size_t n) {
+    if (n == 0) return;  // data may be null
     out_.append(reinterpret_cast<const char*>(data), n * sizeof(double));
   }
   std::string Take() { return std::move(out_); }
@@ -77,6 +78,7 @@ class StateReader {
                                               what, " at byte ", pos_, " of ",
                                               in_.size()));
     }
+    if (bytes == 0) return absl::OkStatus();  // out may be null
     std::memcpy(out, in_.data() + pos_, bytes);
     pos_ += bytes;
     return absl::OkStatus();
@@ -178,6 +180,9 @@ LinUcbModel::LinUcbModel(const BanditConfig& config, int primal_threshold)
       s.z.resize(0, q_);
     }
   }
+  // Always computed, so that moving the model never copies an LLT's
+  // uninitialised status (undefined behaviour that UBSan reports).
+  s_pp_llt_.compute(MatrixXd::Identity(std::max(q_, 1), std::max(q_, 1)));
   if (posthoc()) {
     s_pp_ = config_.lambda_p * MatrixXd::Identity(q_, q_);
     s_pp_llt_.compute(s_pp_);
