@@ -10,6 +10,7 @@
 
 #include "Eigen/Dense"
 #include "benchmark/benchmark.h"
+#include "benchmarks/bandit_bench_rounds.h"
 #include "services/bandit/core/linucb.h"
 #include "services/bandit/core/policy.h"
 #include "services/domain/random.h"
@@ -17,8 +18,9 @@
 namespace bitewise::bandit {
 namespace {
 
-constexpr int kActions = 6;
-constexpr int kPostHocDim = 4;
+using bench::kActions;
+using bench::kPostHocDim;
+using bench::RandomRound;
 
 BanditConfig Config(int d, bool prior = false) {
   BanditConfig config;
@@ -34,17 +36,6 @@ BanditConfig Config(int d, bool prior = false) {
     config.prior.phi0.assign(kActions, std::vector<double>(kPostHocDim, 0.1));
   }
   return config;
-}
-
-Round RandomRound(int d, std::mt19937_64& rng) {
-  Round round;
-  round.context.resize(d);
-  for (double& x : round.context) x = random::Canonical(rng);
-  round.action = static_cast<int>(random::Canonical(rng) * kActions) % kActions;
-  round.posthoc.assign(kPostHocDim, 0.0);
-  round.posthoc[round.action % kPostHocDim] = 1.0;
-  round.loss = random::Canonical(rng) < 0.3 ? 1.0 : 0.0;
-  return round;
 }
 
 std::vector<Round> RandomLog(int d, int rounds, std::mt19937_64& rng) {

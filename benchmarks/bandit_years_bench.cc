@@ -34,6 +34,7 @@
 #include "absl/flags/parse.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_split.h"
+#include "benchmarks/bandit_bench_rounds.h"
 #include "services/bandit/core/linucb.h"
 #include "services/bandit/core/policy.h"
 #include "services/bandit/engine.h"
@@ -58,24 +59,14 @@ ABSL_FLAG(bool, check, false,
 namespace bitewise::bandit {
 namespace {
 
-constexpr int kActions = 6;
-constexpr int kPostHocDim = 4;
+using bench::kActions;
+using bench::kPostHocDim;
+using bench::RandomRound;
 
 using Clock = std::chrono::steady_clock;
 
 double Ms(Clock::duration t) {
   return std::chrono::duration<double, std::milli>(t).count();
-}
-
-Round RandomRound(int d, std::mt19937_64& rng) {
-  Round round;
-  round.context.resize(d);
-  for (double& x : round.context) x = random::Canonical(rng);
-  round.action = static_cast<int>(random::Canonical(rng) * kActions) % kActions;
-  round.posthoc.assign(kPostHocDim, 0.0);
-  round.posthoc[round.action % kPostHocDim] = 1.0;
-  round.loss = random::Canonical(rng) < 0.3 ? 1.0 : 0.0;
-  return round;
 }
 
 BanditConfig Config(int d) {

@@ -343,19 +343,31 @@ size_t ModelReplyBytes(const BanditConfig& config) {
   return 2 * (8 * doubles + names + 32 * config.action_names.size()) + 1024;
 }
 
+namespace {
+
+// INVALID_ARGUMENT naming the configuration, the limit and its flag when a
+// model of `config` could grow to `bytes`, beyond `limit`.
+absl::Status CheckModelFits(const BanditConfig& config, size_t bytes,
+                            size_t limit, const char* what, const char* flag) {
+  if (bytes <= limit) return absl::OkStatus();
+  return absl::InvalidArgumentError(absl::StrFormat(
+      "config: a model with context_dim %d, posthoc_dim %d and %d actions "
+      "can grow to %.1f GB, over %s of %.1f GB (%s); use fewer dimensions "
+      "or actions",
+      config.context_dim, config.posthoc_dim, config.num_actions(), bytes / 1e9,
+      what, limit / 1e9, flag));
+}
+
+}  // namespace
+
 absl::StatusOr<UserRecord> BanditEngine::CreateUser(
     const std::string& user_id, const BanditConfig& requested,
     double prior_rounds) {
   RETURN_IF_ERROR(ValidateConfig(requested));
-  if (const size_t bytes = MaxModelBytes(requested);
-      bytes > options_.max_model_bytes) {
-    return absl::InvalidArgumentError(absl::StrFormat(
-        "config: a model with context_dim %d, posthoc_dim %d and %d actions "
-        "can grow to %.1f GB, over this service's limit of %.1f GB "
-        "(--max_model_mb); use fewer dimensions or actions",
-        requested.context_dim, requested.posthoc_dim, requested.num_actions(),
-        bytes / 1e9, options_.max_model_bytes / 1e9));
-  }
+  const size_t worst_bytes = MaxModelBytes(requested);
+  RETURN_IF_ERROR(CheckModelFits(requested, worst_bytes,
+                                 options_.max_model_bytes,
+                                 "this service's limit", "--max_model_mb"));
   if (const size_t bytes = ModelReplyBytes(requested);
       bytes > options_.max_reply_bytes) {
     return absl::InvalidArgumentError(absl::StrFormat(
@@ -367,15 +379,9 @@ absl::StatusOr<UserRecord> BanditEngine::CreateUser(
   }
   // A model that cannot fit the cache budget on its own would be rebuilt
   // from the log at every call: refused like one over the limit.
-  if (const size_t bytes = MaxModelBytes(requested);
-      bytes > options_.cache_budget_bytes) {
-    return absl::InvalidArgumentError(absl::StrFormat(
-        "config: a model with context_dim %d, posthoc_dim %d and %d actions "
-        "can grow to %.1f GB, more than this service's whole model cache "
-        "of %.1f GB (--cache_budget_mb); use fewer dimensions or actions",
-        requested.context_dim, requested.posthoc_dim, requested.num_actions(),
-        bytes / 1e9, options_.cache_budget_bytes / 1e9));
-  }
+  RETURN_IF_ERROR(
+      CheckModelFits(requested, worst_bytes, options_.cache_budget_bytes,
+                     "this service's whole model cache", "--cache_budget_mb"));
   if (!std::isfinite(prior_rounds) || prior_rounds < 0.0) {
     return absl::InvalidArgumentError(absl::StrCat(
         "prior_rounds: must be finite and >= 0, got ", prior_rounds));

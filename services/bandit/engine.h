@@ -66,8 +66,8 @@ size_t ModelReplyBytes(const BanditConfig& config);
 
 // The most memory a model of `config` can need, in bytes: per action, the
 // primal form's d x d and q x q matrices and the d x q cross terms, with
-// the dual form's rows and factor at the switch (another d x d), all in
-// doubles. An upper bound, not the size of a new model.
+// the dual form's whitened rows held beside it while an action converts
+// (another d x d), all in doubles. An upper bound, not the size of a new model.
 size_t MaxModelBytes(const BanditConfig& config);
 
 // Longest meal_id and item_label a Select may carry (bytes): labels, not

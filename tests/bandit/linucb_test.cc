@@ -332,6 +332,17 @@ TEST(LinUcbTest, RebuildEqualsIncrementalWithDefaults) {
   }
 }
 
+// Three actions, q = 3: the small problems of the tests below.
+BanditConfig ThreeActions(Learner learner, int d, double lambda_c) {
+  BanditConfig config;
+  config.learner = learner;
+  config.context_dim = d;
+  config.posthoc_dim = 3;
+  config.lambda_c = lambda_c;
+  config.action_names = {"a", "b", "c"};
+  return config;
+}
+
 Round RandomRound(int d, int q, int k, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> u(0.0, 1.0);
   Round round;
@@ -359,12 +370,7 @@ void ExpectSameEstimates(const LinUcbModel& a, const LinUcbModel& b,
 // products from another model state or another context are ignored.
 TEST(LinUcbTest, UpdateReusesSelectProductsWithoutChangingTheResult) {
   for (const Learner learner : {Learner::kPostHoc, Learner::kContextOnly}) {
-    BanditConfig config;
-    config.learner = learner;
-    config.context_dim = 24;
-    config.posthoc_dim = 3;
-    config.lambda_c = 2.0;
-    config.action_names = {"a", "b", "c"};
+    const BanditConfig config = ThreeActions(learner, 24, 2.0);
     LinUcbModel reusing = *LinUcbModel::Create(config);
     LinUcbModel plain = *LinUcbModel::Create(config);
     std::mt19937_64 rng(11);
@@ -439,12 +445,7 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
 // for another configuration or a damaged one is refused, naming why.
 TEST(LinUcbTest, SavedStateRestoresTheModelExactly) {
   for (const Learner learner : {Learner::kPostHoc, Learner::kContextOnly}) {
-    BanditConfig config;
-    config.learner = learner;
-    config.context_dim = 64;
-    config.posthoc_dim = 3;
-    config.lambda_c = 3.0;
-    config.action_names = {"a", "b", "c"};
+    const BanditConfig config = ThreeActions(learner, 64, 3.0);
     LinUcbModel model = *LinUcbModel::Create(config);
     std::mt19937_64 rng(21);
     bool saw_converting = false, saw_mixed = false;
@@ -508,12 +509,7 @@ TEST(LinUcbTest, SavedStateRestoresTheModelExactly) {
 // reference, from checkpoints taken before, during and after conversions.
 TEST(LinUcbTest, CheckpointPlusReplayEqualsTheWholeLog) {
   for (const Learner learner : {Learner::kPostHoc, Learner::kContextOnly}) {
-    BanditConfig config;
-    config.learner = learner;
-    config.context_dim = 64;
-    config.posthoc_dim = 3;
-    config.lambda_c = 3.0;
-    config.action_names = {"a", "b", "c"};
+    const BanditConfig config = ThreeActions(learner, 64, 3.0);
     std::mt19937_64 rng(33);
     std::vector<Round> rounds;
     for (int t = 0; t < 260; ++t) rounds.push_back(RandomRound(64, 3, 3, rng));
