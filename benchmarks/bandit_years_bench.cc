@@ -308,34 +308,50 @@ int Sweep(int d) {
       "d = %d, K = %d, q = %d: one model grown from 0 to %d rounds by "
       "Select+Update pairs; every Update timed\n\n",
       d, kActions, kPostHocDim, total);
-  std::printf("%8s %9s %10s %10s %10s %8s %9s\n", "rounds", "primal",
-              "select_ms", "update_ms", "upd_worst", "worst/p50", "model_MB");
+  std::printf("%8s %9s %10s %10s %10s %8s %9s %9s\n", "rounds", "primal",
+              "select_ms", "update_ms", "upd_worst", "worst/p50", "peak_MB",
+              "bound_MB");
   std::mt19937_64 rng(42);
   LinUcbModel model = *LinUcbModel::Create(Config(d));
-  std::vector<double> selects, updates;
-  double overall_ratio = 0.0;
+  std::vector<double> selects, updates, all_updates;
+  double overall_ratio = 0.0, peak_mb = 0.0, peak_over_bound = 0.0;
   for (int t = 1; t <= total; ++t) {
     double s = 0, u = 0;
     Pair(model, RandomRound(d, rng), rng, &s, &u);
     selects.push_back(s);
     updates.push_back(u);
+    all_updates.push_back(u);
+    // The model's bytes after every Update: the peak while both forms are
+    // held, against the bound at that size.
+    const double mb = static_cast<double>(model.MemoryBytes()) / (1 << 20);
+    peak_mb = std::max(peak_mb, mb);
+    if (t > 500)
+      peak_over_bound = std::max(peak_over_bound, mb / BoundMb(model));
     if (t % window == 0 || t == total) {
       int primal = 0;
       for (int a = 0; a < kActions; ++a) primal += model.IsPrimal(a);
       const double median = Median(updates);
       const double worst = *std::max_element(updates.begin(), updates.end());
       overall_ratio = std::max(overall_ratio, worst / median);
-      std::printf("%8d %7d/6 %10.3f %10.3f %10.3f %8.2f %9.1f\n", t, primal,
-                  Median(selects), median, worst, worst / median,
-                  static_cast<double>(model.MemoryBytes()) / (1 << 20));
+      std::printf("%8d %7d/6 %10.3f %10.3f %10.3f %8.2f %9.1f %9.1f\n", t,
+                  primal, Median(selects), median, worst, worst / median,
+                  peak_mb, BoundMb(model));
       std::fflush(stdout);
       selects.clear();
       updates.clear();
+      peak_mb = 0.0;
     }
   }
+  const double sweep_median = Median(all_updates);
+  const double sweep_worst =
+      *std::max_element(all_updates.begin(), all_updates.end());
   std::printf(
-      "\nworst single Update / its window's median, over the sweep: %.2f\n",
-      overall_ratio);
+      "\nworst single Update / its window's median, over the sweep: %.2f\n"
+      "whole sweep: Update median %.3f ms, worst %.3f ms, worst / median "
+      "%.2f\nlargest model / bound at its size (after any Update past 500 "
+      "rounds): %.2f\n",
+      overall_ratio, sweep_median, sweep_worst, sweep_worst / sweep_median,
+      peak_over_bound);
   return 0;
 }
 

@@ -416,12 +416,13 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
     model.Update(round);
     rounds.push_back(round);
     converting_updates += model.IsConverting(0);
-    // Conversion starts at 56 = ceil(64 * 7/8) rounds; every row is folded
-    // in at 56 + 56/7 - 1 = 63, and the action turns primal at the next
-    // update.
-    EXPECT_EQ(model.IsConverting(0), t + 1 >= 56 && t + 1 < 64) << t;
-    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 64) << t;
-    if (t + 1 >= 54 && t + 1 <= 64) {
+    // At 56 = ceil(64 * 7/8) rounds the candidate is prepared (one slice at
+    // d = 64), at 57 the folding begins over 57 rows, 7 per update, with
+    // each new row as it comes: every row is in at 65, and the action turns
+    // primal at the next update.
+    EXPECT_EQ(model.IsConverting(0), t + 1 >= 57 && t + 1 < 66) << t;
+    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 66) << t;
+    if (t + 1 >= 54 && t + 1 <= 66) {
       ExpectMatchesReference(model, rounds, RandomVector(64, rng),
                              "round " + std::to_string(t + 1));
       LinUcbModel rebuilt = *LinUcbModel::Rebuild(config, rounds);
@@ -437,7 +438,55 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
                              "rebuilt then updated at " + std::to_string(t));
     }
   }
-  EXPECT_EQ(converting_updates, 8);
+  EXPECT_EQ(converting_updates, 9);
+}
+
+// Actions that reach the conversion together convert one after another:
+// never two at once, each in turn, and the model stays exact; a rebuild at
+// any point resumes the same schedule.
+TEST(LinUcbTest, ActionsConvertOneAtATime) {
+  const BanditConfig config = ThreeActions(Learner::kPostHoc, 64, 3.0);
+  LinUcbModel model = *LinUcbModel::Create(config);
+  std::mt19937_64 rng(8);
+  std::vector<Round> rounds;
+  std::vector<int> order;  // actions in the order they turned primal
+  int most_converting = 0;
+  for (int t = 0; t < 300; ++t) {
+    const Round round = RandomRound(64, 3, 3, rng);
+    const bool was_primal[3] = {model.IsPrimal(0), model.IsPrimal(1),
+                                model.IsPrimal(2)};
+    model.Update(round);
+    rounds.push_back(round);
+    int converting = 0;
+    for (int a = 0; a < 3; ++a) {
+      converting += model.IsConverting(a);
+      if (model.IsPrimal(a) && !was_primal[a]) {
+        order.push_back(a);
+        EXPECT_GE(model.Count(a), 56) << a;
+      }
+    }
+    most_converting = std::max(most_converting, converting);
+    if (t % 37 == 5 || t == 299) {
+      ExpectMatchesReference(model, rounds, RandomVector(64, rng),
+                             "round " + std::to_string(t + 1));
+      LinUcbModel rebuilt = *LinUcbModel::Rebuild(config, rounds);
+      for (int a = 0; a < 3; ++a) {
+        EXPECT_EQ(rebuilt.IsConverting(a), model.IsConverting(a)) << t;
+        EXPECT_EQ(rebuilt.IsPrimal(a), model.IsPrimal(a)) << t;
+      }
+      const std::vector<double> probe = RandomVector(64, rng);
+      const std::vector<ActionEstimate> ea = rebuilt.Estimate(probe);
+      const std::vector<ActionEstimate> eb = model.Estimate(probe);
+      for (int a = 0; a < 3; ++a) {
+        EXPECT_TRUE(bitewise::testing::RelNear(ea[a].predicted_loss,
+                                               eb[a].predicted_loss, 1e-10));
+        EXPECT_TRUE(
+            bitewise::testing::RelNear(ea[a].width, eb[a].width, 1e-10));
+      }
+    }
+  }
+  EXPECT_EQ(most_converting, 1);
+  EXPECT_EQ(order.size(), 3u);
 }
 
 // A saved state restores the model bit for bit, in every form and in the

@@ -242,12 +242,6 @@ int LinUcbModel::ConversionStart() const {
                           (r + 1));
 }
 
-int LinUcbModel::PrimalFrom() const {
-  constexpr int r = kConversionRowsPerUpdate;
-  const int start = ConversionStart();
-  return start + (start + r - 1) / r - 1;
-}
-
 VectorXd LinUcbModel::Product(const ActionState& s,
                               const Eigen::Ref<const VectorXd>& x) const {
   if (s.primal) return s.a_inv.selfadjointView<Eigen::Lower>() * x;
@@ -275,15 +269,15 @@ VectorXd LinUcbModel::ApplyAInverse(const ActionState& s,
   return (x - WTranspose(s, Product(s, x))) / lambda_a_;
 }
 
-int LinUcbModel::PrepareStart() const {
-  return std::max(1, ConversionStart() - kPrepareUpdates);
+int LinUcbModel::PrepareSteps() const {
+  // 64 columns of d doubles a step at d = 2048 is 32 steps of about 1 MB.
+  return std::clamp(d_ / 64, 1, kPrepareUpdates);
 }
 
 int LinUcbModel::PreparedEnd(int step) const {
   // Columns [0, j) of the lower triangle hold j d - j (j - 1) / 2 entries;
-  // step k of kPrepareUpdates ends where that reaches (k + 1) / steps of the
-  // whole, so each step touches about as many pages.
-  const int steps = std::max(1, ConversionStart() - PrepareStart());
+  // step k ends where that reaches (k + 1) / steps of the whole.
+  const int steps = PrepareSteps();
   if (step + 1 >= steps) return d_;
   const double n = d_;
   const double target = n * (n + 1) / 2 * (step + 1) / steps;
@@ -292,22 +286,74 @@ int LinUcbModel::PreparedEnd(int step) const {
   return std::clamp(static_cast<int>(std::ceil(j)), 0, d_);
 }
 
-void LinUcbModel::PrepareCandidate(ActionState& s, int step) {
-  // Allocated, not written: its pages are touched step by step.
+void LinUcbModel::PrepareColumns(ActionState& s, int from, int to) {
+  // Allocated, not written: its pages are touched slice by slice.
   if (s.candidate.rows() != d_) s.candidate.resize(d_, d_);
-  const int end = PreparedEnd(step);
-  for (int j = s.prepared; j < end; ++j) {
+  for (int j = from; j < to; ++j) {
     s.candidate.col(j).tail(d_ - j).setZero();
     s.candidate(j, j) = 1.0 / lambda_a_;
   }
-  s.prepared = std::max(s.prepared, end);
 }
 
-void LinUcbModel::StartConversion(ActionState& s) {
-  PrepareCandidate(s, std::numeric_limits<int>::max() - 1);
+LinUcbModel::ConversionWork LinUcbModel::PlanConversion(
+    std::vector<ActionState>& actions, int taken) const {
+  ConversionWork work;
+  int next = -1;
+  for (size_t i = 0; i < actions.size(); ++i) {
+    const ActionState& s = actions[i];
+    if (!s.primal && (s.prepared > 0 || s.converting))
+      next = static_cast<int>(i);
+  }
+  if (next < 0) {
+    // None converting: the one furthest past the start goes next.
+    for (size_t i = 0; i < actions.size(); ++i) {
+      const ActionState& s = actions[i];
+      if (!s.primal && s.count >= ConversionStart() &&
+          (next < 0 || s.count > actions[next].count)) {
+        next = static_cast<int>(i);
+      }
+    }
+    if (next < 0) return work;
+  }
+  ActionState& s = actions[next];
+  work.action = next;
+  const bool own = next == taken;
+  if (s.converting && s.converted == s.conversion_rows) {
+    // Every row folded at an earlier Update (and its new row, if this
+    // Update brought one, below): primal from now on.
+    work.kind = ConversionWork::kSwitch;
+    work.extra = own;
+    s.primal = true;
+    s.converting = false;
+    s.prepared = 0;
+    return work;
+  }
+  if (s.converting) {
+    work.kind = ConversionWork::kFold;
+    work.first = s.converted;
+    work.count =
+        std::min(kConversionRowsPerUpdate, s.conversion_rows - s.converted);
+    work.extra = own;
+    s.converted += work.count;
+    return work;
+  }
+  if (s.prepared < d_) {
+    int step = 0;
+    while (PreparedEnd(step) <= s.prepared) ++step;
+    work.kind = ConversionWork::kPrepare;
+    work.prepare_from = s.prepared;
+    work.prepare_to = PreparedEnd(step);
+    s.prepared = work.prepare_to;
+    return work;
+  }
+  // Prepared: the folding begins, over every row so far.
   s.converting = true;
-  s.conversion_rows = s.w.rows();
-  s.converted = 0;
+  s.conversion_rows = static_cast<int>(s.count);
+  s.converted = std::min(kConversionRowsPerUpdate, s.conversion_rows);
+  work.kind = ConversionWork::kFold;
+  work.first = 0;
+  work.count = s.converted;
+  return work;
 }
 
 void LinUcbModel::FoldRows(ActionState& s, int first, int count,
@@ -471,13 +517,6 @@ void LinUcbModel::Apply(const Round& round, const SelectProducts* products,
   const double sw = std::sqrt(w);
   const int a = round.action;
   ActionState& taken = actions_[a];
-  // Actions whose conversion finished at an earlier update turn primal at
-  // the end of this one (not in the update that did the last fold).
-  std::vector<int> ready;
-  for (size_t i = 0; i < actions_.size(); ++i) {
-    if (Ready(actions_[i])) ready.push_back(static_cast<int>(i));
-  }
-
   // Every action's product with c before this round: the Select's if they
   // are for this model state and context, otherwise computed here.
   bool reuse = products != nullptr && products->total_rounds == total_rounds_ &&
@@ -563,22 +602,27 @@ void LinUcbModel::Apply(const Round& round, const SelectProducts* products,
     }
   }
 
-  if (!taken.primal) {
-    const double* extra = taken.w.Row(m);
-    if (!taken.converting && taken.count >= ConversionStart()) {
-      StartConversion(taken);
-      extra = nullptr;  // the new row is one of the rows to fold
-    } else if (!taken.converting && taken.count >= PrepareStart()) {
-      PrepareCandidate(taken, static_cast<int>(taken.count) - PrepareStart());
-    }
-    if (taken.converting) {
-      const int fold = std::min(kConversionRowsPerUpdate,
-                                taken.conversion_rows - taken.converted);
-      FoldRows(taken, taken.converted, fold, extra);
-      taken.converted += fold;
+  // This Update's share of the conversion (at most one action's).
+  const ConversionWork work = PlanConversion(actions_, a);
+  if (work.kind != ConversionWork::kNone) {
+    ActionState& s = actions_[work.action];
+    // The action's new row, appended above (it is dual until the switch).
+    const double* extra = work.extra ? s.w.Row(m) : nullptr;
+    switch (work.kind) {
+      case ConversionWork::kPrepare:
+        PrepareColumns(s, work.prepare_from, work.prepare_to);
+        break;
+      case ConversionWork::kFold:
+        FoldRows(s, work.first, work.count, extra);
+        break;
+      case ConversionWork::kSwitch:
+        FoldRows(s, 0, 0, extra);
+        SwitchToPrimal(s);
+        break;
+      case ConversionWork::kNone:
+        break;
     }
   }
-  for (int i : ready) SwitchToPrimal(actions_[i]);
   for (ActionState& s : actions_) s.retired.ReleaseBlocks(2);
   if (caches && posthoc()) {
     for (ActionState& s : actions_) RefreshPostHocCache(s);
@@ -601,18 +645,16 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
   // Each action's rows sqrt(w) c in one block, and every sum, then one
   // factorisation per action.
   const int d = model.d_;
-  std::vector<int> counts(model.actions_.size(), 0);
-  // Whether an action whose conversion finished is primal yet: it turns at
-  // the next update of any action after its last fold.
-  std::vector<bool> switched(model.actions_.size(), false);
-  for (size_t t = 0; t < rounds.size(); ++t) {
-    if (++counts[rounds[t].action] == model.PrimalFrom()) {
-      switched[rounds[t].action] = t + 1 < rounds.size();
-    }
+  // The conversions as the Updates would have run them: bookkeeping only.
+  std::vector<ActionState> plan(model.actions_.size());
+  for (const Round& round : rounds) {
+    ++plan[round.action].count;
+    model.PlanConversion(plan, round.action);
   }
   std::vector<double*> next(model.actions_.size(), nullptr);
-  for (size_t a = 0; a < counts.size(); ++a) {
-    if (counts[a] > 0) next[a] = model.actions_[a].w.Append(counts[a]);
+  for (size_t a = 0; a < plan.size(); ++a) {
+    const int count = static_cast<int>(plan[a].count);
+    if (count > 0) next[a] = model.actions_[a].w.Append(count);
   }
   for (const Round& round : rounds) {
     ActionState& s = model.actions_[round.action];
@@ -644,7 +686,8 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
     }
     double* data = s.w.MutableRow(0);
     Eigen::Map<RowMatrix> rows(data, m, d);
-    if (m >= model.PrimalFrom() && switched[&s - model.actions_.data()]) {
+    const ActionState& progress = plan[&s - model.actions_.data()];
+    if (progress.primal) {
       MatrixXd a = lambda * MatrixXd::Identity(d, d);
       a.selfadjointView<Eigen::Lower>().rankUpdate(rows.transpose());
       s.candidate = a.selfadjointView<Eigen::Lower>().llt().solve(
@@ -662,17 +705,19 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
       s.wb = rows * s.b;
       if (model.posthoc()) s.y = rows * model.s_pc_.transpose();
       // Where the Updates would have left the conversion.
-      const int start = model.ConversionStart();
-      if (m >= start) {
-        model.StartConversion(s);
-        s.conversion_rows = start;
-        s.converted =
-            std::min(start, kConversionRowsPerUpdate * (m - start + 1));
-        model.FoldRows(s, 0, s.converted, nullptr);
-        model.FoldRows(s, start, m - start, nullptr);
-      } else {
-        for (int k = model.PrepareStart(); k <= m; ++k) {
-          model.PrepareCandidate(s, k - model.PrepareStart());
+      model.PrepareColumns(s, 0, progress.prepared);
+      s.prepared = progress.prepared;
+      if (progress.converting) {
+        s.converting = true;
+        s.conversion_rows = progress.conversion_rows;
+        s.converted = progress.converted;
+        // In slices, so the rows copied for a fold stay small.
+        constexpr int kSlice = 64;
+        for (int i = 0; i < s.converted; i += kSlice) {
+          model.FoldRows(s, i, std::min(kSlice, s.converted - i), nullptr);
+        }
+        for (int i = s.conversion_rows; i < m; i += kSlice) {
+          model.FoldRows(s, i, std::min(kSlice, m - i), nullptr);
         }
       }
     }

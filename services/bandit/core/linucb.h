@@ -13,12 +13,15 @@
 //    n^2 is stored. Earlier rows of W never change when a row is appended,
 //    so the rows live in blocks that never move (no doubling copies);
 //  - primal: A_a^-1 itself (d x d, lower triangle), kept by Sherman-Morrison.
-// The switch is amortised: from about 7/8 of the threshold on, each Update
-// of the action folds its new row and kConversionRowsPerUpdate earlier rows
-// into A_a^-1 = (I - sum_i w_i w_i^T) / lambda, while the dual form keeps
-// answering; once every row is in, the action turns primal at the next
-// Update of any action (so no single Update pays both the last fold and
-// the one pass over A^-1 that the primal caches need).
+// The switch is amortised, and one action converts at a time: the action
+// that has passed about 7/8 of the threshold with the most rounds first has
+// its d x d matrix written a slice per Update (kPrepareUpdates Updates), then
+// every Update, of any action, folds kConversionRowsPerUpdate of its rows
+// (and its own new rows as they come) into A_a^-1 = (I - sum_i w_i w_i^T) /
+// lambda while the dual form keeps answering; once every row is in, the
+// next Update turns it primal. So no Update carries more than one of these
+// steps, whatever the actions' counts, and at most one action holds both
+// forms.
 // The post hoc term H^T M_a H is folded in by Woodbury with R_a^T R_a = M_a,
 // so N_a^-1 = A_a^-1 - A_a^-1 G^T (I + G A_a^-1 G^T)^-1 G A_a^-1 with
 // G = R_a H, and only products with S_pc^T (n x q dual, d x q primal) and
@@ -138,16 +141,17 @@ class SelectProducts {
 class LinUcbModel {
  public:
   // Earlier rows folded into the primal form per Update while an action
-  // converts (besides its new row).
+  // converts (besides its own new row).
   static constexpr int kConversionRowsPerUpdate = 7;
-  // Updates over which the conversion's d x d matrix is first written.
+  // Updates over which the conversion's d x d matrix is first written (at
+  // large d; a d x d matrix under 256 KB is written at once).
   static constexpr int kPrepareUpdates = 32;
 
-  // `primal_threshold` T: an action starts converting to primal form at
-  // ceil(T * 7/8) rounds, has every row folded in at T - 1 or T rounds (an
-  // eighth of T updates of that action) and is primal from the next Update
-  // on; 0 means d, where one pass over the rows costs what one over A^-1
-  // does.
+  // `primal_threshold` T: an action may start converting to primal form at
+  // ceil(T * 7/8) rounds, when no other action is converting (the one with
+  // the most rounds first); it then takes about kPrepareUpdates + n / 7
+  // Updates of any actions. 0 means d, where one pass over the rows costs
+  // what one over A^-1 does.
   static absl::StatusOr<LinUcbModel> Create(const BanditConfig& config,
                                             int primal_threshold = 0);
 
@@ -237,10 +241,9 @@ class LinUcbModel {
     Eigen::MatrixXd y;
 
     // Conversion to primal. First the lower triangle of `candidate` is set
-    // to I / lambda, `prepared` columns at a time over kPrepareUpdates
-    // updates (so that no single call touches all its pages); then it
+    // to I / lambda, `prepared` columns at a time; then (`converting`) it
     // holds (I - sum w_i w_i^T) / lambda over rows [0, converted) and every
-    // row appended since the conversion began at `conversion_rows` rows.
+    // row appended since the folding began at `conversion_rows` rows.
     int prepared = 0;
     bool converting = false;
     int conversion_rows = 0;
@@ -272,11 +275,6 @@ class LinUcbModel {
   // W b and W S_pc^T, or A^-1 [b S_pc^T], from scratch.
   void RefreshDualSums(ActionState& s);
   void RefreshPrimalSums(ActionState& s);
-  // Its conversion has folded every row: primal at the next update.
-  static bool Ready(const ActionState& s) {
-    return s.converting && s.converted == s.conversion_rows;
-  }
-
   bool posthoc() const { return config_.learner == Learner::kPostHoc; }
   // W x (dual) or A^-1 x (primal) for a d-vector x: the Select product.
   Eigen::VectorXd Product(const ActionState& s,
@@ -287,23 +285,40 @@ class LinUcbModel {
   // W^T v for an n-vector v.
   Eigen::VectorXd WTranspose(const ActionState& s,
                              const Eigen::VectorXd& v) const;
-  // Conversion: the rounds at which the candidate's preparation starts,
-  // the column where preparation step k ends, one preparation step, the
-  // start of folding, and rows [first, first + count) of W (plus `extra`)
-  // folded into the candidate.
-  int PrepareStart() const;
+  // One Update's share of the conversion: nothing, a slice of the
+  // candidate's preparation, a fold of rows, or the switch.
+  struct ConversionWork {
+    enum Kind { kNone, kPrepare, kFold, kSwitch };
+    Kind kind = kNone;
+    int action = -1;
+    int prepare_from = 0;  // kPrepare: columns [prepare_from, prepare_to)
+    int prepare_to = 0;
+    int first = 0;  // kFold: rows [first, first + count)
+    int count = 0;
+    bool extra = false;  // kFold, kSwitch: and the action's new row
+  };
+  // Advances the conversion bookkeeping of `actions` (counts already include
+  // this Update's round, of action `taken`) by one Update and says what
+  // work goes with it. Reads and writes only count, primal, prepared,
+  // converting, conversion_rows and converted, so Rebuild can run it on
+  // bookkeeping alone.
+  ConversionWork PlanConversion(std::vector<ActionState>& actions,
+                                int taken) const;
+  // Slices in which the candidate is prepared, and the column where
+  // preparation step k ends (about as many pages per step).
+  int PrepareSteps() const;
   int PreparedEnd(int step) const;
-  void PrepareCandidate(ActionState& s, int step);
-  void StartConversion(ActionState& s);
+  void PrepareColumns(ActionState& s, int from, int to);
+  // Rows [first, first + count) of W (plus `extra`) folded into the
+  // candidate.
   void FoldRows(ActionState& s, int first, int count, const double* extra);
   void SwitchToPrimal(ActionState& s);
   void RecomputeH();
   // Refreshes the H-dependent caches (after every post hoc update).
   void RefreshPostHocCache(ActionState& s);
   void AddScale(const Round& round);
-  // Rounds at which an action starts converting and at which it is primal.
+  // Rounds from which an action may start converting.
   int ConversionStart() const;
-  int PrimalFrom() const;
 
   BanditConfig config_;
   int d_ = 0;
