@@ -103,7 +103,7 @@ MatrixXd LowerSymmetricTimes(const MatrixXd& a, const MatrixXd& x) {
 }
 
 constexpr char kStateMagic[4] = {'B', 'W', 'L', 'U'};
-constexpr int32_t kStateFormat = 1;
+constexpr int32_t kStateFormat = 2;
 constexpr double kLayoutMarker = 1.0 + 1.0 / 1024;  // bytes tell the layout
 
 }  // namespace
@@ -371,18 +371,22 @@ void LinUcbModel::FoldRows(ActionState& s, int first, int count,
                                                          -1.0 / lambda_a_);
 }
 
-void LinUcbModel::SwitchToPrimal(ActionState& s) {
+void LinUcbModel::TakePrimal(ActionState& s) {
   s.a_inv = std::move(s.candidate);
   s.candidate = MatrixXd();
   s.primal = true;
   s.converting = false;
   s.prepared = 0;
-  RefreshPrimalSums(s);
   s.retired = std::move(s.w);
   s.w = RowBlocks(d_);
   s.wb.resize(0);
   s.y.resize(0, q_);
   s.z.resize(0, q_);
+}
+
+void LinUcbModel::SwitchToPrimal(ActionState& s) {
+  TakePrimal(s);
+  RefreshPrimalSums(s);
 }
 
 void LinUcbModel::RecomputeH() {
@@ -396,9 +400,10 @@ void LinUcbModel::RefreshPostHocCache(ActionState& s) {
   MatrixXd q_mat(q_, q_);  // H A^-1 H^T
   VectorXd hab(q_);        // H A^-1 b
   if (s.primal) {
-    s.a_inv_ht = s_pp_llt_.solve(s.p.transpose()).transpose();
-    q_mat.noalias() = h_ * s.a_inv_ht;
-    hab.noalias() = h_ * s.beta;
+    // H A^-1 H^T = S_pp^-1 (S_pc A^-1 S_pc^T) S_pp^-1, H A^-1 b likewise.
+    const MatrixXd left = s_pp_llt_.solve(s.spq);
+    q_mat = s_pp_llt_.solve(left.transpose());
+    hab = s_pp_llt_.solve(s.spb);
   } else {
     const int m = s.w.rows();
     // Z = W H^T = Y S_pp^-1. No Eigen solve on an empty matrix (an action
@@ -445,8 +450,8 @@ std::vector<ActionEstimate> LinUcbModel::Estimate(
     VectorXd s2;      // H A^-1 c
     if (s.primal) {
       s1 = c.dot(v);
-      s3 = s.beta.dot(c);
-      if (posthoc()) s2.noalias() = s.a_inv_ht.transpose() * c;
+      s3 = s.b.dot(v);
+      if (posthoc()) s2.noalias() = h_ * v;
     } else {
       const bool any = s.w.rows() > 0;
       s1 = (cc - (any ? v.squaredNorm() : 0.0)) / lambda;
@@ -502,12 +507,22 @@ void LinUcbModel::RefreshDualSums(ActionState& s) {
 }
 
 void LinUcbModel::RefreshPrimalSums(ActionState& s) {
-  MatrixXd rhs(d_, 1 + q_);
-  rhs.col(0) = s.b;
-  if (posthoc()) rhs.rightCols(q_) = s_pc_.transpose();
-  const MatrixXd product = LowerSymmetricTimes(s.a_inv, rhs);
-  s.beta = product.col(0);
-  if (posthoc()) s.p = product.rightCols(q_);
+  if (!posthoc()) return;
+  const MatrixXd p = LowerSymmetricTimes(s.a_inv, s_pc_.transpose());
+  s.spq.noalias() = s_pc_ * p;
+  s.spq = (0.5 * (s.spq + s.spq.transpose())).eval();
+  s.spb.noalias() = p.transpose() * s.b;
+}
+
+void LinUcbModel::PrimalSumsFromDual(ActionState& s) {
+  if (!posthoc()) return;
+  // A^-1 = (I - W^T W) / lambda, Y = W S_pc^T, W b: O(n q^2 + q d).
+  s.spq.noalias() = s_pc_ * s_pc_.transpose();
+  s.spq.noalias() -= s.y.transpose() * s.y;
+  s.spq /= lambda_a_;
+  s.spb.noalias() = s_pc_ * s.b;
+  s.spb.noalias() -= s.y.transpose() * s.wb;
+  s.spb /= lambda_a_;
 }
 
 void LinUcbModel::Apply(const Round& round, const SelectProducts* products,
@@ -549,11 +564,12 @@ void LinUcbModel::Apply(const Round& round, const SelectProducts* products,
     if (caches && posthoc()) pu.noalias() = s_pc_ * u;
     const double bu = taken.b.dot(u);
     taken.a_inv.selfadjointView<Eigen::Lower>().rankUpdate(u, -scale);
-    if (caches) {
+    if (caches && posthoc()) {
       ainv_c = v - (scale * u.dot(c)) * u;
-      taken.beta.noalias() -= (scale * bu) * u;
-      taken.beta.noalias() += (w * round.loss) * ainv_c;
-      if (posthoc()) taken.p.noalias() -= (scale * u) * pu.transpose();
+      // A^-1 loses scale u u^T, then b gains w l c.
+      taken.spq.noalias() -= (scale * pu) * pu.transpose();
+      taken.spb.noalias() -= (scale * bu) * pu;
+      taken.spb.noalias() += (w * round.loss) * (s_pc_ * ainv_c);
     }
   } else {
     // New Cholesky row [l^T delta] with L l = C x, so l = W x; the new row
@@ -581,13 +597,19 @@ void LinUcbModel::Apply(const Round& round, const SelectProducts* products,
     const VectorXd wp = w * p;
     taken.M.noalias() += wp * p.transpose();
     taken.r.noalias() += round.loss * wp;
-    // S_pc gains w p c^T: every P = A^-1 S_pc^T gains (A^-1 c)(w p)^T and
-    // every Y = W S_pc^T gains (W c)(w p)^T on its existing rows.
+    // S_pc gains w p c^T: with k = A^-1 c and m = S_pc k, every
+    // S_pc A^-1 S_pc^T gains m (w p)^T + (w p) m^T + (c^T k) (w p)(w p)^T and
+    // every S_pc A^-1 b gains (w p)(b^T k); every Y = W S_pc^T gains
+    // (W c)(w p)^T on its existing rows.
     for (size_t i = 0; caches && i < actions_.size(); ++i) {
       ActionState& s = actions_[i];
       if (s.primal) {
-        s.p.noalias() +=
-            (static_cast<int>(i) == a ? ainv_c : prod[i]) * wp.transpose();
+        const VectorXd& k = static_cast<int>(i) == a ? ainv_c : prod[i];
+        const VectorXd mk = s_pc_ * k;
+        s.spq.noalias() += mk * wp.transpose();
+        s.spq.noalias() += wp * mk.transpose();
+        s.spq.noalias() += (c.dot(k) * wp) * wp.transpose();
+        s.spb.noalias() += s.b.dot(k) * wp;
       } else {
         const int rows = static_cast<int>(i) == a ? m : s.w.rows();
         if (rows > 0) s.y.topRows(rows).noalias() += prod[i] * wp.transpose();
@@ -617,7 +639,10 @@ void LinUcbModel::Apply(const Round& round, const SelectProducts* products,
         break;
       case ConversionWork::kSwitch:
         FoldRows(s, 0, 0, extra);
-        SwitchToPrimal(s);
+        // The primal caches from the dual ones, which hold every row
+        // (Replay refreshes them at its end instead).
+        if (caches) PrimalSumsFromDual(s);
+        TakePrimal(s);
         break;
       case ConversionWork::kNone:
         break;
@@ -755,7 +780,7 @@ size_t LinUcbModel::MemoryBytes() const {
   for (const ActionState& s : actions_) {
     doubles += s.w.CapacityDoubles() + s.retired.CapacityDoubles() +
                s.wb.size() + s.y.size() + s.z.size() + s.candidate.size() +
-               s.a_inv.size() + s.beta.size() + s.p.size() + s.a_inv_ht.size() +
+               s.a_inv.size() + s.spq.size() + s.spb.size() +
                s.b.size() + s.M.size() + s.r.size() + 2 * q_ * q_ + q_;
   }
   return doubles * sizeof(double) + sizeof(*this) +
@@ -799,8 +824,10 @@ std::string LinUcbModel::SaveState() const {
     };
     if (s.primal) {
       lower(s.a_inv, d_);
-      out.Doubles(s.beta.data(), d_);
-      if (posthoc()) out.Doubles(s.p.data(), s.p.size());
+      if (posthoc()) {
+        out.Doubles(s.spq.data(), s.spq.size());
+        out.Doubles(s.spb.data(), s.spb.size());
+      }
       continue;
     }
     out.Value(static_cast<int32_t>(s.w.rows()));
@@ -828,8 +855,8 @@ absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,
   if (std::memcmp(magic, kStateMagic, 4) != 0 || format != kStateFormat ||
       marker != kLayoutMarker) {
     return absl::DataLossError(
-        "model state: not a bitewise model state of format 1 in this host's "
-        "layout");
+        absl::StrCat("model state: not a bitewise model state of format ",
+                     kStateFormat, " in this host's layout"));
   }
   int32_t d = 0, q = 0, k = 0, threshold = 0;
   double lambda = 0;
@@ -890,11 +917,12 @@ absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,
     };
     if (s.primal) {
       RETURN_IF_ERROR(lower(s.a_inv, dd));
-      s.beta.resize(dd);
-      RETURN_IF_ERROR(in.Doubles(s.beta.data(), dd, "A^-1 b"));
       if (model.posthoc()) {
-        s.p.resize(dd, model.q_);
-        RETURN_IF_ERROR(in.Doubles(s.p.data(), s.p.size(), "A^-1 S_pc^T"));
+        s.spq.resize(model.q_, model.q_);
+        s.spb.resize(model.q_);
+        RETURN_IF_ERROR(
+            in.Doubles(s.spq.data(), s.spq.size(), "S_pc A^-1 S_pc^T"));
+        RETURN_IF_ERROR(in.Doubles(s.spb.data(), s.spb.size(), "S_pc A^-1 b"));
       }
     } else {
       int32_t n = 0;

@@ -253,14 +253,15 @@ class LinUcbModel {
     // single call pays for unmapping them all.
     RowBlocks retired;
 
-    // Primal form: A^-1 (lower triangle), A^-1 b, P = A^-1 S_pc^T (d x q).
+    // Primal form: A^-1 (lower triangle) and, post hoc, S_pc A^-1 S_pc^T
+    // (q x q) and S_pc A^-1 b (q), each kept by rank-one terms in A^-1 c,
+    // so the switch needs no pass over A^-1 to start them.
     Eigen::MatrixXd a_inv;
-    Eigen::VectorXd beta;
-    Eigen::MatrixXd p;
+    Eigen::MatrixXd spq;
+    Eigen::VectorXd spb;
 
     // Post hoc caches, refreshed after every update.
     Eigen::MatrixXd z;                // dual: Y S_pp^-1 = W H^T (n x q)
-    Eigen::MatrixXd a_inv_ht;         // primal: P S_pp^-1 = A^-1 H^T (d x q)
     Eigen::MatrixXd r_factor;         // R with R^T R = M
     Eigen::LLT<Eigen::MatrixXd> cap;  // I + R H A^-1 H^T R^T
     Eigen::VectorXd h;                // cap^-1 R H A^-1 (b + H^T r)
@@ -269,12 +270,15 @@ class LinUcbModel {
   LinUcbModel(const BanditConfig& config, int primal_threshold);
 
   // One round; with `caches` false, the per-action caches (W b, W S_pc^T,
-  // A^-1 b, A^-1 S_pc^T, H and the post hoc terms) are left for Replay to
+  // S_pc A^-1 [S_pc^T b], H and the post hoc terms) are left for Replay to
   // refresh.
   void Apply(const Round& round, const SelectProducts* products, bool caches);
-  // W b and W S_pc^T, or A^-1 [b S_pc^T], from scratch.
+  // W b and W S_pc^T, or S_pc A^-1 [S_pc^T b], from scratch (one pass over
+  // A^-1).
   void RefreshDualSums(ActionState& s);
   void RefreshPrimalSums(ActionState& s);
+  // S_pc A^-1 [S_pc^T b] from the dual caches, which must be current.
+  void PrimalSumsFromDual(ActionState& s);
   bool posthoc() const { return config_.learner == Learner::kPostHoc; }
   // W x (dual) or A^-1 x (primal) for a d-vector x: the Select product.
   Eigen::VectorXd Product(const ActionState& s,
@@ -313,6 +317,8 @@ class LinUcbModel {
   // candidate.
   void FoldRows(ActionState& s, int first, int count, const double* extra);
   void SwitchToPrimal(ActionState& s);
+  // The candidate becomes A^-1; W and its caches go.
+  void TakePrimal(ActionState& s);
   void RecomputeH();
   // Refreshes the H-dependent caches (after every post hoc update).
   void RefreshPostHocCache(ActionState& s);
