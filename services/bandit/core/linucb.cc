@@ -780,8 +780,8 @@ size_t LinUcbModel::MemoryBytes() const {
   for (const ActionState& s : actions_) {
     doubles += s.w.CapacityDoubles() + s.retired.CapacityDoubles() +
                s.wb.size() + s.y.size() + s.z.size() + s.candidate.size() +
-               s.a_inv.size() + s.spq.size() + s.spb.size() +
-               s.b.size() + s.M.size() + s.r.size() + 2 * q_ * q_ + q_;
+               s.a_inv.size() + s.spq.size() + s.spb.size() + s.b.size() +
+               s.M.size() + s.r.size() + 2 * q_ * q_ + q_;
   }
   return doubles * sizeof(double) + sizeof(*this) +
          actions_.size() * sizeof(ActionState);
