@@ -37,7 +37,7 @@ struct EngineOptions {
   // Loaded models are evicted, least recently used first, while their
   // total size exceeds this. A model in use is never evicted.
   size_t cache_budget_bytes = size_t{2} << 30;
-  // Passed to LinUcbModel: rounds at which an action turns primal (0: d).
+  // Passed to LinUcbModel: its primal threshold (0: 3d/4).
   int primal_threshold = 0;
   // CreateUser refuses a configuration whose model could grow beyond this
   // (MaxModelBytes), so that no user's model can take the machine's

@@ -416,13 +416,14 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
     model.Update(round);
     rounds.push_back(round);
     converting_updates += model.IsConverting(0);
-    // At 56 = ceil(64 * 7/8) rounds the candidate is prepared (one slice at
-    // d = 64), at 57 the folding begins over 57 rows, 7 per update, with
-    // each new row as it comes: every row is in at 65, and the action turns
-    // primal at the next update.
-    EXPECT_EQ(model.IsConverting(0), t + 1 >= 57 && t + 1 < 66) << t;
-    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 66) << t;
-    if (t + 1 >= 54 && t + 1 <= 67) {
+    // The default threshold is 3/4 of d = 48 rounds. At 42 = ceil(48 * 7/8)
+    // rounds the candidate is prepared (one slice at d = 64), at 43 the
+    // folding begins over 43 rows, 7 per update, with each new row as it
+    // comes: every row is in at 49, and the action turns primal at the next
+    // update.
+    EXPECT_EQ(model.IsConverting(0), t + 1 >= 43 && t + 1 < 50) << t;
+    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 50) << t;
+    if (t + 1 >= 40 && t + 1 <= 51) {
       ExpectMatchesReference(model, rounds, RandomVector(64, rng),
                              "round " + std::to_string(t + 1));
       LinUcbModel rebuilt = *LinUcbModel::Rebuild(config, rounds);
@@ -438,7 +439,7 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
                              "rebuilt then updated at " + std::to_string(t));
     }
   }
-  EXPECT_EQ(converting_updates, 9);
+  EXPECT_EQ(converting_updates, 7);
 }
 
 // Actions that reach the conversion together convert one after another:
@@ -464,7 +465,7 @@ TEST(LinUcbTest, ActionsConvertOneAtATime) {
       if (model.IsPrimal(a) && !was_primal[a]) {
         order.push_back(a);
         switched = true;
-        EXPECT_GE(model.Count(a), 56) << a;
+        EXPECT_GE(model.Count(a), 42) << a;  // ceil(48 * 7/8)
       }
     }
     most_converting = std::max(most_converting, converting);

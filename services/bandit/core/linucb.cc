@@ -162,7 +162,7 @@ LinUcbModel::LinUcbModel(const BanditConfig& config, int primal_threshold)
       d_(config.context_dim),
       q_(config.learner == Learner::kPostHoc ? config.posthoc_dim : 0),
       primal_threshold_(primal_threshold > 0 ? primal_threshold
-                                             : config.context_dim),
+                                             : config.context_dim * 3 / 4),
       lambda_a_(config.lambda_c + config.prior.kappa_c()) {
   actions_.resize(config.num_actions());
   const PopulationPrior& prior = config_.prior;

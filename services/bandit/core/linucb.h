@@ -5,7 +5,8 @@
 // Representation. Every action keeps A_a = lambda I + sum w c c^T (lambda =
 // lambda_c, plus kappa_c with a population prior; see PopulationPrior) in
 // the cheaper of two forms:
-//  - dual, while the action has few rounds (n_a < d): the whitened rows
+//  - dual, while the action has few rounds (n_a below about 2d/3): the whitened
+//  rows
 //    W_a = L_a^-1 C_a (n x d), where C_a holds the rows sqrt(w) c and L_a is
 //    the Cholesky factor of K_a = lambda I + C_a C_a^T. Then
 //    A_a^-1 x = (x - W_a^T W_a x) / lambda, so a Select costs one pass over
@@ -150,8 +151,9 @@ class LinUcbModel {
   // `primal_threshold` T: an action may start converting to primal form at
   // ceil(T * 7/8) rounds, when no other action is converting (the one with
   // the most rounds first); it then takes about kPrepareUpdates + n / 7
-  // Updates of any actions. 0 means d, where one pass over the rows costs
-  // what one over A^-1 does.
+  // Updates of any actions. 0 means 3d/4: a Select reads n d numbers in dual
+  // form and d^2/2 in primal form (the lower triangle), so primal is faster
+  // from n = d/2, while the dual form is smaller until n = d.
   static absl::StatusOr<LinUcbModel> Create(const BanditConfig& config,
                                             int primal_threshold = 0);
 
