@@ -705,6 +705,7 @@ TEST(LinUcbTest, DualMemoryGrowsWithRoundsNotDSquared) {
   absl::StatusOr<LinUcbModel> model = LinUcbModel::Create(config);
   ASSERT_TRUE(model.ok());
   std::mt19937_64 rng(5);
+  std::vector<Round> rounds;
   for (int t = 0; t < 60; ++t) {
     Round round;
     round.context = RandomVector(2048, rng);
@@ -712,10 +713,16 @@ TEST(LinUcbTest, DualMemoryGrowsWithRoundsNotDSquared) {
     round.posthoc = {1, 0, 0, 0};
     round.loss = t % 2;
     model->Update(round);
+    rounds.push_back(round);
   }
   // 60 rounds x 2048 doubles is ~1 MB; one d x d matrix alone is 32 MB.
   EXPECT_LT(model->MemoryBytes(), 4u << 20);
   for (int a = 0; a < 6; ++a) EXPECT_FALSE(model->IsPrimal(a));
+  // So is the same model rebuilt from its log (no conversion's matrix
+  // allocated before its time).
+  absl::StatusOr<LinUcbModel> rebuilt = LinUcbModel::Rebuild(config, rounds);
+  ASSERT_TRUE(rebuilt.ok());
+  EXPECT_LT(rebuilt->MemoryBytes(), 4u << 20);
 }
 
 TEST(PolicyTest, LinUcbTiesGoToTheLowestIndex) {

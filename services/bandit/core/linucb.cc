@@ -287,6 +287,7 @@ int LinUcbModel::PreparedEnd(int step) const {
 }
 
 void LinUcbModel::PrepareColumns(ActionState& s, int from, int to) {
+  if (from >= to) return;
   // Allocated, not written: its pages are touched slice by slice.
   if (s.candidate.rows() != d_) s.candidate.resize(d_, d_);
   for (int j = from; j < to; ++j) {
