@@ -200,12 +200,32 @@ int main(int argc, char** argv) {
         });
     bitewise::AddScrapeValues(
         "bitewise_bandit_store_write_seconds_total",
-        "Time those writes held the store, commit and fsync included",
+        "Time until those writes were committed, waiting for their group "
+        "and fsync included",
         ScrapeType::kCounter, [s = store->get()]() -> std::vector<ScrapeValue> {
           const auto w = s->write_stats();
           return {{{{"op", "append"}}, w.append_seconds},
                   {{{"op", "complete"}}, w.completion_seconds}};
         });
+    bitewise::AddScrapeValues(
+        "bitewise_bandit_store_commits_total",
+        "Group commits of those writes (one transaction and one fsync each)",
+        ScrapeType::kCounter, [s = store->get()]() -> std::vector<ScrapeValue> {
+          return {{{}, static_cast<double>(s->write_stats().commits)}};
+        });
+    bitewise::AddScrapeValues(
+        "bitewise_bandit_store_committed_writes_total",
+        "Writes the group commits carried (over commits: the mean group "
+        "size), refused ones included",
+        ScrapeType::kCounter, [s = store->get()]() -> std::vector<ScrapeValue> {
+          return {{{}, static_cast<double>(s->write_stats().committed_writes)}};
+        });
+    bitewise::AddScrapeValues("bitewise_bandit_store_commit_seconds_total",
+                              "Time the group commits took, fsync included",
+                              ScrapeType::kCounter,
+                              [s = store->get()]() -> std::vector<ScrapeValue> {
+                                return {{{}, s->write_stats().commit_seconds}};
+                              });
     bitewise::AddScrapeValues(
         "bitewise_bandit_store_healthy",
         "1 while the store can durably accept writes", ScrapeType::kGauge,

@@ -431,6 +431,7 @@ absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
 SqliteEventStore::SqliteEventStore(sqlite3* db, int lock_fd, std::string path,
                                    uint64_t device, uint64_t inode)
     : db_(db),
+      statements_(std::make_unique<sqlite::StatementCache>(db)),
       lock_fd_(lock_fd),
       path_(std::move(path)),
       device_(device),
@@ -452,8 +453,85 @@ absl::Status SqliteEventStore::CheckHealth() {
 }
 
 SqliteEventStore::~SqliteEventStore() {
+  // close_v2 waits for the cached statements, finalized after this body.
   sqlite3_close_v2(db_);
   if (lock_fd_ >= 0) close(lock_fd_);  // releases the lock
+}
+
+struct SqliteEventStore::QueuedWrite {
+  absl::FunctionRef<absl::Status()> apply;
+  absl::Status status;
+  bool done = false;
+};
+
+namespace {
+
+struct GroupWait {
+  const bool* done;
+  const bool* committing;
+};
+
+bool MayProceed(GroupWait* wait) { return *wait->done || !*wait->committing; }
+
+}  // namespace
+
+absl::Status SqliteEventStore::RunInGroup(
+    absl::FunctionRef<absl::Status()> apply) {
+  QueuedWrite write{apply, absl::OkStatus(), false};
+  std::vector<QueuedWrite*> group;
+  {
+    absl::MutexLock lock(&queue_mu_);
+    queue_.push_back(&write);
+    // While another caller commits, it may take this write along; once it
+    // is done, this one leads the next group with whatever has queued.
+    GroupWait wait{&write.done, &committing_};
+    queue_mu_.Await(absl::Condition(&MayProceed, &wait));
+    if (write.done) return write.status;
+    committing_ = true;
+    group.swap(queue_);
+  }
+  CommitGroup(group);
+  {
+    absl::MutexLock lock(&queue_mu_);
+    for (QueuedWrite* queued : group) queued->done = true;
+    committing_ = false;
+  }
+  return write.status;
+}
+
+void SqliteEventStore::CommitGroup(const std::vector<QueuedWrite*>& group) {
+  const absl::Time start = absl::Now();
+  auto fail_all = [&](const absl::Status& status) {
+    for (QueuedWrite* queued : group) queued->status = status;
+  };
+  {
+    absl::MutexLock lock(&mu_);
+    absl::StatusOr<Transaction> txn =
+        Transaction::Begin(db_, Transaction::Kind::kWrite, "group commit");
+    if (!txn.ok()) return fail_all(txn.status());
+    for (QueuedWrite* queued : group) {
+      absl::Status status = Exec(db_, "SAVEPOINT w", "group commit");
+      if (!status.ok()) return fail_all(status);
+      queued->status = queued->apply();
+      if (!queued->status.ok()) {
+        status = Exec(db_, "ROLLBACK TO w", "group commit");
+        if (!status.ok()) return fail_all(status);
+      }
+      status = Exec(db_, "RELEASE w", "group commit");
+      if (!status.ok()) return fail_all(status);
+    }
+    const absl::Status committed = txn->Commit();
+    if (!committed.ok()) {
+      // Nothing of the group is on disk: every write fails.
+      for (QueuedWrite* queued : group) {
+        if (queued->status.ok()) queued->status = committed;
+      }
+    }
+  }
+  absl::MutexLock stats(&stats_mu_);
+  ++write_stats_.commits;
+  write_stats_.committed_writes += static_cast<int64_t>(group.size());
+  write_stats_.commit_seconds += absl::ToDoubleSeconds(absl::Now() - start);
 }
 
 absl::Status SqliteEventStore::CreateUser(const UserRecord& user) {
@@ -623,35 +701,38 @@ absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
     return absl::InvalidArgumentError("propensity must not be NaN");
   }
   const std::string context = EncodeDoubles(event.context);
+  const int64_t checksum = SelectionChecksum(
+      event.user_id, event.meal_id, event.item_label, context, event.action,
+      event.propensity, ToMicros(event.selected_at));
   const absl::Time start = absl::Now();
-  absl::MutexLock lock(&mu_);
-  // One statement, hence atomic on its own: the row is inserted only if the
-  // user exists, and no row back means it does not.
-  ASSIGN_OR_RETURN(
-      Statement st,
-      Statement::Prepare(
-          db_,
-          "INSERT INTO events (user_id, meal_id, item_label, context, action, "
-          "propensity, selected_at_us, completed, selection_checksum) "
-          "SELECT ?1, ?2, ?3, ?4, ?5, ?6, ?7, 0, ?8 "
-          "WHERE EXISTS (SELECT 1 FROM users WHERE user_id = ?1) "
-          "RETURNING event_id",
-          "AppendPending"));
-  st.BindText(1, event.user_id);
-  st.BindText(2, event.meal_id);
-  st.BindText(3, event.item_label);
-  st.BindBlob(4, context);
-  st.BindInt64(5, event.action);
-  st.BindDouble(6, event.propensity);
-  st.BindInt64(7, ToMicros(event.selected_at));
-  st.BindInt64(8,
-               SelectionChecksum(event.user_id, event.meal_id, event.item_label,
-                                 context, event.action, event.propensity,
-                                 ToMicros(event.selected_at)));
-  ASSIGN_OR_RETURN(const bool inserted, st.Step());
-  const int64_t event_id = inserted ? st.Int64(0) : 0;
-  RETURN_IF_ERROR(st.Run());
-  if (!inserted) return UserNotFound(event.user_id);
+  int64_t event_id = 0;
+  RETURN_IF_ERROR(RunInGroup([&]() ABSL_NO_THREAD_SAFETY_ANALYSIS {
+    // One statement, hence atomic on its own: the row is inserted only if
+    // the user exists, and no row back means it does not.
+    ASSIGN_OR_RETURN(
+        Statement st,
+        statements_->Get(
+            "INSERT INTO events (user_id, meal_id, item_label, context, "
+            "action, propensity, selected_at_us, completed, "
+            "selection_checksum) "
+            "SELECT ?1, ?2, ?3, ?4, ?5, ?6, ?7, 0, ?8 "
+            "WHERE EXISTS (SELECT 1 FROM users WHERE user_id = ?1) "
+            "RETURNING event_id",
+            "AppendPending"));
+    st.BindText(1, event.user_id);
+    st.BindText(2, event.meal_id);
+    st.BindText(3, event.item_label);
+    st.BindBlob(4, context);
+    st.BindInt64(5, event.action);
+    st.BindDouble(6, event.propensity);
+    st.BindInt64(7, ToMicros(event.selected_at));
+    st.BindInt64(8, checksum);
+    ASSIGN_OR_RETURN(const bool inserted, st.Step());
+    event_id = inserted ? st.Int64(0) : 0;
+    RETURN_IF_ERROR(st.Run());
+    if (!inserted) return UserNotFound(event.user_id);
+    return absl::OkStatus();
+  }));
   {
     absl::MutexLock stats(&stats_mu_);
     ++write_stats_.appends;
@@ -672,49 +753,44 @@ absl::StatusOr<EventRecord> SqliteEventStore::CompleteEvent(
   }
   const std::string posthoc_bytes = EncodeDoubles(posthoc);
   const absl::Time start = absl::Now();
-  absl::MutexLock lock(&mu_);
-  ASSIGN_OR_RETURN(
-      Transaction txn,
-      Transaction::Begin(db_, Transaction::Kind::kWrite, "CompleteEvent"));
   EventRecord event;
-  {
-    ASSIGN_OR_RETURN(
-        Statement st,
-        Statement::Prepare(db_,
-                           absl::StrCat(kEventColumns, "WHERE event_id = ?1"),
+  RETURN_IF_ERROR(RunInGroup([&]() ABSL_NO_THREAD_SAFETY_ANALYSIS {
+    {
+      // The one read of the event: what the model needs, and whether it
+      // is still pending (in this transaction, so never applied twice).
+      ASSIGN_OR_RETURN(
+          Statement st,
+          statements_->Get(absl::StrCat(kEventColumns, "WHERE event_id = ?1"),
                            "CompleteEvent"));
-    st.BindInt64(1, event_id);
-    ASSIGN_OR_RETURN(const bool found, st.Step());
-    if (!found) return EventNotFound(event_id);
-    ASSIGN_OR_RETURN(event, ReadEvent(st));
-  }
-  if (event.completed) {
-    return absl::FailedPreconditionError(
-        absl::StrCat("event ", event_id, " is already completed"));
-  }
-  {
-    ASSIGN_OR_RETURN(
-        Statement st,
-        Statement::Prepare(db_,
-                           "UPDATE users SET model_version = model_version + 1 "
+      st.BindInt64(1, event_id);
+      ASSIGN_OR_RETURN(const bool found, st.Step());
+      if (!found) return EventNotFound(event_id);
+      ASSIGN_OR_RETURN(event, ReadEvent(st));
+    }
+    if (event.completed) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("event ", event_id, " is already completed"));
+    }
+    {
+      ASSIGN_OR_RETURN(
+          Statement st,
+          statements_->Get("UPDATE users SET model_version = model_version + 1 "
                            "WHERE user_id = ?1 RETURNING model_version",
                            "CompleteEvent"));
-    st.BindText(1, event.user_id);
-    ASSIGN_OR_RETURN(const bool found, st.Step());
-    // The foreign key makes this unreachable short of a damaged file.
-    if (!found) {
-      return absl::DataLossError(absl::StrCat("event ", event_id,
-                                              " belongs to missing user \"",
-                                              event.user_id, "\""));
+      st.BindText(1, event.user_id);
+      ASSIGN_OR_RETURN(const bool found, st.Step());
+      // The foreign key makes this unreachable short of a damaged file.
+      if (!found) {
+        return absl::DataLossError(absl::StrCat("event ", event_id,
+                                                " belongs to missing user \"",
+                                                event.user_id, "\""));
+      }
+      event.model_version = st.Int64(0);
+      RETURN_IF_ERROR(st.Run());
     }
-    event.model_version = st.Int64(0);
-    RETURN_IF_ERROR(st.Run());
-  }
-  {
     ASSIGN_OR_RETURN(
         Statement st,
-        Statement::Prepare(
-            db_,
+        statements_->Get(
             "UPDATE events SET completed = 1, loss = ?2, posthoc = ?3, "
             "weight = ?4, model_version = ?5, updated_at_us = ?6, "
             "outcome_checksum = ?7 WHERE event_id = ?1",
@@ -727,9 +803,8 @@ absl::StatusOr<EventRecord> SqliteEventStore::CompleteEvent(
     st.BindInt64(6, ToMicros(updated_at));
     st.BindInt64(7, OutcomeChecksum(loss, posthoc_bytes, weight,
                                     event.model_version, ToMicros(updated_at)));
-    RETURN_IF_ERROR(st.Run());
-  }
-  RETURN_IF_ERROR(txn.Commit());
+    return st.Run();
+  }));
   {
     absl::MutexLock stats(&stats_mu_);
     ++write_stats_.completions;

@@ -8,7 +8,13 @@
 //
 // One connection serves the whole process, guarded by a mutex: the store is
 // bound by fsync on commit, not by parallel reads, and a single connection
-// keeps transactions trivially isolated from each other. Several processes may
+// keeps transactions trivially isolated from each other. The hot path's
+// writes (AppendPending, CompleteEvent) are committed in groups: concurrent
+// callers queue their writes, one of them runs every queued write in one
+// transaction, each in its own savepoint (a write that fails leaves no
+// trace and fails alone), commits once (one fsync for all), and each caller
+// returns its own result only after that commit. Their statements are
+// prepared once. Several processes may
 // open the same file; they wait for each other up to busy_timeout.
 //
 // Behaviour beyond the EventStore contract:
@@ -35,6 +41,7 @@
 #include <vector>
 
 #include "absl/base/thread_annotations.h"
+#include "absl/functional/function_ref.h"
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
@@ -42,6 +49,10 @@
 #include "services/bandit/store/event_store.h"
 
 struct sqlite3;
+
+namespace bitewise::bandit::sqlite {
+class StatementCache;
+}  // namespace bitewise::bandit::sqlite
 
 namespace bitewise::bandit {
 
@@ -119,13 +130,17 @@ class SqliteEventStore final : public EventStore {
 
   // Durable writes of the hot path since the store was opened (for
   // metrics): each AppendPending (a Select's event) and CompleteEvent (an
-  // Update), with the time spent holding the store, its commit (and fsync
-  // with synchronous_full) included.
+  // Update), with the time until it was committed (and fsynced with
+  // synchronous_full), waiting for its group included; and the group
+  // commits: how many, how many writes they carried, and their time.
   struct WriteStats {
     int64_t appends = 0;
     double append_seconds = 0.0;
     int64_t completions = 0;
     double completion_seconds = 0.0;
+    int64_t commits = 0;
+    int64_t committed_writes = 0;
+    double commit_seconds = 0.0;
   };
   WriteStats write_stats() const;
 
@@ -141,8 +156,23 @@ class SqliteEventStore final : public EventStore {
   absl::Status DeleteCheckpointLocked(const std::string& user_id)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
 
+  // Group commit: queues `apply` (run under mu_ inside the group's
+  // transaction) and returns its status once the group is committed, or
+  // the commit's error.
+  struct QueuedWrite;
+  absl::Status RunInGroup(absl::FunctionRef<absl::Status()> apply)
+      ABSL_LOCKS_EXCLUDED(queue_mu_, mu_);
+  void CommitGroup(const std::vector<QueuedWrite*>& group)
+      ABSL_LOCKS_EXCLUDED(mu_);
+
+  absl::Mutex queue_mu_ ABSL_ACQUIRED_BEFORE(mu_);
+  std::vector<QueuedWrite*> queue_ ABSL_GUARDED_BY(queue_mu_);
+  bool committing_ ABSL_GUARDED_BY(queue_mu_) = false;
+
   absl::Mutex mu_;
   sqlite3* const db_ ABSL_PT_GUARDED_BY(mu_);
+  const std::unique_ptr<sqlite::StatementCache> statements_
+      ABSL_PT_GUARDED_BY(mu_);
   mutable absl::Mutex stats_mu_;
   WriteStats write_stats_ ABSL_GUARDED_BY(stats_mu_);
   // The store's lock file, held while the store is open; -1 for ":memory:".

@@ -7,6 +7,7 @@
 #include <sqlite3.h>
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <utility>
 
@@ -47,9 +48,19 @@ class Statement {
       : db_(other.db_),
         stmt_(std::exchange(other.stmt_, nullptr)),
         op_(other.op_),
-        bind_rc_(other.bind_rc_) {}
+        bind_rc_(other.bind_rc_),
+        in_use_(std::exchange(other.in_use_, nullptr)) {}
   Statement& operator=(Statement&&) = delete;
-  ~Statement() { sqlite3_finalize(stmt_); }
+  ~Statement() {
+    if (in_use_ == nullptr) {
+      sqlite3_finalize(stmt_);
+      return;
+    }
+    // A statement of a StatementCache: ready for its next use.
+    sqlite3_reset(stmt_);
+    sqlite3_clear_bindings(stmt_);
+    *in_use_ = false;
+  }
 
   // Parameters are 1-based, as in SQL.
   void BindInt64(int index, int64_t value) {
@@ -108,8 +119,10 @@ class Statement {
   }
 
  private:
-  Statement(sqlite3* db, sqlite3_stmt* stmt, absl::string_view op)
-      : db_(db), stmt_(stmt), op_(op) {}
+  friend class StatementCache;
+  Statement(sqlite3* db, sqlite3_stmt* stmt, absl::string_view op,
+            bool* in_use = nullptr)
+      : db_(db), stmt_(stmt), op_(op), in_use_(in_use) {}
 
   void Check(int rc) {
     if (rc != SQLITE_OK && bind_rc_ == SQLITE_OK) bind_rc_ = rc;
@@ -119,6 +132,47 @@ class Statement {
   sqlite3_stmt* stmt_;
   absl::string_view op_;  // a literal at every call site
   int bind_rc_ = SQLITE_OK;
+  bool* in_use_ = nullptr;  // set for a StatementCache's statement
+};
+
+// Statements of the hot path, prepared once per connection and reused
+// (reset and unbound after each use). Used under the connection's lock; a
+// statement still in use is not handed out twice (a fresh one is prepared).
+class StatementCache {
+ public:
+  explicit StatementCache(sqlite3* db) : db_(db) {}
+  StatementCache(const StatementCache&) = delete;
+  StatementCache& operator=(const StatementCache&) = delete;
+  ~StatementCache() {
+    for (auto& entry : cache_) sqlite3_finalize(entry.second.stmt);
+  }
+
+  absl::StatusOr<Statement> Get(const std::string& sql, absl::string_view op) {
+    auto it = cache_.find(sql);
+    if (it == cache_.end()) {
+      sqlite3_stmt* stmt = nullptr;
+      const int rc =
+          sqlite3_prepare_v3(db_, sql.data(), static_cast<int>(sql.size()),
+                             SQLITE_PREPARE_PERSISTENT, &stmt, nullptr);
+      if (rc != SQLITE_OK) {
+        sqlite3_finalize(stmt);
+        return SqliteError(db_, rc, op);
+      }
+      it = cache_.emplace(sql, Entry{stmt, false}).first;
+    }
+    if (it->second.in_use) return Statement::Prepare(db_, sql, op);
+    it->second.in_use = true;
+    return Statement(db_, it->second.stmt, op, &it->second.in_use);
+  }
+
+ private:
+  struct Entry {
+    sqlite3_stmt* stmt;
+    bool in_use;
+  };
+  sqlite3* db_;
+  // std::map: entries never move, so in_use pointers stay valid.
+  std::map<std::string, Entry> cache_;
 };
 
 // Runs SQL without parameters (constants only, never user data).
