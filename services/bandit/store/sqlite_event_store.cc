@@ -50,11 +50,14 @@ SELECT u.user_id, u.learner, u.strategy, u.alpha, u.lambda_c, u.lambda_p,
 FROM users u
 )sql";
 
+// LEFT JOIN: an event whose context row is missing reads with none, and
+// its selection checksum then fails (DATA_LOSS) rather than the event
+// silently vanishing from the log.
 constexpr char kEventColumns[] = R"sql(
 SELECT event_id, user_id, meal_id, item_label, context, action, propensity,
        selected_at_us, completed, loss, posthoc, weight, model_version,
        updated_at_us, selection_checksum, outcome_checksum
-FROM events
+FROM events LEFT JOIN event_contexts USING (event_id)
 )sql";
 
 // ---------------------------------------------------------------------------
@@ -707,29 +710,40 @@ absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
   const absl::Time start = absl::Now();
   int64_t event_id = 0;
   RETURN_IF_ERROR(RunInGroup([&]() ABSL_NO_THREAD_SAFETY_ANALYSIS {
-    // One statement, hence atomic on its own: the row is inserted only if
-    // the user exists, and no row back means it does not.
-    ASSIGN_OR_RETURN(
-        Statement st,
-        statements_->Get(
-            "INSERT INTO events (user_id, meal_id, item_label, context, "
-            "action, propensity, selected_at_us, completed, "
-            "selection_checksum) "
-            "SELECT ?1, ?2, ?3, ?4, ?5, ?6, ?7, 0, ?8 "
-            "WHERE EXISTS (SELECT 1 FROM users WHERE user_id = ?1) "
-            "RETURNING event_id",
-            "AppendPending"));
-    st.BindText(1, event.user_id);
-    st.BindText(2, event.meal_id);
-    st.BindText(3, event.item_label);
-    st.BindBlob(4, context);
-    st.BindInt64(5, event.action);
-    st.BindDouble(6, event.propensity);
-    st.BindInt64(7, ToMicros(event.selected_at));
-    st.BindInt64(8, checksum);
-    ASSIGN_OR_RETURN(const bool inserted, st.Step());
-    event_id = inserted ? st.Int64(0) : 0;
-    RETURN_IF_ERROR(st.Run());
+    // The row is inserted only if the user exists, and no row back means
+    // it does not; then its context (both in this write's savepoint).
+    {
+      ASSIGN_OR_RETURN(
+          Statement st,
+          statements_->Get(
+              "INSERT INTO events (user_id, meal_id, item_label, action, "
+              "propensity, selected_at_us, completed, selection_checksum) "
+              "SELECT ?1, ?2, ?3, ?4, ?5, ?6, 0, ?7 "
+              "WHERE EXISTS (SELECT 1 FROM users WHERE user_id = ?1) "
+              "RETURNING event_id",
+              "AppendPending"));
+      st.BindText(1, event.user_id);
+      st.BindText(2, event.meal_id);
+      st.BindText(3, event.item_label);
+      st.BindInt64(4, event.action);
+      st.BindDouble(5, event.propensity);
+      st.BindInt64(6, ToMicros(event.selected_at));
+      st.BindInt64(7, checksum);
+      ASSIGN_OR_RETURN(const bool inserted, st.Step());
+      event_id = inserted ? st.Int64(0) : 0;
+      RETURN_IF_ERROR(st.Run());
+    }
+    const bool inserted = event_id != 0;
+    if (inserted) {
+      ASSIGN_OR_RETURN(
+          Statement st,
+          statements_->Get("INSERT INTO event_contexts (event_id, context) "
+                           "VALUES (?1, ?2)",
+                           "AppendPending"));
+      st.BindInt64(1, event_id);
+      st.BindBlob(2, context);
+      RETURN_IF_ERROR(st.Run());
+    }
     if (!inserted) return UserNotFound(event.user_id);
     return absl::OkStatus();
   }));

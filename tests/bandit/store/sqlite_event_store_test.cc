@@ -798,7 +798,7 @@ TEST_F(SqliteEventStoreTest, AcknowledgedUpdateSurvivesKill9) {
 TEST_F(SqliteEventStoreTest, FileIsWalWithSchemaVersion) {
   RawDb raw(path_);
   EXPECT_EQ(raw.Text("PRAGMA journal_mode"), "wal");
-  EXPECT_EQ(raw.Text("PRAGMA user_version"), "4");
+  EXPECT_EQ(raw.Text("PRAGMA user_version"), "5");
   EXPECT_NE(raw.Text("PRAGMA application_id"), "0");
 }
 
@@ -847,14 +847,14 @@ TEST_F(SqliteEventStoreTest, NotADatabaseIsFailedPrecondition) {
 
 TEST_F(SqliteEventStoreTest, NewerSchemaVersionIsFailedPrecondition) {
   store_.reset();
-  RawDb(path_).Exec("PRAGMA user_version = 5");
+  RawDb(path_).Exec("PRAGMA user_version = 6");
   SqliteStoreOptions options;
   options.path = path_;
   auto store = SqliteEventStore::Open(options);
   EXPECT_EQ(store.status().code(), absl::StatusCode::kFailedPrecondition)
       << store.status();
   EXPECT_THAT(store.status().message(), HasSubstr(path_));
-  EXPECT_THAT(store.status().message(), HasSubstr("version 5"));
+  EXPECT_THAT(store.status().message(), HasSubstr("version 6"));
 }
 
 PopulationPrior SmallPrior(int64_t version, double rounds) {
@@ -983,11 +983,24 @@ TEST_F(SqliteEventStoreTest, ADamagedFileIsDataLossNotAnEmptyStore) {
   EXPECT_THAT(store.status().message(), HasSubstr(path_));
 }
 
+// Turns the current store at `path` back into what a version 4 build wrote:
+// each event's context in its own row.
+void RewriteAsVersion4(const std::string& path) {
+  RawDb raw(path);
+  raw.Exec("ALTER TABLE events ADD COLUMN context BLOB");
+  raw.Exec(
+      "UPDATE events SET context = (SELECT context FROM event_contexts c "
+      "WHERE c.event_id = events.event_id)");
+  raw.Exec("DROP TABLE event_contexts");
+  raw.Exec("PRAGMA user_version = 4");
+}
+
 // Turns the current store at `path` back into what a version 2 build wrote:
 // action names as a JSON column of users and pools, no child tables.
 void RewriteAsVersion2(const std::string& path,
                        const std::string& user_names_json,
                        const std::string& pool_names_json) {
+  RewriteAsVersion4(path);
   RawDb raw(path);
   raw.Exec(
       "ALTER TABLE users ADD COLUMN action_names TEXT NOT NULL DEFAULT ''");
@@ -1007,6 +1020,48 @@ void RewriteAsVersion2(const std::string& path,
   raw.Exec("PRAGMA user_version = 2");
 }
 
+// Version 4 kept each context in its event's row; version 5 moves them to
+// event_contexts, and every event reads back as it was, checksums included.
+TEST_F(SqliteEventStoreTest, VersionFourContextsMoveToTheirOwnTable) {
+  ASSERT_TRUE(store_->CreateUser(MakeUser("four")).ok());
+  const int64_t done = MustAppend(MakeEvent("four", "m1", 0.25));
+  MustComplete(done, 0.0);
+  const int64_t pending = MustAppend(MakeEvent("four", "m2", -1.5));
+  const EventRecord before_done = MustGetEvent(done);
+  const EventRecord before_pending = MustGetEvent(pending);
+  store_.reset();
+  RewriteAsVersion4(path_);
+  EXPECT_EQ(RawDb(path_).Text("SELECT COUNT(*) FROM events WHERE context IS "
+                              "NOT NULL"),
+            "2");
+  store_ = OpenStore();
+  ASSERT_NE(store_, nullptr);
+  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "5");
+  EXPECT_EQ(RawDb(path_).Text("SELECT COUNT(*) FROM event_contexts"), "2");
+  const EventRecord after_done = MustGetEvent(done);
+  const EventRecord after_pending = MustGetEvent(pending);
+  EXPECT_EQ(after_done.context, before_done.context);
+  EXPECT_EQ(after_done.loss, before_done.loss);
+  EXPECT_EQ(after_done.model_version, 1);
+  EXPECT_EQ(after_pending.context, before_pending.context);
+  EXPECT_FALSE(after_pending.completed);
+  absl::StatusOr<StoreCheckReport> check = store_->CheckStore();
+  ASSERT_TRUE(check.ok()) << check.status();
+  EXPECT_TRUE(check->findings.empty());
+  // A lost context row is damage, found by the checksum, not an event
+  // that silently drops out of the log.
+  RawDb(path_).Exec(
+      absl::StrCat("DELETE FROM event_contexts WHERE event_id = ", pending));
+  EXPECT_EQ(store_->GetEvent(pending).status().code(),
+            absl::StatusCode::kDataLoss);
+  check = store_->CheckStore();
+  ASSERT_TRUE(check.ok()) << check.status();
+  EXPECT_FALSE(check->findings.empty());
+  // Deleting the user takes the contexts along.
+  ASSERT_TRUE(store_->DeleteUser("four").ok());
+  EXPECT_EQ(RawDb(path_).Text("SELECT COUNT(*) FROM event_contexts"), "0");
+}
+
 TEST_F(SqliteEventStoreTest, VersionOneFilesAreMigratedKeepingEverything) {
   ASSERT_TRUE(store_->CreateUser(MakeUser("old")).ok());
   auto id = store_->AppendPending(MakeEvent("old", "m1"));
@@ -1023,7 +1078,7 @@ TEST_F(SqliteEventStoreTest, VersionOneFilesAreMigratedKeepingEverything) {
   options.path = path_;
   auto store = SqliteEventStore::Open(options);
   ASSERT_TRUE(store.ok()) << store.status();
-  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "4");
+  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "5");
   auto user = (*store)->GetUser("old");
   ASSERT_TRUE(user.ok()) << user.status();
   EXPECT_EQ(user->pending_events, 1);
@@ -1361,7 +1416,9 @@ TEST_F(SqliteEventStoreTest, CorruptVectorIsDataLoss) {
   ASSERT_TRUE(store_->CreateUser(MakeUser("alice")).ok());
   const int64_t id = MustAppend(MakeEvent("alice", "m"));
   RawDb(path_).Exec(absl::StrCat(
-      "UPDATE events SET context = x'00010203040506' WHERE event_id = ", id));
+      "UPDATE event_contexts SET context = x'00010203040506' WHERE "
+      "event_id = ",
+      id));
   auto event = store_->GetEvent(id);
   EXPECT_EQ(event.status().code(), absl::StatusCode::kDataLoss)
       << event.status();
