@@ -120,6 +120,15 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
   builder.SetMaxReceiveMessageSize(options.max_message_bytes);
   builder.SetMaxSendMessageSize(options.max_message_bytes);
   for (grpc::Service* service : services) builder.RegisterService(service);
+  // More threads polling for new calls than gRPC's default (1 to 2 per
+  // completion queue): with 16 clients on 2 cores, fewer hand-offs between
+  // the thread that takes a call and the one that runs it. Measured on the
+  // BanditService (bandit_service_bench, d = 64, 16 clients, three runs
+  // each): 1,750-1,904 pairs/s by default, 1,957-2,048 with 2 to 8.
+  builder.SetSyncServerOption(
+      grpc::ServerBuilder::SyncServerOption::MIN_POLLERS, 2);
+  builder.SetSyncServerOption(
+      grpc::ServerBuilder::SyncServerOption::MAX_POLLERS, 8);
 
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (server == nullptr || port == 0) {
