@@ -1145,11 +1145,19 @@ absl::Status SqliteEventStore::PutCheckpoint(
 
 absl::StatusOr<ModelCheckpoint> SqliteEventStore::GetCheckpoint(
     const std::string& user_id) {
-  constexpr char kOp[] = "GetCheckpoint";
   absl::MutexLock lock(&mu_);
-  ASSIGN_OR_RETURN(Transaction txn,
-                   Transaction::Begin(db_, Transaction::Kind::kRead, kOp));
+  ASSIGN_OR_RETURN(
+      Transaction txn,
+      Transaction::Begin(db_, Transaction::Kind::kRead, "GetCheckpoint"));
   RETURN_IF_ERROR(CheckUserExistsLocked(user_id));
+  ASSIGN_OR_RETURN(ModelCheckpoint out, ReadCheckpointLocked(user_id));
+  RETURN_IF_ERROR(txn.Commit());
+  return out;
+}
+
+absl::StatusOr<ModelCheckpoint> SqliteEventStore::ReadCheckpointLocked(
+    const std::string& user_id) {
+  constexpr char kOp[] = "GetCheckpoint";
   ModelCheckpoint out;
   int64_t bytes = 0, chunks = 0, checksum = 0;
   {
@@ -1203,7 +1211,6 @@ absl::StatusOr<ModelCheckpoint> SqliteEventStore::GetCheckpoint(
           " chunks, or a checksum mismatch)"));
     }
   }
-  RETURN_IF_ERROR(txn.Commit());
   return out;
 }
 
@@ -1348,6 +1355,30 @@ absl::StatusOr<StoreCheckReport> SqliteEventStore::CheckStore() {
       ++report.events_checked;
       absl::StatusOr<EventRecord> event = ReadEvent(events);
       if (!event.ok()) note(event.status());
+    }
+  }
+  {
+    // Checkpoints are derived (a damaged one is ignored and the model
+    // rebuilt from the log), but a damaged one is still worth knowing of.
+    std::vector<std::string> with_checkpoint;
+    ASSIGN_OR_RETURN(
+        Statement st,
+        Statement::Prepare(
+            db_, "SELECT user_id FROM model_checkpoints ORDER BY user_id",
+            "CheckStore"));
+    while (true) {
+      ASSIGN_OR_RETURN(const bool row, st.Step());
+      if (!row) break;
+      with_checkpoint.push_back(st.Text(0));
+    }
+    for (const std::string& user_id : with_checkpoint) {
+      absl::StatusOr<ModelCheckpoint> checkpoint =
+          ReadCheckpointLocked(user_id);
+      if (!checkpoint.ok()) {
+        note(absl::DataLossError(absl::StrCat(
+            checkpoint.status().message(),
+            " (the service ignores it and rebuilds that model from the log)")));
+      }
     }
   }
   RETURN_IF_ERROR(txn.Commit());

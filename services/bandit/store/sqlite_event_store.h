@@ -110,7 +110,7 @@ class SqliteEventStore final : public EventStore {
   absl::StatusOr<int64_t> AppendAudit(const AuditEntry& entry) override;
   absl::StatusOr<PageResult<AuditEntry>> ListAudit(const Page& page) override;
   // PRAGMA integrity_check over the whole file (up to 100 findings), then
-  // every user and event read back.
+  // every user, event and model checkpoint read back and checked.
   absl::StatusOr<StoreCheckReport> CheckStore() override;
   absl::StatusOr<PageResult<EventRecord>> ListEvents(const std::string& user_id,
                                                      const std::string& meal_id,
@@ -155,6 +155,10 @@ class SqliteEventStore final : public EventStore {
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   absl::Status DeleteCheckpointLocked(const std::string& user_id)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // The user's checkpoint, checked (NOT_FOUND, DATA_LOSS as GetCheckpoint),
+  // inside the caller's transaction.
+  absl::StatusOr<ModelCheckpoint> ReadCheckpointLocked(
+      const std::string& user_id) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
 
   // Group commit: queues `apply` (run under mu_ inside the group's
   // transaction) and returns its status once the group is committed, or

@@ -1199,6 +1199,13 @@ TEST_F(SqliteEventStoreTest, CheckpointsRoundTripInChunksAndGoWithTheLog) {
   auto damaged = store_->GetCheckpoint("ann");
   EXPECT_EQ(damaged.status().code(), absl::StatusCode::kDataLoss);
   EXPECT_THAT(damaged.status().message(), HasSubstr("user ann"));
+  // The full check finds it too, as a finding (the store is still usable).
+  {
+    absl::StatusOr<StoreCheckReport> check = store_->CheckStore();
+    ASSERT_TRUE(check.ok()) << check.status();
+    ASSERT_EQ(check->findings.size(), 1u);
+    EXPECT_THAT(check->findings[0], HasSubstr("model checkpoint of user ann"));
+  }
   // A checkpoint whose event is not at its version is not kept (nor its
   // chunks); the one in place stays until deleted.
   checkpoint.model_version = 4;
