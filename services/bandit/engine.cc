@@ -290,7 +290,8 @@ void BanditEngine::Unload(UserSlot& slot) {
 }
 
 void BanditEngine::Touch(UserSlot& slot) {
-  const size_t bytes = slot.model->MemoryBytes();
+  // The model and the latest Select's products the user's Update will use.
+  const size_t bytes = slot.model->MemoryBytes() + slot.products.Bytes();
   absl::MutexLock lock(&cache_mu_);
   if (slot.in_lru) {
     lru_.erase(slot.lru_pos);
@@ -512,6 +513,7 @@ absl::StatusOr<SelectResult> BanditEngine::Select(const SelectInput& input) {
   slot->products_event = result.event_id;
   slot->products = std::move(products);
   slot->last_used = absl::Now();
+  Touch(*slot);
 
   result.action = choice.action;
   result.action_name = model.config().action_names[choice.action];

@@ -125,6 +125,30 @@ TEST_F(EngineTest, SelectThenUpdateIsRecordedAndIdempotent) {
   EXPECT_EQ(store_->GetEvent(chosen->event_id)->loss, 1.0);
 }
 
+// The cache budget counts what a user holds: the model, and between a
+// Select and its Update the Select's products kept for that Update.
+TEST_F(EngineTest, CacheCountsTheSelectsProductsUntilTheUpdate) {
+  ASSERT_TRUE(engine_->CreateUser("alice", SmallConfig()).ok());
+  std::mt19937_64 rng(3);
+  for (int i = 0; i < 5; ++i) Bite("alice", rng);
+  const size_t after_update = engine_->CachedBytes();
+  EXPECT_GT(after_update, 0u);
+  SelectInput select{"alice", RandomVector(8, rng), "m", "item"};
+  absl::StatusOr<SelectResult> chosen = engine_->Select(select);
+  ASSERT_TRUE(chosen.ok()) << chosen.status();
+  // The context (8 doubles) and each dual action's product with it, one
+  // double per round (5 rounds): exactly 13 doubles more.
+  EXPECT_EQ(engine_->CachedBytes(), after_update + 13 * sizeof(double));
+  UpdateInput update{chosen->event_id, 0.0, RandomVector(4, rng)};
+  ASSERT_TRUE(engine_->Update(update).ok());
+  // Released at the Update: the next Select adds its own 8 + 6 doubles to
+  // the model alone.
+  const size_t model_only = engine_->CachedBytes();
+  SelectInput again{"alice", RandomVector(8, rng), "m", "item"};
+  ASSERT_TRUE(engine_->Select(again).ok());
+  EXPECT_EQ(engine_->CachedBytes(), model_only + 14 * sizeof(double));
+}
+
 TEST_F(EngineTest, BadInputGetsPreciseStatusAndWritesNothing) {
   ASSERT_TRUE(engine_->CreateUser("bob", SmallConfig()).ok());
   std::mt19937_64 rng(2);
