@@ -97,8 +97,24 @@ struct Latencies {
   std::string first_error;
 };
 
-// One Select and the Update of its event; false (and the error kept) if
-// either fails.
+// One unary call with a 30 s deadline; false (and the first error kept) if
+// it fails.
+template <typename Request, typename Response>
+bool Call(grpc::Status (v1::BanditService::Stub::*method)(grpc::ClientContext*,
+                                                          const Request&,
+                                                          Response*),
+          v1::BanditService::Stub& stub, const Request& request,
+          Response* response, Latencies* out) {
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() +
+                       std::chrono::seconds(30));
+  const grpc::Status status = (stub.*method)(&context, request, response);
+  if (status.ok()) return true;
+  if (out->errors++ == 0) out->first_error = status.error_message();
+  return false;
+}
+
+// One Select and the Update of its event; false if either fails.
 bool Pair(v1::BanditService::Stub& stub, const std::string& user, int d,
           std::mt19937_64& rng, Latencies* out) {
   std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -109,15 +125,8 @@ bool Pair(v1::BanditService::Stub& stub, const std::string& user, int d,
   for (int i = 0; i < d; ++i) select.add_context(unit(rng));
   v1::SelectResponse selected;
   const auto t0 = Clock::now();
-  {
-    grpc::ClientContext context;
-    context.set_deadline(std::chrono::system_clock::now() +
-                         std::chrono::seconds(30));
-    const grpc::Status status = stub.Select(&context, select, &selected);
-    if (!status.ok()) {
-      if (out->errors++ == 0) out->first_error = status.error_message();
-      return false;
-    }
+  if (!Call(&v1::BanditService::Stub::Select, stub, select, &selected, out)) {
+    return false;
   }
   const auto t1 = Clock::now();
   v1::UpdateRequest update;
@@ -125,15 +134,8 @@ bool Pair(v1::BanditService::Stub& stub, const std::string& user, int d,
   update.set_loss(unit(rng) < 0.4 ? 1.0 : 0.0);
   for (int i = 0; i < kPostHocDim; ++i) update.add_posthoc(unit(rng));
   v1::UpdateResponse updated;
-  {
-    grpc::ClientContext context;
-    context.set_deadline(std::chrono::system_clock::now() +
-                         std::chrono::seconds(30));
-    const grpc::Status status = stub.Update(&context, update, &updated);
-    if (!status.ok()) {
-      if (out->errors++ == 0) out->first_error = status.error_message();
-      return false;
-    }
+  if (!Call(&v1::BanditService::Stub::Update, stub, update, &updated, out)) {
+    return false;
   }
   const auto t2 = Clock::now();
   out->select_ms.push_back(Ms(t1 - t0));

@@ -14,31 +14,6 @@
 #include "services/common/status_macros.h"
 
 namespace bitewise::bandit {
-namespace {
-
-Round ToRound(const EventRecord& event) {
-  Round round;
-  round.context = event.context;
-  round.action = event.action;
-  round.loss = event.loss;
-  round.posthoc = event.posthoc;
-  round.weight = event.weight;
-  return round;
-}
-
-// The same, taking the event's vectors instead of copying them (a cold
-// load's log is read once and not kept).
-Round ToRound(EventRecord&& event) {
-  Round round;
-  round.context = std::move(event.context);
-  round.action = event.action;
-  round.loss = event.loss;
-  round.posthoc = std::move(event.posthoc);
-  round.weight = event.weight;
-  return round;
-}
-
-}  // namespace
 
 absl::Status ValidateUserId(const std::string& user_id) {
   if (user_id.empty() || user_id.size() > 128) {
@@ -190,7 +165,7 @@ std::optional<LinUcbModel> BanditEngine::LoadFromCheckpoint(
     std::vector<Round> rounds;
     rounds.reserve(tail->size() - 1);
     for (size_t i = 1; i < tail->size() && why.ok(); ++i) {
-      rounds.push_back(ToRound(std::move((*tail)[i])));
+      rounds.push_back(EventRound(std::move((*tail)[i])));
       why = model->ValidateRound(rounds.back());
     }
     if (why.ok()) model->Replay(rounds);
@@ -251,7 +226,7 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
     std::vector<Round> rounds;
     rounds.reserve(events.size());
     for (EventRecord& event : events) {
-      rounds.push_back(ToRound(std::move(event)));
+      rounds.push_back(EventRound(std::move(event)));
     }
     std::vector<EventRecord>().swap(events);
     ASSIGN_OR_RETURN(
@@ -557,7 +532,7 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
     return result;
   }
 
-  Round round = ToRound(event);
+  Round round = EventRound(event);
   round.loss = input.loss;
   round.posthoc = input.posthoc;
   round.weight =

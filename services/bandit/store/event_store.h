@@ -11,12 +11,14 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/time/time.h"
 #include "services/bandit/core/config.h"
+#include "services/bandit/core/linucb.h"
 #include "services/common/audit.h"
 
 namespace bitewise::bandit {
@@ -47,6 +49,28 @@ struct EventRecord {
   int64_t model_version = 0;  // user's model_version after this update
   absl::Time updated_at;
 };
+
+// The round a completed event adds to its user's model (the log a model is
+// rebuilt from); the second form takes the event's vectors instead of
+// copying them.
+inline Round EventRound(const EventRecord& event) {
+  Round round;
+  round.context = event.context;
+  round.action = event.action;
+  round.loss = event.loss;
+  round.posthoc = event.posthoc;
+  round.weight = event.weight;
+  return round;
+}
+inline Round EventRound(EventRecord&& event) {
+  Round round;
+  round.context = std::move(event.context);
+  round.action = event.action;
+  round.loss = event.loss;
+  round.posthoc = std::move(event.posthoc);
+  round.weight = event.weight;
+  return round;
+}
 
 // A population pool: the pooled models of like users (same learner,
 // dimensions and actions), from which new users' priors are made.

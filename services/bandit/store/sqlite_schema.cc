@@ -88,14 +88,9 @@ CREATE TABLE event_contexts (
 ) STRICT;
 )sql";
 
-// Schema 4 to 5: the contexts move out of events (DROP COLUMN rewrites the
-// table once).
-constexpr char kMigrateTo5Sql[] = R"sql(
-CREATE TABLE event_contexts (
-  event_id INTEGER PRIMARY KEY
-    REFERENCES events (event_id) ON DELETE CASCADE,
-  context BLOB NOT NULL
-) STRICT;
+// Schema 4 to 5, after kEventContextsSql: the contexts move out of events
+// (DROP COLUMN rewrites the table once).
+constexpr char kMoveContextsSql[] = R"sql(
 INSERT INTO event_contexts (event_id, context)
   SELECT event_id, context FROM events;
 ALTER TABLE events DROP COLUMN context;
@@ -489,7 +484,8 @@ absl::Status InitializeDatabase(sqlite3* db,
       RETURN_IF_ERROR(Exec(db, kCheckpointsSql, op));
     }
     if (version <= 4) {
-      RETURN_IF_ERROR(Exec(db, kMigrateTo5Sql, op));
+      RETURN_IF_ERROR(Exec(db, kEventContextsSql, op));
+      RETURN_IF_ERROR(Exec(db, kMoveContextsSql, op));
     }
     RETURN_IF_ERROR(
         Exec(db, absl::StrCat("PRAGMA user_version = ", kSchemaVersion).c_str(),

@@ -150,15 +150,7 @@ std::string OutcomeDifference(const EventRecord& a, const EventRecord& b) {
 std::vector<Round> Rounds(const std::vector<EventRecord>& events) {
   std::vector<Round> rounds;
   rounds.reserve(events.size());
-  for (const EventRecord& event : events) {
-    Round round;
-    round.context = event.context;
-    round.action = event.action;
-    round.loss = event.loss;
-    round.posthoc = event.posthoc;
-    round.weight = event.weight;
-    rounds.push_back(std::move(round));
-  }
+  for (const EventRecord& event : events) rounds.push_back(EventRound(event));
   return rounds;
 }
 
