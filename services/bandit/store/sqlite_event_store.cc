@@ -23,6 +23,7 @@
 #include "services/bandit/store/event_checksum.h"
 #include "services/bandit/store/sqlite_helpers.h"
 #include "services/bandit/store/sqlite_schema.h"
+#include "services/bandit/store/store_rows.h"
 #include "services/common/status_macros.h"
 
 namespace bitewise::bandit {
@@ -36,9 +37,18 @@ using sqlite::SqliteCloser;
 using sqlite::SqliteError;
 using sqlite::Statement;
 using sqlite::Transaction;
-
-constexpr int kDefaultPageSize = 100;
-constexpr int kMaxPageSize = 1000;
+using store_rows::ApproxBytes;
+using store_rows::ClampPageSize;
+using store_rows::DecodePrior;
+using store_rows::EncodeDoubles;
+using store_rows::EncodePrior;
+using store_rows::EventNotFound;
+using store_rows::FromMicros;
+using store_rows::MakePageToken;
+using store_rows::PageFull;
+using store_rows::ParsePageToken;
+using store_rows::ToMicros;
+using store_rows::UserNotFound;
 
 constexpr char kUserColumns[] = R"sql(
 SELECT u.user_id, u.learner, u.strategy, u.alpha, u.lambda_c, u.lambda_p,
@@ -59,166 +69,6 @@ SELECT event_id, user_id, meal_id, item_label, context, action, propensity,
        updated_at_us, selection_checksum, outcome_checksum
 FROM events LEFT JOIN event_contexts USING (event_id)
 )sql";
-
-// ---------------------------------------------------------------------------
-// Encodings
-
-int64_t ToMicros(absl::Time t) { return absl::ToUnixMicros(t); }
-absl::Time FromMicros(int64_t us) { return absl::FromUnixMicros(us); }
-
-// Byte by byte so the file reads the same on any host.
-std::string EncodeDoubles(const std::vector<double>& values) {
-  std::string out(values.size() * 8, '\0');
-  for (size_t i = 0; i < values.size(); ++i) {
-    uint64_t bits;
-    std::memcpy(&bits, &values[i], sizeof(bits));
-    for (int b = 0; b < 8; ++b) {
-      out[i * 8 + b] = static_cast<char>((bits >> (8 * b)) & 0xff);
-    }
-  }
-  return out;
-}
-
-absl::StatusOr<std::vector<double>> DecodeDoubles(absl::string_view bytes,
-                                                  absl::string_view what) {
-  if (bytes.size() % 8 != 0) {
-    return absl::DataLossError(absl::StrCat(what, ": stored vector has ",
-                                            bytes.size(),
-                                            " bytes, not a multiple of 8"));
-  }
-  std::vector<double> values(bytes.size() / 8);
-  for (size_t i = 0; i < values.size(); ++i) {
-    uint64_t bits = 0;
-    for (int b = 0; b < 8; ++b) {
-      bits |=
-          static_cast<uint64_t>(static_cast<unsigned char>(bytes[i * 8 + b]))
-          << (8 * b);
-    }
-    std::memcpy(&values[i], &bits, sizeof(bits));
-  }
-  return values;
-}
-
-// A population prior as one float64 array: pool_version, rounds,
-// context_msn, posthoc_msn, K, d, q, then theta0 (K x d) and phi0 (K x q).
-std::string EncodePrior(const PopulationPrior& prior) {
-  const size_t k = prior.theta0.size();
-  const size_t d = k > 0 ? prior.theta0[0].size() : 0;
-  const size_t q = prior.phi0.empty() ? 0 : prior.phi0[0].size();
-  std::vector<double> v = {static_cast<double>(prior.pool_version),
-                           prior.rounds,
-                           prior.context_msn,
-                           prior.posthoc_msn,
-                           static_cast<double>(k),
-                           static_cast<double>(d),
-                           static_cast<double>(q)};
-  for (const auto& row : prior.theta0)
-    v.insert(v.end(), row.begin(), row.end());
-  for (const auto& row : prior.phi0) v.insert(v.end(), row.begin(), row.end());
-  return EncodeDoubles(v);
-}
-
-absl::StatusOr<PopulationPrior> DecodePrior(absl::string_view bytes,
-                                            absl::string_view what) {
-  ASSIGN_OR_RETURN(const std::vector<double> v, DecodeDoubles(bytes, what));
-  auto bad = [&] {
-    return absl::DataLossError(
-        absl::StrCat(what, ": stored population prior is malformed"));
-  };
-  if (v.size() < 7) return bad();
-  for (int i = 4; i < 7; ++i) {
-    if (!(v[i] >= 0 && v[i] <= (1 << 16) && v[i] == std::floor(v[i]))) {
-      return bad();
-    }
-  }
-  const size_t k = static_cast<size_t>(v[4]), d = static_cast<size_t>(v[5]),
-               q = static_cast<size_t>(v[6]);
-  if (v.size() != 7 + k * d + k * q) return bad();
-  PopulationPrior prior;
-  prior.pool_version = static_cast<int64_t>(v[0]);
-  prior.rounds = v[1];
-  prior.context_msn = v[2];
-  prior.posthoc_msn = v[3];
-  size_t at = 7;
-  for (size_t a = 0; a < k; ++a, at += d) {
-    prior.theta0.emplace_back(v.begin() + at, v.begin() + at + d);
-  }
-  for (size_t a = 0; a < k && q > 0; ++a, at += q) {
-    prior.phi0.emplace_back(v.begin() + at, v.begin() + at + q);
-  }
-  return prior;
-}
-
-// Page tokens are opaque to clients: a kind tag keeps a user token from being
-// replayed against an event listing, and base64 keeps arbitrary user ids
-// printable.
-std::string MakePageToken(char kind, absl::string_view key) {
-  return absl::WebSafeBase64Escape(
-      absl::StrCat(std::string(1, kind), ":", key));
-}
-
-// Returns the key of a token made by MakePageToken(kind, key).
-absl::StatusOr<std::string> ParsePageToken(const std::string& token,
-                                           char kind) {
-  std::string raw;
-  if (!absl::WebSafeBase64Unescape(token, &raw) || raw.size() < 2 ||
-      raw[0] != kind || raw[1] != ':') {
-    return absl::InvalidArgumentError("invalid page_token");
-  }
-  return raw.substr(2);
-}
-
-absl::StatusOr<int64_t> ParseEventPageToken(const std::string& token) {
-  ASSIGN_OR_RETURN(const std::string key, ParsePageToken(token, 'e'));
-  int64_t last_event_id = 0;
-  if (!absl::SimpleAtoi(key, &last_event_id) || last_event_id <= 0) {
-    return absl::InvalidArgumentError("invalid page_token");
-  }
-  return last_event_id;
-}
-
-// About the encoded size of a user (ListUsers) and of an event
-// (ListEvents): their strings and doubles and some overhead.
-int64_t ApproxBytes(const UserRecord& user) {
-  int64_t bytes = 256 + static_cast<int64_t>(user.user_id.size());
-  for (const std::string& name : user.config.action_names) {
-    bytes += static_cast<int64_t>(name.size()) + 4;
-  }
-  for (const auto& row : user.config.prior.theta0) bytes += 8 * row.size();
-  for (const auto& row : user.config.prior.phi0) bytes += 8 * row.size();
-  return bytes;
-}
-
-int64_t ApproxBytes(const EventRecord& event) {
-  return 128 +
-         static_cast<int64_t>(event.user_id.size() + event.meal_id.size() +
-                              event.item_label.size()) +
-         8 * static_cast<int64_t>(event.context.size() + event.posthoc.size());
-}
-
-// Whether adding an item would take a page of `count` items to `bytes`,
-// past its byte budget (never before its first item).
-bool PageFull(const Page& page, int page_size, size_t count, int64_t bytes) {
-  return static_cast<int>(count) == page_size ||
-         (page.max_bytes > 0 && count > 0 && bytes > page.max_bytes);
-}
-
-int ClampPageSize(int page_size) {
-  if (page_size <= 0) return kDefaultPageSize;
-  return std::min(page_size, kMaxPageSize);
-}
-
-// ---------------------------------------------------------------------------
-// Rows
-
-absl::StatusOr<int> ToInt(int64_t value, absl::string_view what) {
-  if (value < std::numeric_limits<int>::min() ||
-      value > std::numeric_limits<int>::max()) {
-    return absl::DataLossError(
-        absl::StrCat(what, ": stored value ", value, " is out of range"));
-  }
-  return static_cast<int>(value);
-}
 
 // The action names of one user or pool, stored one row per action in
 // `table` (user_actions, pool_actions) under `key_column`.
@@ -272,103 +122,16 @@ absl::StatusOr<std::vector<std::string>> ReadActionNames(
 
 // Reads a row selected with kUserColumns (and its action names).
 absl::StatusOr<UserRecord> ReadUser(sqlite3* db, Statement& st) {
-  UserRecord user;
-  user.user_id = st.Text(0);
-  const std::string what = absl::StrCat("user \"", user.user_id, "\"");
-  BanditConfig& config = user.config;
-  const int64_t learner = st.Int64(1);
-  const int64_t strategy = st.Int64(2);
-  if (learner != static_cast<int>(Learner::kPostHoc) &&
-      learner != static_cast<int>(Learner::kContextOnly)) {
-    return absl::DataLossError(
-        absl::StrCat(what, ": unknown learner ", learner));
-  }
-  if (strategy < static_cast<int>(Strategy::kLinUcb) ||
-      strategy > static_cast<int>(Strategy::kUniform)) {
-    return absl::DataLossError(
-        absl::StrCat(what, ": unknown strategy ", strategy));
-  }
-  config.learner = static_cast<Learner>(learner);
-  config.strategy = static_cast<Strategy>(strategy);
-  config.alpha = st.Double(3);
-  config.lambda_c = st.Double(4);
-  config.lambda_p = st.Double(5);
-  config.epsilon = st.Double(6);
-  config.importance_weighting = st.Int64(7) != 0;
-  ASSIGN_OR_RETURN(config.context_dim,
-                   ToInt(st.Int64(8), absl::StrCat(what, " context_dim")));
-  ASSIGN_OR_RETURN(config.posthoc_dim,
-                   ToInt(st.Int64(9), absl::StrCat(what, " posthoc_dim")));
-  ASSIGN_OR_RETURN(config.action_names,
-                   ReadActionNames(db, "user_actions", "user_id", user.user_id,
-                                   what, "reading action names"));
-  config.seed = static_cast<uint64_t>(st.Int64(10));
-  user.created_at = FromMicros(st.Int64(11));
-  user.model_version = st.Int64(12);
-  user.pending_events = st.Int64(13);
-  if (!st.IsNull(14)) {
-    ASSIGN_OR_RETURN(config.prior,
-                     DecodePrior(st.Blob(14), absl::StrCat(what, " prior")));
-    RETURN_IF_ERROR(ValidateConfig(config));
-  }
-  return user;
+  return store_rows::ReadUserRow(
+      st, [db](const std::string& user_id, const std::string& what) {
+        return ReadActionNames(db, "user_actions", "user_id", user_id, what,
+                               "reading action names");
+      });
 }
 
 // Reads a row selected with kEventColumns.
 absl::StatusOr<EventRecord> ReadEvent(Statement& st) {
-  EventRecord event;
-  event.event_id = st.Int64(0);
-  const std::string what = absl::StrCat("event ", event.event_id);
-  event.user_id = st.Text(1);
-  event.meal_id = st.Text(2);
-  event.item_label = st.Text(3);
-  ASSIGN_OR_RETURN(event.context,
-                   DecodeDoubles(st.Blob(4), absl::StrCat(what, " context")));
-  ASSIGN_OR_RETURN(event.action,
-                   ToInt(st.Int64(5), absl::StrCat(what, " action")));
-  event.propensity = st.Double(6);
-  event.selected_at = FromMicros(st.Int64(7));
-  event.completed = st.Int64(8) != 0;
-  if (st.Int64(14) != SelectionChecksum(event.user_id, event.meal_id,
-                                        event.item_label, st.Blob(4),
-                                        event.action, event.propensity,
-                                        st.Int64(7))) {
-    return absl::DataLossError(absl::StrCat(
-        what, " of user \"", event.user_id,
-        "\": its selection does not match its checksum (altered or damaged "
-        "on disk); it is not learned from. Restore the last backup or "
-        "ResetUser (docs/operations.md)"));
-  }
-  if (event.completed &&
-      (st.IsNull(15) ||
-       st.Int64(15) != OutcomeChecksum(st.Double(9), st.Blob(10), st.Double(11),
-                                       st.Int64(12), st.Int64(13)))) {
-    return absl::DataLossError(absl::StrCat(
-        what, " of user \"", event.user_id,
-        "\": its outcome does not match its checksum (altered or damaged "
-        "on disk); it is not learned from. Restore the last backup or "
-        "ResetUser (docs/operations.md)"));
-  }
-  if (event.completed) {
-    event.loss = st.Double(9);
-    if (!st.IsNull(10)) {
-      ASSIGN_OR_RETURN(
-          event.posthoc,
-          DecodeDoubles(st.Blob(10), absl::StrCat(what, " posthoc")));
-    }
-    event.weight = st.Double(11);
-    event.model_version = st.Int64(12);
-    event.updated_at = FromMicros(st.Int64(13));
-  }
-  return event;
-}
-
-absl::Status UserNotFound(const std::string& user_id) {
-  return absl::NotFoundError(absl::StrCat("user \"", user_id, "\" not found"));
-}
-
-absl::Status EventNotFound(int64_t event_id) {
-  return absl::NotFoundError(absl::StrCat("event ", event_id, " not found"));
+  return store_rows::ReadEventRow(st);
 }
 
 }  // namespace
@@ -798,10 +561,7 @@ absl::StatusOr<EventRecord> SqliteEventStore::CompleteEvent(
       if (!found) return EventNotFound(event_id);
       ASSIGN_OR_RETURN(event, ReadEvent(st));
     }
-    if (event.completed) {
-      return absl::FailedPreconditionError(
-          absl::StrCat("event ", event_id, " is already completed"));
-    }
+    if (event.completed) return store_rows::AlreadyCompleted(event_id);
     {
       ASSIGN_OR_RETURN(
           Statement st,
@@ -964,7 +724,7 @@ absl::StatusOr<PageResult<EventRecord>> SqliteEventStore::ListEvents(
   const int page_size = ClampPageSize(page.page_size);
   int64_t after = 0;  // event ids start at 1
   if (!page.page_token.empty()) {
-    ASSIGN_OR_RETURN(after, ParseEventPageToken(page.page_token));
+    ASSIGN_OR_RETURN(after, store_rows::ParseIdPageToken(page.page_token, 'e'));
   }
   absl::MutexLock lock(&mu_);
   // A read transaction: the existence check and the rows come from one
@@ -1272,11 +1032,7 @@ absl::StatusOr<PageResult<AuditEntry>> SqliteEventStore::ListAudit(
   const int page_size = ClampPageSize(page.page_size);
   int64_t after = 0;
   if (!page.page_token.empty()) {
-    ASSIGN_OR_RETURN(const std::string key,
-                     ParsePageToken(page.page_token, 'a'));
-    if (!absl::SimpleAtoi(key, &after) || after <= 0) {
-      return absl::InvalidArgumentError("invalid page_token");
-    }
+    ASSIGN_OR_RETURN(after, store_rows::ParseIdPageToken(page.page_token, 'a'));
   }
   absl::MutexLock lock(&mu_);
   ASSIGN_OR_RETURN(

@@ -1,0 +1,166 @@
+// Store rows (internal to services/bandit/store): the encodings and row
+// readers both EventStore implementations share, so a SQLite file and a
+// PostgreSQL database hold the same bytes for the same user: vectors as
+// little-endian float64 arrays, priors as one such array, timestamps in
+// whole microseconds, page tokens in one opaque format, and the same
+// checksums checked the same way on every read.
+//
+// ReadUserRow and ReadEventRow take any row type with the accessors
+// IsNull(col), Int64(col), Double(col), Text(col) and Blob(col), over the
+// columns of kUserColumnList and kEventColumnList in that order.
+#ifndef BITEWISE_SERVICES_BANDIT_STORE_STORE_ROWS_H_
+#define BITEWISE_SERVICES_BANDIT_STORE_STORE_ROWS_H_
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "absl/functional/function_ref.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
+#include "absl/time/time.h"
+#include "services/bandit/store/event_checksum.h"
+#include "services/bandit/store/event_store.h"
+#include "services/common/status_macros.h"
+
+namespace bitewise::bandit::store_rows {
+
+inline int64_t ToMicros(absl::Time t) { return absl::ToUnixMicros(t); }
+inline absl::Time FromMicros(int64_t us) { return absl::FromUnixMicros(us); }
+
+// Byte by byte so the stored bytes read the same on any host.
+std::string EncodeDoubles(const std::vector<double>& values);
+absl::StatusOr<std::vector<double>> DecodeDoubles(absl::string_view bytes,
+                                                  absl::string_view what);
+
+// A population prior as one float64 array: pool_version, rounds,
+// context_msn, posthoc_msn, K, d, q, then theta0 (K x d) and phi0 (K x q).
+std::string EncodePrior(const PopulationPrior& prior);
+absl::StatusOr<PopulationPrior> DecodePrior(absl::string_view bytes,
+                                            absl::string_view what);
+
+// Page tokens are opaque to clients: a kind tag ('u' users, 'e' events,
+// 'a' audit) keeps one listing's token from being replayed against another,
+// and base64 keeps arbitrary user ids printable.
+std::string MakePageToken(char kind, absl::string_view key);
+absl::StatusOr<std::string> ParsePageToken(const std::string& token, char kind);
+// The id after which a page of events ('e') or audit entries ('a') goes on.
+absl::StatusOr<int64_t> ParseIdPageToken(const std::string& token, char kind);
+
+// About the encoded size of a user (ListUsers) and of an event
+// (ListEvents): their strings and doubles and some overhead.
+int64_t ApproxBytes(const UserRecord& user);
+int64_t ApproxBytes(const EventRecord& event);
+// Whether adding an item would take a page of `count` items to `bytes`,
+// past its byte budget (never before its first item).
+bool PageFull(const Page& page, int page_size, size_t count, int64_t bytes);
+// Page.page_size clamped to [1, 1000] (0 or less: 100).
+int ClampPageSize(int page_size);
+
+// DATA_LOSS naming `what` when a stored integer does not fit an int.
+absl::StatusOr<int> ToInt(int64_t value, absl::string_view what);
+
+absl::Status UserNotFound(absl::string_view user_id);
+absl::Status EventNotFound(int64_t event_id);
+absl::Status AlreadyCompleted(int64_t event_id);
+
+// The checks of a user's stored learner and strategy codes.
+absl::Status CheckUserCodes(int64_t learner, int64_t strategy,
+                            absl::string_view what);
+
+// A row of the user columns, in this order: user_id, learner, strategy,
+// alpha, lambda_c, lambda_p, epsilon, importance_weighting, context_dim,
+// posthoc_dim, seed, created_at_us, model_version, pending events, prior.
+// `read_names(user_id, what)` reads the user's action names.
+template <typename Row>
+absl::StatusOr<UserRecord> ReadUserRow(
+    Row& row, absl::FunctionRef<absl::StatusOr<std::vector<std::string>>(
+                  const std::string& user_id, const std::string& what)>
+                  read_names) {
+  UserRecord user;
+  user.user_id = row.Text(0);
+  const std::string what = absl::StrCat("user \"", user.user_id, "\"");
+  BanditConfig& config = user.config;
+  const int64_t learner = row.Int64(1);
+  const int64_t strategy = row.Int64(2);
+  RETURN_IF_ERROR(CheckUserCodes(learner, strategy, what));
+  config.learner = static_cast<Learner>(learner);
+  config.strategy = static_cast<Strategy>(strategy);
+  config.alpha = row.Double(3);
+  config.lambda_c = row.Double(4);
+  config.lambda_p = row.Double(5);
+  config.epsilon = row.Double(6);
+  config.importance_weighting = row.Int64(7) != 0;
+  ASSIGN_OR_RETURN(config.context_dim,
+                   ToInt(row.Int64(8), absl::StrCat(what, " context_dim")));
+  ASSIGN_OR_RETURN(config.posthoc_dim,
+                   ToInt(row.Int64(9), absl::StrCat(what, " posthoc_dim")));
+  ASSIGN_OR_RETURN(config.action_names, read_names(user.user_id, what));
+  config.seed = static_cast<uint64_t>(row.Int64(10));
+  user.created_at = FromMicros(row.Int64(11));
+  user.model_version = row.Int64(12);
+  user.pending_events = row.Int64(13);
+  if (!row.IsNull(14)) {
+    ASSIGN_OR_RETURN(config.prior,
+                     DecodePrior(row.Blob(14), absl::StrCat(what, " prior")));
+    RETURN_IF_ERROR(ValidateConfig(config));
+  }
+  return user;
+}
+
+// DATA_LOSS naming the event and its user when a checksum does not match.
+absl::Status ChecksumMismatch(int64_t event_id, absl::string_view user_id,
+                              absl::string_view part);
+
+// A row of the event columns, in this order: event_id, user_id, meal_id,
+// item_label, context, action, propensity, selected_at_us, completed, loss,
+// posthoc, weight, model_version, updated_at_us, selection_checksum,
+// outcome_checksum. Both checksums are checked.
+template <typename Row>
+absl::StatusOr<EventRecord> ReadEventRow(Row& row) {
+  EventRecord event;
+  event.event_id = row.Int64(0);
+  const std::string what = absl::StrCat("event ", event.event_id);
+  event.user_id = row.Text(1);
+  event.meal_id = row.Text(2);
+  event.item_label = row.Text(3);
+  ASSIGN_OR_RETURN(event.context,
+                   DecodeDoubles(row.Blob(4), absl::StrCat(what, " context")));
+  ASSIGN_OR_RETURN(event.action,
+                   ToInt(row.Int64(5), absl::StrCat(what, " action")));
+  event.propensity = row.Double(6);
+  event.selected_at = FromMicros(row.Int64(7));
+  event.completed = row.Int64(8) != 0;
+  if (row.Int64(14) != SelectionChecksum(event.user_id, event.meal_id,
+                                         event.item_label, row.Blob(4),
+                                         event.action, event.propensity,
+                                         row.Int64(7))) {
+    return ChecksumMismatch(event.event_id, event.user_id, "selection");
+  }
+  if (event.completed &&
+      (row.IsNull(15) || row.IsNull(9) || row.IsNull(11) || row.IsNull(12) ||
+       row.IsNull(13) ||
+       row.Int64(15) != OutcomeChecksum(row.Double(9), row.Blob(10),
+                                        row.Double(11), row.Int64(12),
+                                        row.Int64(13)))) {
+    return ChecksumMismatch(event.event_id, event.user_id, "outcome");
+  }
+  if (event.completed) {
+    event.loss = row.Double(9);
+    if (!row.IsNull(10)) {
+      ASSIGN_OR_RETURN(
+          event.posthoc,
+          DecodeDoubles(row.Blob(10), absl::StrCat(what, " posthoc")));
+    }
+    event.weight = row.Double(11);
+    event.model_version = row.Int64(12);
+    event.updated_at = FromMicros(row.Int64(13));
+  }
+  return event;
+}
+
+}  // namespace bitewise::bandit::store_rows
+
+#endif  // BITEWISE_SERVICES_BANDIT_STORE_STORE_ROWS_H_
