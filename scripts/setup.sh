@@ -11,6 +11,7 @@ PACKAGES=(
   libgrpc++-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
   libabsl-dev libeigen3-dev libopencv-dev libonnx-dev
   libgtest-dev libgmock-dev libbenchmark-dev libsqlite3-dev sqlite3
+  libpq-dev postgresql-15  # the PostgreSQL store; its tests start a server
   prometheus-cpp-dev
   clang libclang-rt-14-dev  # the libFuzzer targets (scripts/fuzz.sh)
 )

@@ -2,6 +2,7 @@
 
 #include <arpa/inet.h>
 #include <fcntl.h>
+#include <grp.h>
 #include <netinet/in.h>
 #include <signal.h>
 #include <sys/prctl.h>
@@ -54,7 +55,8 @@ std::string DescribeWaitStatus(int status) {
 }
 
 absl::Status ChildProcess::Start(const std::vector<std::string>& args,
-                                 const std::string& log_path) {
+                                 const std::string& log_path,
+                                 std::optional<RunAs> run_as) {
   if (pid_ > 0) return absl::FailedPreconditionError("already running");
   if (args.empty()) return absl::InvalidArgumentError("argv: empty");
   log_path_ = log_path;
@@ -79,6 +81,14 @@ absl::Status ChildProcess::Start(const std::vector<std::string>& args,
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid == 0) {
+    // Credentials first: changing them clears the parent-death signal.
+    if (run_as.has_value() &&
+        (setgroups(0, nullptr) != 0 || setgid(run_as->gid) != 0 ||
+         setuid(run_as->uid) != 0)) {
+      static const char kMessage[] = "ChildProcess: cannot change user\n";
+      (void)!write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
+      _exit(126);
+    }
     prctl(PR_SET_PDEATHSIG, SIGKILL);
     if (getppid() != parent) _exit(127);
     dup2(null_fd, STDIN_FILENO);

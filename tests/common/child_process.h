@@ -7,6 +7,7 @@
 
 #include <sys/types.h>
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -33,10 +34,18 @@ class ChildProcess {
   ChildProcess(const ChildProcess&) = delete;
   ChildProcess& operator=(const ChildProcess&) = delete;
 
+  // An unprivileged account to run the child as (when the test runs as
+  // root: PostgreSQL's server refuses to run as root).
+  struct RunAs {
+    uid_t uid;
+    gid_t gid;
+  };
+
   // Starts `argv` (argv[0] is the binary's path) with stdin from /dev/null
-  // and stdout+stderr appended to `log_path`.
+  // and stdout+stderr appended to `log_path`, as `run_as` if given.
   absl::Status Start(const std::vector<std::string>& argv,
-                     const std::string& log_path);
+                     const std::string& log_path,
+                     std::optional<RunAs> run_as = std::nullopt);
 
   // Waits until the log contains `text`. FAILED_PRECONDITION with the log
   // if the child exits first (its wait status is then in exit_status()),

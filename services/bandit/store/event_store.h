@@ -4,7 +4,8 @@
 // event; Update completes it in one transaction, exactly once.
 //
 // Implementations must be thread-safe. The SQLite store is the embedded
-// default; a PostgreSQL store can implement the same interface later.
+// default; the PostgreSQL store serves a facility (open_store.h picks one
+// from --db).
 #ifndef BITEWISE_SERVICES_BANDIT_STORE_EVENT_STORE_H_
 #define BITEWISE_SERVICES_BANDIT_STORE_EVENT_STORE_H_
 
@@ -124,6 +125,20 @@ struct PageResult {
   std::string next_page_token;  // empty: no more
 };
 
+// Durable writes of the hot path since the store was opened (for metrics):
+// each AppendPending (a Select's event) and CompleteEvent (an Update), with
+// the time until it was committed (waiting for its group included); and the
+// commits that carried them: how many, how many writes, and their time.
+struct StoreWriteStats {
+  int64_t appends = 0;
+  double append_seconds = 0.0;
+  int64_t completions = 0;
+  double completion_seconds = 0.0;
+  int64_t commits = 0;
+  int64_t committed_writes = 0;
+  double commit_seconds = 0.0;
+};
+
 class EventStore {
  public:
   virtual ~EventStore() = default;
@@ -189,6 +204,9 @@ class EventStore {
   // OK while the store can durably accept writes; otherwise the reason
   // (for the service's health). Default: always OK.
   virtual absl::Status CheckHealth() { return absl::OkStatus(); }
+
+  // The hot path's write counters (StoreWriteStats). Default: none.
+  virtual StoreWriteStats write_stats() const { return {}; }
 
   // Durably stores a new pool (pool_version ignored) and returns its
   // version.

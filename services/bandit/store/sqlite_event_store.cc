@@ -998,7 +998,7 @@ absl::Status SqliteEventStore::DeleteCheckpointLocked(
   return absl::OkStatus();
 }
 
-SqliteEventStore::WriteStats SqliteEventStore::write_stats() const {
+StoreWriteStats SqliteEventStore::write_stats() const {
   absl::MutexLock lock(&stats_mu_);
   return write_stats_;
 }

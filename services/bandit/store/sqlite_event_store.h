@@ -128,21 +128,8 @@ class SqliteEventStore final : public EventStore {
   // A checkpoint's bytes go in chunks of at most this many.
   static constexpr size_t kCheckpointChunkBytes = size_t{4} << 20;
 
-  // Durable writes of the hot path since the store was opened (for
-  // metrics): each AppendPending (a Select's event) and CompleteEvent (an
-  // Update), with the time until it was committed (and fsynced with
-  // synchronous_full), waiting for its group included; and the group
-  // commits: how many, how many writes they carried, and their time.
-  struct WriteStats {
-    int64_t appends = 0;
-    double append_seconds = 0.0;
-    int64_t completions = 0;
-    double completion_seconds = 0.0;
-    int64_t commits = 0;
-    int64_t committed_writes = 0;
-    double commit_seconds = 0.0;
-  };
-  WriteStats write_stats() const;
+  // Its commits are the group commits.
+  StoreWriteStats write_stats() const override;
 
  private:
   SqliteEventStore(sqlite3* db, int lock_fd, std::string path, uint64_t device,
@@ -177,7 +164,7 @@ class SqliteEventStore final : public EventStore {
   sqlite3* const db_ ABSL_PT_GUARDED_BY(mu_);
   std::unique_ptr<sqlite::StatementCache> statements_ ABSL_PT_GUARDED_BY(mu_);
   mutable absl::Mutex stats_mu_;
-  WriteStats write_stats_ ABSL_GUARDED_BY(stats_mu_);
+  StoreWriteStats write_stats_ ABSL_GUARDED_BY(stats_mu_);
   // The store's lock file, held while the store is open; -1 for ":memory:".
   const int lock_fd_;
   // The database file as opened (device and inode; both 0 for ":memory:").

@@ -1,0 +1,373 @@
+#include "services/bandit/store/pg_helpers.h"
+
+#include <libpq-fe.h>
+
+#include <cstring>
+#include <utility>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/strip.h"
+#include "services/common/status_macros.h"
+
+namespace bitewise::bandit::pg {
+namespace {
+
+// Type OIDs (PostgreSQL's pg_type.dat; stable across versions).
+constexpr unsigned int kBoolOid = 16;
+constexpr unsigned int kByteaOid = 17;
+constexpr unsigned int kInt8Oid = 20;
+constexpr unsigned int kTextOid = 25;
+constexpr unsigned int kFloat8Oid = 701;
+
+std::string BigEndian(uint64_t bits) {
+  std::string out(8, '\0');
+  for (int b = 0; b < 8; ++b) {
+    out[b] = static_cast<char>((bits >> (8 * (7 - b))) & 0xff);
+  }
+  return out;
+}
+
+uint64_t FromBigEndian(const char* data, int length) {
+  uint64_t bits = 0;
+  for (int b = 0; b < length; ++b) {
+    bits = (bits << 8) | static_cast<unsigned char>(data[b]);
+  }
+  return bits;
+}
+
+// libpq's messages end in a newline.
+std::string Trimmed(const char* message) {
+  return std::string(
+      absl::StripTrailingAsciiWhitespace(message == nullptr ? "" : message));
+}
+
+absl::StatusCode CodeFor(absl::string_view sqlstate) {
+  if (sqlstate.size() != 5) return absl::StatusCode::kInternal;
+  const absl::string_view klass = sqlstate.substr(0, 2);
+  if (klass == "08" || sqlstate == "57P01" || sqlstate == "57P02" ||
+      sqlstate == "57P03" || sqlstate == "55P03" || sqlstate == "53300") {
+    return absl::StatusCode::kUnavailable;
+  }
+  if (sqlstate == "40001" || sqlstate == "40P01") {
+    return absl::StatusCode::kAborted;
+  }
+  if (sqlstate == "23505") return absl::StatusCode::kAlreadyExists;
+  if (klass == "23") return absl::StatusCode::kFailedPrecondition;
+  if (klass == "53") return absl::StatusCode::kResourceExhausted;
+  if (klass == "22") return absl::StatusCode::kInvalidArgument;
+  if (sqlstate == "57014") return absl::StatusCode::kDeadlineExceeded;
+  if (klass == "XX" && sqlstate != "XX000") return absl::StatusCode::kDataLoss;
+  return absl::StatusCode::kInternal;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// Params
+
+Params& Params::Add(unsigned int type, std::string bytes, bool null) {
+  lengths_.push_back(static_cast<int>(bytes.size()));
+  storage_.push_back(std::move(bytes));
+  nulls_.push_back(null);
+  types_.push_back(type);
+  formats_.push_back(1);
+  return *this;
+}
+
+Params& Params::Int64(int64_t value) {
+  return Add(kInt8Oid, BigEndian(static_cast<uint64_t>(value)));
+}
+
+Params& Params::Double(double value) {
+  uint64_t bits;
+  std::memcpy(&bits, &value, sizeof(bits));
+  return Add(kFloat8Oid, BigEndian(bits));
+}
+
+Params& Params::Bool(bool value) {
+  return Add(kBoolOid, std::string(1, value ? '\1' : '\0'));
+}
+
+Params& Params::Text(absl::string_view value) {
+  return Add(kTextOid, std::string(value));
+}
+
+Params& Params::Bytes(absl::string_view value) {
+  return Add(kByteaOid, std::string(value));
+}
+
+Params& Params::NullBytes() { return Add(kByteaOid, std::string(), true); }
+
+std::vector<const char*> Params::values() const {
+  std::vector<const char*> out(storage_.size());
+  for (size_t i = 0; i < storage_.size(); ++i) {
+    // An empty value must still be a non-null pointer, or it reads as NULL.
+    out[i] = nulls_[i] ? nullptr : storage_[i].data();
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------------------
+// Rows
+
+Rows::Rows(pg_result* result) : result_(result) {}
+Rows::Rows(Rows&& other) noexcept
+    : result_(std::exchange(other.result_, nullptr)), row_(other.row_) {}
+Rows::~Rows() { PQclear(result_); }
+
+int Rows::size() const { return PQntuples(result_); }
+
+int64_t Rows::affected() const {
+  const char* tuples = PQcmdTuples(result_);
+  return tuples == nullptr || *tuples == '\0' ? 0 : std::atoll(tuples);
+}
+
+bool Rows::Next() { return ++row_ < PQntuples(result_); }
+
+bool Rows::IsNull(int col) const {
+  return PQgetisnull(result_, row_, col) != 0;
+}
+
+int64_t Rows::Int64(int col) const {
+  if (IsNull(col)) return 0;
+  const int length = PQgetlength(result_, row_, col);
+  const char* data = PQgetvalue(result_, row_, col);
+  const uint64_t bits = FromBigEndian(data, length);
+  switch (length) {
+    case 1:
+      return static_cast<int64_t>(bits);
+    case 2:
+      return static_cast<int16_t>(bits);
+    case 4:
+      return static_cast<int32_t>(bits);
+    case 8:
+      return static_cast<int64_t>(bits);
+    default:
+      return 0;
+  }
+}
+
+double Rows::Double(int col) const {
+  if (IsNull(col) || PQgetlength(result_, row_, col) != 8) return 0.0;
+  const uint64_t bits = FromBigEndian(PQgetvalue(result_, row_, col), 8);
+  double value;
+  std::memcpy(&value, &bits, sizeof(value));
+  return value;
+}
+
+std::string Rows::Text(int col) const { return std::string(Blob(col)); }
+
+absl::string_view Rows::Blob(int col) const {
+  if (IsNull(col)) return absl::string_view();
+  return absl::string_view(
+      PQgetvalue(result_, row_, col),
+      static_cast<size_t>(PQgetlength(result_, row_, col)));
+}
+
+// ---------------------------------------------------------------------------
+// Connection
+
+absl::StatusOr<std::unique_ptr<Connection>> Connection::Open(
+    const std::string& conninfo) {
+  // Defaults first: the connection string, expanded in dbname's place,
+  // overrides them.
+  const char* keywords[] = {"connect_timeout", "application_name", "dbname",
+                            nullptr};
+  const char* values[] = {"5", "bitewise-bandit", conninfo.c_str(), nullptr};
+  pg_conn* raw = PQconnectdbParams(keywords, values, /*expand_dbname=*/1);
+  if (raw == nullptr) {
+    return absl::ResourceExhaustedError("libpq could not allocate");
+  }
+  std::unique_ptr<Connection> conn(new Connection(raw, conninfo));
+  if (PQstatus(raw) != CONNECTION_OK) {
+    return absl::UnavailableError(
+        absl::StrCat("PostgreSQL ", conn->description(),
+                     " is unavailable: ", Trimmed(PQerrorMessage(raw))));
+  }
+  conn->Describe();
+  RETURN_IF_ERROR(conn->ExecScript(
+      "SET synchronous_commit = on; SET client_min_messages = warning",
+      "connecting"));
+  return conn;
+}
+
+Connection::Connection(pg_conn* conn, std::string conninfo)
+    : conn_(conn), conninfo_(std::move(conninfo)) {
+  Describe();
+}
+
+Connection::~Connection() { PQfinish(conn_); }
+
+void Connection::Describe() {
+  const char* db = PQdb(conn_);
+  const char* host = PQhost(conn_);
+  const char* port = PQport(conn_);
+  description_ = absl::StrCat("database \"", db == nullptr ? "" : db, "\" at ",
+                              host == nullptr ? "" : host, ":",
+                              port == nullptr ? "" : port);
+}
+
+bool Connection::broken() const { return PQstatus(conn_) != CONNECTION_OK; }
+
+bool Connection::in_transaction() const {
+  const PGTransactionStatusType status = PQtransactionStatus(conn_);
+  return status == PQTRANS_INTRANS || status == PQTRANS_INERROR ||
+         status == PQTRANS_ACTIVE;
+}
+
+bool Connection::transaction_failed() const {
+  return PQtransactionStatus(conn_) == PQTRANS_INERROR;
+}
+
+absl::Status Connection::Reconnect() {
+  PQreset(conn_);
+  prepared_.clear();
+  if (PQstatus(conn_) != CONNECTION_OK) {
+    return absl::UnavailableError(
+        absl::StrCat("PostgreSQL ", description_,
+                     " is unavailable: ", Trimmed(PQerrorMessage(conn_))));
+  }
+  return ExecScript(
+      "SET synchronous_commit = on; SET client_min_messages = warning",
+      "reconnecting");
+}
+
+absl::Status Connection::Error(pg_result* result, absl::string_view op) const {
+  if (result == nullptr || PQstatus(conn_) != CONNECTION_OK) {
+    return absl::UnavailableError(
+        absl::StrCat("PostgreSQL ", description_, " is unavailable (", op,
+                     "): ", Trimmed(PQerrorMessage(conn_))));
+  }
+  const char* state = PQresultErrorField(result, PG_DIAG_SQLSTATE);
+  const std::string sqlstate = state == nullptr ? "" : state;
+  const absl::StatusCode code = CodeFor(sqlstate);
+  const std::string message =
+      Trimmed(PQresultErrorField(result, PG_DIAG_MESSAGE_PRIMARY));
+  if (code == absl::StatusCode::kUnavailable) {
+    return absl::UnavailableError(
+        absl::StrCat("PostgreSQL ", description_, " is unavailable (", op,
+                     "): ", message, " (SQLSTATE ", sqlstate, ")"));
+  }
+  return absl::Status(
+      code, absl::StrCat(op, ": PostgreSQL ", description_, ": ", message,
+                         " (SQLSTATE ", sqlstate, ")"));
+}
+
+absl::StatusOr<Rows> Connection::Exec(absl::string_view sql,
+                                      const Params& params,
+                                      absl::string_view op) {
+  if (broken()) return Error(nullptr, op);
+  auto found = prepared_.find(sql);
+  if (found == prepared_.end()) {
+    std::string name = absl::StrCat("bw", prepared_.size());
+    Rows prepared(PQprepare(conn_, name.c_str(), std::string(sql).c_str(),
+                            params.size(), params.types()));
+    if (PQresultStatus(prepared.result_) != PGRES_COMMAND_OK) {
+      return Error(prepared.result_, op);
+    }
+    found = prepared_.emplace(std::string(sql), std::move(name)).first;
+  }
+  const std::vector<const char*> values = params.values();
+  Rows rows(PQexecPrepared(conn_, found->second.c_str(), params.size(),
+                           values.data(), params.lengths(), params.formats(),
+                           /*resultFormat=*/1));
+  const ExecStatusType status = PQresultStatus(rows.result_);
+  if (rows.result_ == nullptr ||
+      (status != PGRES_TUPLES_OK && status != PGRES_COMMAND_OK)) {
+    return Error(rows.result_, op);
+  }
+  return rows;
+}
+
+absl::Status Connection::ExecScript(absl::string_view sql,
+                                    absl::string_view op) {
+  if (broken()) return Error(nullptr, op);
+  Rows rows(PQexec(conn_, std::string(sql).c_str()));
+  const ExecStatusType status = PQresultStatus(rows.result_);
+  if (rows.result_ == nullptr ||
+      (status != PGRES_TUPLES_OK && status != PGRES_COMMAND_OK)) {
+    return Error(rows.result_, op);
+  }
+  return absl::OkStatus();
+}
+
+// ---------------------------------------------------------------------------
+// Pool
+
+absl::StatusOr<std::unique_ptr<Pool>> Pool::Open(const std::string& conninfo,
+                                                 int size) {
+  auto pool = std::make_unique<Pool>();
+  for (int i = 0; i < std::max(size, 1); ++i) {
+    ASSIGN_OR_RETURN(std::unique_ptr<Connection> conn,
+                     Connection::Open(conninfo));
+    pool->description_ = conn->description();
+    pool->all_.push_back(std::move(conn));
+  }
+  absl::MutexLock lock(&pool->mu_);
+  for (const auto& conn : pool->all_) pool->free_.push_back(conn.get());
+  return pool;
+}
+
+absl::StatusOr<Pool::Lease> Pool::Acquire(absl::string_view op) {
+  Connection* conn = nullptr;
+  {
+    absl::MutexLock lock(&mu_);
+    mu_.Await(absl::Condition(
+        +[](std::vector<Connection*>* free) { return !free->empty(); },
+        &free_));
+    conn = free_.back();
+    free_.pop_back();
+  }
+  Lease lease(this, conn);
+  if (conn->broken()) {
+    absl::Status restored = conn->Reconnect();
+    if (!restored.ok()) {
+      return absl::UnavailableError(
+          absl::StrCat(restored.message(), " (", op, ")"));
+    }
+  }
+  return lease;
+}
+
+void Pool::Release(Connection* conn) {
+  absl::MutexLock lock(&mu_);
+  free_.push_back(conn);
+}
+
+// ---------------------------------------------------------------------------
+// Transaction
+
+absl::StatusOr<Transaction> Transaction::Begin(Connection& conn,
+                                               absl::string_view op,
+                                               absl::string_view mode) {
+  RETURN_IF_ERROR(conn.ExecScript(absl::StrCat("BEGIN ", mode), op));
+  return Transaction(&conn, op);
+}
+
+Transaction::~Transaction() {
+  if (conn_ != nullptr && !conn_->broken() && conn_->in_transaction()) {
+    conn_->ExecScript("ROLLBACK", op_).IgnoreError();
+  }
+}
+
+absl::Status Transaction::Commit() {
+  Connection* conn = std::exchange(conn_, nullptr);
+  if (conn->transaction_failed()) {
+    // COMMIT would only roll it back (and report success).
+    conn->ExecScript("ROLLBACK", op_).IgnoreError();
+    return absl::AbortedError(
+        absl::StrCat(op_, ": the transaction failed and was rolled back"));
+  }
+  absl::Status committed = conn->ExecScript("COMMIT", op_);
+  if (!committed.ok() && conn->broken()) {
+    return absl::UnavailableError(absl::StrCat(
+        committed.message(),
+        "; the connection was lost at COMMIT, so whether it was committed "
+        "is unknown"));
+  }
+  return committed;
+}
+
+}  // namespace bitewise::bandit::pg
