@@ -1647,5 +1647,142 @@ TEST_P(EventStoreTest, ConcurrentWritersKeepCountsRight) {
   }
 }
 
+// What only the PostgreSQL store has: its schema checks against a shared
+// server, and a server that goes away and comes back.
+class PostgresEventStoreTest : public StoreTestBase {
+ protected:
+  Backend backend() const override { return Backend::kPostgres; }
+};
+
+TEST_F(PostgresEventStoreTest, OtherTablesOrVersionsOrNoStoreAreRefused) {
+  const std::string info = conninfo_;
+  // A database of other tables of the same names is not ours to add to.
+  ASSERT_TRUE(server_->CreateDatabase(database_ + "_other").ok());
+  ASSERT_TRUE(server_
+                  ->Query(database_ + "_other",
+                          "CREATE TABLE users (name text); INSERT INTO users "
+                          "VALUES ('someone')")
+                  .ok());
+  PostgresStoreOptions options;
+  options.conninfo = server_->ConnInfo(database_ + "_other");
+  auto foreign = PostgresEventStore::Open(options);
+  EXPECT_EQ(foreign.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(foreign.status().message(),
+              HasSubstr(absl::StrCat("database \"", database_, "_other\"")));
+  EXPECT_EQ(*server_->Query(database_ + "_other",
+                            "SELECT to_regclass('events') IS NULL"),
+            "t");  // untouched
+  // An empty database becomes a store only when asked for.
+  ASSERT_TRUE(server_->CreateDatabase(database_ + "_empty").ok());
+  options.conninfo = server_->ConnInfo(database_ + "_empty");
+  options.create_if_missing = false;
+  auto empty = PostgresEventStore::Open(options);
+  EXPECT_EQ(empty.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(empty.status().message(), HasSubstr("--create"));
+  // A newer schema is refused by version.
+  Raw().Exec("UPDATE bitewise_store SET schema_version = 99");
+  options.conninfo = info;
+  auto newer = PostgresEventStore::Open(options);
+  EXPECT_EQ(newer.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(newer.status().message(), HasSubstr("version 99"));
+  // Nothing listens there: UNAVAILABLE naming where it looked.
+  options.conninfo = absl::StrCat("postgresql:///nothing?host=", dir_,
+                                  "&port=1&connect_timeout=2");
+  auto absent = PostgresEventStore::Open(options);
+  EXPECT_EQ(absent.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(absent.status().message(), HasSubstr("database \"nothing\""));
+  for (const char* suffix : {"_other", "_empty"}) {
+    server_
+        ->Query("postgres", absl::StrCat("DROP DATABASE ", database_, suffix))
+        .IgnoreError();
+  }
+}
+
+TEST_F(PostgresEventStoreTest, TwoStoresOnOneDatabaseOrderEachUsersWrites) {
+  // Two processes' stores (their own connections) completing the same
+  // users' events at once: every completion gets its own model_version.
+  auto other = OpenStore();
+  ASSERT_NE(other, nullptr);
+  constexpr int kUsers = 3;
+  constexpr int kRounds = 30;
+  for (int u = 0; u < kUsers; ++u) {
+    ASSERT_TRUE(store_->CreateUser(MakeUser(absl::StrCat("u", u))).ok());
+  }
+  std::atomic<int> failures{0};
+  std::vector<std::thread> threads;
+  for (EventStore* store : {store_.get(), other.get()}) {
+    for (int u = 0; u < kUsers; ++u) {
+      threads.emplace_back([&, store, u] {
+        for (int i = 0; i < kRounds; ++i) {
+          auto id =
+              store->AppendPending(MakeEvent(absl::StrCat("u", u), "m", i));
+          if (!id.ok() || !store
+                               ->CompleteEvent(*id, 0.0, {1.0, 2.0}, 1.0,
+                                               absl::FromUnixMicros(1))
+                               .ok()) {
+            ++failures;
+          }
+        }
+      });
+    }
+  }
+  for (std::thread& thread : threads) thread.join();
+  EXPECT_EQ(failures.load(), 0);
+  for (int u = 0; u < kUsers; ++u) {
+    auto log = other->CompletedEvents(absl::StrCat("u", u));
+    ASSERT_TRUE(log.ok()) << log.status();
+    ASSERT_EQ(log->size(), size_t{2 * kRounds});
+    for (size_t k = 0; k < log->size(); ++k) {
+      EXPECT_EQ((*log)[k].model_version, static_cast<int64_t>(k) + 1);
+    }
+    EXPECT_EQ(MustGetUser(absl::StrCat("u", u)).model_version, 2 * kRounds);
+  }
+}
+
+TEST_F(PostgresEventStoreTest, AStoppedServerIsUnavailableAndTheStoreRecovers) {
+  // A server of its own, to stop.
+  auto own = testing::TestPostgres::Create();
+  ASSERT_TRUE(own.ok()) << own.status();
+  testing::TestPostgres& server = **own;
+  auto conninfo = server.CreateDatabase("facility");
+  ASSERT_TRUE(conninfo.ok()) << conninfo.status();
+  PostgresStoreOptions options;
+  options.conninfo = *conninfo;
+  options.connections = 2;
+  auto opened = PostgresEventStore::Open(options);
+  ASSERT_TRUE(opened.ok()) << opened.status();
+  PostgresEventStore& store = **opened;
+  ASSERT_TRUE(store.CreateUser(MakeUser("alice")).ok());
+  auto first = store.AppendPending(MakeEvent("alice", "m"));
+  ASSERT_TRUE(first.ok());
+  ASSERT_TRUE(
+      store.CompleteEvent(*first, 0.5, {1.0, 2.0}, 1.0, absl::FromUnixMicros(1))
+          .ok());
+  EXPECT_TRUE(store.CheckHealth().ok());
+
+  ASSERT_TRUE(server.Stop().ok());
+  for (int attempt = 0; attempt < 3; ++attempt) {  // every pooled connection
+    auto down = store.AppendPending(MakeEvent("alice", "m"));
+    EXPECT_EQ(down.status().code(), absl::StatusCode::kUnavailable);
+    EXPECT_THAT(down.status().message(), HasSubstr("database \"facility\""));
+  }
+  const absl::Status health = store.CheckHealth();
+  EXPECT_EQ(health.code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(health.message(), HasSubstr("database \"facility\""));
+
+  // Back, with the same store object: no restart of the service.
+  ASSERT_TRUE(server.Start().ok());
+  EXPECT_TRUE(store.CheckHealth().ok()) << store.CheckHealth();
+  auto second = store.AppendPending(MakeEvent("alice", "m"));
+  ASSERT_TRUE(second.ok()) << second.status();
+  auto done = store.CompleteEvent(*second, 1.0, {1.0, 2.0}, 1.0,
+                                  absl::FromUnixMicros(2));
+  ASSERT_TRUE(done.ok()) << done.status();
+  EXPECT_EQ(done->model_version, 2);  // the first one was kept
+  auto user = store.GetUser("alice");
+  ASSERT_TRUE(user.ok()) << user.status();
+  EXPECT_EQ(user->model_version, 2);
+}
+
 }  // namespace
 }  // namespace bitewise::bandit
