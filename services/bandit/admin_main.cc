@@ -1,7 +1,8 @@
-// bitewise-admin: moves users between BanditService stores, with the
-// service stopped (a store is open in one process at a time).
+// bitewise-admin: moves users between BanditService stores (SQLite files
+// and PostgreSQL databases), with the services on them stopped.
 //
 //   bitewise-admin copy --from=sqlite:old.db --to=sqlite:new.db
+//   bitewise-admin copy --from=lab.db --to=postgresql://bitewise@db/facility
 //   bitewise-admin copy --from=old.db --to=alice.db --user=alice   # export
 //   bitewise-admin copy --from=alice.db --to=new.db --user=alice   # import
 //   bitewise-admin verify --from=old.db --to=new.db [--user=alice]
@@ -22,10 +23,11 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/strip.h"
-#include "services/bandit/store/sqlite_event_store.h"
+#include "services/bandit/store/open_store.h"
 #include "services/bandit/store/store_copy.h"
 
-ABSL_FLAG(std::string, from, "", "The store to read: sqlite:PATH or PATH.");
+ABSL_FLAG(std::string, from, "",
+          "The store to read: sqlite:PATH, PATH or postgresql://...");
 ABSL_FLAG(std::string, to, "",
           "The store to write (copy) or compare with (verify).");
 ABSL_FLAG(std::string, user, "", "Only this user (empty: every user).");
@@ -35,20 +37,15 @@ ABSL_FLAG(double, model_tolerance, 1e-12,
 namespace bitewise::bandit {
 namespace {
 
-absl::StatusOr<std::unique_ptr<SqliteEventStore>> OpenStore(
-    const std::string& spec, bool create) {
+absl::StatusOr<std::unique_ptr<EventStore>> OpenStore(const std::string& spec,
+                                                      bool create) {
   if (spec.empty()) {
     return absl::InvalidArgumentError("--from and --to are required");
   }
-  if (absl::StartsWith(spec, "postgresql://") ||
-      absl::StartsWith(spec, "postgres://")) {
-    return absl::UnimplementedError(
-        absl::StrCat(spec, ": this build has the SQLite store only"));
-  }
-  SqliteStoreOptions options;
-  options.path = std::string(absl::StripPrefix(spec, "sqlite:"));
+  OpenStoreOptions options;
   options.create_if_missing = create;
-  return SqliteEventStore::Open(options);
+  options.postgres_connections = 1;
+  return OpenEventStore(spec, options);
 }
 
 int Run(const std::vector<char*>& args) {
@@ -60,13 +57,13 @@ int Run(const std::vector<char*>& args) {
     return 2;
   }
   const bool copy = std::string(args[1]) == "copy";
-  absl::StatusOr<std::unique_ptr<SqliteEventStore>> from =
+  absl::StatusOr<std::unique_ptr<EventStore>> from =
       OpenStore(absl::GetFlag(FLAGS_from), /*create=*/false);
   if (!from.ok()) {
     std::fprintf(stderr, "--from: %s\n", from.status().ToString().c_str());
     return 2;
   }
-  absl::StatusOr<std::unique_ptr<SqliteEventStore>> to =
+  absl::StatusOr<std::unique_ptr<EventStore>> to =
       OpenStore(absl::GetFlag(FLAGS_to), /*create=*/copy);
   if (!to.ok()) {
     std::fprintf(stderr, "--to: %s\n", to.status().ToString().c_str());

@@ -10,7 +10,7 @@
 #include "absl/strings/str_cat.h"
 #include "services/bandit/bandit_service.h"
 #include "services/bandit/engine.h"
-#include "services/bandit/store/sqlite_event_store.h"
+#include "services/bandit/store/open_store.h"
 #include "services/common/flags_usage.h"
 #include "services/common/metrics.h"
 #include "services/common/readiness_monitor.h"
@@ -18,7 +18,11 @@
 #include "services/common/server_flags.h"
 
 ABSL_FLAG(std::string, db, "bitewise-bandit.db",
-          "SQLite file holding users and event logs (created if missing).");
+          "Where users and event logs are kept: a SQLite file (PATH or "
+          "sqlite:PATH) or a PostgreSQL database (postgresql://USER@HOST/DB, "
+          "password in ~/.pgpass or PGPASSWORD).");
+ABSL_FLAG(int, db_connections, 4,
+          "PostgreSQL: connections kept open to the database.");
 ABSL_FLAG(bool, sqlite_fsync, true,
           "fsync every commit (synchronous=FULL). false still survives a "
           "crash of the process, but not a power loss.");
@@ -112,11 +116,12 @@ int main(int argc, char** argv) {
     return bitewise::ReportFatal(kProgram, "bad flags", defaults.status());
   }
 
-  bitewise::bandit::SqliteStoreOptions store_options;
-  store_options.path = absl::GetFlag(FLAGS_db);
+  bitewise::bandit::OpenStoreOptions store_options;
   store_options.create_if_missing = absl::GetFlag(FLAGS_create);
-  store_options.synchronous_full = absl::GetFlag(FLAGS_sqlite_fsync);
-  auto store = bitewise::bandit::SqliteEventStore::Open(store_options);
+  store_options.sqlite_fsync = absl::GetFlag(FLAGS_sqlite_fsync);
+  store_options.postgres_connections = absl::GetFlag(FLAGS_db_connections);
+  const std::string db = absl::GetFlag(FLAGS_db);
+  auto store = bitewise::bandit::OpenEventStore(db, store_options);
   if (!store.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot open the event store",
                                  store.status());
@@ -244,14 +249,15 @@ int main(int argc, char** argv) {
     return bitewise::ReportFatal(kProgram, "cannot start the server",
                                  server.status());
   }
-  // Ready while the store can durably accept writes (its file is still the
-  // one opened).
+  // Ready while the store can durably accept writes (SQLite: its file is
+  // still the one opened; PostgreSQL: the server answers and is no standby).
   bitewise::ReadinessMonitor readiness(
       [s = store->get()] { return s->CheckHealth().ok(); },
       [srv = server->get()](bool serving) { srv->SetServing(serving); },
       /*period_s=*/0.5);
   std::fprintf(stderr, "bitewise-bandit: serving on %s (db %s)\n",
-               (*server)->description().c_str(), store_options.path.c_str());
+               (*server)->description().c_str(),
+               bitewise::bandit::DescribeStoreSpec(db).c_str());
   std::fflush(stderr);
   absl::Status status = bitewise::RunUntilSignal(**server);
   if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);

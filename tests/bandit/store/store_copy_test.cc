@@ -1,7 +1,8 @@
-// Copying users between real SQLite stores (services/bandit/store/
-// store_copy.h) and the bitewise-admin binary: a round trip of 20 users
-// equals the original event for event and model for model; one user
-// exported and imported alone; a damaged copy is found and named.
+// Copying users between real stores (services/bandit/store/store_copy.h)
+// and the bitewise-admin binary: a round trip of 20 users, SQLite to SQLite
+// and SQLite to PostgreSQL (a real server the test starts) and back, equals
+// the original event for event and model for model; one user exported and
+// imported alone; a damaged copy is found and named.
 #include "services/bandit/store/store_copy.h"
 
 #include <stdlib.h>
@@ -17,8 +18,10 @@
 #include "absl/time/time.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/bandit/store/postgres_event_store.h"
 #include "services/bandit/store/sqlite_event_store.h"
 #include "tests/common/child_process.h"
+#include "tests/common/postgres_server.h"
 
 namespace bitewise::bandit {
 namespace {
@@ -101,6 +104,28 @@ class StoreCopyTest : public ::testing::Test {
     }
   }
 
+  // A new database on the test's PostgreSQL server, and its URI.
+  std::string NewPostgresDatabase(const std::string& name) {
+    testing::TestPostgres* server = testing::SharedTestPostgres();
+    if (server == nullptr) return "";
+    absl::StatusOr<std::string> conninfo = server->CreateDatabase(name);
+    EXPECT_TRUE(conninfo.ok()) << conninfo.status();
+    return conninfo.ok() ? *conninfo : "";
+  }
+
+  // The admin binary's exit code, and its output in `log`.
+  int RunAdmin(const std::vector<std::string>& args, std::string* log) {
+    testing::ChildProcess child;
+    std::vector<std::string> argv = {BITEWISE_ADMIN_BINARY};
+    argv.insert(argv.end(), args.begin(), args.end());
+    const std::string log_path = dir_ + "/admin.log";
+    std::filesystem::remove(log_path);
+    EXPECT_TRUE(child.Start(argv, log_path).ok());
+    absl::StatusOr<int> status = child.Wait(absl::Seconds(60));
+    *log = child.log();
+    return status.ok() && WIFEXITED(*status) ? WEXITSTATUS(*status) : -1;
+  }
+
   std::string dir_;
 };
 
@@ -128,6 +153,34 @@ TEST_F(StoreCopyTest, RoundTripOfTwentyUsersEqualsTheOriginal) {
   // Copying again into a store that has the users is refused, naming one.
   absl::StatusOr<CopyReport> again = CopyUsers(*original, *back);
   EXPECT_EQ(again.status().code(), absl::StatusCode::kAlreadyExists);
+}
+
+// The measure of moving between stores: SQLite -> PostgreSQL ->
+// SQLite, 20 users, equal to the original.
+TEST_F(StoreCopyTest, RoundTripThroughPostgresEqualsTheOriginal) {
+  std::unique_ptr<SqliteEventStore> original = Open("original");
+  ASSERT_NE(original, nullptr);
+  Fill(*original, 20);
+  PostgresStoreOptions options;
+  options.conninfo = NewPostgresDatabase("copy_round_trip");
+  auto there = PostgresEventStore::Open(options);
+  ASSERT_TRUE(there.ok()) << there.status();
+  absl::StatusOr<CopyReport> out = CopyUsers(*original, **there);
+  ASSERT_TRUE(out.ok()) << out.status();
+  EXPECT_EQ(out->users, 20);
+  std::unique_ptr<SqliteEventStore> back = Open("back");
+  absl::StatusOr<CopyReport> in = CopyUsers(**there, *back);
+  ASSERT_TRUE(in.ok()) << in.status();
+  EXPECT_EQ(in->events, out->events);
+  for (EventStore* copy : {static_cast<EventStore*>(there->get()),
+                           static_cast<EventStore*>(back.get())}) {
+    absl::StatusOr<VerifyReport> verified = VerifyCopy(*original, *copy);
+    ASSERT_TRUE(verified.ok()) << verified.status();
+    EXPECT_THAT(verified->differences, IsEmpty());
+    EXPECT_EQ(verified->users, 20);
+    EXPECT_EQ(verified->events, out->events);
+    EXPECT_LE(verified->worst_model_difference, 1e-12);
+  }
 }
 
 TEST_F(StoreCopyTest, OneUserExportedAndImported) {
@@ -188,15 +241,7 @@ TEST_F(StoreCopyTest, AdminBinaryCopiesAndVerifies) {
     Fill(*original, 4);
   }
   auto run = [&](const std::vector<std::string>& args, std::string* log) {
-    testing::ChildProcess child;
-    std::vector<std::string> argv = {BITEWISE_ADMIN_BINARY};
-    argv.insert(argv.end(), args.begin(), args.end());
-    const std::string log_path = dir_ + "/admin.log";
-    std::filesystem::remove(log_path);
-    EXPECT_TRUE(child.Start(argv, log_path).ok());
-    absl::StatusOr<int> status = child.Wait(absl::Seconds(60));
-    *log = child.log();
-    return status.ok() && WIFEXITED(*status) ? WEXITSTATUS(*status) : -1;
+    return RunAdmin(args, log);
   };
   std::string log;
   EXPECT_EQ(
@@ -226,6 +271,45 @@ TEST_F(StoreCopyTest, AdminBinaryCopiesAndVerifies) {
             2)
       << log;
   EXPECT_THAT(log, HasSubstr(Path("nothere")));
+}
+
+// The binary with a PostgreSQL URI on either side.
+TEST_F(StoreCopyTest, AdminBinaryMovesUsersIntoPostgresAndBack) {
+  {
+    std::unique_ptr<SqliteEventStore> original = Open("original");
+    Fill(*original, 4);
+  }
+  const std::string facility = NewPostgresDatabase("admin_facility");
+  ASSERT_FALSE(facility.empty());
+  std::string log;
+  EXPECT_EQ(RunAdmin({"copy", "--from=" + Path("original"), "--to=" + facility},
+                     &log),
+            0)
+      << log;
+  EXPECT_THAT(log, HasSubstr("copied 4 users"));
+  EXPECT_EQ(RunAdmin({"copy", "--from=" + facility, "--to=" + Path("back"),
+                      "--user=user-1"},
+                     &log),
+            0)
+      << log;
+  EXPECT_EQ(
+      RunAdmin({"verify", "--from=" + Path("original"), "--to=" + facility},
+               &log),
+      0)
+      << log;
+  EXPECT_THAT(log, HasSubstr("equal: 4 users"));
+  EXPECT_EQ(RunAdmin({"verify", "--from=" + Path("original"),
+                      "--to=" + Path("back"), "--user=user-1"},
+                     &log),
+            0)
+      << log;
+  // A database that is not there: exit 2, naming it.
+  EXPECT_EQ(RunAdmin({"verify", "--from=" + Path("original"),
+                      "--to=postgresql:///absent?host=" + dir_ + "&port=1"},
+                     &log),
+            2)
+      << log;
+  EXPECT_THAT(log, HasSubstr("database \"absent\""));
 }
 
 }  // namespace

@@ -1,0 +1,55 @@
+#include "services/bandit/store/open_store.h"
+
+#include <utility>
+
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/strip.h"
+#include "services/bandit/store/postgres_event_store.h"
+#include "services/bandit/store/sqlite_event_store.h"
+
+namespace bitewise::bandit {
+
+bool IsPostgresSpec(const std::string& spec) {
+  return absl::StartsWith(spec, "postgresql://") ||
+         absl::StartsWith(spec, "postgres://");
+}
+
+absl::StatusOr<std::unique_ptr<EventStore>> OpenEventStore(
+    const std::string& spec, const OpenStoreOptions& options) {
+  if (spec.empty()) {
+    return absl::InvalidArgumentError("the store location is empty");
+  }
+  if (IsPostgresSpec(spec)) {
+    PostgresStoreOptions pg;
+    pg.conninfo = spec;
+    pg.connections = options.postgres_connections;
+    pg.create_if_missing = options.create_if_missing;
+    auto store = PostgresEventStore::Open(pg);
+    if (!store.ok()) return store.status();
+    return std::unique_ptr<EventStore>(std::move(store).value());
+  }
+  SqliteStoreOptions sqlite;
+  sqlite.path = std::string(absl::StripPrefix(spec, "sqlite:"));
+  sqlite.create_if_missing = options.create_if_missing;
+  sqlite.synchronous_full = options.sqlite_fsync;
+  auto store = SqliteEventStore::Open(sqlite);
+  if (!store.ok()) return store.status();
+  return std::unique_ptr<EventStore>(std::move(store).value());
+}
+
+std::string DescribeStoreSpec(const std::string& spec) {
+  if (!IsPostgresSpec(spec)) return spec;
+  // postgresql://user:password@host/... : the password goes.
+  const size_t scheme_end = spec.find("://") + 3;
+  const size_t at = spec.find('@', scheme_end);
+  const size_t slash = spec.find('/', scheme_end);
+  if (at == std::string::npos || (slash != std::string::npos && at > slash)) {
+    return spec;
+  }
+  const size_t colon = spec.find(':', scheme_end);
+  if (colon == std::string::npos || colon > at) return spec;
+  return absl::StrCat(spec.substr(0, colon), ":***", spec.substr(at));
+}
+
+}  // namespace bitewise::bandit

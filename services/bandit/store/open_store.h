@@ -1,0 +1,40 @@
+// OpenEventStore: the one place a store location (--db, --from, --to)
+// becomes an EventStore, so the service and bitewise-admin accept the same
+// forms:
+//   postgresql://... or postgres://...  the PostgreSQL store (libpq URI)
+//   sqlite:PATH or PATH                 the SQLite store (a file)
+#ifndef BITEWISE_SERVICES_BANDIT_STORE_OPEN_STORE_H_
+#define BITEWISE_SERVICES_BANDIT_STORE_OPEN_STORE_H_
+
+#include <memory>
+#include <string>
+
+#include "absl/status/statusor.h"
+#include "services/bandit/store/event_store.h"
+
+namespace bitewise::bandit {
+
+struct OpenStoreOptions {
+  // Make a new store where there is none (a missing or empty SQLite file,
+  // a PostgreSQL database without the bitewise tables).
+  bool create_if_missing = false;
+  // SQLite: fsync every commit (synchronous=FULL).
+  bool sqlite_fsync = true;
+  // PostgreSQL: connections kept open.
+  int postgres_connections = 4;
+};
+
+// Whether `spec` names a PostgreSQL store.
+bool IsPostgresSpec(const std::string& spec);
+
+// The store at `spec`, opened (Open's errors of the store it names).
+// INVALID_ARGUMENT for an empty spec.
+absl::StatusOr<std::unique_ptr<EventStore>> OpenEventStore(
+    const std::string& spec, const OpenStoreOptions& options);
+
+// `spec` as it may be logged: a PostgreSQL URI without its password.
+std::string DescribeStoreSpec(const std::string& spec);
+
+}  // namespace bitewise::bandit
+
+#endif  // BITEWISE_SERVICES_BANDIT_STORE_OPEN_STORE_H_
