@@ -1,23 +1,29 @@
 // bandit_service_bench: the BanditService as its clients see it, durable
 // writes included (docs/benchmarks.md, "BanditService over gRPC"). It starts
 // the real bitewise-bandit binary on a fresh SQLite file in a temporary
-// directory (fsync on, as shipped), creates --users post hoc users (d =
+// directory (fsync on, as shipped), or with --store=postgresql on a new
+// database of a PostgreSQL server it starts there (fsync on), creates --users
+// post hoc users (d =
 // --d, q = 4, six actions), plays one Select+Update pair per user to load
 // every model, then runs --clients threads, each with its own connection,
 // doing Select+Update pairs on random users for --seconds. It prints pairs
 // per second, Select and Update latency percentiles, and the bytes the
-// server wrote to storage per pair (/proc/<pid>/io write_bytes: the database
-// and its write-ahead log) against the event's raw size (8 (d + q) bytes of
+// server wrote to storage per pair (SQLite: /proc/<pid>/io write_bytes of
+// the service, the database and its write-ahead log; PostgreSQL: the disk's
+// own count, every process included, so run it on an idle machine) against the event's raw size (8 (d + q) bytes of
 // vectors plus 64 of ids, action, propensity, loss, weight and times).
 //
 //   build/benchmarks/bandit_service_bench                       # d 64, 16
 //   clients build/benchmarks/bandit_service_bench --clients=1
 //   build/benchmarks/bandit_service_bench --d=2048 --users=20 --clients=4
+//   build/benchmarks/bandit_service_bench --store=postgresql
 #include <grpcpp/create_channel.h>
 #include <grpcpp/security/credentials.h>
 #include <grpcpp/support/channel_arguments.h>
 #include <signal.h>
 #include <stdlib.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -29,6 +35,7 @@
 #include <fstream>
 #include <memory>
 #include <random>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -43,6 +50,7 @@
 #include "absl/time/time.h"
 #include "bitewise/v1/bandit.grpc.pb.h"
 #include "tests/common/child_process.h"
+#include "tests/common/postgres_server.h"
 
 ABSL_FLAG(std::string, server, BITEWISE_BANDIT_BINARY,
           "The bitewise-bandit binary to start.");
@@ -51,6 +59,7 @@ ABSL_FLAG(int, d, 64, "Context dimension.");
 ABSL_FLAG(int, clients, 16, "Concurrent clients, one connection each.");
 ABSL_FLAG(double, seconds, 10, "Timed phase.");
 ABSL_FLAG(bool, fsync, true, "The server's --sqlite_fsync.");
+ABSL_FLAG(std::string, store, "sqlite", "sqlite or postgresql.");
 ABSL_FLAG(std::string, server_args, "",
           "Extra flags for the server, space separated.");
 
@@ -79,6 +88,31 @@ int64_t WriteBytes(pid_t pid) {
   int64_t value = 0;
   while (io >> key >> value) {
     if (key == "write_bytes:") return value;
+  }
+  return -1;
+}
+
+// Bytes written to the block device holding `path`, by every process
+// (/proc/diskstats: sectors written, 512 bytes each). PostgreSQL's backends
+// show hundreds of KB of write_bytes per commit in /proc/<pid>/io that
+// never reach the device, so for it the device's own count is used.
+int64_t DeviceWriteBytes(const std::string& path) {
+  struct stat info {};
+  if (stat(path.c_str(), &info) != 0) return -1;
+  std::ifstream stats("/proc/diskstats");
+  unsigned major_id = 0, minor_id = 0;
+  std::string name;
+  std::string line;
+  while (std::getline(stats, line)) {
+    std::istringstream fields(line);
+    fields >> major_id >> minor_id >> name;
+    if (major_id != major(info.st_dev) || minor_id != minor(info.st_dev)) {
+      continue;
+    }
+    int64_t value = 0;
+    for (int field = 4; field <= 10 && fields >> value; ++field) {
+      if (field == 10) return value * 512;
+    }
   }
   return -1;
 }
@@ -153,7 +187,29 @@ int Run() {
     std::perror("mkdtemp");
     return 1;
   }
-  const std::string db = absl::StrCat(dir, "/bench.db");
+  std::string db = absl::StrCat(dir, "/bench.db");
+  const bool postgres = absl::GetFlag(FLAGS_store) == "postgresql";
+  std::unique_ptr<testing::TestPostgres> pg;
+  if (postgres) {
+    absl::StatusOr<std::unique_ptr<testing::TestPostgres>> started =
+        testing::TestPostgres::Create();
+    absl::StatusOr<std::string> conninfo =
+        started.ok() ? (*started)->CreateDatabase("bench")
+                     : absl::StatusOr<std::string>(started.status());
+    if (!conninfo.ok()) {
+      std::fprintf(stderr, "PostgreSQL: %s\n",
+                   conninfo.status().ToString().c_str());
+      return 1;
+    }
+    pg = *std::move(started);
+    db = *conninfo;
+  } else if (absl::GetFlag(FLAGS_store) != "sqlite") {
+    std::fprintf(stderr, "--store: sqlite or postgresql\n");
+    return 1;
+  }
+  auto written_now = [&](pid_t service) {
+    return postgres ? DeviceWriteBytes(pg->dir()) : WriteBytes(service);
+  };
   absl::StatusOr<int> port = testing::PickFreePort();
   if (!port.ok()) {
     std::fprintf(stderr, "%s\n", port.status().ToString().c_str());
@@ -212,7 +268,17 @@ int Run() {
     }
   }
 
-  const int64_t written_before = WriteBytes(server.pid());
+  const int64_t written_before = written_now(server.pid());
+  // PostgreSQL's own count of the WAL it generated (pg_stat_wal).
+  auto wal = [&](const char* column) -> double {
+    if (!postgres) return 0.0;
+    absl::StatusOr<std::string> value = pg->Query(
+        "bench", absl::StrCat("SELECT ", column, " FROM pg_stat_wal"));
+    return value.ok() ? std::atof(value->c_str()) : 0.0;
+  };
+  const double wal_bytes_before = wal("wal_bytes"),
+               wal_fpi_before = wal("wal_fpi"),
+               wal_syncs_before = wal("wal_sync");
   std::vector<Latencies> per_client(clients);
   std::atomic<bool> stop{false};
   std::vector<std::thread> threads;
@@ -233,7 +299,7 @@ int Run() {
   for (std::thread& t : threads) t.join();
   const double seconds =
       std::chrono::duration<double>(Clock::now() - start).count();
-  const int64_t written = WriteBytes(server.pid()) - written_before;
+  const int64_t written = written_now(server.pid()) - written_before;
 
   Latencies all;
   for (const Latencies& l : per_client) {
@@ -247,10 +313,11 @@ int Run() {
   const double pairs = static_cast<double>(all.update_ms.size());
   const double raw = 8.0 * (d + kPostHocDim) + 64;
   std::printf(
-      "d = %d, %d users, %d clients, fsync %s, %.1f s: %.0f pairs, %.0f "
+      "%s, d = %d, %d users, %d clients, fsync %s, %.1f s: %.0f pairs, %.0f "
       "pairs/s, %lld errors\n",
-      d, users, clients, absl::GetFlag(FLAGS_fsync) ? "on" : "off", seconds,
-      pairs, pairs / seconds, static_cast<long long>(all.errors));
+      postgres ? "PostgreSQL" : "SQLite", d, users, clients,
+      postgres || absl::GetFlag(FLAGS_fsync) ? "on" : "off", seconds, pairs,
+      pairs / seconds, static_cast<long long>(all.errors));
   if (all.errors > 0) std::printf("first error: %s\n", all.first_error.c_str());
   std::printf("%-8s %8s %8s %8s %8s\n", "ms", "p50", "p90", "p99", "max");
   for (auto* v : {&all.select_ms, &all.update_ms}) {
@@ -264,6 +331,14 @@ int Run() {
         "written to storage: %.1f KB per pair; the event's raw size %.1f KB: "
         "%.2fx\n",
         written / pairs / 1024.0, raw / 1024.0, written / pairs / raw);
+  }
+  if (postgres && pairs > 0) {
+    std::printf(
+        "PostgreSQL WAL: %.1f KB per pair (%.2f full-page images), %.2f "
+        "WAL syncs per pair\n",
+        (wal("wal_bytes") - wal_bytes_before) / pairs / 1024.0,
+        (wal("wal_fpi") - wal_fpi_before) / pairs,
+        (wal("wal_sync") - wal_syncs_before) / pairs);
   }
   server.SignalAndWait(SIGTERM, absl::Seconds(20)).IgnoreError();
   std::filesystem::remove_all(dir);

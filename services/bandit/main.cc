@@ -21,7 +21,7 @@ ABSL_FLAG(std::string, db, "bitewise-bandit.db",
           "Where users and event logs are kept: a SQLite file (PATH or "
           "sqlite:PATH) or a PostgreSQL database (postgresql://USER@HOST/DB, "
           "password in ~/.pgpass or PGPASSWORD).");
-ABSL_FLAG(int, db_connections, 4,
+ABSL_FLAG(int, db_connections, 8,
           "PostgreSQL: connections kept open to the database.");
 ABSL_FLAG(bool, sqlite_fsync, true,
           "fsync every commit (synchronous=FULL). false still survives a "

@@ -21,7 +21,7 @@ struct OpenStoreOptions {
   // SQLite: fsync every commit (synchronous=FULL).
   bool sqlite_fsync = true;
   // PostgreSQL: connections kept open.
-  int postgres_connections = 4;
+  int postgres_connections = 8;
 };
 
 // Whether `spec` names a PostgreSQL store.
