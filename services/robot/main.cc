@@ -325,6 +325,13 @@ int main(int argc, char** argv) {
         status_value([](const Info& i) {
           return static_cast<double>(i.acquisitions_failed);
         }));
+    bitewise::AddScrapeValues(
+        "bitewise_robot_control_overruns_total",
+        "Control periods that began after their tick had passed (the loop "
+        "or the machine was too slow for the control rate)",
+        ScrapeType::kCounter, status_value([](const Info& i) {
+          return static_cast<double>(i.control_overruns);
+        }));
     bitewise::AddScrapeValues("bitewise_robot_force_limit_trips_total",
                               "Force-limit trips", ScrapeType::kCounter,
                               status_value([](const Info& i) {

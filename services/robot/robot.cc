@@ -215,9 +215,15 @@ class Robot::Run {
     const auto period = std::chrono::duration_cast<Clock::duration>(
         std::chrono::duration<double>(config_.control_period_s));
     next_tick_ += period;
+    // Past its tick already: the last period's work (or a stall of the
+    // machine) took longer than the period. Counted for the operator.
+    const auto now = Clock::now();
+    if (now > next_tick_) {
+      robot_->control_overruns_.fetch_add(1, std::memory_order_relaxed);
+    }
     // A late tick (a loaded machine) starts a new schedule rather than
     // firing a burst of catch-up commands.
-    if (Clock::now() > next_tick_ + period) next_tick_ = Clock::now();
+    if (now > next_tick_ + period) next_tick_ = now;
     {
       std::unique_lock<std::mutex> lock(robot_->mu_);
       robot_->stop_cv_.wait_until(lock, next_tick_,
@@ -425,6 +431,7 @@ RobotStatusInfo Robot::Status() {
   info.acquisitions = acquisitions_;
   info.acquisitions_failed = acquisitions_failed_;
   info.force_limit_trips = force_limit_trips_;
+  info.control_overruns = control_overruns_.load(std::memory_order_relaxed);
   return info;
 }
 

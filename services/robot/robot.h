@@ -13,6 +13,7 @@
 #ifndef BITEWISE_SERVICES_ROBOT_ROBOT_H_
 #define BITEWISE_SERVICES_ROBOT_ROBOT_H_
 
+#include <atomic>
 #include <condition_variable>
 #include <functional>
 #include <mutex>
@@ -124,6 +125,9 @@ struct RobotStatusInfo {
   int64_t acquisitions = 0;
   int64_t acquisitions_failed = 0;
   int64_t force_limit_trips = 0;
+  // Control periods that began after their tick had passed: the previous
+  // period's work, or a stall of the machine, took longer than the period.
+  int64_t control_overruns = 0;
 };
 
 class Robot {
@@ -182,6 +186,7 @@ class Robot {
   int64_t acquisitions_ = 0;
   int64_t acquisitions_failed_ = 0;
   int64_t force_limit_trips_ = 0;
+  std::atomic<int64_t> control_overruns_{0};
 };
 
 }  // namespace bitewise::robot

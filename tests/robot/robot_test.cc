@@ -455,6 +455,27 @@ TEST_F(RobotTest, ACounterThatWrapsIsNotAFault) {
             netft::CounterClockState::kOk);
 }
 
+// A control loop held up past its period is counted (the metric
+// bitewise_robot_control_overruns_total): here the progress callback, which
+// runs on the control thread, stalls it once for five periods.
+TEST_F(RobotTest, AStalledControlLoopIsCountedAsAnOverrun) {
+  Start({"banana"});
+  EXPECT_EQ(backend_->robot().Status().control_overruns, 0);
+  bool stalled = false;
+  absl::StatusOr<AcquireOutcome> outcome = backend_->robot().Acquire(
+      TargetOfItem(0), /*action_index=*/0,
+      [&](const AcquireProgressEvent& event) {
+        if (event.phase == AcquirePhase::kApproach && !stalled) {
+          stalled = true;
+          std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        }
+        return true;
+      });
+  ASSERT_TRUE(outcome.ok()) << outcome.status();
+  ASSERT_TRUE(stalled);
+  EXPECT_GE(backend_->robot().Status().control_overruns, 1);
+}
+
 TEST_F(RobotTest, OneAcquisitionAtATime) {
   Start({"kiwi"});
   std::atomic<bool> approaching{false};
