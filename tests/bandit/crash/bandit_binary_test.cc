@@ -1,8 +1,8 @@
 // End-to-end tests of the real bitewise-bandit binary, started as a child
-// process on a fresh SQLite file: no acknowledged update is lost to SIGKILL,
-// the served estimates agree with the dense float64 reference, SIGTERM
-// drains and exits 0, and bad input gets the documented status codes without
-// touching the model.
+// process on a fresh SQLite file and on a fresh PostgreSQL database: no
+// acknowledged update is lost to SIGKILL, the served estimates agree with
+// the dense float64 reference, SIGTERM drains and exits 0, and bad input
+// gets the documented status codes without touching the model.
 #include <grpcpp/client_context.h>
 #include <signal.h>
 #include <stdlib.h>
@@ -46,6 +46,7 @@
 #include "tests/bandit/dense_reference.h"
 #include "tests/common/child_process.h"
 #include "tests/common/near.h"
+#include "tests/common/postgres_server.h"
 
 namespace bitewise {
 namespace {
@@ -317,7 +318,9 @@ void ExpectModelMatchesReference(
   }
 }
 
-class BanditBinaryTest : public ::testing::Test {
+// Each test runs on a fresh SQLite file and on a fresh database of a
+// PostgreSQL server the test binary starts (tests/common/postgres_server.h).
+class BanditBinaryTest : public ::testing::TestWithParam<std::string> {
  protected:
   void SetUp() override {
     std::string pattern =
@@ -325,7 +328,17 @@ class BanditBinaryTest : public ::testing::Test {
             .string();
     ASSERT_NE(mkdtemp(pattern.data()), nullptr) << std::strerror(errno);
     dir_ = pattern;
-    db_ = dir_ + "/bandit.db";
+    if (GetParam() == "postgresql") {
+      testing::TestPostgres* server = testing::SharedTestPostgres();
+      ASSERT_NE(server, nullptr);
+      static int databases = 0;
+      absl::StatusOr<std::string> conninfo =
+          server->CreateDatabase(absl::StrCat("binary_test_", ++databases));
+      ASSERT_TRUE(conninfo.ok()) << conninfo.status();
+      db_ = *conninfo;
+    } else {
+      db_ = dir_ + "/bandit.db";
+    }
   }
 
   void TearDown() override {
@@ -375,7 +388,13 @@ class BanditBinaryTest : public ::testing::Test {
   ServerProcess server_;
 };
 
-TEST_F(BanditBinaryTest, SigkillLosesNoAcknowledgedUpdate) {
+INSTANTIATE_TEST_SUITE_P(Stores, BanditBinaryTest,
+                         ::testing::Values("sqlite", "postgresql"),
+                         [](const ::testing::TestParamInfo<std::string>& info) {
+                           return info.param;
+                         });
+
+TEST_P(BanditBinaryTest, SigkillLosesNoAcknowledgedUpdate) {
   constexpr char kUser[] = "kill-user";
   constexpr int kDim = 16;
   constexpr int kPostHocDim = 4;
@@ -609,7 +628,7 @@ TEST_F(BanditBinaryTest, SigkillLosesNoAcknowledgedUpdate) {
   EXPECT_EQ(user->pending_events(), 3);
 }
 
-TEST_F(BanditBinaryTest, ServedEstimatesMatchDenseReference) {
+TEST_P(BanditBinaryTest, ServedEstimatesMatchDenseReference) {
   constexpr int kDim = 12;
   constexpr int kPostHocDim = 4;
   // Enough rounds that actions pass d and switch to the primal form.
@@ -708,7 +727,7 @@ TEST_F(BanditBinaryTest, ServedEstimatesMatchDenseReference) {
   }
 }
 
-TEST_F(BanditBinaryTest, SigtermDrainsAndExitsZero) {
+TEST_P(BanditBinaryTest, SigtermDrainsAndExitsZero) {
   absl::Status started = StartServer();
   ASSERT_TRUE(started.ok()) << started;
   ASSERT_TRUE(
@@ -741,7 +760,7 @@ TEST_F(BanditBinaryTest, SigtermDrainsAndExitsZero) {
   EXPECT_EQ(user->model_version(), 1);
 }
 
-TEST_F(BanditBinaryTest, BadInputGetsTheRightStatusAndChangesNothing) {
+TEST_P(BanditBinaryTest, BadInputGetsTheRightStatusAndChangesNothing) {
   constexpr char kUser[] = "bad-input-user";
   constexpr int kDim = 16;
   constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
