@@ -10,8 +10,9 @@
 // per second, Select and Update latency percentiles, and the bytes the
 // server wrote to storage per pair (SQLite: /proc/<pid>/io write_bytes of
 // the service, the database and its write-ahead log; PostgreSQL: the disk's
-// own count, every process included, so run it on an idle machine) against the event's raw size (8 (d + q) bytes of
-// vectors plus 64 of ids, action, propensity, loss, weight and times).
+// own count, every process included, so run it on an idle machine) against the
+// event's raw size (8 (d + q) bytes of vectors plus 64 of ids, action,
+// propensity, loss, weight and times).
 //
 //   build/benchmarks/bandit_service_bench                       # d 64, 16
 //   clients build/benchmarks/bandit_service_bench --clients=1

@@ -89,6 +89,9 @@ absl::Status ChildProcess::Start(const std::vector<std::string>& args,
       (void)!write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
       _exit(126);
     }
+    // The other account may not be allowed into the test's working
+    // directory (PostgreSQL's server changes back into it at start).
+    if (run_as.has_value() && chdir("/") != 0) _exit(126);
     prctl(PR_SET_PDEATHSIG, SIGKILL);
     if (getppid() != parent) _exit(127);
     dup2(null_fd, STDIN_FILENO);

@@ -40,16 +40,27 @@ absl::StatusOr<std::unique_ptr<EventStore>> OpenEventStore(
 
 std::string DescribeStoreSpec(const std::string& spec) {
   if (!IsPostgresSpec(spec)) return spec;
-  // postgresql://user:password@host/... : the password goes.
-  const size_t scheme_end = spec.find("://") + 3;
-  const size_t at = spec.find('@', scheme_end);
-  const size_t slash = spec.find('/', scheme_end);
-  if (at == std::string::npos || (slash != std::string::npos && at > slash)) {
-    return spec;
+  std::string out = spec;
+  // postgresql://user:password@host/...: the password goes.
+  const size_t scheme_end = out.find("://") + 3;
+  const size_t at = out.find('@', scheme_end);
+  const size_t slash = out.find('/', scheme_end);
+  if (at != std::string::npos && (slash == std::string::npos || at < slash)) {
+    const size_t colon = out.find(':', scheme_end);
+    if (colon != std::string::npos && colon < at) {
+      out = absl::StrCat(out.substr(0, colon), ":***", out.substr(at));
+    }
   }
-  const size_t colon = spec.find(':', scheme_end);
-  if (colon == std::string::npos || colon > at) return spec;
-  return absl::StrCat(spec.substr(0, colon), ":***", spec.substr(at));
+  // ...?password=secret&...: so does this one.
+  for (size_t key = out.find("password="); key != std::string::npos;
+       key = out.find("password=", key + 1)) {
+    if (key > 0 && out[key - 1] != '?' && out[key - 1] != '&') continue;
+    const size_t value = key + 9;
+    const size_t end = out.find('&', value);
+    out = absl::StrCat(out.substr(0, value), "***",
+                       end == std::string::npos ? "" : out.substr(end));
+  }
+  return out;
 }
 
 }  // namespace bitewise::bandit

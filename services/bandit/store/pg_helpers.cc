@@ -2,6 +2,8 @@
 
 #include <libpq-fe.h>
 
+#include <algorithm>
+#include <cstdlib>
 #include <cstring>
 #include <utility>
 
@@ -20,6 +22,13 @@ constexpr unsigned int kByteaOid = 17;
 constexpr unsigned int kInt8Oid = 20;
 constexpr unsigned int kTextOid = 25;
 constexpr unsigned int kFloat8Oid = 701;
+
+// Every session: commits wait for the WAL flush whatever the database's
+// default, and a transaction left idle (a stalled client) is ended by the
+// server rather than holding its row locks.
+constexpr char kSessionSetup[] =
+    "SET synchronous_commit = on; SET client_min_messages = warning; "
+    "SET idle_in_transaction_session_timeout = '60s'";
 
 std::string BigEndian(uint64_t bits) {
   std::string out(8, '\0');
@@ -173,9 +182,20 @@ absl::StatusOr<std::unique_ptr<Connection>> Connection::Open(
     const std::string& conninfo) {
   // Defaults first: the connection string, expanded in dbname's place,
   // overrides them.
-  const char* keywords[] = {"connect_timeout", "application_name", "dbname",
+  // TCP keepalives and a user timeout: a server host that dies or a
+  // network that splits fails the call within about 30 s instead of
+  // holding a pooled connection (and a user's row lock) for ever.
+  const char* keywords[] = {"connect_timeout",
+                            "application_name",
+                            "keepalives",
+                            "keepalives_idle",
+                            "keepalives_interval",
+                            "keepalives_count",
+                            "tcp_user_timeout",
+                            "dbname",
                             nullptr};
-  const char* values[] = {"5", "bitewise-bandit", conninfo.c_str(), nullptr};
+  const char* values[] = {"5",     "bitewise-bandit", "1",    "10", "5", "3",
+                          "30000", conninfo.c_str(),  nullptr};
   pg_conn* raw = PQconnectdbParams(keywords, values, /*expand_dbname=*/1);
   if (raw == nullptr) {
     return absl::ResourceExhaustedError("libpq could not allocate");
@@ -187,9 +207,7 @@ absl::StatusOr<std::unique_ptr<Connection>> Connection::Open(
                      " is unavailable: ", Trimmed(PQerrorMessage(raw))));
   }
   conn->Describe();
-  RETURN_IF_ERROR(conn->ExecScript(
-      "SET synchronous_commit = on; SET client_min_messages = warning",
-      "connecting"));
+  RETURN_IF_ERROR(conn->ExecScript(kSessionSetup, "connecting"));
   return conn;
 }
 
@@ -229,9 +247,7 @@ absl::Status Connection::Reconnect() {
         absl::StrCat("PostgreSQL ", description_,
                      " is unavailable: ", Trimmed(PQerrorMessage(conn_))));
   }
-  return ExecScript(
-      "SET synchronous_commit = on; SET client_min_messages = warning",
-      "reconnecting");
+  return ExecScript(kSessionSetup, "reconnecting");
 }
 
 absl::Status Connection::Error(pg_result* result, absl::string_view op) const {
@@ -342,7 +358,15 @@ void Pool::Release(Connection* conn) {
 absl::StatusOr<Transaction> Transaction::Begin(Connection& conn,
                                                absl::string_view op,
                                                absl::string_view mode) {
-  RETURN_IF_ERROR(conn.ExecScript(absl::StrCat("BEGIN ", mode), op));
+  const std::string begin = absl::StrCat("BEGIN ", mode);
+  absl::Status begun = conn.ExecScript(begin, op);
+  if (!begun.ok() && conn.broken()) {
+    // Lost since its last use (a server restart): nothing has run yet, so
+    // one reconnect and retry is safe.
+    RETURN_IF_ERROR(conn.Reconnect());
+    begun = conn.ExecScript(begin, op);
+  }
+  RETURN_IF_ERROR(begun);
   return Transaction(&conn, op);
 }
 

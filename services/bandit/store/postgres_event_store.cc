@@ -122,10 +122,14 @@ CREATE TABLE audit (
   peer text NOT NULL,
   result text NOT NULL
 );
+-- A checkpoint's chunks are written under a write id of their own, never
+-- over another write's, and the header (written last) names its write.
+CREATE SEQUENCE checkpoint_writes;
 CREATE TABLE model_checkpoints (
   user_id text COLLATE "C" PRIMARY KEY REFERENCES users (user_id) ON DELETE CASCADE,
   model_version bigint NOT NULL CHECK (model_version > 0),
   last_event_id bigint NOT NULL,
+  write_id bigint NOT NULL,
   state_bytes bigint NOT NULL,
   chunks bigint NOT NULL,
   checksum bigint NOT NULL,
@@ -133,10 +137,10 @@ CREATE TABLE model_checkpoints (
 );
 CREATE TABLE model_checkpoint_chunks (
   user_id text COLLATE "C" NOT NULL REFERENCES users (user_id) ON DELETE CASCADE,
-  model_version bigint NOT NULL,
+  write_id bigint NOT NULL,
   seq bigint NOT NULL,
   data bytea NOT NULL,
-  PRIMARY KEY (user_id, model_version, seq)
+  PRIMARY KEY (user_id, write_id, seq)
 );
 ALTER TABLE model_checkpoint_chunks ALTER COLUMN data SET STORAGE EXTERNAL;
 )sql";
@@ -233,13 +237,13 @@ absl::StatusOr<ModelCheckpoint> ReadCheckpoint(Connection& conn,
                                                const std::string& user_id) {
   constexpr char kOp[] = "GetCheckpoint";
   ModelCheckpoint out;
-  int64_t bytes = 0, chunks = 0, checksum = 0;
+  int64_t bytes = 0, chunks = 0, checksum = 0, write_id = 0;
   {
     ASSIGN_OR_RETURN(
         Rows rows,
         conn.Exec("SELECT model_version, last_event_id, state_bytes, chunks, "
-                  "checksum, created_at_us FROM model_checkpoints WHERE "
-                  "user_id = $1",
+                  "checksum, created_at_us, write_id FROM model_checkpoints "
+                  "WHERE user_id = $1",
                   Params().Text(user_id), kOp));
     if (!rows.Next()) {
       return absl::NotFoundError(
@@ -251,17 +255,17 @@ absl::StatusOr<ModelCheckpoint> ReadCheckpoint(Connection& conn,
     chunks = rows.Int64(3);
     checksum = rows.Int64(4);
     out.created_at = FromMicros(rows.Int64(5));
+    write_id = rows.Int64(6);
   }
   int64_t expected_seq = 0;
   // One chunk per statement: a whole checkpoint is hundreds of MB.
   for (; expected_seq < chunks; ++expected_seq) {
     ASSIGN_OR_RETURN(
         Rows rows,
-        conn.Exec(
-            "SELECT data FROM model_checkpoint_chunks WHERE user_id = "
-            "$1 AND model_version = $2 AND seq = $3",
-            Params().Text(user_id).Int64(out.model_version).Int64(expected_seq),
-            kOp));
+        conn.Exec("SELECT data FROM model_checkpoint_chunks WHERE user_id = "
+                  "$1 AND write_id = $2 AND seq = $3",
+                  Params().Text(user_id).Int64(write_id).Int64(expected_seq),
+                  kOp));
     if (!rows.Next()) break;
     const absl::string_view data = rows.Blob(0);
     if (out.state.empty() && bytes > 0) {
@@ -778,26 +782,33 @@ absl::Status PostgresEventStore::PutCheckpoint(
   const int64_t chunks = static_cast<int64_t>(
       (state.size() + kCheckpointChunkBytes - 1) / kCheckpointChunkBytes);
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
-  // The chunks first, each its own transaction (one statement).
+  int64_t write_id = 0;
+  {
+    ASSIGN_OR_RETURN(Rows rows,
+                     conn->Exec("SELECT nextval('checkpoint_writes')", kOp));
+    if (!rows.Next()) return absl::InternalError("PutCheckpoint: no write id");
+    write_id = rows.Int64(0);
+  }
+  // The chunks first, each its own transaction (one statement), under this
+  // write's own id: nothing another write reads is overwritten.
   for (int64_t seq = 0; seq < chunks; ++seq) {
-    ASSIGN_OR_RETURN(
-        Rows rows,
-        conn->Exec("INSERT INTO model_checkpoint_chunks (user_id, "
-                   "model_version, seq, data) SELECT $1, $2, $3, $4 WHERE "
-                   "EXISTS (SELECT 1 FROM users WHERE user_id = $1) ON "
-                   "CONFLICT (user_id, model_version, seq) DO UPDATE SET "
-                   "data = EXCLUDED.data RETURNING seq",
-                   Params()
-                       .Text(user_id)
-                       .Int64(checkpoint.model_version)
-                       .Int64(seq)
-                       .Bytes(state.substr(seq * kCheckpointChunkBytes,
-                                           kCheckpointChunkBytes)),
-                   kOp));
-    if (rows.size() == 0) return UserNotFound(user_id);
+    absl::Status written =
+        conn->Exec(
+                "INSERT INTO model_checkpoint_chunks (user_id, write_id, "
+                "seq, data) VALUES ($1, $2, $3, $4)",
+                Params().Text(user_id).Int64(write_id).Int64(seq).Bytes(
+                    state.substr(seq * kCheckpointChunkBytes,
+                                 kCheckpointChunkBytes)),
+                kOp)
+            .status();
+    // The foreign key: the user is unknown (or was deleted meanwhile).
+    if (absl::IsFailedPrecondition(written)) return UserNotFound(user_id);
+    RETURN_IF_ERROR(written);
   }
   // Then the header, under the user's lock, if the log still has this
-  // event at this version; the older checkpoint's chunks go.
+  // event at this version and every chunk of this write is still there
+  // (a concurrent checkpoint or delete removes chunks it does not keep);
+  // the chunks of every other write go.
   ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp));
   RETURN_IF_ERROR(LockUser(*conn, user_id, kOp));
   ASSIGN_OR_RETURN(
@@ -810,21 +821,30 @@ absl::Status PostgresEventStore::PutCheckpoint(
                      .Int64(checkpoint.last_event_id),
                  kOp));
   const bool is_current = current.size() > 0;
-  if (is_current) {
+  ASSIGN_OR_RETURN(
+      Rows stored,
+      conn->Exec("SELECT count(*), coalesce(sum(length(data)), 0) FROM "
+                 "model_checkpoint_chunks WHERE user_id = $1 AND write_id = $2",
+                 Params().Text(user_id).Int64(write_id), kOp));
+  stored.Next();
+  const bool complete = stored.Int64(0) == chunks &&
+                        stored.Int64(1) == static_cast<int64_t>(state.size());
+  if (is_current && complete) {
     RETURN_IF_ERROR(
         conn->Exec("INSERT INTO model_checkpoints (user_id, model_version, "
-                   "last_event_id, state_bytes, chunks, checksum, "
-                   "created_at_us) VALUES ($1, $2, $3, $4, $5, $6, $7) ON "
-                   "CONFLICT (user_id) DO UPDATE SET model_version = "
+                   "last_event_id, write_id, state_bytes, chunks, checksum, "
+                   "created_at_us) VALUES ($1, $2, $3, $4, $5, $6, $7, $8) "
+                   "ON CONFLICT (user_id) DO UPDATE SET model_version = "
                    "EXCLUDED.model_version, last_event_id = "
-                   "EXCLUDED.last_event_id, state_bytes = "
-                   "EXCLUDED.state_bytes, chunks = EXCLUDED.chunks, checksum "
-                   "= EXCLUDED.checksum, created_at_us = "
-                   "EXCLUDED.created_at_us",
+                   "EXCLUDED.last_event_id, write_id = EXCLUDED.write_id, "
+                   "state_bytes = EXCLUDED.state_bytes, chunks = "
+                   "EXCLUDED.chunks, checksum = EXCLUDED.checksum, "
+                   "created_at_us = EXCLUDED.created_at_us",
                    Params()
                        .Text(user_id)
                        .Int64(checkpoint.model_version)
                        .Int64(checkpoint.last_event_id)
+                       .Int64(write_id)
                        .Int64(static_cast<int64_t>(state.size()))
                        .Int64(chunks)
                        .Int64(BlobChecksum(state))
@@ -836,10 +856,16 @@ absl::Status PostgresEventStore::PutCheckpoint(
   RETURN_IF_ERROR(
       conn->Exec("DELETE FROM model_checkpoint_chunks c WHERE c.user_id = $1 "
                  "AND NOT EXISTS (SELECT 1 FROM model_checkpoints h WHERE "
-                 "h.user_id = $1 AND h.model_version = c.model_version)",
+                 "h.user_id = $1 AND h.write_id = c.write_id)",
                  Params().Text(user_id), kOp)
           .status());
   RETURN_IF_ERROR(txn.Commit());
+  if (is_current && !complete) {
+    return absl::AbortedError(absl::StrCat(
+        "checkpoint of user ", user_id, " at model version ",
+        checkpoint.model_version,
+        ": a concurrent checkpoint or delete removed its chunks; not kept"));
+  }
   if (!is_current) {
     return absl::FailedPreconditionError(absl::StrCat(
         "checkpoint of user ", user_id, " at model version ",
@@ -1028,6 +1054,9 @@ absl::StatusOr<StoreCheckReport> PostgresEventStore::CheckStore() {
     while (users.Next()) {
       ++report.users_checked;
       absl::StatusOr<UserRecord> user = ReadUser(*conn, users);
+      if (!user.ok() && !absl::IsDataLoss(user.status())) {
+        return user.status();  // the check could not run
+      }
       if (!user.ok()) {
         note(user.status());
       } else if (absl::Status valid = ValidateConfig(user->config);
@@ -1061,6 +1090,9 @@ absl::StatusOr<StoreCheckReport> PostgresEventStore::CheckStore() {
     for (const std::string& user_id : with_checkpoint) {
       absl::StatusOr<ModelCheckpoint> checkpoint =
           ReadCheckpoint(*conn, user_id);
+      if (!checkpoint.ok() && !absl::IsDataLoss(checkpoint.status())) {
+        return checkpoint.status();
+      }
       if (!checkpoint.ok()) {
         note(absl::DataLossError(absl::StrCat(
             checkpoint.status().message(),

@@ -19,8 +19,9 @@
 //
 // Differences from the SQLite store:
 //  - Strings (user ids, meals, labels, action names, audit fields) must be
-//    valid UTF-8 without NUL bytes: INVALID_ARGUMENT naming the field
-//    otherwise. The gRPC API already requires valid UTF-8.
+//    valid UTF-8 without NUL bytes: INVALID_ARGUMENT with the server's
+//    message (the invalid byte sequence) otherwise. The gRPC API already
+//    requires valid UTF-8.
 //  - A lost server is UNAVAILABLE naming the database; each connection is
 //    re-established at its next use, so the service recovers when the
 //    server returns, without a restart. If the connection is lost at

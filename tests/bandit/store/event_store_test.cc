@@ -29,6 +29,7 @@
 #include "absl/time/time.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/bandit/store/open_store.h"
 #include "services/bandit/store/postgres_event_store.h"
 #include "services/bandit/store/sqlite_event_store.h"
 #include "tests/common/postgres_server.h"
@@ -1782,6 +1783,26 @@ TEST_F(PostgresEventStoreTest, AStoppedServerIsUnavailableAndTheStoreRecovers) {
   auto user = store.GetUser("alice");
   ASSERT_TRUE(user.ok()) << user.status();
   EXPECT_EQ(user->model_version, 2);
+}
+
+}  // namespace
+}  // namespace bitewise::bandit
+
+namespace bitewise::bandit {
+namespace {
+
+TEST(OpenStoreTest, LoggedLocationsHideThePassword) {
+  EXPECT_EQ(DescribeStoreSpec("postgresql://bw:secret@db:5432/bitewise"),
+            "postgresql://bw:***@db:5432/bitewise");
+  EXPECT_EQ(DescribeStoreSpec("postgres://db/bitewise?password=secret&"
+                              "sslmode=verify-full"),
+            "postgres://db/bitewise?password=***&sslmode=verify-full");
+  EXPECT_EQ(DescribeStoreSpec("postgresql://bw@db/bitewise"),
+            "postgresql://bw@db/bitewise");
+  EXPECT_EQ(DescribeStoreSpec("sqlite:/var/lib/bitewise/bandit.db"),
+            "sqlite:/var/lib/bitewise/bandit.db");
+  EXPECT_TRUE(IsPostgresSpec("postgres://db/x"));
+  EXPECT_FALSE(IsPostgresSpec("bandit.db"));
 }
 
 }  // namespace
