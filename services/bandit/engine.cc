@@ -249,6 +249,63 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
   return absl::OkStatus();
 }
 
+absl::StatusOr<std::unique_ptr<UserLock>> BanditEngine::Enter(
+    const std::string& user_id, UserSlot& slot) {
+  if (!store_->shared()) {
+    RETURN_IF_ERROR(EnsureLoaded(user_id, slot));
+    return std::unique_ptr<UserLock>();
+  }
+  ASSIGN_OR_RETURN(std::unique_ptr<UserLock> lock,
+                   store_->LockUserAcrossProcesses(user_id));
+  ASSIGN_OR_RETURN(UserRecord record, store_->GetUser(user_id));
+  if (slot.model.has_value() &&
+      (record.incarnation != slot.record.incarnation ||
+       record.model_version < slot.record.model_version)) {
+    Unload(slot);
+    absl::MutexLock cache(&cache_mu_);
+    ++counters_.dropped_stale;
+  }
+  if (slot.model.has_value() &&
+      record.model_version > slot.record.model_version) {
+    ASSIGN_OR_RETURN(
+        std::vector<EventRecord> events,
+        store_->CompletedEventsFrom(user_id, slot.record.model_version + 1));
+    int64_t version = slot.record.model_version;
+    for (EventRecord& event : events) {
+      const int64_t event_id = event.event_id;
+      const int64_t event_version = event.model_version;
+      const Round round = EventRound(std::move(event));
+      // Not the next one (the log moved on meanwhile), or a stored event
+      // the model refuses: start afresh from the log.
+      if (event_version != version + 1) {
+        Unload(slot);
+        break;
+      }
+      if (absl::Status valid = slot.model->ValidateRound(round); !valid.ok()) {
+        Unload(slot);
+        return valid;
+      }
+      slot.model->Update(round, nullptr);
+      version = event_version;
+      slot.last_event_id = event_id;
+    }
+    if (slot.model.has_value()) {
+      // The Select products were of the older model.
+      slot.products_event = 0;
+      slot.products = SelectProducts();
+      record.model_version = version;
+      absl::MutexLock cache(&cache_mu_);
+      counters_.caught_up_events += static_cast<int64_t>(events.size());
+    }
+  }
+  if (slot.model.has_value()) {
+    slot.select_count = record.model_version + record.pending_events;
+    slot.record = std::move(record);
+  }
+  RETURN_IF_ERROR(EnsureLoaded(user_id, slot));
+  return lock;
+}
+
 void BanditEngine::Unload(UserSlot& slot) {
   slot.model.reset();
   slot.checkpoint_version = 0;
@@ -441,6 +498,8 @@ absl::StatusOr<PageResult<UserRecord>> BanditEngine::ListUsers(
 absl::StatusOr<UserRecord> BanditEngine::ResetUser(const std::string& user_id) {
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
   absl::MutexLock lock(&slot->mu);
+  ASSIGN_OR_RETURN(const std::unique_ptr<UserLock> shared_lock,
+                   store_->LockUserAcrossProcesses(user_id));
   RETURN_IF_ERROR(store_->ResetUser(user_id));
   Unload(*slot);
   return store_->GetUser(user_id);
@@ -449,6 +508,8 @@ absl::StatusOr<UserRecord> BanditEngine::ResetUser(const std::string& user_id) {
 absl::Status BanditEngine::DeleteUser(const std::string& user_id) {
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
   absl::MutexLock lock(&slot->mu);
+  ASSIGN_OR_RETURN(const std::unique_ptr<UserLock> shared_lock,
+                   store_->LockUserAcrossProcesses(user_id));
   RETURN_IF_ERROR(store_->DeleteUser(user_id));
   Unload(*slot);
   return absl::OkStatus();
@@ -465,7 +526,8 @@ absl::StatusOr<SelectResult> BanditEngine::Select(const SelectInput& input) {
   }
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(input.user_id, false));
   absl::MutexLock lock(&slot->mu);
-  RETURN_IF_ERROR(EnsureLoaded(input.user_id, *slot));
+  ASSIGN_OR_RETURN(const std::unique_ptr<UserLock> shared_lock,
+                   Enter(input.user_id, *slot));
   const LinUcbModel& model = *slot->model;
   RETURN_IF_ERROR(model.ValidateContext(input.context));
 
@@ -506,9 +568,10 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
   ASSIGN_OR_RETURN(const EventRecord found, store_->GetEvent(input.event_id));
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(found.user_id, false));
   absl::MutexLock lock(&slot->mu);
-  // Read again under the user's lock: a concurrent Update may have won.
+  ASSIGN_OR_RETURN(const std::unique_ptr<UserLock> shared_lock,
+                   Enter(found.user_id, *slot));
+  // Read again under the user's lock(s): a concurrent Update may have won.
   ASSIGN_OR_RETURN(const EventRecord event, store_->GetEvent(input.event_id));
-  RETURN_IF_ERROR(EnsureLoaded(event.user_id, *slot));
   LinUcbModel& model = *slot->model;
   // Bad input is an error even on a retry of a completed event.
   RETURN_IF_ERROR(model.ValidateOutcome(input.loss, input.posthoc));
@@ -545,6 +608,14 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
       const EventRecord completed,
       store_->CompleteEvent(event.event_id, round.loss, round.posthoc,
                             round.weight, absl::Now()));
+  if (completed.model_version != slot->record.model_version + 1) {
+    // Another process completed one of the user's events in between (its
+    // lock across processes was lost with a connection): the model is
+    // rebuilt from the log at the next call instead.
+    Unload(*slot);
+    result.model_version = completed.model_version;
+    return result;
+  }
   model.Update(round, slot->products_event == event.event_id ? &slot->products
                                                              : nullptr);
   slot->products_event = 0;
@@ -560,7 +631,8 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
 absl::StatusOr<ModelExport> BanditEngine::GetModel(const std::string& user_id) {
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
   absl::MutexLock lock(&slot->mu);
-  RETURN_IF_ERROR(EnsureLoaded(user_id, *slot));
+  ASSIGN_OR_RETURN(const std::unique_ptr<UserLock> shared_lock,
+                   Enter(user_id, *slot));
   const LinUcbModel& model = *slot->model;
   ModelExport out;
   ASSIGN_OR_RETURN(out.user, store_->GetUser(user_id));

@@ -3,8 +3,10 @@
 // (derived state, rebuilt from the log when loaded), chooses actions, and
 // applies updates exactly once.
 //
-// Thread-safe. Calls for one user are serialised by that user's mutex;
-// different users run in parallel. Every mutation is written to the store
+// Thread-safe. Calls for one user are serialised by that user's mutex
+// (and, when the store is shared by several processes, by the user's lock
+// across processes, EventStore::LockUserAcrossProcesses); different users
+// run in parallel. Every mutation is written to the store
 // before the in-memory model changes, so an acknowledged Update survives a
 // crash and a failed one changes nothing.
 //
@@ -177,6 +179,10 @@ class BanditEngine {
     int64_t checkpoint_loads = 0;     // loads that started from a checkpoint
     int64_t checkpoints_ignored = 0;  // damaged, stale or unreadable ones
     int64_t checkpoints_written = 0;
+    // Shared stores: events another process completed, learned at a
+    // call's start, and cached models dropped for another's reset.
+    int64_t caught_up_events = 0;
+    int64_t dropped_stale = 0;
   };
   CacheCounters Counters() const;
 
@@ -211,6 +217,18 @@ class BanditEngine {
   absl::Status EnsureLoaded(const std::string& user_id, UserSlot& slot)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
   void Unload(UserSlot& slot) ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
+  // The start of every call that reads or changes a user's model: with a
+  // store shared by several processes (replicas), takes the user's lock
+  // across processes (returned; released when destroyed) and brings the
+  // slot up to the log: a model of an older log (another process reset or
+  // recreated the user) is dropped, one behind it learns the events the
+  // others completed, one Update each (as they learned them), and the
+  // select index becomes the log's count of events, so a user's k-th Select
+  // draws the same random numbers whichever process answers. Then loads the
+  // model if it is not loaded.
+  absl::StatusOr<std::unique_ptr<UserLock>> Enter(const std::string& user_id,
+                                                  UserSlot& slot)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
   // Records the slot's size as most recently used and evicts others.
   void Touch(UserSlot& slot) ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
 

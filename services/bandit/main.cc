@@ -188,6 +188,19 @@ int main(int argc, char** argv) {
               {{{"event", "ignored"}},
                static_cast<double>(c.checkpoints_ignored)}};
         });
+    bitewise::AddScrapeValues(
+        "bitewise_bandit_replica_sync_total",
+        "PostgreSQL replicas: events another process completed that this "
+        "one learned at a call's start (caught_up_event), and cached models "
+        "dropped because another process reset or recreated the user "
+        "(dropped_stale)",
+        ScrapeType::kCounter, [e]() -> std::vector<ScrapeValue> {
+          const auto c = e->Counters();
+          return {{{{"event", "caught_up_event"}},
+                   static_cast<double>(c.caught_up_events)},
+                  {{{"event", "dropped_stale"}},
+                   static_cast<double>(c.dropped_stale)}};
+        });
     bitewise::AddScrapeValues("bitewise_bandit_rebuild_seconds_total",
                               "Time spent rebuilding models from the event log",
                               ScrapeType::kCounter,

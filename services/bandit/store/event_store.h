@@ -10,6 +10,7 @@
 #define BITEWISE_SERVICES_BANDIT_STORE_EVENT_STORE_H_
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -31,6 +32,10 @@ struct UserRecord {
   // Number of completed events since creation or the last reset.
   int64_t model_version = 0;
   int64_t pending_events = 0;
+  // Changes whenever the user's log starts over (CreateUser, ResetUser) in
+  // a store several processes share (PostgreSQL), so a process can tell
+  // its cached model belongs to an older log; always 0 in SQLite.
+  int64_t incarnation = 0;
 };
 
 struct EventRecord {
@@ -139,6 +144,13 @@ struct StoreWriteStats {
   double commit_seconds = 0.0;
 };
 
+// A lock on one user held against every process on the same store, for
+// as long as the object lives (EventStore::LockUserAcrossProcesses).
+class UserLock {
+ public:
+  virtual ~UserLock() = default;
+};
+
 class EventStore {
  public:
   virtual ~EventStore() = default;
@@ -204,6 +216,19 @@ class EventStore {
   // OK while the store can durably accept writes; otherwise the reason
   // (for the service's health). Default: always OK.
   virtual absl::Status CheckHealth() { return absl::OkStatus(); }
+
+  // Whether several processes may serve the same users from this store at
+  // once (PostgreSQL replicas). The engine then holds the user's lock
+  // across processes around each call and first brings its cached model up
+  // to the log. Default: no (one process per store).
+  virtual bool shared() const { return false; }
+  // Blocks until this process holds `user_id`'s lock across processes
+  // (UNAVAILABLE if the store cannot be reached). Default: no lock needed
+  // (null).
+  virtual absl::StatusOr<std::unique_ptr<UserLock>> LockUserAcrossProcesses(
+      const std::string& user_id) {
+    return std::unique_ptr<UserLock>();
+  }
 
   // The hot path's write counters (StoreWriteStats). Default: none.
   virtual StoreWriteStats write_stats() const { return {}; }

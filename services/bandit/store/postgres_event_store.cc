@@ -43,6 +43,7 @@ CREATE TABLE bitewise_store (
 );
 -- User ids sort and compare by byte (COLLATE "C"), as in SQLite, whatever
 -- the database's locale.
+CREATE SEQUENCE user_incarnations;
 CREATE TABLE users (
   user_id text COLLATE "C" PRIMARY KEY,
   learner bigint NOT NULL,
@@ -57,7 +58,10 @@ CREATE TABLE users (
   seed bigint NOT NULL,  -- the uint64 seed bit-cast to int64
   created_at_us bigint NOT NULL,
   model_version bigint NOT NULL DEFAULT 0,
-  prior bytea  -- the user's population prior (EncodePrior), NULL: none
+  prior bytea,  -- the user's population prior (EncodePrior), NULL: none
+  -- New at CreateUser and ResetUser: cached models of an older log are
+  -- dropped by every process.
+  incarnation bigint NOT NULL DEFAULT nextval('user_incarnations')
 );
 CREATE TABLE user_actions (
   user_id text COLLATE "C" NOT NULL REFERENCES users (user_id) ON DELETE CASCADE,
@@ -151,7 +155,7 @@ SELECT u.user_id, u.learner, u.strategy, u.alpha, u.lambda_c, u.lambda_p,
        u.seed, u.created_at_us, u.model_version,
        (SELECT COUNT(*) FROM events e
         WHERE e.user_id = u.user_id AND NOT e.completed),
-       u.prior
+       u.prior, u.incarnation
 FROM users u
 )sql";
 
@@ -205,12 +209,16 @@ absl::StatusOr<std::vector<std::string>> ReadActionNames(
 }
 
 absl::StatusOr<UserRecord> ReadUser(Connection& conn, Rows& rows) {
-  return store_rows::ReadUserRow(
-      rows, [&conn](const std::string& user_id, const std::string& what) {
-        return ReadActionNames(conn, "user_actions", "user_id",
-                               Params().Text(user_id), what,
-                               "reading action names");
-      });
+  ASSIGN_OR_RETURN(
+      UserRecord user,
+      store_rows::ReadUserRow(
+          rows, [&conn](const std::string& user_id, const std::string& what) {
+            return ReadActionNames(conn, "user_actions", "user_id",
+                                   Params().Text(user_id), what,
+                                   "reading action names");
+          }));
+  user.incarnation = rows.Int64(15);
+  return user;
 }
 
 // Locks the user's row for the rest of the transaction: every write of a
@@ -369,17 +377,66 @@ absl::StatusOr<std::unique_ptr<PostgresEventStore>> PostgresEventStore::Open(
   }
   ASSIGN_OR_RETURN(std::unique_ptr<pg::Pool> pool,
                    pg::Pool::Open(options.conninfo, options.connections));
+  ASSIGN_OR_RETURN(std::unique_ptr<pg::Pool> lock_pool,
+                   pg::Pool::Open(options.conninfo, options.connections));
   {
     ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool->Acquire("opening the store"));
     RETURN_IF_ERROR(PrepareSchema(*conn, options.create_if_missing));
   }
-  return std::unique_ptr<PostgresEventStore>(
-      new PostgresEventStore(std::move(pool), options.conninfo));
+  return std::unique_ptr<PostgresEventStore>(new PostgresEventStore(
+      std::move(pool), std::move(lock_pool), options.conninfo));
 }
 
 PostgresEventStore::PostgresEventStore(std::unique_ptr<pg::Pool> pool,
+                                       std::unique_ptr<pg::Pool> lock_pool,
                                        std::string conninfo)
-    : pool_(std::move(pool)), conninfo_(std::move(conninfo)) {}
+    : pool_(std::move(pool)),
+      lock_pool_(std::move(lock_pool)),
+      conninfo_(std::move(conninfo)) {}
+
+namespace {
+
+// Holds pg_advisory_lock(key) on its connection until destroyed.
+class AdvisoryUserLock final : public UserLock {
+ public:
+  AdvisoryUserLock(pg::Pool::Lease lease, int64_t key)
+      : lease_(std::move(lease)), key_(key) {}
+  ~AdvisoryUserLock() override {
+    // A lost connection has lost the lock with it.
+    if (!lease_->broken()) {
+      lease_
+          ->Exec("SELECT pg_advisory_unlock($1)", Params().Int64(key_),
+                 "unlocking a user")
+          .IgnoreError();
+    }
+  }
+
+ private:
+  pg::Pool::Lease lease_;
+  const int64_t key_;
+};
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<UserLock>>
+PostgresEventStore::LockUserAcrossProcesses(const std::string& user_id) {
+  constexpr char kOp[] = "locking a user";
+  ASSIGN_OR_RETURN(pg::Pool::Lease lease, lock_pool_->Acquire(kOp));
+  // Two users sharing a key only wait for each other.
+  const int64_t key = BlobChecksum(user_id);
+  absl::Status locked =
+      lease->Exec("SELECT pg_advisory_lock($1)", Params().Int64(key), kOp)
+          .status();
+  if (!locked.ok() && lease->broken()) {
+    // Lost since its last use: nothing was locked, so try once more.
+    RETURN_IF_ERROR(lease->Reconnect());
+    locked =
+        lease->Exec("SELECT pg_advisory_lock($1)", Params().Int64(key), kOp)
+            .status();
+  }
+  RETURN_IF_ERROR(locked);
+  return std::unique_ptr<UserLock>(new AdvisoryUserLock(std::move(lease), key));
+}
 
 PostgresEventStore::~PostgresEventStore() = default;
 
@@ -550,8 +607,8 @@ absl::Status PostgresEventStore::ResetUser(const std::string& user_id) {
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
   ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp));
   RETURN_IF_ERROR(LockUser(*conn, user_id, kOp));
-  for (const char* sql : {"UPDATE users SET model_version = 0 WHERE "
-                          "user_id = $1",
+  for (const char* sql : {"UPDATE users SET model_version = 0, incarnation = "
+                          "nextval('user_incarnations') WHERE user_id = $1",
                           "DELETE FROM events WHERE user_id = $1"}) {
     RETURN_IF_ERROR(conn->Exec(sql, Params().Text(user_id), kOp).status());
   }

@@ -27,6 +27,8 @@
 //    server returns, without a restart. If the connection is lost at
 //    COMMIT the outcome is unknown: UNAVAILABLE says so, and a retried
 //    Update is then either applied once or FAILED_PRECONDITION.
+//  - Users carry an incarnation (a sequence value set at CreateUser and
+//    ResetUser) so a process can tell a cached model is of an older log.
 //  - CheckStore reads back every user, event and checkpoint; the storage's
 //    own consistency is the server's (see docs/operations.md, amcheck).
 #ifndef BITEWISE_SERVICES_BANDIT_STORE_POSTGRES_EVENT_STORE_H_
@@ -110,6 +112,13 @@ class PostgresEventStore final : public EventStore {
   absl::StatusOr<StoreCheckReport> CheckStore() override;
   // Each append and completion is its own commit.
   StoreWriteStats write_stats() const override;
+  // Several BanditService processes may share the database.
+  bool shared() const override { return true; }
+  // A session-level advisory lock (pg_advisory_lock on a 64-bit hash of the
+  // user id), held on a connection of a pool of its own until the returned
+  // object is destroyed; lost with that connection.
+  absl::StatusOr<std::unique_ptr<UserLock>> LockUserAcrossProcesses(
+      const std::string& user_id) override;
 
   // "database NAME at HOST:PORT" (no password), for logs.
   const std::string& description() const;
@@ -120,10 +129,15 @@ class PostgresEventStore final : public EventStore {
   static constexpr int kSchemaVersion = 1;
 
  private:
-  PostgresEventStore(std::unique_ptr<pg::Pool> pool, std::string conninfo);
+  PostgresEventStore(std::unique_ptr<pg::Pool> pool,
+                     std::unique_ptr<pg::Pool> lock_pool, std::string conninfo);
   void CountWrite(bool append, absl::Time start, absl::Time commit_start);
 
   const std::unique_ptr<pg::Pool> pool_;
+  // Connections that hold users' locks across processes: apart from pool_,
+  // so a lock holder waiting for a connection to work with never waits for
+  // another lock holder.
+  const std::unique_ptr<pg::Pool> lock_pool_;
   const std::string conninfo_;
   absl::Mutex health_mu_;
   std::unique_ptr<pg::Connection> health_ ABSL_GUARDED_BY(health_mu_);
