@@ -130,6 +130,7 @@ class ServerProcess {
 
   bool running() const { return child_.running(); }
   pid_t pid() const { return child_.pid(); }
+  const std::shared_ptr<grpc::Channel>& channel() const { return channel_; }
   v1::BanditService::Stub& stub() { return *stub_; }
   const std::string& log_path() const { return child_.log_path(); }
 
@@ -905,6 +906,165 @@ TEST(BanditBinaryStartTest, AMistypedDbStopsTheStartUnlessCreateIsGiven) {
   EXPECT_NE(WEXITSTATUS(*status), 0);
   EXPECT_THAT(child.log(), HasSubstr(db + "\" does not exist; pass --create"));
   EXPECT_NE(access(db.c_str(), F_OK), 0);  // nothing was made
+}
+
+// Two bitewise-bandit processes on one PostgreSQL database, as two
+// workstations behind one client-side target list: the client sends each
+// Select to one and its Update to the other, every choice is made from
+// estimates that match the dense reference on all the rounds either one
+// learned, one replica is killed with SIGKILL mid-stream (with an event of
+// its Select still pending), and the other finishes the meal, that event
+// included; nothing acknowledged is lost, and both (the killed one
+// restarted) export the reference model.
+TEST(BanditReplicaBinaryTest, TwoReplicasServeOneLogAndOneCanBeKilled) {
+  constexpr int kDim = 10;
+  constexpr int kPostHocDim = 4;
+  constexpr int kRounds = 40;
+  constexpr int kKillAt = 22;  // even: replica 0 selects
+  constexpr double kAlpha = 0.6;
+  testing::TestPostgres* pg = testing::SharedTestPostgres();
+  ASSERT_NE(pg, nullptr);
+  absl::StatusOr<std::string> db = pg->CreateDatabase("replica_binary");
+  ASSERT_TRUE(db.ok()) << db.status();
+  std::string dir =
+      (std::filesystem::temp_directory_path() / "bandit_replicas.XXXXXX")
+          .string();
+  ASSERT_NE(mkdtemp(dir.data()), nullptr);
+  ServerProcess replicas[2];
+  for (int r = 0; r < 2; ++r) {
+    absl::Status started =
+        replicas[r].Start(*db, absl::StrCat(dir, "/replica-", r, ".log"));
+    ASSERT_TRUE(started.ok()) << started;
+  }
+  v1::CreateUserRequest create;
+  create.set_user_id("shared");
+  create.mutable_config()->set_learner(v1::LEARNER_POSTHOC);
+  create.mutable_config()->set_strategy(v1::STRATEGY_LINUCB);
+  create.mutable_config()->set_context_dim(kDim);
+  create.mutable_config()->set_posthoc_dim(kPostHocDim);
+  create.mutable_config()->set_alpha(kAlpha);
+  create.mutable_config()->set_lambda_c(1.5);
+  create.mutable_config()->set_lambda_p(0.7);
+  absl::StatusOr<v1::User> user =
+      Call(replicas[1].stub(), &v1::BanditService::Stub::CreateUser, create);
+  ASSERT_TRUE(user.ok()) << user.status();
+  bandit::BanditConfig config;
+  config.alpha = kAlpha;
+  config.lambda_c = 1.5;
+  config.lambda_p = 0.7;
+  config.context_dim = kDim;
+  config.posthoc_dim = kPostHocDim;
+  config.action_names.assign(user->config().action_names().begin(),
+                             user->config().action_names().end());
+
+  std::mt19937_64 rng(31);
+  std::vector<bandit::Round> rounds;
+  bool killed = false;
+  for (int t = 0; t < kRounds; ++t) {
+    SCOPED_TRACE(absl::StrCat("round ", t));
+    const std::vector<double> context = RandomVector(kDim, rng);
+    ServerProcess& selector = replicas[killed ? 1 : t % 2];
+    absl::StatusOr<v1::SelectResponse> selected =
+        Select(selector.stub(), "shared", context);
+    ASSERT_TRUE(selected.ok()) << selected.status();
+    EXPECT_EQ(selected->model_version(), t);
+    ExpectEstimatesMatchReference(
+        *selected, bandit::testing::DenseReference(config, rounds), context,
+        kAlpha, 1e-8);
+    if (t == kKillAt) {
+      // Replica 0 made this Select; it dies before the Update.
+      ASSERT_EQ(&selector, &replicas[0]);
+      absl::StatusOr<int> status =
+          replicas[0].SignalAndWait(SIGKILL, kExitTimeout);
+      ASSERT_TRUE(status.ok()) << status.status();
+      killed = true;
+    }
+    bandit::Round round;
+    round.context = context;
+    round.action = selected->action();
+    round.loss = t % 3 == 0 ? 1.0 : 0.0;
+    round.posthoc = RandomVector(kPostHocDim, rng);
+    ServerProcess& updater = replicas[killed ? 1 : (t + 1) % 2];
+    absl::StatusOr<v1::UpdateResponse> updated =
+        Update(updater.stub(), selected->event_id(), round.loss, round.posthoc);
+    ASSERT_TRUE(updated.ok()) << updated.status();
+    EXPECT_EQ(updated->model_version(), t + 1);
+    rounds.push_back(std::move(round));
+  }
+  absl::StatusOr<v1::User> after = GetUser(replicas[1].stub(), "shared");
+  ASSERT_TRUE(after.ok()) << after.status();
+  EXPECT_EQ(after->model_version(), kRounds);
+  EXPECT_EQ(after->pending_events(), 0);
+  const auto reference = bandit::testing::DenseReference(config, rounds);
+  absl::StatusOr<v1::Model> model = GetModel(replicas[1].stub(), "shared");
+  ASSERT_TRUE(model.ok()) << model.status();
+  ExpectModelMatchesReference(*model, reference, rounds, true, 1e-8);
+  absl::Status restarted =
+      replicas[0].Start(*db, absl::StrCat(dir, "/replica-0-again.log"));
+  ASSERT_TRUE(restarted.ok()) << restarted;
+  model = GetModel(replicas[0].stub(), "shared");
+  ASSERT_TRUE(model.ok()) << model.status();
+  ExpectModelMatchesReference(*model, reference, rounds, true, 1e-8);
+  for (ServerProcess& replica : replicas) replica.Kill();
+  std::error_code ignored;
+  std::filesystem::remove_all(dir, ignored);
+}
+
+// PostgreSQL stopped under a running service: calls fail with UNAVAILABLE
+// naming the database, health turns NOT_SERVING, and when the database
+// returns the same process serves again, without a restart, with nothing
+// acknowledged lost.
+TEST(BanditReplicaBinaryTest, ADatabaseThatStopsAndReturnsNeedsNoRestart) {
+  absl::StatusOr<std::unique_ptr<testing::TestPostgres>> own =
+      testing::TestPostgres::Create();
+  ASSERT_TRUE(own.ok()) << own.status();
+  testing::TestPostgres& pg = **own;
+  absl::StatusOr<std::string> db = pg.CreateDatabase("outage");
+  ASSERT_TRUE(db.ok()) << db.status();
+  ServerProcess server;
+  absl::Status started = server.Start(*db, pg.dir() + "/service.log");
+  ASSERT_TRUE(started.ok()) << started;
+  v1::CreateUserRequest create;
+  create.set_user_id("ann");
+  create.mutable_config()->set_context_dim(6);
+  create.mutable_config()->set_posthoc_dim(2);
+  ASSERT_TRUE(
+      Call(server.stub(), &v1::BanditService::Stub::CreateUser, create).ok());
+  std::mt19937_64 rng(8);
+  absl::StatusOr<v1::SelectResponse> first =
+      Select(server.stub(), "ann", RandomVector(6, rng));
+  ASSERT_TRUE(first.ok()) << first.status();
+  ASSERT_TRUE(Update(server.stub(), first->event_id(), 1.0, {0.5, 0.5}).ok());
+
+  ASSERT_TRUE(pg.Stop().ok());
+  absl::StatusOr<v1::SelectResponse> down =
+      Select(server.stub(), "ann", RandomVector(6, rng));
+  EXPECT_EQ(down.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(down.status().message(), HasSubstr("database \"outage\""));
+  // Health follows within the readiness monitor's period.
+  absl::StatusOr<ServingStatus> health;
+  for (int i = 0; i < 50; ++i) {
+    health = CheckHealth(server.channel(), kServiceName, absl::Seconds(5));
+    if (health.ok() && *health == ServingStatus::kNotServing) break;
+    absl::SleepFor(absl::Milliseconds(100));
+  }
+  ASSERT_TRUE(health.ok()) << health.status();
+  EXPECT_EQ(*health, ServingStatus::kNotServing);
+
+  ASSERT_TRUE(pg.Start().ok());
+  absl::Status serving =
+      WaitForServing(server.channel(), kServiceName, absl::Seconds(20));
+  ASSERT_TRUE(serving.ok()) << serving;
+  EXPECT_TRUE(server.running());
+  absl::StatusOr<v1::SelectResponse> again =
+      Select(server.stub(), "ann", RandomVector(6, rng));
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_EQ(again->model_version(), 1);
+  absl::StatusOr<v1::UpdateResponse> updated =
+      Update(server.stub(), again->event_id(), 0.0, {0.1, 0.2});
+  ASSERT_TRUE(updated.ok()) << updated.status();
+  EXPECT_EQ(updated->model_version(), 2);
+  server.Kill();
 }
 
 }  // namespace
