@@ -23,7 +23,13 @@ ABSL_FLAG(std::string, user, "demo-user", "User whose model learns.");
 ABSL_FLAG(std::string, meal, "meal-1", "Meal id recorded with each event.");
 ABSL_FLAG(int, bites, 0,
           "Most bite attempts; 0 = until the plate is empty (at most 64).");
-ABSL_FLAG(std::string, bandit, "127.0.0.1:50051", "BanditService address.");
+ABSL_FLAG(std::string, bandit, "127.0.0.1:50051",
+          "BanditService address; replicas on one PostgreSQL database: "
+          "IP:PORT,IP:PORT or dns:///NAME:PORT (calls spread round robin "
+          "over those that are up; deploy/README.md).");
+ABSL_FLAG(std::string, bandit_tls_name, "",
+          "The name to check the BanditService certificates against (every "
+          "replica's certificate must carry it); default: the address.");
 ABSL_FLAG(std::string, perception, "127.0.0.1:50052",
           "PerceptionService address.");
 ABSL_FLAG(std::string, haptic, "127.0.0.1:50053", "HapticService address.");
@@ -123,6 +129,9 @@ int main(int argc, char** argv) {
     if (!use_tls) options = bitewise::ChannelOptions{};
     options.max_message_bytes = tls.max_message_bytes;
     options.max_attempts = absl::GetFlag(FLAGS_retries) + 1;
+    if (link == "bandit" && use_tls) {
+      options.tls_server_name_override = absl::GetFlag(FLAGS_bandit_tls_name);
+    }
     auto made = bitewise::MakeChannel(address, options);
     if (!made.ok()) {
       std::fprintf(stderr, "%s: %s\n", address.c_str(),

@@ -1,5 +1,6 @@
 #include "services/common/channel.h"
 
+#include <arpa/inet.h>
 #include <grpc/grpc.h>
 #include <grpcpp/create_channel.h>
 #include <grpcpp/generic/generic_stub.h>
@@ -14,9 +15,15 @@
 #include <fstream>
 #include <sstream>
 #include <utility>
+#include <vector>
 
+#include "absl/strings/ascii.h"
+#include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
 #include "absl/strings/string_view.h"
 #include "absl/synchronization/notification.h"
 #include "absl/time/clock.h"
@@ -128,16 +135,59 @@ absl::StatusOr<ServingStatus> DecodeHealthCheckResponse(
   return static_cast<ServingStatus>(status);
 }
 
-// The service config of a channel that retries every method on UNAVAILABLE
-// (an empty name matches all services and methods).
-std::string RetryServiceConfig(const ChannelOptions& options) {
-  return absl::StrCat(
-      R"({"methodConfig": [{"name": [{}], "retryPolicy": {"maxAttempts": )",
-      options.max_attempts, R"(, "initialBackoff": ")",
-      absl::StrFormat("%.3f", absl::ToDoubleSeconds(options.initial_backoff)),
-      R"(s", "maxBackoff": ")",
-      absl::StrFormat("%.3f", absl::ToDoubleSeconds(options.max_backoff)),
-      R"(s", "backoffMultiplier": 2, "retryableStatusCodes": ["UNAVAILABLE"]}}]})");
+// The channel's service config: round robin over the resolved addresses
+// when `balanced`, and, with retries, a policy that retries every method on
+// UNAVAILABLE (an empty name matches all services and methods). Empty when
+// there is nothing to say.
+std::string ServiceConfig(const ChannelOptions& options, bool balanced) {
+  std::vector<std::string> parts;
+  if (balanced)
+    parts.push_back(R"("loadBalancingConfig": [{"round_robin": {}}])");
+  if (options.max_attempts > 1) {
+    parts.push_back(absl::StrCat(
+        R"("methodConfig": [{"name": [{}], "retryPolicy": {"maxAttempts": )",
+        options.max_attempts, R"(, "initialBackoff": ")",
+        absl::StrFormat("%.3f", absl::ToDoubleSeconds(options.initial_backoff)),
+        R"(s", "maxBackoff": ")",
+        absl::StrFormat("%.3f", absl::ToDoubleSeconds(options.max_backoff)),
+        R"(s", "backoffMultiplier": 2, "retryableStatusCodes": ["UNAVAILABLE"]}}])"));
+  }
+  if (parts.empty()) return "";
+  return absl::StrCat("{", absl::StrJoin(parts, ", "), "}");
+}
+
+// The gRPC target for `address`, and whether calls are spread over several
+// servers: "a:p,b:p" (numeric IPv4 addresses; localhost is 127.0.0.1) and
+// "dns:///name:port" (every address the name resolves to) are.
+absl::StatusOr<std::string> Target(const std::string& address, bool* balanced) {
+  *balanced = false;
+  if (absl::StartsWith(address, "dns:///")) {
+    *balanced = true;
+    return address;
+  }
+  if (!absl::StrContains(address, ',')) return address;
+  std::vector<std::string> endpoints;
+  for (absl::string_view entry : absl::StrSplit(address, ',')) {
+    std::string endpoint(absl::StripAsciiWhitespace(entry));
+    if (absl::StartsWith(endpoint, "localhost:")) {
+      endpoint = absl::StrCat("127.0.0.1", endpoint.substr(9));
+    }
+    const size_t colon = endpoint.rfind(':');
+    in_addr ignored{};
+    int port = 0;
+    if (colon == std::string::npos ||
+        inet_pton(AF_INET, endpoint.substr(0, colon).c_str(), &ignored) != 1 ||
+        !absl::SimpleAtoi(endpoint.substr(colon + 1), &port) || port <= 0 ||
+        port > 65535) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "\"", endpoint, "\" in the address list \"", address,
+          "\": each entry must be IPv4:PORT (for host names, give one name "
+          "with several DNS records as dns:///NAME:PORT)"));
+    }
+    endpoints.push_back(endpoint);
+  }
+  *balanced = true;
+  return absl::StrCat("ipv4:", absl::StrJoin(endpoints, ","));
 }
 
 }  // namespace
@@ -159,17 +209,20 @@ absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(
     return absl::InvalidArgumentError(
         "retry backoffs must be positive, the maximum at least the initial");
   }
+  bool balanced = false;
+  ASSIGN_OR_RETURN(const std::string target, Target(address, &balanced));
   grpc::ChannelArguments args;
-  if (options.max_attempts > 1) {
-    args.SetInt(GRPC_ARG_ENABLE_RETRIES, 1);
-    args.SetServiceConfigJSON(RetryServiceConfig(options));
+  if (options.max_attempts > 1) args.SetInt(GRPC_ARG_ENABLE_RETRIES, 1);
+  if (const std::string config = ServiceConfig(options, balanced);
+      !config.empty()) {
+    args.SetServiceConfigJSON(config);
   }
   args.SetMaxReceiveMessageSize(options.max_message_bytes);
   args.SetMaxSendMessageSize(options.max_message_bytes);
   if (!options.tls_server_name_override.empty()) {
     args.SetSslTargetNameOverride(options.tls_server_name_override);
   }
-  return grpc::CreateCustomChannel(address, credentials, args);
+  return grpc::CreateCustomChannel(target, credentials, args);
 }
 
 const char* ServingStatusName(ServingStatus status) {

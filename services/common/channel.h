@@ -42,10 +42,15 @@ struct ChannelOptions {
   absl::Duration max_backoff = absl::Seconds(4);
 };
 
-// Creates a channel to `address` (host:port). Connection happens lazily, on
-// the first call. Errors: INVALID_ARGUMENT for inconsistent options (also a
-// max_attempts outside 1-5 or backoffs that are not positive);
-// FAILED_PRECONDITION naming the file when a TLS file cannot be read.
+// Creates a channel to `address`: host:port, or several servers of one
+// service (replicas) as "IPv4:PORT,IPv4:PORT" or "dns:///NAME:PORT" (every
+// address of the name), whose calls are spread round robin over the servers
+// that are up. With TLS, every replica's certificate must carry the name the
+// client checks (tls_server_name_override for a list). Connection happens
+// lazily, on the first call. Errors: INVALID_ARGUMENT for inconsistent
+// options (also a max_attempts outside 1-5, backoffs that are not positive,
+// or a list entry that is not IPv4:PORT); FAILED_PRECONDITION naming the file
+// when a TLS file cannot be read.
 absl::StatusOr<std::shared_ptr<grpc::Channel>> MakeChannel(
     const std::string& address, const ChannelOptions& options);
 

@@ -266,6 +266,24 @@ TEST(ChannelRetryTest, UnavailableIsRetriedUpToMaxAttemptsAndNothingElse) {
   }
 }
 
+// A list of replicas' addresses: numeric IPv4 entries (localhost allowed)
+// or one dns:/// name; anything else is refused naming the entry.
+TEST(ChannelReplicaListTest, EntriesMustBeIpv4AndPort) {
+  ChannelOptions options;
+  EXPECT_TRUE(MakeChannel("127.0.0.1:50051,127.0.0.1:50061", options).ok());
+  EXPECT_TRUE(MakeChannel("localhost:50051, 10.0.0.6:50051", options).ok());
+  EXPECT_TRUE(MakeChannel("dns:///bandit.facility:50051", options).ok());
+  for (const std::string bad :
+       {"127.0.0.1:50051,workstation-b:50051", "127.0.0.1:50051,10.0.0.6",
+        "127.0.0.1:50051,10.0.0.6:0", "127.0.0.1:50051,"}) {
+    absl::StatusOr<std::shared_ptr<grpc::Channel>> channel =
+        MakeChannel(bad, options);
+    EXPECT_EQ(channel.status().code(), absl::StatusCode::kInvalidArgument)
+        << bad;
+    EXPECT_THAT(channel.status().message(), HasSubstr("IPv4:PORT")) << bad;
+  }
+}
+
 TEST(ServiceServerTest, HealthFollowsSetServing) {
   FakeHapticService service;
   auto server = StartHaptic(service);

@@ -96,6 +96,7 @@ class ServerProcess {
           MakeChannel(absl::StrCat("127.0.0.1:", *port), ChannelOptions{});
       if (!channel.ok()) return channel.status();
       channel_ = *channel;
+      address_ = absl::StrCat("127.0.0.1:", *port);
       absl::Status serving =
           WaitForServing(channel_, kServiceName, kServingTimeout);
       if (!serving.ok()) {
@@ -131,12 +132,14 @@ class ServerProcess {
   bool running() const { return child_.running(); }
   pid_t pid() const { return child_.pid(); }
   const std::shared_ptr<grpc::Channel>& channel() const { return channel_; }
+  const std::string& address() const { return address_; }
   v1::BanditService::Stub& stub() { return *stub_; }
   const std::string& log_path() const { return child_.log_path(); }
 
  private:
   testing::ChildProcess child_;
   std::shared_ptr<grpc::Channel> channel_;
+  std::string address_;
   std::unique_ptr<v1::BanditService::Stub> stub_;
 };
 
@@ -1065,6 +1068,62 @@ TEST(BanditReplicaBinaryTest, ADatabaseThatStopsAndReturnsNeedsNoRestart) {
   ASSERT_TRUE(updated.ok()) << updated.status();
   EXPECT_EQ(updated->model_version(), 2);
   server.Kill();
+}
+
+// The client side of a replica setup: one channel over both replicas'
+// addresses (round robin, with retries as the orchestrator sets them)
+// carries a meal; one replica is killed and the meal goes on through the
+// other without an error reaching the caller.
+TEST(BanditReplicaBinaryTest, OneChannelOverTwoReplicasFailsOver) {
+  testing::TestPostgres* pg = testing::SharedTestPostgres();
+  ASSERT_NE(pg, nullptr);
+  absl::StatusOr<std::string> db = pg->CreateDatabase("replica_channel");
+  ASSERT_TRUE(db.ok()) << db.status();
+  std::string dir =
+      (std::filesystem::temp_directory_path() / "bandit_channel.XXXXXX")
+          .string();
+  ASSERT_NE(mkdtemp(dir.data()), nullptr);
+  ServerProcess replicas[2];
+  for (int r = 0; r < 2; ++r) {
+    absl::Status started =
+        replicas[r].Start(*db, absl::StrCat(dir, "/replica-", r, ".log"));
+    ASSERT_TRUE(started.ok()) << started;
+  }
+  ChannelOptions options;
+  options.max_attempts = 5;  // the orchestrator's default --retries=4
+  options.initial_backoff = absl::Milliseconds(50);
+  absl::StatusOr<std::shared_ptr<grpc::Channel>> channel = MakeChannel(
+      absl::StrCat(replicas[0].address(), ",", replicas[1].address()), options);
+  ASSERT_TRUE(channel.ok()) << channel.status();
+  ASSERT_TRUE(WaitForServing(*channel, kServiceName, kServingTimeout).ok());
+  std::unique_ptr<v1::BanditService::Stub> stub =
+      v1::BanditService::NewStub(*channel);
+  v1::CreateUserRequest create;
+  create.set_user_id("ben");
+  create.mutable_config()->set_context_dim(6);
+  create.mutable_config()->set_posthoc_dim(2);
+  ASSERT_TRUE(Call(*stub, &v1::BanditService::Stub::CreateUser, create).ok());
+  std::mt19937_64 rng(12);
+  constexpr int kPairs = 30;
+  for (int t = 0; t < kPairs; ++t) {
+    SCOPED_TRACE(absl::StrCat("pair ", t));
+    if (t == kPairs / 2) {
+      absl::StatusOr<int> status =
+          replicas[t % 2].SignalAndWait(SIGKILL, kExitTimeout);
+      ASSERT_TRUE(status.ok()) << status.status();
+    }
+    absl::StatusOr<v1::SelectResponse> selected =
+        Select(*stub, "ben", RandomVector(6, rng));
+    ASSERT_TRUE(selected.ok()) << selected.status();
+    EXPECT_EQ(selected->model_version(), t);
+    absl::StatusOr<v1::UpdateResponse> updated =
+        Update(*stub, selected->event_id(), t % 2 ? 1.0 : 0.0, {0.3, 0.4});
+    ASSERT_TRUE(updated.ok()) << updated.status();
+    EXPECT_EQ(updated->model_version(), t + 1);
+  }
+  for (ServerProcess& replica : replicas) replica.Kill();
+  std::error_code ignored;
+  std::filesystem::remove_all(dir, ignored);
 }
 
 }  // namespace
