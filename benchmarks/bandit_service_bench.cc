@@ -18,6 +18,7 @@
 //   clients build/benchmarks/bandit_service_bench --clients=1
 //   build/benchmarks/bandit_service_bench --d=2048 --users=20 --clients=4
 //   build/benchmarks/bandit_service_bench --store=postgresql
+//   build/benchmarks/bandit_service_bench --store=postgresql --replicas=2
 #include <grpcpp/create_channel.h>
 #include <grpcpp/security/credentials.h>
 #include <grpcpp/support/channel_arguments.h>
@@ -46,6 +47,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
@@ -61,6 +63,9 @@ ABSL_FLAG(int, clients, 16, "Concurrent clients, one connection each.");
 ABSL_FLAG(double, seconds, 10, "Timed phase.");
 ABSL_FLAG(bool, fsync, true, "The server's --sqlite_fsync.");
 ABSL_FLAG(std::string, store, "sqlite", "sqlite or postgresql.");
+ABSL_FLAG(int, replicas, 1,
+          "bitewise-bandit processes on the one database (PostgreSQL); the "
+          "clients call them round robin.");
 ABSL_FLAG(std::string, server_args, "",
           "Extra flags for the server, space separated.");
 
@@ -118,12 +123,20 @@ int64_t DeviceWriteBytes(const std::string& path) {
   return -1;
 }
 
+// `target`: one address, or several (replicas) separated by commas, which
+// the channel calls round robin, as the orchestrator's list does.
 std::unique_ptr<v1::BanditService::Stub> NewStub(const std::string& target) {
   grpc::ChannelArguments args;
   // Its own connection, as separate robots would have.
   args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
-  return v1::BanditService::NewStub(grpc::CreateCustomChannel(
-      target, grpc::InsecureChannelCredentials(), args));
+  const bool list = target.find(',') != std::string::npos;
+  if (list) {
+    args.SetServiceConfigJSON(
+        R"({"loadBalancingConfig": [{"round_robin": {}}]})");
+  }
+  return v1::BanditService::NewStub(
+      grpc::CreateCustomChannel(list ? "ipv4:" + target : target,
+                                grpc::InsecureChannelCredentials(), args));
 }
 
 struct Latencies {
@@ -211,30 +224,42 @@ int Run() {
   auto written_now = [&](pid_t service) {
     return postgres ? DeviceWriteBytes(pg->dir()) : WriteBytes(service);
   };
-  absl::StatusOr<int> port = testing::PickFreePort();
-  if (!port.ok()) {
-    std::fprintf(stderr, "%s\n", port.status().ToString().c_str());
+  const int replicas = absl::GetFlag(FLAGS_replicas);
+  if (replicas < 1 || (replicas > 1 && !postgres)) {
+    std::fprintf(stderr, "--replicas: 1, or more with --store=postgresql\n");
     return 1;
   }
-  const std::string target = absl::StrCat("127.0.0.1:", *port);
-  std::vector<std::string> argv = {
-      absl::GetFlag(FLAGS_server), absl::StrCat("--db=", db), "--create",
-      absl::StrCat("--listen=", target),
-      absl::StrCat("--sqlite_fsync=", absl::GetFlag(FLAGS_fsync))};
-  for (absl::string_view extra : absl::StrSplit(
-           absl::GetFlag(FLAGS_server_args), ' ', absl::SkipEmpty())) {
-    argv.emplace_back(extra);
+  std::vector<std::string> targets;
+  std::vector<std::unique_ptr<testing::ChildProcess>> servers;
+  for (int r = 0; r < replicas; ++r) {
+    absl::StatusOr<int> port = testing::PickFreePort();
+    if (!port.ok()) {
+      std::fprintf(stderr, "%s\n", port.status().ToString().c_str());
+      return 1;
+    }
+    targets.push_back(absl::StrCat("127.0.0.1:", *port));
+    std::vector<std::string> argv = {
+        absl::GetFlag(FLAGS_server), absl::StrCat("--db=", db), "--create",
+        absl::StrCat("--listen=", targets.back()),
+        absl::StrCat("--sqlite_fsync=", absl::GetFlag(FLAGS_fsync))};
+    for (absl::string_view extra : absl::StrSplit(
+             absl::GetFlag(FLAGS_server_args), ' ', absl::SkipEmpty())) {
+      argv.emplace_back(extra);
+    }
+    servers.push_back(std::make_unique<testing::ChildProcess>());
+    absl::Status status =
+        servers.back()->Start(argv, absl::StrCat(dir, "/server-", r, ".log"));
+    if (status.ok()) {
+      status = servers.back()->WaitForLog(
+          absl::StrCat("serving on ", targets.back(), " "), absl::Seconds(60));
+    }
+    if (!status.ok()) {
+      std::fprintf(stderr, "server: %s\n", status.ToString().c_str());
+      return 1;
+    }
   }
-  testing::ChildProcess server;
-  absl::Status status = server.Start(argv, absl::StrCat(dir, "/server.log"));
-  if (status.ok()) {
-    status = server.WaitForLog(absl::StrCat("serving on ", target, " "),
-                               absl::Seconds(60));
-  }
-  if (!status.ok()) {
-    std::fprintf(stderr, "server: %s\n", status.ToString().c_str());
-    return 1;
-  }
+  testing::ChildProcess& server = *servers.front();
+  const std::string target = absl::StrJoin(targets, ",");
 
   std::unique_ptr<v1::BanditService::Stub> admin = NewStub(target);
   for (int u = 0; u < users; ++u) {
@@ -314,9 +339,9 @@ int Run() {
   const double pairs = static_cast<double>(all.update_ms.size());
   const double raw = 8.0 * (d + kPostHocDim) + 64;
   std::printf(
-      "%s, d = %d, %d users, %d clients, fsync %s, %.1f s: %.0f pairs, %.0f "
-      "pairs/s, %lld errors\n",
-      postgres ? "PostgreSQL" : "SQLite", d, users, clients,
+      "%s, %d replica(s), d = %d, %d users, %d clients, fsync %s, %.1f s: "
+      "%.0f pairs, %.0f pairs/s, %lld errors\n",
+      postgres ? "PostgreSQL" : "SQLite", replicas, d, users, clients,
       postgres || absl::GetFlag(FLAGS_fsync) ? "on" : "off", seconds, pairs,
       pairs / seconds, static_cast<long long>(all.errors));
   if (all.errors > 0) std::printf("first error: %s\n", all.first_error.c_str());
@@ -341,7 +366,9 @@ int Run() {
         (wal("wal_fpi") - wal_fpi_before) / pairs,
         (wal("wal_sync") - wal_syncs_before) / pairs);
   }
-  server.SignalAndWait(SIGTERM, absl::Seconds(20)).IgnoreError();
+  for (auto& replica : servers) {
+    replica->SignalAndWait(SIGTERM, absl::Seconds(20)).IgnoreError();
+  }
   std::filesystem::remove_all(dir);
   return all.errors > 0 ? 1 : 0;
 }
