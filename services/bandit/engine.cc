@@ -257,16 +257,15 @@ absl::StatusOr<std::unique_ptr<UserLock>> BanditEngine::Enter(
   }
   ASSIGN_OR_RETURN(std::unique_ptr<UserLock> lock,
                    store_->LockUserAcrossProcesses(user_id));
-  ASSIGN_OR_RETURN(UserRecord record, store_->GetUser(user_id));
+  ASSIGN_OR_RETURN(UserLogPosition log, store_->GetLogPosition(user_id));
   if (slot.model.has_value() &&
-      (record.incarnation != slot.record.incarnation ||
-       record.model_version < slot.record.model_version)) {
+      (log.incarnation != slot.record.incarnation ||
+       log.model_version < slot.record.model_version)) {
     Unload(slot);
     absl::MutexLock cache(&cache_mu_);
     ++counters_.dropped_stale;
   }
-  if (slot.model.has_value() &&
-      record.model_version > slot.record.model_version) {
+  if (slot.model.has_value() && log.model_version > slot.record.model_version) {
     ASSIGN_OR_RETURN(
         std::vector<EventRecord> events,
         store_->CompletedEventsFrom(user_id, slot.record.model_version + 1));
@@ -293,14 +292,15 @@ absl::StatusOr<std::unique_ptr<UserLock>> BanditEngine::Enter(
       // The Select products were of the older model.
       slot.products_event = 0;
       slot.products = SelectProducts();
-      record.model_version = version;
+      log.model_version = version;
       absl::MutexLock cache(&cache_mu_);
       counters_.caught_up_events += static_cast<int64_t>(events.size());
     }
   }
   if (slot.model.has_value()) {
-    slot.select_count = record.model_version + record.pending_events;
-    slot.record = std::move(record);
+    slot.select_count = log.model_version + log.pending_events;
+    slot.record.model_version = log.model_version;
+    slot.record.pending_events = log.pending_events;
   }
   RETURN_IF_ERROR(EnsureLoaded(user_id, slot));
   return lock;
@@ -570,16 +570,15 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
   absl::MutexLock lock(&slot->mu);
   ASSIGN_OR_RETURN(const std::unique_ptr<UserLock> shared_lock,
                    Enter(found.user_id, *slot));
-  // Read again under the user's lock(s): a concurrent Update may have won.
-  ASSIGN_OR_RETURN(const EventRecord event, store_->GetEvent(input.event_id));
   LinUcbModel& model = *slot->model;
   // Bad input is an error even on a retry of a completed event.
   RETURN_IF_ERROR(model.ValidateOutcome(input.loss, input.posthoc));
   UpdateResult result;
-  result.user_id = event.user_id;
-  if (event.completed) {
-    // A retry carries the same outcome; another outcome is a conflict, and
-    // the client must learn that its outcome was not the one recorded.
+  result.user_id = found.user_id;
+  // A retry carries the same outcome; another outcome is a conflict, and
+  // the client must learn that its outcome was not the one recorded.
+  auto answer_retry =
+      [&](const EventRecord& event) -> absl::StatusOr<UpdateResult> {
     if (input.loss != event.loss) {
       return absl::AlreadyExistsError(absl::StrCat(
           "event ", event.event_id, " was completed with loss ", event.loss,
@@ -593,38 +592,45 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
     result.model_version = event.model_version;
     result.already_applied = true;
     return result;
-  }
+  };
+  if (found.completed) return answer_retry(found);
 
-  Round round = EventRound(event);
+  // The selection read before the locks is what was stored (it never
+  // changes); whether the event is still pending, the store decides.
+  Round round = EventRound(found);
   round.loss = input.loss;
   round.posthoc = input.posthoc;
   round.weight =
-      model.config().importance_weighting ? 1.0 / event.propensity : 1.0;
+      model.config().importance_weighting ? 1.0 / found.propensity : 1.0;
   // The stored event is validated like the request: a log written by an
   // older build must not corrupt the model.
   RETURN_IF_ERROR(model.ValidateRound(round));
 
-  ASSIGN_OR_RETURN(
-      const EventRecord completed,
-      store_->CompleteEvent(event.event_id, round.loss, round.posthoc,
-                            round.weight, absl::Now()));
-  if (completed.model_version != slot->record.model_version + 1) {
+  absl::StatusOr<EventRecord> completed = store_->CompleteEvent(
+      found.event_id, round.loss, round.posthoc, round.weight, absl::Now());
+  if (absl::IsFailedPrecondition(completed.status())) {
+    // Completed since the first read (a concurrent retry): answer as one.
+    ASSIGN_OR_RETURN(const EventRecord now, store_->GetEvent(found.event_id));
+    if (now.completed) return answer_retry(now);
+  }
+  RETURN_IF_ERROR(completed.status());
+  if (completed->model_version != slot->record.model_version + 1) {
     // Another process completed one of the user's events in between (its
     // lock across processes was lost with a connection): the model is
     // rebuilt from the log at the next call instead.
     Unload(*slot);
-    result.model_version = completed.model_version;
+    result.model_version = completed->model_version;
     return result;
   }
-  model.Update(round, slot->products_event == event.event_id ? &slot->products
+  model.Update(round, slot->products_event == found.event_id ? &slot->products
                                                              : nullptr);
   slot->products_event = 0;
   slot->products = SelectProducts();
-  slot->last_event_id = completed.event_id;
+  slot->last_event_id = completed->event_id;
   slot->last_used = absl::Now();
-  slot->record.model_version = completed.model_version;
+  slot->record.model_version = completed->model_version;
   Touch(*slot);
-  result.model_version = completed.model_version;
+  result.model_version = completed->model_version;
   return result;
 }
 

@@ -144,6 +144,14 @@ struct StoreWriteStats {
   double commit_seconds = 0.0;
 };
 
+// Where a user's log stands: what a process sharing the store compares its
+// cached model with (EventStore::GetLogPosition).
+struct UserLogPosition {
+  int64_t model_version = 0;
+  int64_t pending_events = 0;
+  int64_t incarnation = 0;
+};
+
 // A lock on one user held against every process on the same store, for
 // as long as the object lives (EventStore::LockUserAcrossProcesses).
 class UserLock {
@@ -228,6 +236,17 @@ class EventStore {
   virtual absl::StatusOr<std::unique_ptr<UserLock>> LockUserAcrossProcesses(
       const std::string& user_id) {
     return std::unique_ptr<UserLock>();
+  }
+
+  // The user's model_version, pending events and incarnation, as GetUser
+  // reports them (NOT_FOUND if unknown), in one cheap read. Default: from
+  // GetUser.
+  virtual absl::StatusOr<UserLogPosition> GetLogPosition(
+      const std::string& user_id) {
+    absl::StatusOr<UserRecord> user = GetUser(user_id);
+    if (!user.ok()) return user.status();
+    return UserLogPosition{user->model_version, user->pending_events,
+                           user->incarnation};
   }
 
   // The hot path's write counters (StoreWriteStats). Default: none.

@@ -1,8 +1,11 @@
 #include "services/bandit/store/pg_helpers.h"
 
 #include <libpq-fe.h>
+#include <poll.h>
+#include <sys/socket.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdlib>
 #include <cstring>
 #include <utility>
@@ -227,7 +230,30 @@ void Connection::Describe() {
                               port == nullptr ? "" : port);
 }
 
-bool Connection::broken() const { return PQstatus(conn_) != CONNECTION_OK; }
+bool Connection::broken() const {
+  return closed_ || PQstatus(conn_) != CONNECTION_OK;
+}
+
+void Connection::Probe() {
+  DrainSent();
+  if (broken()) return;
+  // What the server sent meanwhile (a FATAL at its shutdown) is consumed;
+  // then an end of file on the socket means the server has closed it.
+  PQconsumeInput(conn_);
+  const int fd = PQsocket(conn_);
+  if (fd < 0) {
+    closed_ = true;
+    return;
+  }
+  pollfd readable{fd, POLLIN, 0};
+  if (poll(&readable, 1, 0) == 1) {
+    char byte;
+    const ssize_t n = recv(fd, &byte, 1, MSG_PEEK | MSG_DONTWAIT);
+    if (n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK)) {
+      closed_ = true;
+    }
+  }
+}
 
 bool Connection::in_transaction() const {
   const PGTransactionStatusType status = PQtransactionStatus(conn_);
@@ -242,6 +268,8 @@ bool Connection::transaction_failed() const {
 absl::Status Connection::Reconnect() {
   PQreset(conn_);
   prepared_.clear();
+  sent_ = false;
+  closed_ = false;
   if (PQstatus(conn_) != CONNECTION_OK) {
     return absl::UnavailableError(
         absl::StrCat("PostgreSQL ", description_,
@@ -271,23 +299,36 @@ absl::Status Connection::Error(pg_result* result, absl::string_view op) const {
                          " (SQLSTATE ", sqlstate, ")"));
 }
 
+absl::StatusOr<std::string> Connection::Prepared(absl::string_view sql,
+                                                 const Params& params,
+                                                 absl::string_view op) {
+  auto found = prepared_.find(sql);
+  if (found != prepared_.end()) return found->second;
+  std::string name = absl::StrCat("bw", prepared_.size());
+  Rows prepared(PQprepare(conn_, name.c_str(), std::string(sql).c_str(),
+                          params.size(), params.types()));
+  if (PQresultStatus(prepared.result_) != PGRES_COMMAND_OK) {
+    return Error(prepared.result_, op);
+  }
+  prepared_.emplace(std::string(sql), name);
+  return name;
+}
+
+void Connection::DrainSent() {
+  if (!sent_) return;
+  sent_ = false;
+  while (pg_result* result = PQgetResult(conn_)) PQclear(result);
+}
+
 absl::StatusOr<Rows> Connection::Exec(absl::string_view sql,
                                       const Params& params,
                                       absl::string_view op) {
+  DrainSent();
   if (broken()) return Error(nullptr, op);
-  auto found = prepared_.find(sql);
-  if (found == prepared_.end()) {
-    std::string name = absl::StrCat("bw", prepared_.size());
-    Rows prepared(PQprepare(conn_, name.c_str(), std::string(sql).c_str(),
-                            params.size(), params.types()));
-    if (PQresultStatus(prepared.result_) != PGRES_COMMAND_OK) {
-      return Error(prepared.result_, op);
-    }
-    found = prepared_.emplace(std::string(sql), std::move(name)).first;
-  }
+  ASSIGN_OR_RETURN(const std::string name, Prepared(sql, params, op));
   const std::vector<const char*> values = params.values();
-  Rows rows(PQexecPrepared(conn_, found->second.c_str(), params.size(),
-                           values.data(), params.lengths(), params.formats(),
+  Rows rows(PQexecPrepared(conn_, name.c_str(), params.size(), values.data(),
+                           params.lengths(), params.formats(),
                            /*resultFormat=*/1));
   const ExecStatusType status = PQresultStatus(rows.result_);
   if (rows.result_ == nullptr ||
@@ -297,8 +338,24 @@ absl::StatusOr<Rows> Connection::Exec(absl::string_view sql,
   return rows;
 }
 
+absl::Status Connection::Send(absl::string_view sql, const Params& params,
+                              absl::string_view op) {
+  DrainSent();
+  if (broken()) return Error(nullptr, op);
+  ASSIGN_OR_RETURN(const std::string name, Prepared(sql, params, op));
+  const std::vector<const char*> values = params.values();
+  if (PQsendQueryPrepared(conn_, name.c_str(), params.size(), values.data(),
+                          params.lengths(), params.formats(),
+                          /*resultFormat=*/1) != 1) {
+    return Error(nullptr, op);
+  }
+  sent_ = true;
+  return absl::OkStatus();
+}
+
 absl::Status Connection::ExecScript(absl::string_view sql,
                                     absl::string_view op) {
+  DrainSent();
   if (broken()) return Error(nullptr, op);
   Rows rows(PQexec(conn_, std::string(sql).c_str()));
   const ExecStatusType status = PQresultStatus(rows.result_);
@@ -337,6 +394,7 @@ absl::StatusOr<Pool::Lease> Pool::Acquire(absl::string_view op) {
     free_.pop_back();
   }
   Lease lease(this, conn);
+  conn->Probe();
   if (conn->broken()) {
     absl::Status restored = conn->Reconnect();
     if (!restored.ok()) {

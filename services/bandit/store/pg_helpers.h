@@ -95,11 +95,20 @@ class Connection {
   absl::StatusOr<Rows> Exec(absl::string_view sql, absl::string_view op) {
     return Exec(sql, Params(), op);
   }
+  // Sends one statement (prepared as Exec would) without waiting for its
+  // result, which the connection's next Exec or ExecScript reads and
+  // discards first. For statements whose outcome nobody waits for.
+  absl::Status Send(absl::string_view sql, const Params& params,
+                    absl::string_view op);
   // Runs statements without parameters (a script), unprepared.
   absl::Status ExecScript(absl::string_view sql, absl::string_view op);
 
   // Whether the connection is lost; Reconnect tries once to restore it.
   bool broken() const;
+  // Reads what the server sent while the connection sat idle, without
+  // blocking, so that one the server closed (a restart) shows as broken()
+  // before a statement is sent on it.
+  void Probe();
   absl::Status Reconnect();
   // Whether a transaction is open (or failed and not yet rolled back), and
   // whether it failed.
@@ -111,12 +120,21 @@ class Connection {
  private:
   Connection(pg_conn* conn, std::string conninfo);
   absl::Status Error(pg_result* result, absl::string_view op) const;
+  // The name `sql` is prepared under on this connection, preparing it the
+  // first time.
+  absl::StatusOr<std::string> Prepared(absl::string_view sql,
+                                       const Params& params,
+                                       absl::string_view op);
+  // Reads and discards the results of a Send.
+  void DrainSent();
   void Describe();
 
   pg_conn* conn_;
   const std::string conninfo_;
   std::string description_;
   absl::flat_hash_map<std::string, std::string> prepared_;
+  bool sent_ = false;    // a Send's results are still to be read
+  bool closed_ = false;  // Probe found the server's end closed
 };
 
 // A fixed set of connections shared by the store's callers. A caller holds

@@ -402,10 +402,12 @@ class AdvisoryUserLock final : public UserLock {
   AdvisoryUserLock(pg::Pool::Lease lease, int64_t key)
       : lease_(std::move(lease)), key_(key) {}
   ~AdvisoryUserLock() override {
-    // A lost connection has lost the lock with it.
+    // A lost connection has lost the lock with it. Otherwise the unlock is
+    // sent and not waited for: the server runs it at once, and the caller
+    // answers its client a round trip sooner.
     if (!lease_->broken()) {
       lease_
-          ->Exec("SELECT pg_advisory_unlock($1)", Params().Int64(key_),
+          ->Send("SELECT pg_advisory_unlock($1)", Params().Int64(key_),
                  "unlocking a user")
           .IgnoreError();
     }
@@ -442,6 +444,20 @@ PostgresEventStore::~PostgresEventStore() = default;
 
 const std::string& PostgresEventStore::description() const {
   return pool_->description();
+}
+
+absl::StatusOr<UserLogPosition> PostgresEventStore::GetLogPosition(
+    const std::string& user_id) {
+  constexpr char kOp[] = "GetLogPosition";
+  ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
+  ASSIGN_OR_RETURN(
+      Rows rows,
+      conn->Exec("SELECT u.model_version, (SELECT COUNT(*) FROM events e "
+                 "WHERE e.user_id = u.user_id AND NOT e.completed), "
+                 "u.incarnation FROM users u WHERE u.user_id = $1",
+                 Params().Text(user_id), kOp));
+  if (!rows.Next()) return UserNotFound(user_id);
+  return UserLogPosition{rows.Int64(0), rows.Int64(1), rows.Int64(2)};
 }
 
 absl::Status PostgresEventStore::CheckHealth() {
@@ -673,62 +689,57 @@ absl::StatusOr<EventRecord> PostgresEventStore::CompleteEvent(
   ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp));
   // The user's row first (the order every writer of a user's log takes),
   // then the event, now that no other completion of this user can run.
-  std::string user_id;
-  {
-    ASSIGN_OR_RETURN(Rows rows,
-                     conn->Exec("SELECT user_id FROM events WHERE event_id "
-                                "= $1",
-                                Params().Int64(event_id), kOp));
-    if (!rows.Next()) return EventNotFound(event_id);
-    user_id = rows.Text(0);
-  }
-  EventRecord event;
+  int64_t model_version = 0;
   {
     ASSIGN_OR_RETURN(
         Rows rows,
         conn->Exec("UPDATE users SET model_version = model_version + 1 "
-                   "WHERE user_id = $1 RETURNING model_version",
-                   Params().Text(user_id), kOp));
-    // Deleted meanwhile, with its events.
-    if (!rows.Next()) return EventNotFound(event_id);
-    event.model_version = rows.Int64(0);
-  }
-  {
-    ASSIGN_OR_RETURN(
-        Rows rows,
-        conn->Exec(absl::StrCat(kEventColumns,
-                                "WHERE e.event_id = $1 FOR UPDATE OF e"),
+                   "WHERE user_id = (SELECT user_id FROM events WHERE "
+                   "event_id = $1) RETURNING model_version",
                    Params().Int64(event_id), kOp));
-    if (!rows.Next()) return EventNotFound(event_id);  // reset meanwhile
-    const int64_t model_version = event.model_version;
-    ASSIGN_OR_RETURN(event, store_rows::ReadEventRow(rows));
-    if (event.completed) return store_rows::AlreadyCompleted(event_id);
-    event.model_version = model_version;
+    // No such event (or its user was deleted, with it).
+    if (!rows.Next()) return EventNotFound(event_id);
+    model_version = rows.Int64(0);
   }
   const int64_t updated_us = ToMicros(updated_at);
-  RETURN_IF_ERROR(
-      conn->Exec("UPDATE events SET completed = true, loss = $2, posthoc = "
-                 "$3, weight = $4, model_version = $5, updated_at_us = $6, "
-                 "outcome_checksum = $7 WHERE event_id = $1",
-                 Params()
-                     .Int64(event_id)
-                     .Double(loss)
-                     .Bytes(posthoc_bytes)
-                     .Double(weight)
-                     .Int64(event.model_version)
-                     .Int64(updated_us)
-                     .Int64(OutcomeChecksum(loss, posthoc_bytes, weight,
-                                            event.model_version, updated_us)),
-                 kOp)
-          .status());
+  // Completed only if still pending; the row comes back as stored, its
+  // context with it, and is checked like any read.
+  ASSIGN_OR_RETURN(
+      Rows rows,
+      conn->Exec(
+          "WITH e AS (UPDATE events SET completed = true, loss = $2, "
+          "posthoc = $3, weight = $4, model_version = $5, updated_at_us = "
+          "$6, outcome_checksum = $7 WHERE event_id = $1 AND NOT completed "
+          "RETURNING *) SELECT e.event_id, e.user_id, e.meal_id, "
+          "e.item_label, c.context, e.action, e.propensity, "
+          "e.selected_at_us, e.completed, e.loss, e.posthoc, e.weight, "
+          "e.model_version, e.updated_at_us, e.selection_checksum, "
+          "e.outcome_checksum FROM e LEFT JOIN event_contexts c ON "
+          "c.event_id = e.event_id",
+          Params()
+              .Int64(event_id)
+              .Double(loss)
+              .Bytes(posthoc_bytes)
+              .Double(weight)
+              .Int64(model_version)
+              .Int64(updated_us)
+              .Int64(OutcomeChecksum(loss, posthoc_bytes, weight, model_version,
+                                     updated_us)),
+          kOp));
+  if (!rows.Next()) {
+    // Rolled back: it was completed already, or removed by a reset that
+    // committed just before this transaction locked the user.
+    ASSIGN_OR_RETURN(Rows found,
+                     conn->Exec("SELECT completed FROM events WHERE "
+                                "event_id = $1",
+                                Params().Int64(event_id), kOp));
+    if (!found.Next()) return EventNotFound(event_id);
+    return store_rows::AlreadyCompleted(event_id);
+  }
+  ASSIGN_OR_RETURN(EventRecord event, store_rows::ReadEventRow(rows));
   const absl::Time commit_start = absl::Now();
   RETURN_IF_ERROR(txn.Commit());
   CountWrite(/*append=*/false, start, commit_start);
-  event.completed = true;
-  event.loss = loss;
-  event.posthoc = posthoc;
-  event.weight = weight;
-  event.updated_at = FromMicros(updated_us);  // as stored
   return event;
 }
 

@@ -116,8 +116,12 @@ class PostgresEventStore final : public EventStore {
   bool shared() const override { return true; }
   // A session-level advisory lock (pg_advisory_lock on a 64-bit hash of the
   // user id), held on a connection of a pool of its own until the returned
-  // object is destroyed; lost with that connection.
+  // object is destroyed (the unlock is sent without waiting for its reply,
+  // which the connection's next use reads); lost with that connection.
   absl::StatusOr<std::unique_ptr<UserLock>> LockUserAcrossProcesses(
+      const std::string& user_id) override;
+  // One statement on the users row (no action names, no transaction).
+  absl::StatusOr<UserLogPosition> GetLogPosition(
       const std::string& user_id) override;
 
   // "database NAME at HOST:PORT" (no password), for logs.
