@@ -255,9 +255,9 @@ absl::StatusOr<std::unique_ptr<UserLock>> BanditEngine::Enter(
     RETURN_IF_ERROR(EnsureLoaded(user_id, slot));
     return std::unique_ptr<UserLock>();
   }
+  UserLogPosition log;
   ASSIGN_OR_RETURN(std::unique_ptr<UserLock> lock,
-                   store_->LockUserAcrossProcesses(user_id));
-  ASSIGN_OR_RETURN(UserLogPosition log, store_->GetLogPosition(user_id));
+                   store_->LockUserAcrossProcesses(user_id, &log));
   if (slot.model.has_value() &&
       (log.incarnation != slot.record.incarnation ||
        log.model_version < slot.record.model_version)) {

@@ -145,7 +145,7 @@ struct StoreWriteStats {
 };
 
 // Where a user's log stands: what a process sharing the store compares its
-// cached model with (EventStore::GetLogPosition).
+// cached model with (EventStore::LockUserAcrossProcesses).
 struct UserLogPosition {
   int64_t model_version = 0;
   int64_t pending_events = 0;
@@ -231,22 +231,19 @@ class EventStore {
   // to the log. Default: no (one process per store).
   virtual bool shared() const { return false; }
   // Blocks until this process holds `user_id`'s lock across processes
-  // (UNAVAILABLE if the store cannot be reached). Default: no lock needed
-  // (null).
+  // (UNAVAILABLE if the store cannot be reached) and, with `position`,
+  // reads where the user's log stands once the lock is held (NOT_FOUND,
+  // holding nothing, for an unknown user). Default: no lock needed (null);
+  // the position from GetUser.
   virtual absl::StatusOr<std::unique_ptr<UserLock>> LockUserAcrossProcesses(
-      const std::string& user_id) {
+      const std::string& user_id, UserLogPosition* position = nullptr) {
+    if (position != nullptr) {
+      absl::StatusOr<UserRecord> user = GetUser(user_id);
+      if (!user.ok()) return user.status();
+      *position = UserLogPosition{user->model_version, user->pending_events,
+                                  user->incarnation};
+    }
     return std::unique_ptr<UserLock>();
-  }
-
-  // The user's model_version, pending events and incarnation, as GetUser
-  // reports them (NOT_FOUND if unknown), in one cheap read. Default: from
-  // GetUser.
-  virtual absl::StatusOr<UserLogPosition> GetLogPosition(
-      const std::string& user_id) {
-    absl::StatusOr<UserRecord> user = GetUser(user_id);
-    if (!user.ok()) return user.status();
-    return UserLogPosition{user->model_version, user->pending_events,
-                           user->incarnation};
   }
 
   // The hot path's write counters (StoreWriteStats). Default: none.

@@ -127,6 +127,14 @@ std::vector<const char*> Params::values() const {
 Rows::Rows(pg_result* result) : result_(result) {}
 Rows::Rows(Rows&& other) noexcept
     : result_(std::exchange(other.result_, nullptr)), row_(other.row_) {}
+Rows& Rows::operator=(Rows&& other) noexcept {
+  if (this != &other) {
+    PQclear(result_);
+    result_ = std::exchange(other.result_, nullptr);
+    row_ = other.row_;
+  }
+  return *this;
+}
 Rows::~Rows() { PQclear(result_); }
 
 int Rows::size() const { return PQntuples(result_); }

@@ -59,7 +59,7 @@ class Rows {
  public:
   explicit Rows(pg_result* result);
   Rows(Rows&& other) noexcept;
-  Rows& operator=(Rows&&) = delete;
+  Rows& operator=(Rows&& other) noexcept;
   ~Rows();
 
   int size() const;

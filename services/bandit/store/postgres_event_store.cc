@@ -139,6 +139,23 @@ CREATE TABLE model_checkpoints (
   checksum bigint NOT NULL,
   created_at_us bigint NOT NULL
 );
+-- Takes a user's advisory lock, then reads where the user's log stands: in
+-- PL/pgSQL each statement of a volatile function takes a fresh snapshot, so
+-- the read sees whatever the lock's previous holder committed. All NULL for
+-- an unknown user (the lock is held all the same).
+CREATE FUNCTION bitewise_enter_user(lock_key bigint, id text,
+    OUT out_version bigint, OUT out_pending bigint,
+    OUT out_incarnation bigint)
+LANGUAGE plpgsql VOLATILE AS $$
+BEGIN
+  PERFORM pg_advisory_lock(lock_key);
+  SELECT u.model_version,
+         (SELECT count(*) FROM events e
+          WHERE e.user_id = u.user_id AND NOT e.completed),
+         u.incarnation
+    INTO out_version, out_pending, out_incarnation
+    FROM users u WHERE u.user_id = id;
+END $$;
 CREATE TABLE model_checkpoint_chunks (
   user_id text COLLATE "C" NOT NULL REFERENCES users (user_id) ON DELETE CASCADE,
   write_id bigint NOT NULL,
@@ -421,43 +438,38 @@ class AdvisoryUserLock final : public UserLock {
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<UserLock>>
-PostgresEventStore::LockUserAcrossProcesses(const std::string& user_id) {
+PostgresEventStore::LockUserAcrossProcesses(const std::string& user_id,
+                                            UserLogPosition* position) {
   constexpr char kOp[] = "locking a user";
   ASSIGN_OR_RETURN(pg::Pool::Lease lease, lock_pool_->Acquire(kOp));
   // Two users sharing a key only wait for each other.
   const int64_t key = BlobChecksum(user_id);
-  absl::Status locked =
-      lease->Exec("SELECT pg_advisory_lock($1)", Params().Int64(key), kOp)
-          .status();
-  if (!locked.ok() && lease->broken()) {
+  const Params params = Params().Int64(key).Text(user_id);
+  constexpr char kEnter[] =
+      "SELECT out_version, out_pending, out_incarnation FROM "
+      "bitewise_enter_user($1, $2)";
+  absl::StatusOr<Rows> entered = lease->Exec(kEnter, params, kOp);
+  if (!entered.ok() && lease->broken()) {
     // Lost since its last use: nothing was locked, so try once more.
     RETURN_IF_ERROR(lease->Reconnect());
-    locked =
-        lease->Exec("SELECT pg_advisory_lock($1)", Params().Int64(key), kOp)
-            .status();
+    entered = lease->Exec(kEnter, params, kOp);
   }
-  RETURN_IF_ERROR(locked);
-  return std::unique_ptr<UserLock>(new AdvisoryUserLock(std::move(lease), key));
+  RETURN_IF_ERROR(entered.status());
+  auto lock = std::make_unique<AdvisoryUserLock>(std::move(lease), key);
+  if (!entered->Next() || entered->IsNull(0)) {
+    return UserNotFound(user_id);  // the lock goes with `lock`
+  }
+  if (position != nullptr) {
+    *position = UserLogPosition{entered->Int64(0), entered->Int64(1),
+                                entered->Int64(2)};
+  }
+  return std::unique_ptr<UserLock>(std::move(lock));
 }
 
 PostgresEventStore::~PostgresEventStore() = default;
 
 const std::string& PostgresEventStore::description() const {
   return pool_->description();
-}
-
-absl::StatusOr<UserLogPosition> PostgresEventStore::GetLogPosition(
-    const std::string& user_id) {
-  constexpr char kOp[] = "GetLogPosition";
-  ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
-  ASSIGN_OR_RETURN(
-      Rows rows,
-      conn->Exec("SELECT u.model_version, (SELECT COUNT(*) FROM events e "
-                 "WHERE e.user_id = u.user_id AND NOT e.completed), "
-                 "u.incarnation FROM users u WHERE u.user_id = $1",
-                 Params().Text(user_id), kOp));
-  if (!rows.Next()) return UserNotFound(user_id);
-  return UserLogPosition{rows.Int64(0), rows.Int64(1), rows.Int64(2)};
 }
 
 absl::Status PostgresEventStore::CheckHealth() {

@@ -115,14 +115,14 @@ class PostgresEventStore final : public EventStore {
   // Several BanditService processes may share the database.
   bool shared() const override { return true; }
   // A session-level advisory lock (pg_advisory_lock on a 64-bit hash of the
-  // user id), held on a connection of a pool of its own until the returned
-  // object is destroyed (the unlock is sent without waiting for its reply,
-  // which the connection's next use reads); lost with that connection.
+  // user id) on a connection of a pool of its own, taken and followed by
+  // the position's read in one round trip (bitewise_enter_user, whose
+  // statements each see a fresh snapshot, so the read sees everything the
+  // lock's previous holder committed). Held until the returned object is
+  // destroyed (the unlock is sent without waiting for its reply, which the
+  // connection's next use reads); lost with that connection.
   absl::StatusOr<std::unique_ptr<UserLock>> LockUserAcrossProcesses(
-      const std::string& user_id) override;
-  // One statement on the users row (no action names, no transaction).
-  absl::StatusOr<UserLogPosition> GetLogPosition(
-      const std::string& user_id) override;
+      const std::string& user_id, UserLogPosition* position) override;
 
   // "database NAME at HOST:PORT" (no password), for logs.
   const std::string& description() const;
