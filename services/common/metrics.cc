@@ -78,7 +78,9 @@ struct Metrics {
   prometheus::Family<prometheus::Histogram>& latency =
       prometheus::BuildHistogram()
           .Name("bitewise_rpc_latency_seconds")
-          .Help("RPC handling time (deadline checks to reply), by method")
+          .Help(
+              "RPC handling time (deadline checks to reply), by method "
+              "and status code")
           .Register(*registry);
 };
 
@@ -103,7 +105,10 @@ void RecordRpcMetric(const std::string& method, absl::StatusCode code,
   metrics.requests
       .Add({{"method", method}, {"code", absl::StatusCodeToString(code)}})
       .Increment();
-  metrics.latency.Add({{"method", method}}, LatencyBuckets()).Observe(seconds);
+  metrics.latency
+      .Add({{"method", method}, {"code", absl::StatusCodeToString(code)}},
+           LatencyBuckets())
+      .Observe(seconds);
 }
 
 void AddScrapeValues(const std::string& name, const std::string& help,

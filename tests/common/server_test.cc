@@ -842,8 +842,9 @@ TEST(MetricsTest, RpcCountsLatencyAndScrapeValuesAreServed) {
   EXPECT_THAT(body, HasSubstr("200 OK"));
   EXPECT_THAT(body, HasSubstr("bitewise_rpc_requests_total{code=\"OK\","
                               "method=\"HapticService/MetricsProbe\"} 2"));
-  EXPECT_THAT(body, HasSubstr("bitewise_rpc_latency_seconds_count{method="
-                              "\"HapticService/MetricsProbe\"} 2"));
+  EXPECT_THAT(body, HasSubstr("bitewise_rpc_latency_seconds_count{code="
+                              "\"OK\",method=\"HapticService/MetricsProbe\"}"
+                              " 2"));
   EXPECT_THAT(body, HasSubstr("bitewise_test_value{kind=\"probe\"} 42"));
   (*server)->Shutdown();
 
