@@ -120,7 +120,19 @@ absl::Status BanditEngine::MaybeCheckpoint(
   }
   slot.mu.Unlock();
   // Written outside the user's lock, in chunks: nobody waits for it.
-  RETURN_IF_ERROR(store_->PutCheckpoint(user_id, checkpoint));
+  const absl::Status written = store_->PutCheckpoint(user_id, checkpoint);
+  if (absl::IsFailedPrecondition(written) || absl::IsNotFound(written)) {
+    // The log no longer has this model's last event, or the user is gone
+    // (reset or deleted, by another replica): the model is stale, and is
+    // dropped rather than offered again every poll.
+    absl::MutexLock lock(&slot.mu);
+    if (slot.model.has_value() &&
+        slot.model->TotalRounds() == checkpoint.model_version &&
+        slot.last_event_id == checkpoint.last_event_id) {
+      Unload(slot);
+    }
+  }
+  RETURN_IF_ERROR(written);
   {
     absl::MutexLock lock(&slot.mu);
     slot.checkpoint_version =
@@ -287,6 +299,11 @@ absl::StatusOr<std::unique_ptr<UserLock>> BanditEngine::Enter(
       slot.model->Update(round, nullptr);
       version = event_version;
       slot.last_event_id = event_id;
+    }
+    if (slot.model.has_value() && version != log.model_version) {
+      // Fewer events than the position said (the lock was lost meanwhile):
+      // start afresh rather than from a shifted random stream.
+      Unload(slot);
     }
     if (slot.model.has_value()) {
       // The Select products were of the older model.
@@ -456,7 +473,11 @@ absl::StatusOr<PoolRecord> BanditEngine::BuildPopulationPool(
       if (absl::IsNotFound(slot.status())) continue;  // deleted meanwhile
       RETURN_IF_ERROR(slot.status());
       absl::MutexLock lock(&(*slot)->mu);
-      RETURN_IF_ERROR(EnsureLoaded(user.user_id, **slot));
+      // Up to the log, with replicas: another process may have taught it.
+      absl::StatusOr<std::unique_ptr<UserLock>> shared_lock =
+          Enter(user.user_id, **slot);
+      if (absl::IsNotFound(shared_lock.status())) continue;
+      RETURN_IF_ERROR(shared_lock.status());
       const LinUcbModel& model = *(*slot)->model;
       if (model.TotalRounds() > 0 && pool.Accepts(model)) {
         RETURN_IF_ERROR(pool.Add(model));

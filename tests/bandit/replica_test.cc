@@ -6,7 +6,8 @@
 // propensities, the same seeded random draws) with the same estimates;
 // replicas hammering the same users from threads keep every update, in order,
 // and every replica's model equals the dense float64 reference on the union
-// of the events; a reset on one replica is seen by the other.
+// of the events; a reset on one replica is seen by the other (and a
+// checkpoint of the older log's model is refused and the model dropped).
 #include <atomic>
 #include <cmath>
 #include <memory>
@@ -280,7 +281,19 @@ TEST(ReplicaTest, AResetOnOneReplicaIsSeenByTheOther) {
   ASSERT_TRUE(after.ok()) << after.status();
   EXPECT_EQ(after->model_version, 0);
   EXPECT_GE(pair.replica(1).Counters().dropped_stale, 1);
+  ASSERT_TRUE(
+      pair.replica(1)
+          .Update({after->event_id, 0.0, RandomVector(kPostHocDim, rng)})
+          .ok());
   ExpectDenseReference(pair.replica(1), pair.store(), "ann");
+  // Reset again: replica 1's cached model (version 1) is of the old log. A
+  // checkpoint of it is refused, and the model is dropped rather than
+  // offered again at every poll.
+  ASSERT_TRUE(pair.replica(0).ResetUser("ann").ok());
+  ASSERT_EQ(pair.replica(1).CachedModels(), 1);
+  EXPECT_EQ(pair.replica(1).CheckpointUser("ann").code(),
+            absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ(pair.replica(1).CachedModels(), 0);
   // And a deleted user is gone for the other replica too.
   ASSERT_TRUE(pair.replica(0).DeleteUser("ann").ok());
   EXPECT_EQ(pair.replica(1)

@@ -422,11 +422,14 @@ class AdvisoryUserLock final : public UserLock {
     // A lost connection has lost the lock with it. Otherwise the unlock is
     // sent and not waited for: the server runs it at once, and the caller
     // answers its client a round trip sooner.
-    if (!lease_->broken()) {
-      lease_
-          ->Send("SELECT pg_advisory_unlock($1)", Params().Int64(key_),
-                 "unlocking a user")
-          .IgnoreError();
+    if (!lease_->broken() &&
+        !lease_
+             ->Send("SELECT pg_advisory_unlock($1)", Params().Int64(key_),
+                    "unlocking a user")
+             .ok()) {
+      // Never back to the pool still holding the lock: a new session
+      // holds none.
+      lease_->Reconnect().IgnoreError();
     }
   }
 
@@ -454,7 +457,12 @@ PostgresEventStore::LockUserAcrossProcesses(const std::string& user_id,
     RETURN_IF_ERROR(lease->Reconnect());
     entered = lease->Exec(kEnter, params, kOp);
   }
-  RETURN_IF_ERROR(entered.status());
+  if (!entered.ok()) {
+    // The function may have failed after taking the lock (a statement
+    // timeout, a cancel): a new session holds none.
+    if (!lease->broken()) lease->Reconnect().IgnoreError();
+    return entered.status();
+  }
   auto lock = std::make_unique<AdvisoryUserLock>(std::move(lease), key);
   if (!entered->Next() || entered->IsNull(0)) {
     return UserNotFound(user_id);  // the lock goes with `lock`
@@ -919,7 +927,11 @@ absl::Status PostgresEventStore::PutCheckpoint(
                    "EXCLUDED.last_event_id, write_id = EXCLUDED.write_id, "
                    "state_bytes = EXCLUDED.state_bytes, chunks = "
                    "EXCLUDED.chunks, checksum = EXCLUDED.checksum, "
-                   "created_at_us = EXCLUDED.created_at_us",
+                   "created_at_us = EXCLUDED.created_at_us "
+                   // A replica whose model is behind never replaces a
+                   // newer checkpoint with its older one.
+                   "WHERE model_checkpoints.model_version <= "
+                   "EXCLUDED.model_version",
                    Params()
                        .Text(user_id)
                        .Int64(checkpoint.model_version)
