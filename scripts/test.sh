@@ -11,9 +11,9 @@
 #
 # The core sanitizer check builds, with -fsanitize=address,undefined into
 # build-sanitize/, the tests of the libraries where undefined behaviour would
-# hurt most (the learning core, the store, the RDT decoder and the F/T
-# counter check, frame decoding, the haptic pipeline) and runs them with
-# halt_on_error: any report fails the run.
+# hurt most (the learning core, the store, engine replicas on PostgreSQL,
+# the RDT decoder and the F/T counter check, frame decoding, the haptic
+# pipeline) and runs them with halt_on_error: any report fails the run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -34,7 +34,7 @@ export ASAN_OPTIONS="detect_leaks=0:halt_on_error=1:abort_on_error=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 # Test executables (build-relative paths) of the core sanitizer check.
 CORE_TESTS=(tests/bandit/bandit_core_test tests/bandit/store/bandit_store_test
-  tests/robot/robot_rdt_protocol_test tests/robot/robot_counter_clock_test
+  tests/bandit/bandit_replica_test tests/robot/robot_rdt_protocol_test tests/robot/robot_counter_clock_test
   tests/perception/perception_frame_test tests/haptic/haptic_core_test)
 
 configure_sanitize() {
