@@ -148,6 +148,18 @@ int main(int argc, char** argv) {
             "--checkpoint_min_events must be >= 0, --checkpoint_max_events "
             ">= it, --checkpoint_idle_s >= 0"));
   }
+  // Commit latency and group size, as histograms (docs/operations.md).
+  (*store)->SetCommitObserver([](double seconds, int64_t writes) {
+    bitewise::ObserveHistogram(
+        "bitewise_bandit_store_commit_latency_seconds",
+        "Time of each commit of the hot path's writes (its fsync included)",
+        {0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.25, 1}, seconds);
+    bitewise::ObserveHistogram(
+        "bitewise_bandit_store_commit_writes",
+        "Writes carried by each commit (SQLite's group commit; 1 on "
+        "PostgreSQL, whose server shares WAL flushes itself)",
+        {1, 2, 4, 8, 16, 32, 64}, static_cast<double>(writes));
+  });
   bitewise::bandit::BanditEngine engine(store->get(), engine_options);
   bitewise::bandit::BanditServiceImpl service(&engine, *defaults);
   // Metrics read at scrape time (docs/operations.md).

@@ -84,6 +84,12 @@ struct Metrics {
           .Register(*registry);
 };
 
+// The histograms made by ObserveHistogram, by name.
+struct NamedHistograms {
+  absl::Mutex mu;
+  std::map<std::string, prometheus::Histogram*> by_name ABSL_GUARDED_BY(mu);
+};
+
 Metrics& Global() {
   static Metrics* const metrics = new Metrics();
   return *metrics;
@@ -109,6 +115,26 @@ void RecordRpcMetric(const std::string& method, absl::StatusCode code,
       .Add({{"method", method}, {"code", absl::StatusCodeToString(code)}},
            LatencyBuckets())
       .Observe(seconds);
+}
+
+void ObserveHistogram(const std::string& name, const std::string& help,
+                      const std::vector<double>& bounds, double value) {
+  static NamedHistograms* const histograms = new NamedHistograms();
+  prometheus::Histogram* histogram = nullptr;
+  {
+    absl::MutexLock lock(&histograms->mu);
+    prometheus::Histogram*& found = histograms->by_name[name];
+    if (found == nullptr) {
+      found = &prometheus::BuildHistogram()
+                   .Name(name)
+                   .Help(help)
+                   .Register(*Global().registry)
+                   .Add({}, prometheus::Histogram::BucketBoundaries(
+                                bounds.begin(), bounds.end()));
+    }
+    histogram = found;
+  }
+  histogram->Observe(value);
 }
 
 void AddScrapeValues(const std::string& name, const std::string& help,

@@ -2,9 +2,10 @@
 // served on a port of their own by ServiceServer when --metrics_listen is
 // set (off by default; on in deploy/). Every service exports, from RunRpc:
 //   bitewise_rpc_requests_total{method, code}     counter
-//   bitewise_rpc_latency_seconds{method}          histogram
+//   bitewise_rpc_latency_seconds{method, code}    histogram
 // and each main adds its own values read at scrape time (AddScrapeValues):
-// the bandit's model cache, the robot's F/T stream and force-limit trips.
+// the bandit's model cache, the robot's F/T stream and force-limit trips,
+// and its own histograms (ObserveHistogram): the bandit store's commits.
 // docs/operations.md lists them with the alert rules worth setting.
 // Thread-safe.
 #ifndef BITEWISE_SERVICES_COMMON_METRICS_H_
@@ -29,6 +30,12 @@ namespace bitewise {
 // `seconds`.
 void RecordRpcMetric(const std::string& method, absl::StatusCode code,
                      double seconds);
+
+// Observes `value` in the unlabelled histogram `name`, made at its first
+// observation with `help` and the bucket upper bounds `bounds` (later
+// calls' help and bounds are not looked at).
+void ObserveHistogram(const std::string& name, const std::string& help,
+                      const std::vector<double>& bounds, double value);
 
 // One sample read at scrape time: labels and value.
 struct ScrapeValue {

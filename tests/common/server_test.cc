@@ -834,6 +834,8 @@ TEST(MetricsTest, RpcCountsLatencyAndScrapeValuesAreServed) {
                   ScrapeType::kGauge, [&scrapes]() -> std::vector<ScrapeValue> {
                     return {{{{"kind", "probe"}}, 42.0 + scrapes++}};
                   });
+  ObserveHistogram("bitewise_test_histogram", "A histogram", {1, 2}, 1.5);
+  ObserveHistogram("bitewise_test_histogram", "ignored", {5}, 0.5);
   auto connected = Connect((*server)->address());
   probe.method = "HapticService/MetricsProbe";
   EXPECT_TRUE(CallClassify(connected, 1).ok());
@@ -846,6 +848,9 @@ TEST(MetricsTest, RpcCountsLatencyAndScrapeValuesAreServed) {
                               "\"OK\",method=\"HapticService/MetricsProbe\"}"
                               " 2"));
   EXPECT_THAT(body, HasSubstr("bitewise_test_value{kind=\"probe\"} 42"));
+  EXPECT_THAT(body, HasSubstr("bitewise_test_histogram_bucket{le=\"1\"} 1"));
+  EXPECT_THAT(body, HasSubstr("bitewise_test_histogram_bucket{le=\"2\"} 2"));
+  EXPECT_THAT(body, HasSubstr("bitewise_test_histogram_count 2"));
   (*server)->Shutdown();
 
   ServerOptions taken;

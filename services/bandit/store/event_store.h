@@ -10,6 +10,7 @@
 #define BITEWISE_SERVICES_BANDIT_STORE_EVENT_STORE_H_
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -245,6 +246,13 @@ class EventStore {
     }
     return std::unique_ptr<UserLock>();
   }
+
+  // Called after every commit of the hot path's writes with its time and
+  // the number of writes it carried (a group; 1 where each write is its own
+  // commit), for metrics. Set once, before the store is used; it must be
+  // thread-safe. Default: never called.
+  using CommitObserver = std::function<void(double seconds, int64_t writes)>;
+  virtual void SetCommitObserver(CommitObserver observer) {}
 
   // The hot path's write counters (StoreWriteStats). Default: none.
   virtual StoreWriteStats write_stats() const { return {}; }

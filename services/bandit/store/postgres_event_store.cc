@@ -504,6 +504,9 @@ absl::Status PostgresEventStore::CheckHealth() {
 void PostgresEventStore::CountWrite(bool append, absl::Time start,
                                     absl::Time commit_start) {
   const absl::Time now = absl::Now();
+  if (commit_observer_) {
+    commit_observer_(absl::ToDoubleSeconds(now - commit_start), 1);
+  }
   absl::MutexLock lock(&stats_mu_);
   if (append) {
     ++write_stats_.appends;

@@ -37,6 +37,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/base/thread_annotations.h"
@@ -112,6 +113,9 @@ class PostgresEventStore final : public EventStore {
   absl::StatusOr<StoreCheckReport> CheckStore() override;
   // Each append and completion is its own commit.
   StoreWriteStats write_stats() const override;
+  void SetCommitObserver(CommitObserver observer) override {
+    commit_observer_ = std::move(observer);
+  }
   // Several BanditService processes may share the database.
   bool shared() const override { return true; }
   // A session-level advisory lock (pg_advisory_lock on a 64-bit hash of the
@@ -145,6 +149,7 @@ class PostgresEventStore final : public EventStore {
   const std::string conninfo_;
   absl::Mutex health_mu_;
   std::unique_ptr<pg::Connection> health_ ABSL_GUARDED_BY(health_mu_);
+  CommitObserver commit_observer_;
   mutable absl::Mutex stats_mu_;
   StoreWriteStats write_stats_ ABSL_GUARDED_BY(stats_mu_);
 };

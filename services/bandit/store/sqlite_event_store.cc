@@ -311,10 +311,14 @@ void SqliteEventStore::CommitGroup(const std::vector<QueuedWrite*>& group) {
       }
     }
   }
+  const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
+  if (commit_observer_) {
+    commit_observer_(seconds, static_cast<int64_t>(group.size()));
+  }
   absl::MutexLock stats(&stats_mu_);
   ++write_stats_.commits;
   write_stats_.committed_writes += static_cast<int64_t>(group.size());
-  write_stats_.commit_seconds += absl::ToDoubleSeconds(absl::Now() - start);
+  write_stats_.commit_seconds += seconds;
 }
 
 absl::Status SqliteEventStore::CreateUser(const UserRecord& user) {

@@ -38,6 +38,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/base/thread_annotations.h"
@@ -130,6 +131,9 @@ class SqliteEventStore final : public EventStore {
 
   // Its commits are the group commits.
   StoreWriteStats write_stats() const override;
+  void SetCommitObserver(CommitObserver observer) override {
+    commit_observer_ = std::move(observer);
+  }
 
  private:
   SqliteEventStore(sqlite3* db, int lock_fd, std::string path, uint64_t device,
@@ -163,6 +167,7 @@ class SqliteEventStore final : public EventStore {
   absl::Mutex mu_;
   sqlite3* const db_ ABSL_PT_GUARDED_BY(mu_);
   std::unique_ptr<sqlite::StatementCache> statements_ ABSL_PT_GUARDED_BY(mu_);
+  CommitObserver commit_observer_;
   mutable absl::Mutex stats_mu_;
   StoreWriteStats write_stats_ ABSL_GUARDED_BY(stats_mu_);
   // The store's lock file, held while the store is open; -1 for ":memory:".

@@ -1430,6 +1430,14 @@ TEST_P(EventStoreTest, PagesEndByBytesToo) {
 }
 
 TEST_P(EventStoreTest, WriteStatsCountTheHotPath) {
+  // The commit observer (the service's histograms) sees every commit the
+  // counters count.
+  std::atomic<int64_t> observed_commits{0}, observed_writes{0};
+  store_->SetCommitObserver([&](double seconds, int64_t writes) {
+    EXPECT_GE(seconds, 0.0);
+    ++observed_commits;
+    observed_writes += writes;
+  });
   ASSERT_TRUE(store_->CreateUser(MakeUser("alice")).ok());
   const int64_t id = MustAppend(MakeEvent("alice", "m"));
   MustAppend(MakeEvent("alice", "m"));
@@ -1447,6 +1455,9 @@ TEST_P(EventStoreTest, WriteStatsCountTheHotPath) {
   EXPECT_EQ(stats.completions, 1);
   EXPECT_GT(stats.append_seconds, 0.0);
   EXPECT_GT(stats.completion_seconds, 0.0);
+  EXPECT_GE(stats.commits, 1);
+  EXPECT_EQ(observed_commits.load(), stats.commits);
+  EXPECT_EQ(observed_writes.load(), stats.committed_writes);
 }
 
 TEST_P(EventStoreTest, AuditEntriesAreKeptAndPaged) {
