@@ -22,7 +22,8 @@ ABSL_FLAG(std::string, db, "bitewise-bandit.db",
           "sqlite:PATH) or a PostgreSQL database (postgresql://USER@HOST/DB, "
           "password in ~/.pgpass or PGPASSWORD).");
 ABSL_FLAG(int, db_connections, 8,
-          "PostgreSQL: connections kept open to the database.");
+          "PostgreSQL: connections kept open for the store's work, and "
+          "as many again for users' locks across replicas.");
 ABSL_FLAG(bool, sqlite_fsync, true,
           "fsync every commit (synchronous=FULL). false still survives a "
           "crash of the process, but not a power loss.");
