@@ -444,11 +444,13 @@ TEST_F(EngineTest, ColdLoadsStartFromTheCheckpoint) {
 }
 
 // The background thread saves a model once enough events have come in and
-// its user is idle, without anyone asking.
+// its user is idle, without anyone asking. Idle means 300 ms without a call,
+// far longer than between two bites of the loop, so the one checkpoint
+// comes after the last bite.
 TEST_F(EngineTest, IdleModelsAreCheckpointedInTheBackground) {
   EngineOptions options;
   options.checkpoint_min_events = 5;
-  options.checkpoint_idle = absl::ZeroDuration();
+  options.checkpoint_idle = absl::Milliseconds(300);
   options.checkpoint_poll = absl::Milliseconds(5);
   Reopen(options);
   ASSERT_TRUE(engine_->CreateUser("lee", SmallConfig()).ok());
