@@ -18,14 +18,11 @@ using pg::Params;
 using pg::Rows;
 using pg::Transaction;
 using store_rows::ApproxBytes;
-using store_rows::ClampPageSize;
 using store_rows::DecodePrior;
 using store_rows::EncodeDoubles;
 using store_rows::EncodePrior;
 using store_rows::EventNotFound;
 using store_rows::FromMicros;
-using store_rows::MakePageToken;
-using store_rows::PageFull;
 using store_rows::ParsePageToken;
 using store_rows::ToMicros;
 using store_rows::UserNotFound;
@@ -301,11 +298,9 @@ absl::StatusOr<ModelCheckpoint> ReadCheckpoint(Connection& conn,
   if (expected_seq != chunks ||
       static_cast<int64_t>(out.state.size()) != bytes ||
       BlobChecksum(out.state) != checksum) {
-    return absl::DataLossError(absl::StrCat(
-        "the model checkpoint of user ", user_id, " at model version ",
-        out.model_version, " is damaged (", out.state.size(), " of ", bytes,
-        " bytes in ", expected_seq, " of ", chunks,
-        " chunks, or a checksum mismatch)"));
+    return store_rows::CheckpointDamaged(user_id, out.model_version,
+                                         out.state.size(), bytes, expected_seq,
+                                         chunks);
   }
   return out;
 }
@@ -593,7 +588,8 @@ absl::StatusOr<UserRecord> PostgresEventStore::GetUser(
 absl::StatusOr<PageResult<UserRecord>> PostgresEventStore::ListUsers(
     const Page& page) {
   constexpr char kOp[] = "ListUsers";
-  const int page_size = ClampPageSize(page.page_size);
+  store_rows::PageBuilder<UserRecord> out(
+      page, 'u', [](const UserRecord& user) { return user.user_id; });
   std::string after;
   if (!page.page_token.empty()) {
     ASSIGN_OR_RETURN(after, ParsePageToken(page.page_token, 'u'));
@@ -603,30 +599,19 @@ absl::StatusOr<PageResult<UserRecord>> PostgresEventStore::ListUsers(
                    Transaction::Begin(*conn, kOp,
                                       "ISOLATION LEVEL REPEATABLE READ "
                                       "READ ONLY"));
-  ASSIGN_OR_RETURN(Rows rows,
-                   conn->Exec(absl::StrCat(kUserColumns,
-                                           "WHERE u.user_id > $2 "
-                                           "ORDER BY u.user_id LIMIT $1"),
-                              Params().Int64(page_size + 1).Text(after), kOp));
-  PageResult<UserRecord> result;
-  int64_t bytes = 0;
-  while (rows.Next()) {
-    // The extra row past a full page only says there is more.
-    if (static_cast<int>(result.items.size()) == page_size) {
-      result.next_page_token = MakePageToken('u', result.items.back().user_id);
-      break;
-    }
+  ASSIGN_OR_RETURN(
+      Rows rows,
+      conn->Exec(absl::StrCat(kUserColumns,
+                              "WHERE u.user_id > $2 "
+                              "ORDER BY u.user_id LIMIT $1"),
+                 Params().Int64(out.page_size() + 1).Text(after), kOp));
+  while (rows.Next() && out.Room()) {
     ASSIGN_OR_RETURN(UserRecord user, ReadUser(*conn, rows));
-    if (PageFull(page, page_size, result.items.size(),
-                 bytes + ApproxBytes(user))) {
-      result.next_page_token = MakePageToken('u', result.items.back().user_id);
-      break;
-    }
-    bytes += ApproxBytes(user);
-    result.items.push_back(std::move(user));
+    const int64_t bytes = ApproxBytes(user);
+    if (!out.Add(std::move(user), bytes)) break;
   }
   RETURN_IF_ERROR(txn.Commit());
-  return result;
+  return out.Take();
 }
 
 absl::Status PostgresEventStore::DeleteUser(const std::string& user_id) {
@@ -779,7 +764,9 @@ absl::StatusOr<EventRecord> PostgresEventStore::GetEvent(int64_t event_id) {
 absl::StatusOr<PageResult<EventRecord>> PostgresEventStore::ListEvents(
     const std::string& user_id, const std::string& meal_id, const Page& page) {
   constexpr char kOp[] = "ListEvents";
-  const int page_size = ClampPageSize(page.page_size);
+  store_rows::PageBuilder<EventRecord> out(
+      page, 'e',
+      [](const EventRecord& event) { return absl::StrCat(event.event_id); });
   int64_t after = 0;  // event ids start at 1
   if (!page.page_token.empty()) {
     ASSIGN_OR_RETURN(after, store_rows::ParseIdPageToken(page.page_token, 'e'));
@@ -792,7 +779,7 @@ absl::StatusOr<PageResult<EventRecord>> PostgresEventStore::ListEvents(
                                       "READ ONLY"));
   RETURN_IF_ERROR(CheckUserExists(*conn, user_id, kOp));
   Params params;
-  params.Text(user_id).Int64(after).Int64(page_size + 1);
+  params.Text(user_id).Int64(after).Int64(out.page_size() + 1);
   if (!meal_id.empty()) params.Text(meal_id);
   ASSIGN_OR_RETURN(
       Rows rows,
@@ -801,26 +788,13 @@ absl::StatusOr<PageResult<EventRecord>> PostgresEventStore::ListEvents(
                               "AND e.event_id > $2 ORDER BY e.event_id "
                               "LIMIT $3"),
                  params, kOp));
-  PageResult<EventRecord> result;
-  int64_t bytes = 0;
-  while (rows.Next()) {
-    if (static_cast<int>(result.items.size()) == page_size) {
-      result.next_page_token =
-          MakePageToken('e', absl::StrCat(result.items.back().event_id));
-      break;
-    }
+  while (rows.Next() && out.Room()) {
     ASSIGN_OR_RETURN(EventRecord event, store_rows::ReadEventRow(rows));
-    if (PageFull(page, page_size, result.items.size(),
-                 bytes + ApproxBytes(event))) {
-      result.next_page_token =
-          MakePageToken('e', absl::StrCat(result.items.back().event_id));
-      break;
-    }
-    bytes += ApproxBytes(event);
-    result.items.push_back(std::move(event));
+    const int64_t bytes = ApproxBytes(event);
+    if (!out.Add(std::move(event), bytes)) break;
   }
   RETURN_IF_ERROR(txn.Commit());
-  return result;
+  return out.Take();
 }
 
 absl::StatusOr<std::vector<EventRecord>> PostgresEventStore::CompletedEvents(
@@ -962,10 +936,7 @@ absl::Status PostgresEventStore::PutCheckpoint(
         ": a concurrent checkpoint or delete removed its chunks; not kept"));
   }
   if (!is_current) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        "checkpoint of user ", user_id, " at model version ",
-        checkpoint.model_version, ": the log no longer has event ",
-        checkpoint.last_event_id, " there (reset meanwhile?); not kept"));
+    return store_rows::CheckpointNotKept(user_id, checkpoint);
   }
   return absl::OkStatus();
 }
@@ -1063,11 +1034,7 @@ absl::StatusOr<PoolRecord> PostgresEventStore::LatestPool(
     RETURN_IF_ERROR(txn.Commit());
     return pool;
   }
-  return absl::NotFoundError(absl::StrCat(
-      "no population pool for ", LearnerName(config.learner),
-      " users with context_dim ", config.context_dim, ", posthoc_dim ",
-      posthoc_dim, " and these ", config.num_actions(),
-      " actions; build one with BuildPopulationPrior"));
+  return store_rows::NoPoolFor(config, posthoc_dim);
 }
 
 absl::StatusOr<int64_t> PostgresEventStore::AppendAudit(
@@ -1094,7 +1061,9 @@ absl::StatusOr<int64_t> PostgresEventStore::AppendAudit(
 absl::StatusOr<PageResult<AuditEntry>> PostgresEventStore::ListAudit(
     const Page& page) {
   constexpr char kOp[] = "ListAudit";
-  const int page_size = ClampPageSize(page.page_size);
+  store_rows::PageBuilder<AuditEntry> out(
+      page, 'a',
+      [](const AuditEntry& entry) { return absl::StrCat(entry.audit_id); });
   int64_t after = 0;
   if (!page.page_token.empty()) {
     ASSIGN_OR_RETURN(after, store_rows::ParseIdPageToken(page.page_token, 'a'));
@@ -1105,62 +1074,29 @@ absl::StatusOr<PageResult<AuditEntry>> PostgresEventStore::ListAudit(
       conn->Exec("SELECT audit_id, at_us, method, target, identity, role, "
                  "peer, result FROM audit WHERE audit_id > $1 ORDER BY "
                  "audit_id LIMIT $2",
-                 Params().Int64(after).Int64(page_size + 1), kOp));
-  PageResult<AuditEntry> result;
-  while (rows.Next()) {
-    if (static_cast<int>(result.items.size()) == page_size) {
-      result.next_page_token =
-          MakePageToken('a', absl::StrCat(result.items.back().audit_id));
-      break;
-    }
-    AuditEntry entry;
-    entry.audit_id = rows.Int64(0);
-    entry.time = FromMicros(rows.Int64(1));
-    entry.method = rows.Text(2);
-    entry.target = rows.Text(3);
-    entry.identity = rows.Text(4);
-    entry.role = rows.Text(5);
-    entry.peer = rows.Text(6);
-    entry.result = rows.Text(7);
-    result.items.push_back(std::move(entry));
+                 Params().Int64(after).Int64(out.page_size() + 1), kOp));
+  while (rows.Next() && out.Room()) {
+    out.Add(store_rows::ReadAuditRow(rows), /*bytes=*/0);
   }
-  return result;
+  return out.Take();
 }
 
 absl::StatusOr<StoreCheckReport> PostgresEventStore::CheckStore() {
   constexpr char kOp[] = "CheckStore";
-  constexpr int kMaxFindings = 100;
   constexpr int64_t kBatch = 500;
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
   ASSIGN_OR_RETURN(Transaction txn,
                    Transaction::Begin(*conn, kOp,
                                       "ISOLATION LEVEL REPEATABLE READ "
                                       "READ ONLY"));
-  StoreCheckReport report;
-  auto note = [&](const absl::Status& status) {
-    if (static_cast<int>(report.findings.size()) < kMaxFindings) {
-      report.findings.push_back(std::string(status.message()));
-    }
-  };
+  store_rows::CheckReportBuilder report;
   {
     ASSIGN_OR_RETURN(
         Rows users,
         conn->Exec(absl::StrCat(kUserColumns, "ORDER BY u.user_id"), kOp));
-    while (users.Next()) {
-      ++report.users_checked;
-      absl::StatusOr<UserRecord> user = ReadUser(*conn, users);
-      if (!user.ok() && !absl::IsDataLoss(user.status())) {
-        return user.status();  // the check could not run
-      }
-      if (!user.ok()) {
-        note(user.status());
-      } else if (absl::Status valid = ValidateConfig(user->config);
-                 !valid.ok()) {
-        note(absl::DataLossError(
-            absl::StrCat("user \"", user->user_id, "\": ", valid.message())));
-      }
-    }
+    while (users.Next()) RETURN_IF_ERROR(report.User(ReadUser(*conn, users)));
   }
+  // In batches: the server never holds every context in one result.
   for (int64_t after = 0;;) {
     ASSIGN_OR_RETURN(Rows events,
                      conn->Exec(absl::StrCat(kEventColumns,
@@ -1168,10 +1104,8 @@ absl::StatusOr<StoreCheckReport> PostgresEventStore::CheckStore() {
                                              "e.event_id LIMIT $2"),
                                 Params().Int64(after).Int64(kBatch), kOp));
     while (events.Next()) {
-      ++report.events_checked;
       after = events.Int64(0);
-      absl::StatusOr<EventRecord> event = store_rows::ReadEventRow(events);
-      if (!event.ok()) note(event.status());
+      RETURN_IF_ERROR(report.Event(store_rows::ReadEventRow(events).status()));
     }
     if (events.size() < kBatch) break;
   }
@@ -1183,20 +1117,12 @@ absl::StatusOr<StoreCheckReport> PostgresEventStore::CheckStore() {
                                 kOp));
     while (rows.Next()) with_checkpoint.push_back(rows.Text(0));
     for (const std::string& user_id : with_checkpoint) {
-      absl::StatusOr<ModelCheckpoint> checkpoint =
-          ReadCheckpoint(*conn, user_id);
-      if (!checkpoint.ok() && !absl::IsDataLoss(checkpoint.status())) {
-        return checkpoint.status();
-      }
-      if (!checkpoint.ok()) {
-        note(absl::DataLossError(absl::StrCat(
-            checkpoint.status().message(),
-            " (the service ignores it and rebuilds that model from the log)")));
-      }
+      RETURN_IF_ERROR(
+          report.Checkpoint(ReadCheckpoint(*conn, user_id).status()));
     }
   }
   RETURN_IF_ERROR(txn.Commit());
-  return report;
+  return report.Take();
 }
 
 }  // namespace bitewise::bandit

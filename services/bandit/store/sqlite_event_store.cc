@@ -38,14 +38,11 @@ using sqlite::SqliteError;
 using sqlite::Statement;
 using sqlite::Transaction;
 using store_rows::ApproxBytes;
-using store_rows::ClampPageSize;
 using store_rows::DecodePrior;
 using store_rows::EncodeDoubles;
 using store_rows::EncodePrior;
 using store_rows::EventNotFound;
 using store_rows::FromMicros;
-using store_rows::MakePageToken;
-using store_rows::PageFull;
 using store_rows::ParsePageToken;
 using store_rows::ToMicros;
 using store_rows::UserNotFound;
@@ -390,7 +387,8 @@ absl::StatusOr<UserRecord> SqliteEventStore::GetUser(
 
 absl::StatusOr<PageResult<UserRecord>> SqliteEventStore::ListUsers(
     const Page& page) {
-  const int page_size = ClampPageSize(page.page_size);
+  store_rows::PageBuilder<UserRecord> out(
+      page, 'u', [](const UserRecord& user) { return user.user_id; });
   std::string after;
   if (!page.page_token.empty()) {
     ASSIGN_OR_RETURN(after, ParsePageToken(page.page_token, 'u'));
@@ -405,30 +403,16 @@ absl::StatusOr<PageResult<UserRecord>> SqliteEventStore::ListUsers(
                        "ORDER BY u.user_id LIMIT ?1"),
           "ListUsers"));
   // One extra row says whether another page exists.
-  st.BindInt64(1, page_size + 1);
+  st.BindInt64(1, out.page_size() + 1);
   if (!page.page_token.empty()) st.BindText(2, after);
-  PageResult<UserRecord> result;
-  int64_t bytes = 0;
   while (true) {
     ASSIGN_OR_RETURN(const bool row, st.Step());
-    if (!row) break;
-    // The extra row past a full page is not read: it only says there is more.
-    const bool counted_full =
-        static_cast<int>(result.items.size()) == page_size;
-    if (counted_full) {
-      result.next_page_token = MakePageToken('u', result.items.back().user_id);
-      break;
-    }
+    if (!row || !out.Room()) break;
     ASSIGN_OR_RETURN(UserRecord user, ReadUser(db_, st));
-    if (PageFull(page, page_size, result.items.size(),
-                 bytes + ApproxBytes(user))) {
-      result.next_page_token = MakePageToken('u', result.items.back().user_id);
-      break;
-    }
-    bytes += ApproxBytes(user);
-    result.items.push_back(std::move(user));
+    const int64_t bytes = ApproxBytes(user);
+    if (!out.Add(std::move(user), bytes)) break;
   }
-  return result;
+  return out.Take();
 }
 
 absl::Status SqliteEventStore::DeleteUser(const std::string& user_id) {
@@ -704,11 +688,7 @@ absl::StatusOr<PoolRecord> SqliteEventStore::LatestPool(
     pool.prior.pool_version = pool.pool_version;
     return pool;
   }
-  return absl::NotFoundError(absl::StrCat(
-      "no population pool for ", LearnerName(config.learner),
-      " users with context_dim ", config.context_dim, ", posthoc_dim ",
-      posthoc_dim, " and these ", config.num_actions(),
-      " actions; build one with BuildPopulationPrior"));
+  return store_rows::NoPoolFor(config, posthoc_dim);
 }
 
 absl::Status SqliteEventStore::CheckUserExistsLocked(
@@ -725,7 +705,9 @@ absl::Status SqliteEventStore::CheckUserExistsLocked(
 
 absl::StatusOr<PageResult<EventRecord>> SqliteEventStore::ListEvents(
     const std::string& user_id, const std::string& meal_id, const Page& page) {
-  const int page_size = ClampPageSize(page.page_size);
+  store_rows::PageBuilder<EventRecord> out(
+      page, 'e',
+      [](const EventRecord& event) { return absl::StrCat(event.event_id); });
   int64_t after = 0;  // event ids start at 1
   if (!page.page_token.empty()) {
     ASSIGN_OR_RETURN(after, store_rows::ParseIdPageToken(page.page_token, 'e'));
@@ -737,7 +719,6 @@ absl::StatusOr<PageResult<EventRecord>> SqliteEventStore::ListEvents(
       Transaction txn,
       Transaction::Begin(db_, Transaction::Kind::kRead, "ListEvents"));
   RETURN_IF_ERROR(CheckUserExistsLocked(user_id));
-  PageResult<EventRecord> result;
   {
     // Separate statements so each filter gets its index.
     ASSIGN_OR_RETURN(
@@ -750,32 +731,18 @@ absl::StatusOr<PageResult<EventRecord>> SqliteEventStore::ListEvents(
             "ListEvents"));
     st.BindText(1, user_id);
     st.BindInt64(2, after);
-    st.BindInt64(3, page_size + 1);
+    st.BindInt64(3, out.page_size() + 1);
     if (!meal_id.empty()) st.BindText(4, meal_id);
-    int64_t bytes = 0;
     while (true) {
       ASSIGN_OR_RETURN(const bool row, st.Step());
-      if (!row) break;
-      const bool counted_full =
-          static_cast<int>(result.items.size()) == page_size;
-      if (counted_full) {
-        result.next_page_token =
-            MakePageToken('e', absl::StrCat(result.items.back().event_id));
-        break;
-      }
+      if (!row || !out.Room()) break;
       ASSIGN_OR_RETURN(EventRecord event, ReadEvent(st));
-      if (PageFull(page, page_size, result.items.size(),
-                   bytes + ApproxBytes(event))) {
-        result.next_page_token =
-            MakePageToken('e', absl::StrCat(result.items.back().event_id));
-        break;
-      }
-      bytes += ApproxBytes(event);
-      result.items.push_back(std::move(event));
+      const int64_t bytes = ApproxBytes(event);
+      if (!out.Add(std::move(event), bytes)) break;
     }
   }
   RETURN_IF_ERROR(txn.Commit());
-  return result;
+  return out.Take();
 }
 
 absl::StatusOr<std::vector<EventRecord>> SqliteEventStore::CompletedEvents(
@@ -899,10 +866,7 @@ absl::Status SqliteEventStore::PutCheckpoint(
   }
   RETURN_IF_ERROR(txn.Commit());
   if (!current) {
-    return absl::FailedPreconditionError(absl::StrCat(
-        "checkpoint of user ", user_id, " at model version ",
-        checkpoint.model_version, ": the log no longer has event ",
-        checkpoint.last_event_id, " there (reset meanwhile?); not kept"));
+    return store_rows::CheckpointNotKept(user_id, checkpoint);
   }
   return absl::OkStatus();
 }
@@ -968,11 +932,9 @@ absl::StatusOr<ModelCheckpoint> SqliteEventStore::ReadCheckpointLocked(
     if (expected_seq != chunks ||
         static_cast<int64_t>(out.state.size()) != bytes ||
         BlobChecksum(out.state) != checksum) {
-      return absl::DataLossError(absl::StrCat(
-          "the model checkpoint of user ", user_id, " at model version ",
-          out.model_version, " is damaged (", out.state.size(), " of ", bytes,
-          " bytes in ", expected_seq, " of ", chunks,
-          " chunks, or a checksum mismatch)"));
+      return store_rows::CheckpointDamaged(user_id, out.model_version,
+                                           out.state.size(), bytes,
+                                           expected_seq, chunks);
     }
   }
   return out;
@@ -1033,7 +995,9 @@ absl::StatusOr<int64_t> SqliteEventStore::AppendAudit(const AuditEntry& entry) {
 
 absl::StatusOr<PageResult<AuditEntry>> SqliteEventStore::ListAudit(
     const Page& page) {
-  const int page_size = ClampPageSize(page.page_size);
+  store_rows::PageBuilder<AuditEntry> out(
+      page, 'a',
+      [](const AuditEntry& entry) { return absl::StrCat(entry.audit_id); });
   int64_t after = 0;
   if (!page.page_token.empty()) {
     ASSIGN_OR_RETURN(after, store_rows::ParseIdPageToken(page.page_token, 'a'));
@@ -1047,41 +1011,21 @@ absl::StatusOr<PageResult<AuditEntry>> SqliteEventStore::ListAudit(
                          "ORDER BY audit_id LIMIT ?2",
                          "ListAudit"));
   st.BindInt64(1, after);
-  st.BindInt64(2, page_size + 1);
-  PageResult<AuditEntry> result;
+  st.BindInt64(2, out.page_size() + 1);
   while (true) {
     ASSIGN_OR_RETURN(const bool row, st.Step());
-    if (!row) break;
-    if (static_cast<int>(result.items.size()) == page_size) {
-      result.next_page_token =
-          MakePageToken('a', absl::StrCat(result.items.back().audit_id));
-      break;
-    }
-    AuditEntry entry;
-    entry.audit_id = st.Int64(0);
-    entry.time = FromMicros(st.Int64(1));
-    entry.method = st.Text(2);
-    entry.target = st.Text(3);
-    entry.identity = st.Text(4);
-    entry.role = st.Text(5);
-    entry.peer = st.Text(6);
-    entry.result = st.Text(7);
-    result.items.push_back(std::move(entry));
+    if (!row || !out.Room()) break;
+    out.Add(store_rows::ReadAuditRow(st), /*bytes=*/0);
   }
-  return result;
+  return out.Take();
 }
 
 absl::StatusOr<StoreCheckReport> SqliteEventStore::CheckStore() {
   constexpr int kMaxFindings = 100;
   absl::MutexLock lock(&mu_);
-  StoreCheckReport report;
-  ASSIGN_OR_RETURN(report.findings,
+  ASSIGN_OR_RETURN(std::vector<std::string> findings,
                    sqlite::IntegrityFindings(db_, kMaxFindings));
-  auto note = [&](const absl::Status& status) {
-    if (static_cast<int>(report.findings.size()) < kMaxFindings) {
-      report.findings.push_back(std::string(status.message()));
-    }
-  };
+  store_rows::CheckReportBuilder report(std::move(findings));
   ASSIGN_OR_RETURN(
       Transaction txn,
       Transaction::Begin(db_, Transaction::Kind::kRead, "CheckStore"));
@@ -1093,15 +1037,7 @@ absl::StatusOr<StoreCheckReport> SqliteEventStore::CheckStore() {
     while (true) {
       ASSIGN_OR_RETURN(const bool row, users.Step());
       if (!row) break;
-      ++report.users_checked;
-      absl::StatusOr<UserRecord> user = ReadUser(db_, users);
-      if (!user.ok()) {
-        note(user.status());
-      } else if (absl::Status valid = ValidateConfig(user->config);
-                 !valid.ok()) {
-        note(absl::DataLossError(
-            absl::StrCat("user \"", user->user_id, "\": ", valid.message())));
-      }
+      RETURN_IF_ERROR(report.User(ReadUser(db_, users)));
     }
   }
   {
@@ -1112,9 +1048,7 @@ absl::StatusOr<StoreCheckReport> SqliteEventStore::CheckStore() {
     while (true) {
       ASSIGN_OR_RETURN(const bool row, events.Step());
       if (!row) break;
-      ++report.events_checked;
-      absl::StatusOr<EventRecord> event = ReadEvent(events);
-      if (!event.ok()) note(event.status());
+      RETURN_IF_ERROR(report.Event(ReadEvent(events).status()));
     }
   }
   {
@@ -1132,17 +1066,12 @@ absl::StatusOr<StoreCheckReport> SqliteEventStore::CheckStore() {
       with_checkpoint.push_back(st.Text(0));
     }
     for (const std::string& user_id : with_checkpoint) {
-      absl::StatusOr<ModelCheckpoint> checkpoint =
-          ReadCheckpointLocked(user_id);
-      if (!checkpoint.ok()) {
-        note(absl::DataLossError(absl::StrCat(
-            checkpoint.status().message(),
-            " (the service ignores it and rebuilds that model from the log)")));
-      }
+      RETURN_IF_ERROR(
+          report.Checkpoint(ReadCheckpointLocked(user_id).status()));
     }
   }
   RETURN_IF_ERROR(txn.Commit());
-  return report;
+  return report.Take();
 }
 
 }  // namespace bitewise::bandit

@@ -137,11 +137,6 @@ int64_t ApproxBytes(const EventRecord& event) {
          8 * static_cast<int64_t>(event.context.size() + event.posthoc.size());
 }
 
-bool PageFull(const Page& page, int page_size, size_t count, int64_t bytes) {
-  return static_cast<int>(count) == page_size ||
-         (page.max_bytes > 0 && count > 0 && bytes > page.max_bytes);
-}
-
 int ClampPageSize(int page_size) {
   if (page_size <= 0) return kDefaultPageSize;
   return std::min(page_size, kMaxPageSize);
@@ -191,6 +186,67 @@ absl::Status ChecksumMismatch(int64_t event_id, absl::string_view user_id,
       " does not match its checksum (altered or damaged on disk); it is not "
       "learned from. Restore the last backup or ResetUser "
       "(docs/operations.md)"));
+}
+
+CheckReportBuilder::CheckReportBuilder(std::vector<std::string> findings) {
+  report_.findings = std::move(findings);
+}
+
+absl::Status CheckReportBuilder::Note(const absl::Status& status) {
+  if (status.ok()) return absl::OkStatus();
+  if (!absl::IsDataLoss(status)) return status;  // the check could not run
+  constexpr size_t kMaxFindings = 100;
+  if (report_.findings.size() < kMaxFindings) {
+    report_.findings.push_back(std::string(status.message()));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status CheckReportBuilder::User(const absl::StatusOr<UserRecord>& user) {
+  ++report_.users_checked;
+  if (!user.ok()) return Note(user.status());
+  if (absl::Status valid = ValidateConfig(user->config); !valid.ok()) {
+    return Note(absl::DataLossError(
+        absl::StrCat("user \"", user->user_id, "\": ", valid.message())));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status CheckReportBuilder::Event(const absl::Status& event) {
+  ++report_.events_checked;
+  return Note(event);
+}
+
+absl::Status CheckReportBuilder::Checkpoint(const absl::Status& checkpoint) {
+  if (!absl::IsDataLoss(checkpoint)) return Note(checkpoint);
+  return Note(absl::DataLossError(absl::StrCat(
+      checkpoint.message(),
+      " (the service ignores it and rebuilds that model from the log)")));
+}
+
+absl::Status CheckpointDamaged(absl::string_view user_id, int64_t model_version,
+                               size_t got_bytes, int64_t bytes,
+                               int64_t got_chunks, int64_t chunks) {
+  return absl::DataLossError(absl::StrCat(
+      "the model checkpoint of user ", user_id, " at model version ",
+      model_version, " is damaged (", got_bytes, " of ", bytes, " bytes in ",
+      got_chunks, " of ", chunks, " chunks, or a checksum mismatch)"));
+}
+
+absl::Status CheckpointNotKept(absl::string_view user_id,
+                               const ModelCheckpoint& checkpoint) {
+  return absl::FailedPreconditionError(absl::StrCat(
+      "checkpoint of user ", user_id, " at model version ",
+      checkpoint.model_version, ": the log no longer has event ",
+      checkpoint.last_event_id, " there (reset meanwhile?); not kept"));
+}
+
+absl::Status NoPoolFor(const BanditConfig& config, int posthoc_dim) {
+  return absl::NotFoundError(absl::StrCat(
+      "no population pool for ", LearnerName(config.learner),
+      " users with context_dim ", config.context_dim, ", posthoc_dim ",
+      posthoc_dim, " and these ", config.num_actions(),
+      " actions; build one with BuildPopulationPrior"));
 }
 
 }  // namespace bitewise::bandit::store_rows

@@ -12,7 +12,9 @@
 #define BITEWISE_SERVICES_BANDIT_STORE_STORE_ROWS_H_
 
 #include <cstdint>
+#include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/functional/function_ref.h"
@@ -53,11 +55,103 @@ absl::StatusOr<int64_t> ParseIdPageToken(const std::string& token, char kind);
 // (ListEvents): their strings and doubles and some overhead.
 int64_t ApproxBytes(const UserRecord& user);
 int64_t ApproxBytes(const EventRecord& event);
-// Whether adding an item would take a page of `count` items to `bytes`,
-// past its byte budget (never before its first item).
-bool PageFull(const Page& page, int page_size, size_t count, int64_t bytes);
 // Page.page_size clamped to [1, 1000] (0 or less: 100).
 int ClampPageSize(int page_size);
+
+// One page of a listing, built from rows read with a limit of page_size()
+// + 1 (the extra row only says there is more). Before decoding a row, ask
+// Room(); after, Add() it with its size. Either returns false, with the
+// next page's token set from the last item kept, when the page is done.
+template <typename T>
+class PageBuilder {
+ public:
+  // `key(item)` is what the next page starts after, under the token `kind`.
+  PageBuilder(const Page& page, char kind,
+              std::function<std::string(const T&)> key)
+      : page_(page),
+        page_size_(ClampPageSize(page.page_size)),
+        kind_(kind),
+        key_(std::move(key)) {}
+
+  int page_size() const { return page_size_; }
+
+  bool Room() {
+    if (static_cast<int>(result_.items.size()) < page_size_) return true;
+    End();
+    return false;
+  }
+
+  // `bytes`: the item's approximate encoded size (0: no byte budget).
+  bool Add(T item, int64_t bytes) {
+    // Past the byte budget ends the page, never before its first item.
+    if (page_.max_bytes > 0 && !result_.items.empty() &&
+        bytes_ + bytes > page_.max_bytes) {
+      End();
+      return false;
+    }
+    bytes_ += bytes;
+    result_.items.push_back(std::move(item));
+    return true;
+  }
+
+  PageResult<T> Take() { return std::move(result_); }
+
+ private:
+  void End() {
+    result_.next_page_token = MakePageToken(kind_, key_(result_.items.back()));
+  }
+
+  const Page page_;
+  const int page_size_;
+  const char kind_;
+  const std::function<std::string(const T&)> key_;
+  int64_t bytes_ = 0;
+  PageResult<T> result_;
+};
+
+// CheckStore's report, filled as every row is read back: damaged data
+// (DATA_LOSS) is a finding (at most 100); any other error means the check
+// could not run and is returned.
+class CheckReportBuilder {
+ public:
+  explicit CheckReportBuilder(std::vector<std::string> findings = {});
+  // A user read back; its configuration is validated too.
+  absl::Status User(const absl::StatusOr<UserRecord>& user);
+  absl::Status Event(const absl::Status& event);
+  // A checkpoint read back (derived data: the service ignores a damaged
+  // one and rebuilds that model from the log).
+  absl::Status Checkpoint(const absl::Status& checkpoint);
+  StoreCheckReport Take() { return std::move(report_); }
+
+ private:
+  absl::Status Note(const absl::Status& status);
+  StoreCheckReport report_;
+};
+
+// The messages both stores give for a damaged checkpoint, a checkpoint not
+// kept because the log moved on, and a missing population pool.
+absl::Status CheckpointDamaged(absl::string_view user_id, int64_t model_version,
+                               size_t got_bytes, int64_t bytes,
+                               int64_t got_chunks, int64_t chunks);
+absl::Status CheckpointNotKept(absl::string_view user_id,
+                               const ModelCheckpoint& checkpoint);
+absl::Status NoPoolFor(const BanditConfig& config, int posthoc_dim);
+
+// A row of the audit columns, in this order: audit_id, at_us, method,
+// target, identity, role, peer, result.
+template <typename Row>
+AuditEntry ReadAuditRow(Row& row) {
+  AuditEntry entry;
+  entry.audit_id = row.Int64(0);
+  entry.time = FromMicros(row.Int64(1));
+  entry.method = row.Text(2);
+  entry.target = row.Text(3);
+  entry.identity = row.Text(4);
+  entry.role = row.Text(5);
+  entry.peer = row.Text(6);
+  entry.result = row.Text(7);
+  return entry;
+}
 
 // DATA_LOSS naming `what` when a stored integer does not fit an int.
 absl::StatusOr<int> ToInt(int64_t value, absl::string_view what);
