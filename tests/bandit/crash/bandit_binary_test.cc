@@ -911,6 +911,39 @@ TEST(BanditBinaryStartTest, AMistypedDbStopsTheStartUnlessCreateIsGiven) {
   EXPECT_NE(access(db.c_str(), F_OK), 0);  // nothing was made
 }
 
+// Two bitewise-bandit processes (replicas) on one new database of the test
+// binary's PostgreSQL server, logging into a temporary directory; both are
+// killed and the directory removed at the end.
+struct ReplicaPair {
+  absl::Status Start(const std::string& database) {
+    testing::TestPostgres* pg = testing::SharedTestPostgres();
+    if (pg == nullptr) return absl::UnavailableError("no test PostgreSQL");
+    absl::StatusOr<std::string> conninfo = pg->CreateDatabase(database);
+    if (!conninfo.ok()) return conninfo.status();
+    db = *conninfo;
+    dir = (std::filesystem::temp_directory_path() / "bandit_replicas.XXXXXX")
+              .string();
+    if (mkdtemp(dir.data()) == nullptr) {
+      return absl::InternalError(std::strerror(errno));
+    }
+    for (int r = 0; r < 2; ++r) {
+      absl::Status started =
+          replicas[r].Start(db, absl::StrCat(dir, "/replica-", r, ".log"));
+      if (!started.ok()) return started;
+    }
+    return absl::OkStatus();
+  }
+  ~ReplicaPair() {
+    for (ServerProcess& replica : replicas) replica.Kill();
+    std::error_code ignored;
+    if (!dir.empty()) std::filesystem::remove_all(dir, ignored);
+  }
+
+  std::string db;
+  std::string dir;
+  ServerProcess replicas[2];
+};
+
 // Two bitewise-bandit processes on one PostgreSQL database, as two
 // workstations behind one client-side target list: the client sends each
 // Select to one and its Update to the other, every choice is made from
@@ -925,20 +958,10 @@ TEST(BanditReplicaBinaryTest, TwoReplicasServeOneLogAndOneCanBeKilled) {
   constexpr int kRounds = 40;
   constexpr int kKillAt = 22;  // even: replica 0 selects
   constexpr double kAlpha = 0.6;
-  testing::TestPostgres* pg = testing::SharedTestPostgres();
-  ASSERT_NE(pg, nullptr);
-  absl::StatusOr<std::string> db = pg->CreateDatabase("replica_binary");
-  ASSERT_TRUE(db.ok()) << db.status();
-  std::string dir =
-      (std::filesystem::temp_directory_path() / "bandit_replicas.XXXXXX")
-          .string();
-  ASSERT_NE(mkdtemp(dir.data()), nullptr);
-  ServerProcess replicas[2];
-  for (int r = 0; r < 2; ++r) {
-    absl::Status started =
-        replicas[r].Start(*db, absl::StrCat(dir, "/replica-", r, ".log"));
-    ASSERT_TRUE(started.ok()) << started;
-  }
+  ReplicaPair pair;
+  absl::Status started = pair.Start("replica_binary");
+  ASSERT_TRUE(started.ok()) << started;
+  ServerProcess* const replicas = pair.replicas;
   v1::CreateUserRequest create;
   create.set_user_id("shared");
   create.mutable_config()->set_learner(v1::LEARNER_POSTHOC);
@@ -1002,15 +1025,12 @@ TEST(BanditReplicaBinaryTest, TwoReplicasServeOneLogAndOneCanBeKilled) {
   absl::StatusOr<v1::Model> model = GetModel(replicas[1].stub(), "shared");
   ASSERT_TRUE(model.ok()) << model.status();
   ExpectModelMatchesReference(*model, reference, rounds, true, 1e-8);
-  absl::Status restarted =
-      replicas[0].Start(*db, absl::StrCat(dir, "/replica-0-again.log"));
+  absl::Status restarted = replicas[0].Start(
+      pair.db, absl::StrCat(pair.dir, "/replica-0-again.log"));
   ASSERT_TRUE(restarted.ok()) << restarted;
   model = GetModel(replicas[0].stub(), "shared");
   ASSERT_TRUE(model.ok()) << model.status();
   ExpectModelMatchesReference(*model, reference, rounds, true, 1e-8);
-  for (ServerProcess& replica : replicas) replica.Kill();
-  std::error_code ignored;
-  std::filesystem::remove_all(dir, ignored);
 }
 
 // PostgreSQL stopped under a running service: calls fail with UNAVAILABLE
@@ -1075,20 +1095,10 @@ TEST(BanditReplicaBinaryTest, ADatabaseThatStopsAndReturnsNeedsNoRestart) {
 // carries a meal; one replica is killed and the meal goes on through the
 // other without an error reaching the caller.
 TEST(BanditReplicaBinaryTest, OneChannelOverTwoReplicasFailsOver) {
-  testing::TestPostgres* pg = testing::SharedTestPostgres();
-  ASSERT_NE(pg, nullptr);
-  absl::StatusOr<std::string> db = pg->CreateDatabase("replica_channel");
-  ASSERT_TRUE(db.ok()) << db.status();
-  std::string dir =
-      (std::filesystem::temp_directory_path() / "bandit_channel.XXXXXX")
-          .string();
-  ASSERT_NE(mkdtemp(dir.data()), nullptr);
-  ServerProcess replicas[2];
-  for (int r = 0; r < 2; ++r) {
-    absl::Status started =
-        replicas[r].Start(*db, absl::StrCat(dir, "/replica-", r, ".log"));
-    ASSERT_TRUE(started.ok()) << started;
-  }
+  ReplicaPair pair;
+  absl::Status started = pair.Start("replica_channel");
+  ASSERT_TRUE(started.ok()) << started;
+  ServerProcess* const replicas = pair.replicas;
   ChannelOptions options;
   options.max_attempts = 5;  // the orchestrator's default --retries=4
   options.initial_backoff = absl::Milliseconds(50);
@@ -1121,9 +1131,6 @@ TEST(BanditReplicaBinaryTest, OneChannelOverTwoReplicasFailsOver) {
     ASSERT_TRUE(updated.ok()) << updated.status();
     EXPECT_EQ(updated->model_version(), t + 1);
   }
-  for (ServerProcess& replica : replicas) replica.Kill();
-  std::error_code ignored;
-  std::filesystem::remove_all(dir, ignored);
 }
 
 }  // namespace

@@ -104,6 +104,26 @@ class StoreCopyTest : public ::testing::Test {
     }
   }
 
+  // Copies `original` (20 users) to `there` and on to `back`, and checks
+  // that both copies equal it event for event and model for model.
+  void ExpectRoundTrip(EventStore& original, EventStore& there,
+                       EventStore& back) {
+    absl::StatusOr<CopyReport> out = CopyUsers(original, there);
+    ASSERT_TRUE(out.ok()) << out.status();
+    EXPECT_EQ(out->users, 20);
+    absl::StatusOr<CopyReport> in = CopyUsers(there, back);
+    ASSERT_TRUE(in.ok()) << in.status();
+    EXPECT_EQ(in->events, out->events);
+    for (EventStore* copy : {&there, &back}) {
+      absl::StatusOr<VerifyReport> verified = VerifyCopy(original, *copy);
+      ASSERT_TRUE(verified.ok()) << verified.status();
+      EXPECT_THAT(verified->differences, IsEmpty());
+      EXPECT_EQ(verified->users, 20);
+      EXPECT_EQ(verified->events, out->events);
+      EXPECT_LE(verified->worst_model_difference, 1e-12);
+    }
+  }
+
   // A new database on the test's PostgreSQL server, and its URI.
   std::string NewPostgresDatabase(const std::string& name) {
     testing::TestPostgres* server = testing::SharedTestPostgres();
@@ -134,22 +154,8 @@ TEST_F(StoreCopyTest, RoundTripOfTwentyUsersEqualsTheOriginal) {
   ASSERT_NE(original, nullptr);
   Fill(*original, 20);
   std::unique_ptr<SqliteEventStore> there = Open("there");
-  absl::StatusOr<CopyReport> out = CopyUsers(*original, *there);
-  ASSERT_TRUE(out.ok()) << out.status();
-  EXPECT_EQ(out->users, 20);
   std::unique_ptr<SqliteEventStore> back = Open("back");
-  absl::StatusOr<CopyReport> in = CopyUsers(*there, *back);
-  ASSERT_TRUE(in.ok()) << in.status();
-  EXPECT_EQ(in->events, out->events);
-
-  for (EventStore* copy : {there.get(), back.get()}) {
-    absl::StatusOr<VerifyReport> verified = VerifyCopy(*original, *copy);
-    ASSERT_TRUE(verified.ok()) << verified.status();
-    EXPECT_THAT(verified->differences, IsEmpty());
-    EXPECT_EQ(verified->users, 20);
-    EXPECT_EQ(verified->events, out->events);
-    EXPECT_LE(verified->worst_model_difference, 1e-12);
-  }
+  ExpectRoundTrip(*original, *there, *back);
   // Copying again into a store that has the users is refused, naming one.
   absl::StatusOr<CopyReport> again = CopyUsers(*original, *back);
   EXPECT_EQ(again.status().code(), absl::StatusCode::kAlreadyExists);
@@ -165,22 +171,8 @@ TEST_F(StoreCopyTest, RoundTripThroughPostgresEqualsTheOriginal) {
   options.conninfo = NewPostgresDatabase("copy_round_trip");
   auto there = PostgresEventStore::Open(options);
   ASSERT_TRUE(there.ok()) << there.status();
-  absl::StatusOr<CopyReport> out = CopyUsers(*original, **there);
-  ASSERT_TRUE(out.ok()) << out.status();
-  EXPECT_EQ(out->users, 20);
   std::unique_ptr<SqliteEventStore> back = Open("back");
-  absl::StatusOr<CopyReport> in = CopyUsers(**there, *back);
-  ASSERT_TRUE(in.ok()) << in.status();
-  EXPECT_EQ(in->events, out->events);
-  for (EventStore* copy : {static_cast<EventStore*>(there->get()),
-                           static_cast<EventStore*>(back.get())}) {
-    absl::StatusOr<VerifyReport> verified = VerifyCopy(*original, *copy);
-    ASSERT_TRUE(verified.ok()) << verified.status();
-    EXPECT_THAT(verified->differences, IsEmpty());
-    EXPECT_EQ(verified->users, 20);
-    EXPECT_EQ(verified->events, out->events);
-    EXPECT_LE(verified->worst_model_difference, 1e-12);
-  }
+  ExpectRoundTrip(*original, **there, *back);
 }
 
 TEST_F(StoreCopyTest, OneUserExportedAndImported) {
