@@ -29,6 +29,9 @@ using store_rows::UserNotFound;
 
 constexpr char kApplication[] = "bitewise-bandit";
 
+// Reads that must see one consistent state (a check and its rows).
+constexpr char kSnapshot[] = "ISOLATION LEVEL REPEATABLE READ READ ONLY";
+
 // The same tables and columns as the SQLite store's schema 5
 // (sqlite_schema.cc), in PostgreSQL's types. bitewise_store marks the
 // database as ours and holds the schema version.
@@ -207,19 +210,9 @@ absl::StatusOr<std::vector<std::string>> ReadActionNames(
       conn.Exec(absl::StrCat("SELECT action, name FROM ", table, " WHERE ",
                              key_column, " = $1 ORDER BY action"),
                 key, op));
-  std::vector<std::string> names;
-  while (rows.Next()) {
-    if (rows.Int64(0) != static_cast<int64_t>(names.size())) {
-      return absl::DataLossError(absl::StrCat(what, ": action ", names.size(),
-                                              " has no name in ", table));
-    }
-    names.push_back(rows.Text(1));
-  }
-  if (names.empty()) {
-    return absl::DataLossError(
-        absl::StrCat(what, ": no action names in ", table));
-  }
-  return names;
+  store_rows::ActionNamesReader names(what, table);
+  while (rows.Next()) RETURN_IF_ERROR(names.Add(rows.Int64(0), rows.Text(1)));
+  return names.Take();
 }
 
 absl::StatusOr<UserRecord> ReadUser(Connection& conn, Rows& rows) {
@@ -572,10 +565,7 @@ absl::StatusOr<UserRecord> PostgresEventStore::GetUser(
     const std::string& user_id) {
   constexpr char kOp[] = "GetUser";
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
-  ASSIGN_OR_RETURN(Transaction txn,
-                   Transaction::Begin(*conn, kOp,
-                                      "ISOLATION LEVEL REPEATABLE READ "
-                                      "READ ONLY"));
+  ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp, kSnapshot));
   ASSIGN_OR_RETURN(
       Rows rows, conn->Exec(absl::StrCat(kUserColumns, "WHERE u.user_id = $1"),
                             Params().Text(user_id), kOp));
@@ -595,10 +585,7 @@ absl::StatusOr<PageResult<UserRecord>> PostgresEventStore::ListUsers(
     ASSIGN_OR_RETURN(after, ParsePageToken(page.page_token, 'u'));
   }
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
-  ASSIGN_OR_RETURN(Transaction txn,
-                   Transaction::Begin(*conn, kOp,
-                                      "ISOLATION LEVEL REPEATABLE READ "
-                                      "READ ONLY"));
+  ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp, kSnapshot));
   ASSIGN_OR_RETURN(
       Rows rows,
       conn->Exec(absl::StrCat(kUserColumns,
@@ -773,10 +760,7 @@ absl::StatusOr<PageResult<EventRecord>> PostgresEventStore::ListEvents(
   }
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
   // One snapshot for the existence check and the rows.
-  ASSIGN_OR_RETURN(Transaction txn,
-                   Transaction::Begin(*conn, kOp,
-                                      "ISOLATION LEVEL REPEATABLE READ "
-                                      "READ ONLY"));
+  ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp, kSnapshot));
   RETURN_IF_ERROR(CheckUserExists(*conn, user_id, kOp));
   Params params;
   params.Text(user_id).Int64(after).Int64(out.page_size() + 1);
@@ -808,10 +792,7 @@ PostgresEventStore::CompletedEventsFrom(const std::string& user_id,
   constexpr char kOp[] = "CompletedEvents";
   constexpr int64_t kBatch = 1000;
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
-  ASSIGN_OR_RETURN(Transaction txn,
-                   Transaction::Begin(*conn, kOp,
-                                      "ISOLATION LEVEL REPEATABLE READ "
-                                      "READ ONLY"));
+  ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp, kSnapshot));
   RETURN_IF_ERROR(CheckUserExists(*conn, user_id, kOp));
   // In batches of model versions: the server never holds a whole log of
   // 16 KB contexts in one result.
@@ -945,10 +926,7 @@ absl::StatusOr<ModelCheckpoint> PostgresEventStore::GetCheckpoint(
     const std::string& user_id) {
   constexpr char kOp[] = "GetCheckpoint";
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
-  ASSIGN_OR_RETURN(Transaction txn,
-                   Transaction::Begin(*conn, kOp,
-                                      "ISOLATION LEVEL REPEATABLE READ "
-                                      "READ ONLY"));
+  ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp, kSnapshot));
   RETURN_IF_ERROR(CheckUserExists(*conn, user_id, kOp));
   ASSIGN_OR_RETURN(ModelCheckpoint out, ReadCheckpoint(*conn, user_id));
   RETURN_IF_ERROR(txn.Commit());
@@ -999,10 +977,7 @@ absl::StatusOr<PoolRecord> PostgresEventStore::LatestPool(
   const int posthoc_dim =
       config.learner == Learner::kPostHoc ? config.posthoc_dim : 0;
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
-  ASSIGN_OR_RETURN(Transaction txn,
-                   Transaction::Begin(*conn, kOp,
-                                      "ISOLATION LEVEL REPEATABLE READ "
-                                      "READ ONLY"));
+  ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp, kSnapshot));
   // The newest pool of this learner and these dimensions whose actions are
   // the user's, name for name.
   ASSIGN_OR_RETURN(
@@ -1085,10 +1060,7 @@ absl::StatusOr<StoreCheckReport> PostgresEventStore::CheckStore() {
   constexpr char kOp[] = "CheckStore";
   constexpr int64_t kBatch = 500;
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
-  ASSIGN_OR_RETURN(Transaction txn,
-                   Transaction::Begin(*conn, kOp,
-                                      "ISOLATION LEVEL REPEATABLE READ "
-                                      "READ ONLY"));
+  ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp, kSnapshot));
   store_rows::CheckReportBuilder report;
   {
     ASSIGN_OR_RETURN(

@@ -100,21 +100,13 @@ absl::StatusOr<std::vector<std::string>> ReadActionNames(
                                                    " = ?1 ORDER BY action"),
                                       op));
   st.BindText(1, key);
-  std::vector<std::string> names;
+  store_rows::ActionNamesReader names(what, table);
   while (true) {
     ASSIGN_OR_RETURN(const bool row, st.Step());
     if (!row) break;
-    if (st.Int64(0) != static_cast<int64_t>(names.size())) {
-      return absl::DataLossError(absl::StrCat(what, ": action ", names.size(),
-                                              " has no name in ", table));
-    }
-    names.push_back(st.Text(1));
+    RETURN_IF_ERROR(names.Add(st.Int64(0), st.Text(1)));
   }
-  if (names.empty()) {
-    return absl::DataLossError(
-        absl::StrCat(what, ": no action names in ", table));
-  }
-  return names;
+  return names.Take();
 }
 
 // Reads a row selected with kUserColumns (and its action names).

@@ -188,6 +188,23 @@ absl::Status ChecksumMismatch(int64_t event_id, absl::string_view user_id,
       "(docs/operations.md)"));
 }
 
+absl::Status ActionNamesReader::Add(int64_t action, std::string name) {
+  if (action != static_cast<int64_t>(names_.size())) {
+    return absl::DataLossError(absl::StrCat(what_, ": action ", names_.size(),
+                                            " has no name in ", table_));
+  }
+  names_.push_back(std::move(name));
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<std::string>> ActionNamesReader::Take() {
+  if (names_.empty()) {
+    return absl::DataLossError(
+        absl::StrCat(what_, ": no action names in ", table_));
+  }
+  return std::move(names_);
+}
+
 CheckReportBuilder::CheckReportBuilder(std::vector<std::string> findings) {
   report_.findings = std::move(findings);
 }

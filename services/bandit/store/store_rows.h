@@ -137,6 +137,22 @@ absl::Status CheckpointNotKept(absl::string_view user_id,
                                const ModelCheckpoint& checkpoint);
 absl::Status NoPoolFor(const BanditConfig& config, int posthoc_dim);
 
+// The action names of one user or pool, read row by row (action, name) in
+// action order: DATA_LOSS naming `what` and `table` unless the actions are
+// 0, 1, ... with at least one.
+class ActionNamesReader {
+ public:
+  ActionNamesReader(absl::string_view what, absl::string_view table)
+      : what_(what), table_(table) {}
+  absl::Status Add(int64_t action, std::string name);
+  absl::StatusOr<std::vector<std::string>> Take();
+
+ private:
+  const std::string what_;
+  const std::string table_;
+  std::vector<std::string> names_;
+};
+
 // A row of the audit columns, in this order: audit_id, at_us, method,
 // target, identity, role, peer, result.
 template <typename Row>
