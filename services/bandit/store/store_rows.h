@@ -215,7 +215,11 @@ absl::StatusOr<UserRecord> ReadUserRow(
   if (!row.IsNull(14)) {
     ASSIGN_OR_RETURN(config.prior,
                      DecodePrior(row.Blob(14), absl::StrCat(what, " prior")));
-    RETURN_IF_ERROR(ValidateConfig(config));
+    // A stored prior that does not fit the stored configuration is
+    // damaged data, not a bad request.
+    if (absl::Status valid = ValidateConfig(config); !valid.ok()) {
+      return absl::DataLossError(absl::StrCat(what, ": ", valid.message()));
+    }
   }
   return user;
 }
