@@ -566,7 +566,10 @@ absl::StatusOr<SelectResult> BanditEngine::Select(const SelectInput& input) {
   event.action = choice.action;
   event.propensity = choice.propensity;
   event.selected_at = absl::Now();
-  ASSIGN_OR_RETURN(result.event_id, store_->AppendPending(event));
+  ASSIGN_OR_RETURN(result.event_id,
+                   shared_lock != nullptr
+                       ? store_->AppendPendingHolding(*shared_lock, event)
+                       : store_->AppendPending(event));
   ++slot->select_count;
   slot->products_event = result.event_id;
   slot->products = std::move(products);
@@ -627,8 +630,13 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
   // older build must not corrupt the model.
   RETURN_IF_ERROR(model.ValidateRound(round));
 
-  absl::StatusOr<EventRecord> completed = store_->CompleteEvent(
-      found.event_id, round.loss, round.posthoc, round.weight, absl::Now());
+  absl::StatusOr<EventRecord> completed =
+      shared_lock != nullptr
+          ? store_->CompleteEventHolding(*shared_lock, found.event_id,
+                                         round.loss, round.posthoc,
+                                         round.weight, absl::Now())
+          : store_->CompleteEvent(found.event_id, round.loss, round.posthoc,
+                                  round.weight, absl::Now());
   if (absl::IsFailedPrecondition(completed.status())) {
     // Completed since the first read (a concurrent retry): answer as one.
     ASSIGN_OR_RETURN(const EventRecord now, store_->GetEvent(found.event_id));

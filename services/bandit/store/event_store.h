@@ -247,6 +247,22 @@ class EventStore {
     return std::unique_ptr<UserLock>();
   }
 
+  // AppendPending and CompleteEvent made while this process holds `lock`
+  // on the event's user (from LockUserAcrossProcesses, with the position
+  // it read, and nothing of the user written since): a store may write on
+  // the lock's own connection and use that position. Same results and
+  // errors. Default: the calls above.
+  virtual absl::StatusOr<int64_t> AppendPendingHolding(
+      UserLock& lock, const EventRecord& event) {
+    return AppendPending(event);
+  }
+  virtual absl::StatusOr<EventRecord> CompleteEventHolding(
+      UserLock& lock, int64_t event_id, double loss,
+      const std::vector<double>& posthoc, double weight,
+      absl::Time updated_at) {
+    return CompleteEvent(event_id, loss, posthoc, weight, updated_at);
+  }
+
   // Called after every commit of the hot path's writes with its time and
   // the number of writes it carried (a group; 1 where each write is its own
   // commit), for metrics. Set once, before the store is used; it must be

@@ -186,6 +186,16 @@ SELECT e.event_id, e.user_id, e.meal_id, e.item_label, c.context, e.action,
 FROM events e LEFT JOIN event_contexts c ON c.event_id = e.event_id
 )sql";
 
+// The event a completion's `e` (UPDATE ... RETURNING *) wrote, as
+// kEventColumns reads it.
+constexpr char kCompletedEvent[] = R"sql(
+SELECT e.event_id, e.user_id, e.meal_id, e.item_label, c.context, e.action,
+       e.propensity, e.selected_at_us, e.completed, e.loss, e.posthoc,
+       e.weight, e.model_version, e.updated_at_us, e.selection_checksum,
+       e.outcome_checksum
+FROM e LEFT JOIN event_contexts c ON c.event_id = e.event_id
+)sql";
+
 absl::Status WriteActionNames(Connection& conn, const char* table,
                               const char* key_column, Params key,
                               const std::vector<std::string>& names,
@@ -404,8 +414,8 @@ namespace {
 // Holds pg_advisory_lock(key) on its connection until destroyed.
 class AdvisoryUserLock final : public UserLock {
  public:
-  AdvisoryUserLock(pg::Pool::Lease lease, int64_t key)
-      : lease_(std::move(lease)), key_(key) {}
+  AdvisoryUserLock(pg::Pool::Lease lease, int64_t key, std::string user_id)
+      : lease_(std::move(lease)), key_(key), user_id_(std::move(user_id)) {}
   ~AdvisoryUserLock() override {
     // A lost connection has lost the lock with it. Otherwise the unlock is
     // sent and not waited for: the server runs it at once, and the caller
@@ -421,10 +431,26 @@ class AdvisoryUserLock final : public UserLock {
     }
   }
 
+  // The session holding the lock: writes of the user made on it need no
+  // connection of their own.
+  Connection& connection() const { return *lease_; }
+  const std::string& user_id() const { return user_id_; }
+  // Where the user's log stood when the lock was taken, kept current by
+  // the writes made through the lock.
+  std::optional<UserLogPosition> position;
+
  private:
   pg::Pool::Lease lease_;
   const int64_t key_;
+  const std::string user_id_;
 };
+
+// `lock` as this store's lock on `user_id`, or null (another store's lock,
+// or another user's).
+AdvisoryUserLock* HeldLock(UserLock& lock, const std::string& user_id) {
+  auto* held = dynamic_cast<AdvisoryUserLock*>(&lock);
+  return held != nullptr && held->user_id() == user_id ? held : nullptr;
+}
 
 }  // namespace
 
@@ -451,14 +477,14 @@ PostgresEventStore::LockUserAcrossProcesses(const std::string& user_id,
     if (!lease->broken()) lease->Reconnect().IgnoreError();
     return entered.status();
   }
-  auto lock = std::make_unique<AdvisoryUserLock>(std::move(lease), key);
+  auto lock =
+      std::make_unique<AdvisoryUserLock>(std::move(lease), key, user_id);
   if (!entered->Next() || entered->IsNull(0)) {
     return UserNotFound(user_id);  // the lock goes with `lock`
   }
-  if (position != nullptr) {
-    *position = UserLogPosition{entered->Int64(0), entered->Int64(1),
-                                entered->Int64(2)};
-  }
+  lock->position =
+      UserLogPosition{entered->Int64(0), entered->Int64(1), entered->Int64(2)};
+  if (position != nullptr) *position = *lock->position;
   return std::unique_ptr<UserLock>(std::move(lock));
 }
 
@@ -629,6 +655,22 @@ absl::Status PostgresEventStore::ResetUser(const std::string& user_id) {
 
 absl::StatusOr<int64_t> PostgresEventStore::AppendPending(
     const EventRecord& event) {
+  ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire("AppendPending"));
+  return AppendPendingOn(*conn, event);
+}
+
+absl::StatusOr<int64_t> PostgresEventStore::AppendPendingHolding(
+    UserLock& lock, const EventRecord& event) {
+  AdvisoryUserLock* held = HeldLock(lock, event.user_id);
+  if (held == nullptr) return AppendPending(event);
+  ASSIGN_OR_RETURN(const int64_t event_id,
+                   AppendPendingOn(held->connection(), event));
+  if (held->position.has_value()) ++held->position->pending_events;
+  return event_id;
+}
+
+absl::StatusOr<int64_t> PostgresEventStore::AppendPendingOn(
+    Connection& conn, const EventRecord& event) {
   constexpr char kOp[] = "AppendPending";
   if (std::isnan(event.propensity)) {
     return absl::InvalidArgumentError("propensity must not be NaN");
@@ -638,10 +680,9 @@ absl::StatusOr<int64_t> PostgresEventStore::AppendPending(
   const int64_t checksum = SelectionChecksum(
       event.user_id, event.meal_id, event.item_label, context, event.action,
       event.propensity, ToMicros(event.selected_at));
-  ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
   // One statement, so one transaction: the event and its context, only if
   // the user exists (no row back means it does not).
-  absl::StatusOr<Rows> rows = conn->Exec(
+  absl::StatusOr<Rows> rows = conn.Exec(
       "WITH e AS (INSERT INTO events (user_id, meal_id, item_label, action, "
       "propensity, selected_at_us, selection_checksum) SELECT $1, $2, $3, "
       "$4, $5, $6, $7 WHERE EXISTS (SELECT 1 FROM users WHERE user_id = $1) "
@@ -702,15 +743,12 @@ absl::StatusOr<EventRecord> PostgresEventStore::CompleteEvent(
   ASSIGN_OR_RETURN(
       Rows rows,
       conn->Exec(
-          "WITH e AS (UPDATE events SET completed = true, loss = $2, "
-          "posthoc = $3, weight = $4, model_version = $5, updated_at_us = "
-          "$6, outcome_checksum = $7 WHERE event_id = $1 AND NOT completed "
-          "RETURNING *) SELECT e.event_id, e.user_id, e.meal_id, "
-          "e.item_label, c.context, e.action, e.propensity, "
-          "e.selected_at_us, e.completed, e.loss, e.posthoc, e.weight, "
-          "e.model_version, e.updated_at_us, e.selection_checksum, "
-          "e.outcome_checksum FROM e LEFT JOIN event_contexts c ON "
-          "c.event_id = e.event_id",
+          absl::StrCat(
+              "WITH e AS (UPDATE events SET completed = true, loss = $2, "
+              "posthoc = $3, weight = $4, model_version = $5, updated_at_us = "
+              "$6, outcome_checksum = $7 WHERE event_id = $1 AND NOT completed "
+              "RETURNING *) ",
+              kCompletedEvent),
           Params()
               .Int64(event_id)
               .Double(loss)
@@ -735,6 +773,70 @@ absl::StatusOr<EventRecord> PostgresEventStore::CompleteEvent(
   const absl::Time commit_start = absl::Now();
   RETURN_IF_ERROR(txn.Commit());
   CountWrite(/*append=*/false, start, commit_start);
+  return event;
+}
+
+absl::StatusOr<EventRecord> PostgresEventStore::CompleteEventHolding(
+    UserLock& lock, int64_t event_id, double loss,
+    const std::vector<double>& posthoc, double weight, absl::Time updated_at) {
+  constexpr char kOp[] = "CompleteEvent";
+  auto* held = dynamic_cast<AdvisoryUserLock*>(&lock);
+  if (held == nullptr || !held->position.has_value() || std::isnan(loss) ||
+      std::isnan(weight)) {
+    return CompleteEvent(event_id, loss, posthoc, weight, updated_at);
+  }
+  const absl::Time start = absl::Now();
+  const std::string posthoc_bytes = EncodeDoubles(posthoc);
+  const UserLogPosition& log = *held->position;
+  const int64_t model_version = log.model_version + 1;
+  const int64_t updated_us = ToMicros(updated_at);
+  Connection& conn = held->connection();
+  // The lock and the position it read make this one statement, so one
+  // round trip and one transaction: the user's version moves from the one
+  // read to the next (a compare-and-set on the version and incarnation,
+  // under the row lock every writer of the user's log takes) only if the
+  // event is the user's and pending, and the event is completed only if
+  // the version moved. No row back means neither was written.
+  ASSIGN_OR_RETURN(
+      Rows rows,
+      conn.Exec(
+          absl::StrCat(
+              "WITH u AS (UPDATE users SET model_version = $5 WHERE user_id = "
+              "$8 AND model_version = $5 - 1 AND incarnation = $9 AND EXISTS "
+              "(SELECT 1 FROM events WHERE event_id = $1 AND user_id = $8 "
+              "AND NOT completed) RETURNING 1), e AS (UPDATE events SET "
+              "completed = true, loss = $2, posthoc = $3, weight = $4, "
+              "model_version = $5, updated_at_us = $6, outcome_checksum = $7 "
+              "WHERE event_id = $1 AND user_id = $8 AND NOT completed AND "
+              "EXISTS (SELECT 1 FROM u) RETURNING *) ",
+              kCompletedEvent),
+          Params()
+              .Int64(event_id)
+              .Double(loss)
+              .Bytes(posthoc_bytes)
+              .Double(weight)
+              .Int64(model_version)
+              .Int64(updated_us)
+              .Int64(OutcomeChecksum(loss, posthoc_bytes, weight, model_version,
+                                     updated_us))
+              .Text(held->user_id())
+              .Int64(log.incarnation),
+          kOp));
+  if (!rows.Next()) {
+    ASSIGN_OR_RETURN(Rows found, conn.Exec("SELECT completed FROM events WHERE "
+                                           "event_id = $1",
+                                           Params().Int64(event_id), kOp));
+    if (!found.Next()) return EventNotFound(event_id);
+    if (found.Int64(0) != 0) return store_rows::AlreadyCompleted(event_id);
+    // Pending, but the log is not where the lock read it (another user's
+    // event, or the lock was lost meanwhile): the general path decides.
+    held->position.reset();
+    return CompleteEvent(event_id, loss, posthoc, weight, updated_at);
+  }
+  ASSIGN_OR_RETURN(EventRecord event, store_rows::ReadEventRow(rows));
+  held->position->model_version = model_version;
+  --held->position->pending_events;
+  CountWrite(/*append=*/false, start, start);
   return event;
 }
 

@@ -90,6 +90,14 @@ class PostgresEventStore final : public EventStore {
                                             const std::vector<double>& posthoc,
                                             double weight,
                                             absl::Time updated_at) override;
+  // On the lock's connection. A completion is then one statement, a
+  // compare-and-set from the position the lock read.
+  absl::StatusOr<int64_t> AppendPendingHolding(
+      UserLock& lock, const EventRecord& event) override;
+  absl::StatusOr<EventRecord> CompleteEventHolding(
+      UserLock& lock, int64_t event_id, double loss,
+      const std::vector<double>& posthoc, double weight,
+      absl::Time updated_at) override;
   absl::StatusOr<EventRecord> GetEvent(int64_t event_id) override;
   absl::StatusOr<PageResult<EventRecord>> ListEvents(const std::string& user_id,
                                                      const std::string& meal_id,
@@ -140,6 +148,8 @@ class PostgresEventStore final : public EventStore {
   PostgresEventStore(std::unique_ptr<pg::Pool> pool,
                      std::unique_ptr<pg::Pool> lock_pool, std::string conninfo);
   void CountWrite(bool append, absl::Time start, absl::Time commit_start);
+  absl::StatusOr<int64_t> AppendPendingOn(pg::Connection& conn,
+                                          const EventRecord& event);
 
   const std::unique_ptr<pg::Pool> pool_;
   // Connections that hold users' locks across processes: apart from pool_,
