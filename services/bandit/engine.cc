@@ -246,8 +246,12 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
         LinUcbModel::Rebuild(record.config, rounds, options_.primal_threshold));
     model.emplace(std::move(rebuilt));
   }
-  // Selects since creation or reset index the user's random stream.
+  // Selects since creation or reset index the user's random stream. With
+  // replicas the log may have moved between the reads: the model counts
+  // what it learned, and the writes conditioned on this find any other.
   slot.select_count = record.model_version + record.pending_events;
+  record.model_version = model->TotalRounds();
+  record.pending_events = slot.select_count - record.model_version;
   slot.record = std::move(record);
   slot.model.emplace(std::move(*model));
   slot.last_event_id = last_event_id;
@@ -261,15 +265,9 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
   return absl::OkStatus();
 }
 
-absl::StatusOr<std::unique_ptr<UserLock>> BanditEngine::Enter(
-    const std::string& user_id, UserSlot& slot) {
-  if (!store_->shared()) {
-    RETURN_IF_ERROR(EnsureLoaded(user_id, slot));
-    return std::unique_ptr<UserLock>();
-  }
-  UserLogPosition log;
-  ASSIGN_OR_RETURN(std::unique_ptr<UserLock> lock,
-                   store_->LockUserAcrossProcesses(user_id, &log));
+absl::Status BanditEngine::Sync(const std::string& user_id, UserSlot& slot) {
+  if (!store_->shared()) return EnsureLoaded(user_id, slot);
+  ASSIGN_OR_RETURN(UserLogPosition log, store_->LogPosition(user_id));
   if (slot.model.has_value() &&
       (log.incarnation != slot.record.incarnation ||
        log.model_version < slot.record.model_version)) {
@@ -286,8 +284,8 @@ absl::StatusOr<std::unique_ptr<UserLock>> BanditEngine::Enter(
       const int64_t event_id = event.event_id;
       const int64_t event_version = event.model_version;
       const Round round = EventRound(std::move(event));
-      // Not the next one (the log moved on meanwhile), or a stored event
-      // the model refuses: start afresh from the log.
+      // Not the next one (the log started over meanwhile), or a stored
+      // event the model refuses: start afresh from the log.
       if (event_version != version + 1) {
         Unload(slot);
         break;
@@ -300,27 +298,40 @@ absl::StatusOr<std::unique_ptr<UserLock>> BanditEngine::Enter(
       version = event_version;
       slot.last_event_id = event_id;
     }
-    if (slot.model.has_value() && version != log.model_version) {
-      // Fewer events than the position said (the lock was lost meanwhile):
-      // start afresh rather than from a shifted random stream.
+    if (slot.model.has_value() && version < log.model_version) {
+      // Fewer events than the position said (the log started over
+      // meanwhile): start afresh rather than from a shifted random stream.
       Unload(slot);
     }
     if (slot.model.has_value()) {
       // The Select products were of the older model.
       slot.products_event = 0;
       slot.products = SelectProducts();
-      log.model_version = version;
+      slot.record.model_version = version;
       absl::MutexLock cache(&cache_mu_);
       counters_.caught_up_events += static_cast<int64_t>(events.size());
     }
   }
   if (slot.model.has_value()) {
+    // Events completed after the position was read leave the count of
+    // selections as it was read: a conditioned write then finds it stale.
     slot.select_count = log.model_version + log.pending_events;
-    slot.record.model_version = log.model_version;
-    slot.record.pending_events = log.pending_events;
+    slot.record.pending_events = slot.select_count - slot.record.model_version;
   }
-  RETURN_IF_ERROR(EnsureLoaded(user_id, slot));
-  return lock;
+  return EnsureLoaded(user_id, slot);
+}
+
+bool BanditEngine::RetryAfterConflict(const absl::Status& status, int attempt) {
+  if (!absl::IsAborted(status) || !store_->shared()) return false;
+  absl::MutexLock cache(&cache_mu_);
+  ++counters_.write_conflicts;
+  return attempt < kMaxWriteAttempts;
+}
+
+UserLogPosition BanditEngine::SlotPosition(const UserSlot& slot) {
+  return UserLogPosition{slot.record.model_version,
+                         slot.select_count - slot.record.model_version,
+                         slot.record.incarnation};
 }
 
 void BanditEngine::Unload(UserSlot& slot) {
@@ -474,10 +485,9 @@ absl::StatusOr<PoolRecord> BanditEngine::BuildPopulationPool(
       RETURN_IF_ERROR(slot.status());
       absl::MutexLock lock(&(*slot)->mu);
       // Up to the log, with replicas: another process may have taught it.
-      absl::StatusOr<std::unique_ptr<UserLock>> shared_lock =
-          Enter(user.user_id, **slot);
-      if (absl::IsNotFound(shared_lock.status())) continue;
-      RETURN_IF_ERROR(shared_lock.status());
+      const absl::Status synced = Sync(user.user_id, **slot);
+      if (absl::IsNotFound(synced)) continue;
+      RETURN_IF_ERROR(synced);
       const LinUcbModel& model = *(*slot)->model;
       if (model.TotalRounds() > 0 && pool.Accepts(model)) {
         RETURN_IF_ERROR(pool.Add(model));
@@ -519,8 +529,6 @@ absl::StatusOr<PageResult<UserRecord>> BanditEngine::ListUsers(
 absl::StatusOr<UserRecord> BanditEngine::ResetUser(const std::string& user_id) {
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
   absl::MutexLock lock(&slot->mu);
-  ASSIGN_OR_RETURN(const std::unique_ptr<UserLock> shared_lock,
-                   store_->LockUserAcrossProcesses(user_id));
   RETURN_IF_ERROR(store_->ResetUser(user_id));
   Unload(*slot);
   return store_->GetUser(user_id);
@@ -529,8 +537,6 @@ absl::StatusOr<UserRecord> BanditEngine::ResetUser(const std::string& user_id) {
 absl::Status BanditEngine::DeleteUser(const std::string& user_id) {
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
   absl::MutexLock lock(&slot->mu);
-  ASSIGN_OR_RETURN(const std::unique_ptr<UserLock> shared_lock,
-                   store_->LockUserAcrossProcesses(user_id));
   RETURN_IF_ERROR(store_->DeleteUser(user_id));
   Unload(*slot);
   return absl::OkStatus();
@@ -547,15 +553,24 @@ absl::StatusOr<SelectResult> BanditEngine::Select(const SelectInput& input) {
   }
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(input.user_id, false));
   absl::MutexLock lock(&slot->mu);
-  ASSIGN_OR_RETURN(const std::unique_ptr<UserLock> shared_lock,
-                   Enter(input.user_id, *slot));
-  const LinUcbModel& model = *slot->model;
+  for (int attempt = 1;; ++attempt) {
+    ASSIGN_OR_RETURN(std::optional<SelectResult> result,
+                     TrySelect(input, *slot, attempt));
+    if (result.has_value()) return *std::move(result);
+  }
+}
+
+absl::StatusOr<std::optional<SelectResult>> BanditEngine::TrySelect(
+    const SelectInput& input, UserSlot& slot, int attempt) {
+  RETURN_IF_ERROR(attempt == 1 ? EnsureLoaded(input.user_id, slot)
+                               : Sync(input.user_id, slot));
+  const LinUcbModel& model = *slot.model;
   RETURN_IF_ERROR(model.ValidateContext(input.context));
 
   SelectResult result;
   SelectProducts products;
   result.estimates = model.Estimate(input.context, &products);
-  std::mt19937_64 rng = SelectRng(slot->record.config.seed, slot->select_count);
+  std::mt19937_64 rng = SelectRng(slot.record.config.seed, slot.select_count);
   const Choice choice = ChooseAction(model.config(), result.estimates, rng);
 
   EventRecord event;
@@ -566,15 +581,18 @@ absl::StatusOr<SelectResult> BanditEngine::Select(const SelectInput& input) {
   event.action = choice.action;
   event.propensity = choice.propensity;
   event.selected_at = absl::Now();
-  ASSIGN_OR_RETURN(result.event_id,
-                   shared_lock != nullptr
-                       ? store_->AppendPendingHolding(*shared_lock, event)
-                       : store_->AppendPending(event));
-  ++slot->select_count;
-  slot->products_event = result.event_id;
-  slot->products = std::move(products);
-  slot->last_used = absl::Now();
-  Touch(*slot);
+  absl::StatusOr<int64_t> event_id =
+      store_->shared() ? store_->AppendPendingAt(event, SlotPosition(slot))
+                       : store_->AppendPending(event);
+  if (RetryAfterConflict(event_id.status(), attempt)) return std::nullopt;
+  RETURN_IF_ERROR(event_id.status());
+  result.event_id = *event_id;
+  ++slot.select_count;
+  ++slot.record.pending_events;
+  slot.products_event = result.event_id;
+  slot.products = std::move(products);
+  slot.last_used = absl::Now();
+  Touch(slot);
 
   result.action = choice.action;
   result.action_name = model.config().action_names[choice.action];
@@ -592,9 +610,19 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
   ASSIGN_OR_RETURN(const EventRecord found, store_->GetEvent(input.event_id));
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(found.user_id, false));
   absl::MutexLock lock(&slot->mu);
-  ASSIGN_OR_RETURN(const std::unique_ptr<UserLock> shared_lock,
-                   Enter(found.user_id, *slot));
-  LinUcbModel& model = *slot->model;
+  for (int attempt = 1;; ++attempt) {
+    ASSIGN_OR_RETURN(std::optional<UpdateResult> result,
+                     TryUpdate(input, found, *slot, attempt));
+    if (result.has_value()) return *std::move(result);
+  }
+}
+
+absl::StatusOr<std::optional<UpdateResult>> BanditEngine::TryUpdate(
+    const UpdateInput& input, const EventRecord& found, UserSlot& slot,
+    int attempt) {
+  RETURN_IF_ERROR(attempt == 1 ? EnsureLoaded(found.user_id, slot)
+                               : Sync(found.user_id, slot));
+  LinUcbModel& model = *slot.model;
   // Bad input is an error even on a retry of a completed event.
   RETURN_IF_ERROR(model.ValidateOutcome(input.loss, input.posthoc));
   UpdateResult result;
@@ -631,34 +659,36 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
   RETURN_IF_ERROR(model.ValidateRound(round));
 
   absl::StatusOr<EventRecord> completed =
-      shared_lock != nullptr
-          ? store_->CompleteEventHolding(*shared_lock, found.event_id,
-                                         round.loss, round.posthoc,
-                                         round.weight, absl::Now())
+      store_->shared()
+          ? store_->CompleteEventAt(found.user_id, found.event_id, round.loss,
+                                    round.posthoc, round.weight, absl::Now(),
+                                    SlotPosition(slot))
           : store_->CompleteEvent(found.event_id, round.loss, round.posthoc,
                                   round.weight, absl::Now());
+  if (RetryAfterConflict(completed.status(), attempt)) return std::nullopt;
   if (absl::IsFailedPrecondition(completed.status())) {
     // Completed since the first read (a concurrent retry): answer as one.
     ASSIGN_OR_RETURN(const EventRecord now, store_->GetEvent(found.event_id));
     if (now.completed) return answer_retry(now);
   }
   RETURN_IF_ERROR(completed.status());
-  if (completed->model_version != slot->record.model_version + 1) {
-    // Another process completed one of the user's events in between (its
-    // lock across processes was lost with a connection): the model is
-    // rebuilt from the log at the next call instead.
-    Unload(*slot);
+  if (completed->model_version != slot.record.model_version + 1) {
+    // Not the next version of the cached model (unreachable: one process
+    // serialises a store's writes, and replicas write at the model's
+    // version): the model is rebuilt from the log at the next call.
+    Unload(slot);
     result.model_version = completed->model_version;
     return result;
   }
-  model.Update(round, slot->products_event == found.event_id ? &slot->products
-                                                             : nullptr);
-  slot->products_event = 0;
-  slot->products = SelectProducts();
-  slot->last_event_id = completed->event_id;
-  slot->last_used = absl::Now();
-  slot->record.model_version = completed->model_version;
-  Touch(*slot);
+  model.Update(
+      round, slot.products_event == found.event_id ? &slot.products : nullptr);
+  slot.products_event = 0;
+  slot.products = SelectProducts();
+  slot.last_event_id = completed->event_id;
+  slot.last_used = absl::Now();
+  slot.record.model_version = completed->model_version;
+  --slot.record.pending_events;
+  Touch(slot);
   result.model_version = completed->model_version;
   return result;
 }
@@ -666,8 +696,7 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
 absl::StatusOr<ModelExport> BanditEngine::GetModel(const std::string& user_id) {
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
   absl::MutexLock lock(&slot->mu);
-  ASSIGN_OR_RETURN(const std::unique_ptr<UserLock> shared_lock,
-                   Enter(user_id, *slot));
+  RETURN_IF_ERROR(Sync(user_id, *slot));
   const LinUcbModel& model = *slot->model;
   ModelExport out;
   ASSIGN_OR_RETURN(out.user, store_->GetUser(user_id));

@@ -3,10 +3,12 @@
 // (derived state, rebuilt from the log when loaded), chooses actions, and
 // applies updates exactly once.
 //
-// Thread-safe. Calls for one user are serialised by that user's mutex
-// (and, when the store is shared by several processes, by the user's lock
-// across processes, EventStore::LockUserAcrossProcesses); different users
-// run in parallel. Every mutation is written to the store
+// Thread-safe. Calls for one user are serialised by that user's mutex;
+// different users run in parallel. When the store is shared by several
+// processes (replicas), a call writes only where its cached model says the
+// user's log stands, and on a conflict brings the model up to the log and
+// tries again (EventStore::shared), so every process's model equals the
+// log's. Every mutation is written to the store
 // before the in-memory model changes, so an acknowledged Update survives a
 // crash and a failed one changes nothing.
 //
@@ -183,6 +185,9 @@ class BanditEngine {
     // call's start, and cached models dropped for another's reset.
     int64_t caught_up_events = 0;
     int64_t dropped_stale = 0;
+    // Writes refused because another process had written to the user's
+    // log since this one read it (each followed by a catch-up and a retry).
+    int64_t write_conflicts = 0;
   };
   CacheCounters Counters() const;
 
@@ -217,18 +222,33 @@ class BanditEngine {
   absl::Status EnsureLoaded(const std::string& user_id, UserSlot& slot)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
   void Unload(UserSlot& slot) ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
-  // The start of every call that reads or changes a user's model: with a
-  // store shared by several processes (replicas), takes the user's lock
-  // across processes (returned; released when destroyed) and brings the
-  // slot up to the log: a model of an older log (another process reset or
-  // recreated the user) is dropped, one behind it learns the events the
-  // others completed, one Update each (as they learned them), and the
-  // select index becomes the log's count of events, so a user's k-th Select
-  // draws the same random numbers whichever process answers. Then loads the
-  // model if it is not loaded.
-  absl::StatusOr<std::unique_ptr<UserLock>> Enter(const std::string& user_id,
-                                                  UserSlot& slot)
+  // Brings the slot up to the user's log when the store is shared by
+  // several processes (replicas): reads where the log stands; a model of an
+  // older log (another process reset or recreated the user) is dropped, one
+  // behind it learns the events the others completed, one Update each (as
+  // they learned them), and the select index becomes the log's count of
+  // selections, so a user's k-th Select draws the same random numbers
+  // whichever process answers. Then (any store) loads the model if it is
+  // not loaded. Reads, and the retries after a conflict, start with it.
+  absl::Status Sync(const std::string& user_id, UserSlot& slot)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
+  // Where the slot's model says the user's log stands.
+  static UserLogPosition SlotPosition(const UserSlot& slot)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
+  // One try of Select or Update with the cached model (attempt 1) or one
+  // brought up to the log (later attempts); nullopt when the write met
+  // another process's (the caller tries again).
+  absl::StatusOr<std::optional<SelectResult>> TrySelect(
+      const SelectInput& input, UserSlot& slot, int attempt)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
+  absl::StatusOr<std::optional<UpdateResult>> TryUpdate(
+      const UpdateInput& input, const EventRecord& found, UserSlot& slot,
+      int attempt) ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
+  // Whether `status` is a write refused for another process's (ABORTED
+  // from a shared store) that may be tried again: counted; false from the
+  // kMaxWriteAttempts-th attempt, which returns the store's error.
+  bool RetryAfterConflict(const absl::Status& status, int attempt);
+  static constexpr int kMaxWriteAttempts = 8;
   // Records the slot's size as most recently used and evicts others.
   void Touch(UserSlot& slot) ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
 

@@ -203,13 +203,16 @@ int main(int argc, char** argv) {
         });
     bitewise::AddScrapeValues(
         "bitewise_bandit_replica_sync_total",
-        "PostgreSQL replicas: events another process completed that this "
-        "one learned at a call's start (caught_up_event), and cached models "
-        "dropped because another process reset or recreated the user "
-        "(dropped_stale)",
+        "PostgreSQL replicas: writes refused because another process had "
+        "written to the user's log first (write_conflict, each retried), "
+        "events another process completed that this one learned "
+        "(caught_up_event), and cached models dropped because another "
+        "process reset or recreated the user (dropped_stale)",
         ScrapeType::kCounter, [e]() -> std::vector<ScrapeValue> {
           const auto c = e->Counters();
-          return {{{{"event", "caught_up_event"}},
+          return {{{{"event", "write_conflict"}},
+                   static_cast<double>(c.write_conflicts)},
+                  {{{"event", "caught_up_event"}},
                    static_cast<double>(c.caught_up_events)},
                   {{{"event", "dropped_stale"}},
                    static_cast<double>(c.dropped_stale)}};

@@ -146,18 +146,12 @@ struct StoreWriteStats {
 };
 
 // Where a user's log stands: what a process sharing the store compares its
-// cached model with (EventStore::LockUserAcrossProcesses).
+// cached model with (EventStore::LogPosition), and conditions its writes on
+// (AppendPendingAt, CompleteEventAt).
 struct UserLogPosition {
   int64_t model_version = 0;
   int64_t pending_events = 0;
   int64_t incarnation = 0;
-};
-
-// A lock on one user held against every process on the same store, for
-// as long as the object lives (EventStore::LockUserAcrossProcesses).
-class UserLock {
- public:
-  virtual ~UserLock() = default;
 };
 
 class EventStore {
@@ -227,39 +221,37 @@ class EventStore {
   virtual absl::Status CheckHealth() { return absl::OkStatus(); }
 
   // Whether several processes may serve the same users from this store at
-  // once (PostgreSQL replicas). The engine then holds the user's lock
-  // across processes around each call and first brings its cached model up
-  // to the log. Default: no (one process per store).
+  // once (PostgreSQL replicas). The engine then writes a user's events only
+  // where its cached model says the log stands (AppendPendingAt,
+  // CompleteEventAt) and, when another process has written there since,
+  // brings the model up to the log (LogPosition and the new events) and
+  // tries again. Default: no (one process per store).
   virtual bool shared() const { return false; }
-  // Blocks until this process holds `user_id`'s lock across processes
-  // (UNAVAILABLE if the store cannot be reached) and, with `position`,
-  // reads where the user's log stands once the lock is held (NOT_FOUND,
-  // holding nothing, for an unknown user). Default: no lock needed (null);
-  // the position from GetUser.
-  virtual absl::StatusOr<std::unique_ptr<UserLock>> LockUserAcrossProcesses(
-      const std::string& user_id, UserLogPosition* position = nullptr) {
-    if (position != nullptr) {
-      absl::StatusOr<UserRecord> user = GetUser(user_id);
-      if (!user.ok()) return user.status();
-      *position = UserLogPosition{user->model_version, user->pending_events,
-                                  user->incarnation};
-    }
-    return std::unique_ptr<UserLock>();
+  // Where the user's log stands now. NOT_FOUND for an unknown user.
+  // Default: from GetUser.
+  virtual absl::StatusOr<UserLogPosition> LogPosition(
+      const std::string& user_id) {
+    absl::StatusOr<UserRecord> user = GetUser(user_id);
+    if (!user.ok()) return user.status();
+    return UserLogPosition{user->model_version, user->pending_events,
+                           user->incarnation};
   }
-
-  // AppendPending and CompleteEvent made while this process holds `lock`
-  // on the event's user (from LockUserAcrossProcesses, with the position
-  // it read, and nothing of the user written since): a store may write on
-  // the lock's own connection and use that position. Same results and
-  // errors. Default: the calls above.
-  virtual absl::StatusOr<int64_t> AppendPendingHolding(
-      UserLock& lock, const EventRecord& event) {
+  // AppendPending, only if the user's log stands at `at` (its version,
+  // pending events and incarnation): ABORTED naming the user, with nothing
+  // written, if another process has written to it since. Default (a store
+  // only one process writes): AppendPending.
+  virtual absl::StatusOr<int64_t> AppendPendingAt(const EventRecord& event,
+                                                  const UserLogPosition& at) {
     return AppendPending(event);
   }
-  virtual absl::StatusOr<EventRecord> CompleteEventHolding(
-      UserLock& lock, int64_t event_id, double loss,
-      const std::vector<double>& posthoc, double weight,
-      absl::Time updated_at) {
+  // CompleteEvent, only if the event is `user_id`'s and the user's log
+  // stands at `at`'s version and incarnation: otherwise ABORTED, nothing
+  // written (NOT_FOUND and FAILED_PRECONDITION as CompleteEvent). Default:
+  // CompleteEvent.
+  virtual absl::StatusOr<EventRecord> CompleteEventAt(
+      const std::string& user_id, int64_t event_id, double loss,
+      const std::vector<double>& posthoc, double weight, absl::Time updated_at,
+      const UserLogPosition& at) {
     return CompleteEvent(event_id, loss, posthoc, weight, updated_at);
   }
 

@@ -61,7 +61,11 @@ CREATE TABLE users (
   prior bytea,  -- the user's population prior (EncodePrior), NULL: none
   -- New at CreateUser and ResetUser: cached models of an older log are
   -- dropped by every process.
-  incarnation bigint NOT NULL DEFAULT nextval('user_incarnations')
+  incarnation bigint NOT NULL DEFAULT nextval('user_incarnations'),
+  -- Selects since creation or reset (model_version + pending events; schema
+  -- 2): the row changes with every event appended, so a write conditioned
+  -- on where the log stands sees every other write of the user.
+  selections bigint NOT NULL DEFAULT 0
 );
 CREATE TABLE user_actions (
   user_id text COLLATE "C" NOT NULL REFERENCES users (user_id) ON DELETE CASCADE,
@@ -139,23 +143,6 @@ CREATE TABLE model_checkpoints (
   checksum bigint NOT NULL,
   created_at_us bigint NOT NULL
 );
--- Takes a user's advisory lock, then reads where the user's log stands: in
--- PL/pgSQL each statement of a volatile function takes a fresh snapshot, so
--- the read sees whatever the lock's previous holder committed. All NULL for
--- an unknown user (the lock is held all the same).
-CREATE FUNCTION bitewise_enter_user(lock_key bigint, id text,
-    OUT out_version bigint, OUT out_pending bigint,
-    OUT out_incarnation bigint)
-LANGUAGE plpgsql VOLATILE AS $$
-BEGIN
-  PERFORM pg_advisory_lock(lock_key);
-  SELECT u.model_version,
-         (SELECT count(*) FROM events e
-          WHERE e.user_id = u.user_id AND NOT e.completed),
-         u.incarnation
-    INTO out_version, out_pending, out_incarnation
-    FROM users u WHERE u.user_id = id;
-END $$;
 CREATE TABLE model_checkpoint_chunks (
   user_id text COLLATE "C" NOT NULL REFERENCES users (user_id) ON DELETE CASCADE,
   write_id bigint NOT NULL,
@@ -164,6 +151,16 @@ CREATE TABLE model_checkpoint_chunks (
   PRIMARY KEY (user_id, write_id, seq)
 );
 ALTER TABLE model_checkpoint_chunks ALTER COLUMN data SET STORAGE EXTERNAL;
+)sql";
+
+// Schema 1 to 2: the users' selections, and no more lock function (replicas
+// now write conditioned on where the log stands instead of locking users).
+constexpr char kSchema2Sql[] = R"sql(
+ALTER TABLE users ADD COLUMN selections bigint NOT NULL DEFAULT 0;
+UPDATE users u SET selections = u.model_version +
+  (SELECT count(*) FROM events e WHERE e.user_id = u.user_id AND NOT e.completed);
+DROP FUNCTION IF EXISTS bitewise_enter_user(bigint, text);
+UPDATE bitewise_store SET schema_version = 2;
 )sql";
 
 constexpr char kUserColumns[] = R"sql(
@@ -195,6 +192,15 @@ SELECT e.event_id, e.user_id, e.meal_id, e.item_label, c.context, e.action,
        e.outcome_checksum
 FROM e LEFT JOIN event_contexts c ON c.event_id = e.event_id
 )sql";
+
+// A conditioned write refused because the user's log is no longer where
+// the caller read it.
+absl::Status LogMoved(const std::string& user_id) {
+  return absl::AbortedError(
+      absl::StrCat("user \"", user_id,
+                   "\": another process wrote to the user's log since this "
+                   "one read it (nothing written)"));
+}
 
 absl::Status WriteActionNames(Connection& conn, const char* table,
                               const char* key_column, Params key,
@@ -373,7 +379,11 @@ absl::Status PrepareSchema(Connection& conn, bool create) {
           absl::StrCat("PostgreSQL ", conn.description(),
                        ": bitewise_store does not mark a bitewise store"));
     }
-    if (marker.Int64(1) != PostgresEventStore::kSchemaVersion) {
+    if (marker.Int64(1) == 1) {
+      // Every process on the database must be of this build: one of schema
+      // 1 would lock users that the others no longer lock.
+      RETURN_IF_ERROR(conn.ExecScript(kSchema2Sql, kOp));
+    } else if (marker.Int64(1) != PostgresEventStore::kSchemaVersion) {
       return absl::FailedPreconditionError(absl::StrCat(
           "PostgreSQL ", conn.description(), " has store schema version ",
           marker.Int64(1), "; this build reads version ",
@@ -392,100 +402,29 @@ absl::StatusOr<std::unique_ptr<PostgresEventStore>> PostgresEventStore::Open(
   }
   ASSIGN_OR_RETURN(std::unique_ptr<pg::Pool> pool,
                    pg::Pool::Open(options.conninfo, options.connections));
-  ASSIGN_OR_RETURN(std::unique_ptr<pg::Pool> lock_pool,
-                   pg::Pool::Open(options.conninfo, options.connections));
   {
     ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool->Acquire("opening the store"));
     RETURN_IF_ERROR(PrepareSchema(*conn, options.create_if_missing));
   }
-  return std::unique_ptr<PostgresEventStore>(new PostgresEventStore(
-      std::move(pool), std::move(lock_pool), options.conninfo));
+  return std::unique_ptr<PostgresEventStore>(
+      new PostgresEventStore(std::move(pool), options.conninfo));
 }
 
 PostgresEventStore::PostgresEventStore(std::unique_ptr<pg::Pool> pool,
-                                       std::unique_ptr<pg::Pool> lock_pool,
                                        std::string conninfo)
-    : pool_(std::move(pool)),
-      lock_pool_(std::move(lock_pool)),
-      conninfo_(std::move(conninfo)) {}
+    : pool_(std::move(pool)), conninfo_(std::move(conninfo)) {}
 
-namespace {
-
-// Holds pg_advisory_lock(key) on its connection until destroyed.
-class AdvisoryUserLock final : public UserLock {
- public:
-  AdvisoryUserLock(pg::Pool::Lease lease, int64_t key, std::string user_id)
-      : lease_(std::move(lease)), key_(key), user_id_(std::move(user_id)) {}
-  ~AdvisoryUserLock() override {
-    // A lost connection has lost the lock with it. Otherwise the unlock is
-    // sent and not waited for: the server runs it at once, and the caller
-    // answers its client a round trip sooner.
-    if (!lease_->broken() &&
-        !lease_
-             ->Send("SELECT pg_advisory_unlock($1)", Params().Int64(key_),
-                    "unlocking a user")
-             .ok()) {
-      // Never back to the pool still holding the lock: a new session
-      // holds none.
-      lease_->Reconnect().IgnoreError();
-    }
-  }
-
-  // The session holding the lock: writes of the user made on it need no
-  // connection of their own.
-  Connection& connection() const { return *lease_; }
-  const std::string& user_id() const { return user_id_; }
-  // Where the user's log stood when the lock was taken, kept current by
-  // the writes made through the lock.
-  std::optional<UserLogPosition> position;
-
- private:
-  pg::Pool::Lease lease_;
-  const int64_t key_;
-  const std::string user_id_;
-};
-
-// `lock` as this store's lock on `user_id`, or null (another store's lock,
-// or another user's).
-AdvisoryUserLock* HeldLock(UserLock& lock, const std::string& user_id) {
-  auto* held = dynamic_cast<AdvisoryUserLock*>(&lock);
-  return held != nullptr && held->user_id() == user_id ? held : nullptr;
-}
-
-}  // namespace
-
-absl::StatusOr<std::unique_ptr<UserLock>>
-PostgresEventStore::LockUserAcrossProcesses(const std::string& user_id,
-                                            UserLogPosition* position) {
-  constexpr char kOp[] = "locking a user";
-  ASSIGN_OR_RETURN(pg::Pool::Lease lease, lock_pool_->Acquire(kOp));
-  // Two users sharing a key only wait for each other.
-  const int64_t key = BlobChecksum(user_id);
-  const Params params = Params().Int64(key).Text(user_id);
-  constexpr char kEnter[] =
-      "SELECT out_version, out_pending, out_incarnation FROM "
-      "bitewise_enter_user($1, $2)";
-  absl::StatusOr<Rows> entered = lease->Exec(kEnter, params, kOp);
-  if (!entered.ok() && lease->broken()) {
-    // Lost since its last use: nothing was locked, so try once more.
-    RETURN_IF_ERROR(lease->Reconnect());
-    entered = lease->Exec(kEnter, params, kOp);
-  }
-  if (!entered.ok()) {
-    // The function may have failed after taking the lock (a statement
-    // timeout, a cancel): a new session holds none.
-    if (!lease->broken()) lease->Reconnect().IgnoreError();
-    return entered.status();
-  }
-  auto lock =
-      std::make_unique<AdvisoryUserLock>(std::move(lease), key, user_id);
-  if (!entered->Next() || entered->IsNull(0)) {
-    return UserNotFound(user_id);  // the lock goes with `lock`
-  }
-  lock->position =
-      UserLogPosition{entered->Int64(0), entered->Int64(1), entered->Int64(2)};
-  if (position != nullptr) *position = *lock->position;
-  return std::unique_ptr<UserLock>(std::move(lock));
+absl::StatusOr<UserLogPosition> PostgresEventStore::LogPosition(
+    const std::string& user_id) {
+  constexpr char kOp[] = "reading where a user's log stands";
+  ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
+  ASSIGN_OR_RETURN(Rows rows,
+                   conn->Exec("SELECT model_version, selections - "
+                              "model_version, incarnation FROM users WHERE "
+                              "user_id = $1",
+                              Params().Text(user_id), kOp));
+  if (!rows.Next()) return UserNotFound(user_id);
+  return UserLogPosition{rows.Int64(0), rows.Int64(1), rows.Int64(2)};
 }
 
 PostgresEventStore::~PostgresEventStore() = default;
@@ -644,9 +583,10 @@ absl::Status PostgresEventStore::ResetUser(const std::string& user_id) {
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
   ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp));
   RETURN_IF_ERROR(LockUser(*conn, user_id, kOp));
-  for (const char* sql : {"UPDATE users SET model_version = 0, incarnation = "
-                          "nextval('user_incarnations') WHERE user_id = $1",
-                          "DELETE FROM events WHERE user_id = $1"}) {
+  for (const char* sql :
+       {"UPDATE users SET model_version = 0, selections = 0, incarnation = "
+        "nextval('user_incarnations') WHERE user_id = $1",
+        "DELETE FROM events WHERE user_id = $1"}) {
     RETURN_IF_ERROR(conn->Exec(sql, Params().Text(user_id), kOp).status());
   }
   RETURN_IF_ERROR(DeleteCheckpointRows(*conn, user_id, kOp));
@@ -655,22 +595,16 @@ absl::Status PostgresEventStore::ResetUser(const std::string& user_id) {
 
 absl::StatusOr<int64_t> PostgresEventStore::AppendPending(
     const EventRecord& event) {
-  ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire("AppendPending"));
-  return AppendPendingOn(*conn, event);
+  return Append(event, nullptr);
 }
 
-absl::StatusOr<int64_t> PostgresEventStore::AppendPendingHolding(
-    UserLock& lock, const EventRecord& event) {
-  AdvisoryUserLock* held = HeldLock(lock, event.user_id);
-  if (held == nullptr) return AppendPending(event);
-  ASSIGN_OR_RETURN(const int64_t event_id,
-                   AppendPendingOn(held->connection(), event));
-  if (held->position.has_value()) ++held->position->pending_events;
-  return event_id;
+absl::StatusOr<int64_t> PostgresEventStore::AppendPendingAt(
+    const EventRecord& event, const UserLogPosition& at) {
+  return Append(event, &at);
 }
 
-absl::StatusOr<int64_t> PostgresEventStore::AppendPendingOn(
-    Connection& conn, const EventRecord& event) {
+absl::StatusOr<int64_t> PostgresEventStore::Append(const EventRecord& event,
+                                                   const UserLogPosition* at) {
   constexpr char kOp[] = "AppendPending";
   if (std::isnan(event.propensity)) {
     return absl::InvalidArgumentError("propensity must not be NaN");
@@ -680,30 +614,50 @@ absl::StatusOr<int64_t> PostgresEventStore::AppendPendingOn(
   const int64_t checksum = SelectionChecksum(
       event.user_id, event.meal_id, event.item_label, context, event.action,
       event.propensity, ToMicros(event.selected_at));
-  // One statement, so one transaction: the event and its context, only if
-  // the user exists (no row back means it does not).
-  absl::StatusOr<Rows> rows = conn.Exec(
-      "WITH e AS (INSERT INTO events (user_id, meal_id, item_label, action, "
-      "propensity, selected_at_us, selection_checksum) SELECT $1, $2, $3, "
-      "$4, $5, $6, $7 WHERE EXISTS (SELECT 1 FROM users WHERE user_id = $1) "
-      "RETURNING event_id) INSERT INTO event_contexts (event_id, context) "
-      "SELECT event_id, $8 FROM e RETURNING event_id",
-      Params()
-          .Text(event.user_id)
-          .Text(event.meal_id)
-          .Text(event.item_label)
-          .Int64(event.action)
-          .Double(event.propensity)
-          .Int64(ToMicros(event.selected_at))
-          .Int64(checksum)
-          .Bytes(context),
-      kOp);
+  Params params = Params()
+                      .Text(event.user_id)
+                      .Text(event.meal_id)
+                      .Text(event.item_label)
+                      .Int64(event.action)
+                      .Double(event.propensity)
+                      .Int64(ToMicros(event.selected_at))
+                      .Int64(checksum)
+                      .Bytes(context);
+  if (at != nullptr) {
+    params.Int64(at->model_version)
+        .Int64(at->model_version + at->pending_events)
+        .Int64(at->incarnation);
+  }
+  ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
+  // One statement, so one transaction: the user's count of selections, the
+  // event and its context, only if the user exists (and, with `at`, its log
+  // stands there); no row back means nothing was written.
+  absl::StatusOr<Rows> rows = conn->Exec(
+      absl::StrCat(
+          "WITH u AS (UPDATE users SET selections = selections + 1 WHERE "
+          "user_id = $1",
+          at != nullptr ? " AND model_version = $9 AND selections = $10 AND "
+                          "incarnation = $11"
+                        : "",
+          " RETURNING user_id), e AS (INSERT INTO events (user_id, meal_id, "
+          "item_label, action, propensity, selected_at_us, "
+          "selection_checksum) SELECT $1, $2, $3, $4, $5, $6, $7 FROM u "
+          "RETURNING event_id) INSERT INTO event_contexts (event_id, context) "
+          "SELECT event_id, $8 FROM e RETURNING event_id"),
+      params, kOp);
   // A user deleted meanwhile fails the foreign key: also unknown.
   if (!rows.ok() && absl::IsFailedPrecondition(rows.status())) {
     return UserNotFound(event.user_id);
   }
   RETURN_IF_ERROR(rows.status());
-  if (!rows->Next()) return UserNotFound(event.user_id);
+  if (!rows->Next()) {
+    if (at == nullptr) return UserNotFound(event.user_id);
+    ASSIGN_OR_RETURN(Rows user, conn->Exec("SELECT 1 FROM users WHERE "
+                                           "user_id = $1",
+                                           Params().Text(event.user_id), kOp));
+    if (!user.Next()) return UserNotFound(event.user_id);
+    return LogMoved(event.user_id);
+  }
   const int64_t event_id = rows->Int64(0);
   CountWrite(/*append=*/true, start, start);
   return event_id;
@@ -776,30 +730,31 @@ absl::StatusOr<EventRecord> PostgresEventStore::CompleteEvent(
   return event;
 }
 
-absl::StatusOr<EventRecord> PostgresEventStore::CompleteEventHolding(
-    UserLock& lock, int64_t event_id, double loss,
-    const std::vector<double>& posthoc, double weight, absl::Time updated_at) {
+absl::StatusOr<EventRecord> PostgresEventStore::CompleteEventAt(
+    const std::string& user_id, int64_t event_id, double loss,
+    const std::vector<double>& posthoc, double weight, absl::Time updated_at,
+    const UserLogPosition& at) {
   constexpr char kOp[] = "CompleteEvent";
-  auto* held = dynamic_cast<AdvisoryUserLock*>(&lock);
-  if (held == nullptr || !held->position.has_value() || std::isnan(loss) ||
-      std::isnan(weight)) {
-    return CompleteEvent(event_id, loss, posthoc, weight, updated_at);
+  if (std::isnan(loss)) {
+    return absl::InvalidArgumentError("loss must not be NaN");
+  }
+  if (std::isnan(weight)) {
+    return absl::InvalidArgumentError("weight must not be NaN");
   }
   const absl::Time start = absl::Now();
   const std::string posthoc_bytes = EncodeDoubles(posthoc);
-  const UserLogPosition& log = *held->position;
-  const int64_t model_version = log.model_version + 1;
+  const int64_t model_version = at.model_version + 1;
   const int64_t updated_us = ToMicros(updated_at);
-  Connection& conn = held->connection();
-  // The lock and the position it read make this one statement, so one
-  // round trip and one transaction: the user's version moves from the one
-  // read to the next (a compare-and-set on the version and incarnation,
-  // under the row lock every writer of the user's log takes) only if the
-  // event is the user's and pending, and the event is completed only if
-  // the version moved. No row back means neither was written.
+  ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
+  // One statement, so one transaction and one round trip: the user's
+  // version moves from `at`'s to the next (a compare-and-set on the version
+  // and incarnation, under the user's row lock, which every writer of the
+  // user's log takes and which makes a waiting writer re-check the row)
+  // only if the event is the user's and pending, and the event is
+  // completed only if the version moved. No row back: nothing written.
   ASSIGN_OR_RETURN(
       Rows rows,
-      conn.Exec(
+      conn->Exec(
           absl::StrCat(
               "WITH u AS (UPDATE users SET model_version = $5 WHERE user_id = "
               "$8 AND model_version = $5 - 1 AND incarnation = $9 AND EXISTS "
@@ -819,23 +774,19 @@ absl::StatusOr<EventRecord> PostgresEventStore::CompleteEventHolding(
               .Int64(updated_us)
               .Int64(OutcomeChecksum(loss, posthoc_bytes, weight, model_version,
                                      updated_us))
-              .Text(held->user_id())
-              .Int64(log.incarnation),
+              .Text(user_id)
+              .Int64(at.incarnation),
           kOp));
   if (!rows.Next()) {
-    ASSIGN_OR_RETURN(Rows found, conn.Exec("SELECT completed FROM events WHERE "
-                                           "event_id = $1",
-                                           Params().Int64(event_id), kOp));
+    ASSIGN_OR_RETURN(Rows found,
+                     conn->Exec("SELECT completed FROM events WHERE "
+                                "event_id = $1",
+                                Params().Int64(event_id), kOp));
     if (!found.Next()) return EventNotFound(event_id);
     if (found.Int64(0) != 0) return store_rows::AlreadyCompleted(event_id);
-    // Pending, but the log is not where the lock read it (another user's
-    // event, or the lock was lost meanwhile): the general path decides.
-    held->position.reset();
-    return CompleteEvent(event_id, loss, posthoc, weight, updated_at);
+    return LogMoved(user_id);
   }
   ASSIGN_OR_RETURN(EventRecord event, store_rows::ReadEventRow(rows));
-  held->position->model_version = model_version;
-  --held->position->pending_events;
   CountWrite(/*append=*/false, start, start);
   return event;
 }
@@ -1169,6 +1120,24 @@ absl::StatusOr<StoreCheckReport> PostgresEventStore::CheckStore() {
         Rows users,
         conn->Exec(absl::StrCat(kUserColumns, "ORDER BY u.user_id"), kOp));
     while (users.Next()) RETURN_IF_ERROR(report.User(ReadUser(*conn, users)));
+  }
+  {
+    // Each user's count of selections, which replicas index the random
+    // stream with, against the log.
+    ASSIGN_OR_RETURN(
+        Rows counts,
+        conn->Exec("SELECT user_id, selections, n FROM (SELECT u.user_id, "
+                   "u.selections, u.model_version + (SELECT count(*) FROM "
+                   "events e WHERE e.user_id = u.user_id AND NOT e.completed) "
+                   "AS n FROM users u) c WHERE selections <> n ORDER BY "
+                   "user_id",
+                   kOp));
+    while (counts.Next()) {
+      RETURN_IF_ERROR(report.User(absl::DataLossError(
+          absl::StrCat("user \"", counts.Text(0), "\" counts ", counts.Int64(1),
+                       " selections, but its log holds ", counts.Int64(2),
+                       " (completed and pending)"))));
+    }
   }
   // In batches: the server never holds every context in one result.
   for (int64_t after = 0;;) {

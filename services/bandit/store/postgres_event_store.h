@@ -13,9 +13,12 @@
 //
 // Each call takes one of a few pooled connections for its whole
 // transaction. A user's writes are ordered by a lock on the user's row
-// (CompleteEvent, ResetUser, DeleteUser and the checkpoint header take it
+// (every append, completion, reset, delete and checkpoint header takes it
 // first), so two completions of a user never share a model_version and a
-// reset never races a completion, even from two processes.
+// reset never races a completion, even from two processes. Replicas write
+// with AppendPendingAt and CompleteEventAt: each one statement that writes
+// only if the user's row still says what the caller read (version,
+// selections, incarnation), else ABORTED with nothing written.
 //
 // Differences from the SQLite store:
 //  - Strings (user ids, meals, labels, action names, audit fields) must be
@@ -90,14 +93,16 @@ class PostgresEventStore final : public EventStore {
                                             const std::vector<double>& posthoc,
                                             double weight,
                                             absl::Time updated_at) override;
-  // On the lock's connection. A completion is then one statement, a
-  // compare-and-set from the position the lock read.
-  absl::StatusOr<int64_t> AppendPendingHolding(
-      UserLock& lock, const EventRecord& event) override;
-  absl::StatusOr<EventRecord> CompleteEventHolding(
-      UserLock& lock, int64_t event_id, double loss,
-      const std::vector<double>& posthoc, double weight,
-      absl::Time updated_at) override;
+  // One statement each: a compare-and-set on the user's row (its version,
+  // selections and incarnation).
+  absl::StatusOr<int64_t> AppendPendingAt(const EventRecord& event,
+                                          const UserLogPosition& at) override;
+  absl::StatusOr<EventRecord> CompleteEventAt(
+      const std::string& user_id, int64_t event_id, double loss,
+      const std::vector<double>& posthoc, double weight, absl::Time updated_at,
+      const UserLogPosition& at) override;
+  absl::StatusOr<UserLogPosition> LogPosition(
+      const std::string& user_id) override;
   absl::StatusOr<EventRecord> GetEvent(int64_t event_id) override;
   absl::StatusOr<PageResult<EventRecord>> ListEvents(const std::string& user_id,
                                                      const std::string& meal_id,
@@ -126,36 +131,22 @@ class PostgresEventStore final : public EventStore {
   }
   // Several BanditService processes may share the database.
   bool shared() const override { return true; }
-  // A session-level advisory lock (pg_advisory_lock on a 64-bit hash of the
-  // user id) on a connection of a pool of its own, taken and followed by
-  // the position's read in one round trip (bitewise_enter_user, whose
-  // statements each see a fresh snapshot, so the read sees everything the
-  // lock's previous holder committed). Held until the returned object is
-  // destroyed (the unlock is sent without waiting for its reply, which the
-  // connection's next use reads); lost with that connection.
-  absl::StatusOr<std::unique_ptr<UserLock>> LockUserAcrossProcesses(
-      const std::string& user_id, UserLogPosition* position) override;
-
   // "database NAME at HOST:PORT" (no password), for logs.
   const std::string& description() const;
 
   // A checkpoint's bytes go in chunks of at most this many.
   static constexpr size_t kCheckpointChunkBytes = size_t{4} << 20;
   // The schema version this build writes and reads.
-  static constexpr int kSchemaVersion = 1;
+  static constexpr int kSchemaVersion = 2;
 
  private:
-  PostgresEventStore(std::unique_ptr<pg::Pool> pool,
-                     std::unique_ptr<pg::Pool> lock_pool, std::string conninfo);
+  PostgresEventStore(std::unique_ptr<pg::Pool> pool, std::string conninfo);
   void CountWrite(bool append, absl::Time start, absl::Time commit_start);
-  absl::StatusOr<int64_t> AppendPendingOn(pg::Connection& conn,
-                                          const EventRecord& event);
+  // AppendPending, with `at` only if the user's log stands there.
+  absl::StatusOr<int64_t> Append(const EventRecord& event,
+                                 const UserLogPosition* at);
 
   const std::unique_ptr<pg::Pool> pool_;
-  // Connections that hold users' locks across processes: apart from pool_,
-  // so a lock holder waiting for a connection to work with never waits for
-  // another lock holder.
-  const std::unique_ptr<pg::Pool> lock_pool_;
   const std::string conninfo_;
   absl::Mutex health_mu_;
   std::unique_ptr<pg::Connection> health_ ABSL_GUARDED_BY(health_mu_);

@@ -1751,6 +1751,126 @@ TEST_F(PostgresEventStoreTest, TwoStoresOnOneDatabaseOrderEachUsersWrites) {
   }
 }
 
+TEST_F(PostgresEventStoreTest, WritesAtAPositionAreRefusedOnceTheLogMoved) {
+  // What replicas write with: each write only where the caller read the
+  // log, else ABORTED naming the user, with nothing written.
+  auto other = OpenStore();
+  ASSERT_NE(other, nullptr);
+  ASSERT_TRUE(store_->CreateUser(MakeUser("alice")).ok());
+  auto at = store_->LogPosition("alice");
+  ASSERT_TRUE(at.ok()) << at.status();
+  EXPECT_EQ(at->model_version, 0);
+  EXPECT_EQ(at->pending_events, 0);
+  auto first = store_->AppendPendingAt(MakeEvent("alice", "m", 0), *at);
+  ASSERT_TRUE(first.ok()) << first.status();
+  // The other store appends and completes from the same, now stale, read.
+  auto stale = other->AppendPendingAt(MakeEvent("alice", "m", 1), *at);
+  EXPECT_EQ(stale.status().code(), absl::StatusCode::kAborted);
+  EXPECT_THAT(stale.status().message(), HasSubstr("\"alice\""));
+  EXPECT_EQ(other
+                ->CompleteEventAt("alice", *first, 0.0, {1.0, 2.0}, 1.0,
+                                  absl::FromUnixMicros(1),
+                                  UserLogPosition{1, 0, at->incarnation})
+                .status()
+                .code(),
+            absl::StatusCode::kAborted);
+  EXPECT_EQ(MustGetUser("alice").pending_events, 1);
+  EXPECT_EQ(MustGetUser("alice").model_version, 0);
+  // From a fresh read both go through, and the position follows.
+  at = other->LogPosition("alice");
+  ASSERT_TRUE(at.ok()) << at.status();
+  EXPECT_EQ(at->pending_events, 1);
+  auto done = other->CompleteEventAt("alice", *first, 0.0, {1.0, 2.0}, 1.0,
+                                     absl::FromUnixMicros(1), *at);
+  ASSERT_TRUE(done.ok()) << done.status();
+  EXPECT_EQ(done->model_version, 1);
+  EXPECT_EQ(done->context, MakeEvent("alice", "m", 0).context);
+  // Completed already, unknown, or another user's: as CompleteEvent says.
+  at = store_->LogPosition("alice");
+  EXPECT_EQ(store_
+                ->CompleteEventAt("alice", *first, 0.0, {1.0, 2.0}, 1.0,
+                                  absl::FromUnixMicros(1), *at)
+                .status()
+                .code(),
+            absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ(store_
+                ->CompleteEventAt("alice", 999999, 0.0, {1.0, 2.0}, 1.0,
+                                  absl::FromUnixMicros(1), *at)
+                .status()
+                .code(),
+            absl::StatusCode::kNotFound);
+  ASSERT_TRUE(store_->CreateUser(MakeUser("bob")).ok());
+  auto bobs = store_->AppendPending(MakeEvent("bob", "m", 0));
+  ASSERT_TRUE(bobs.ok());
+  EXPECT_EQ(store_
+                ->CompleteEventAt("alice", *bobs, 0.0, {1.0, 2.0}, 1.0,
+                                  absl::FromUnixMicros(1), *at)
+                .status()
+                .code(),
+            absl::StatusCode::kAborted);
+  EXPECT_FALSE(store_->GetEvent(*bobs)->completed);
+  // A reset starts a new incarnation: an older read no longer writes.
+  ASSERT_TRUE(store_->ResetUser("alice").ok());
+  EXPECT_EQ(other
+                ->AppendPendingAt(MakeEvent("alice", "m", 2),
+                                  UserLogPosition{0, 0, at->incarnation})
+                .status()
+                .code(),
+            absl::StatusCode::kAborted);
+  auto reset = other->LogPosition("alice");
+  ASSERT_TRUE(reset.ok());
+  EXPECT_NE(reset->incarnation, at->incarnation);
+  EXPECT_EQ(reset->model_version + reset->pending_events, 0);
+  EXPECT_EQ(other->AppendPendingAt(MakeEvent("nobody", "m", 0), *reset)
+                .status()
+                .code(),
+            absl::StatusCode::kNotFound);
+  EXPECT_EQ(other->LogPosition("nobody").status().code(),
+            absl::StatusCode::kNotFound);
+}
+
+TEST_F(PostgresEventStoreTest, SchemaOneIsUpgradedAndCountsAreChecked) {
+  // A store of schema 1 (before the selections count): opening it adds the
+  // count from each user's log and drops the lock function.
+  ASSERT_TRUE(store_->CreateUser(MakeUser("alice")).ok());
+  ASSERT_TRUE(store_->CreateUser(MakeUser("bob")).ok());
+  for (int i = 0; i < 3; ++i) {
+    auto id = store_->AppendPending(MakeEvent("alice", "m", i));
+    ASSERT_TRUE(id.ok());
+    if (i < 2) {
+      ASSERT_TRUE(store_
+                      ->CompleteEvent(*id, 0.0, {1.0, 2.0}, 1.0,
+                                      absl::FromUnixMicros(1))
+                      .ok());
+    }
+  }
+  store_.reset();
+  Raw().Exec(
+      "ALTER TABLE users DROP COLUMN selections; CREATE FUNCTION "
+      "bitewise_enter_user(lock_key bigint, id text) RETURNS void LANGUAGE "
+      "sql AS 'SELECT 1'; UPDATE bitewise_store SET schema_version = 1");
+  store_ = OpenStore();
+  ASSERT_NE(store_, nullptr);
+  EXPECT_EQ(*server_->Query(database_,
+                            "SELECT string_agg(user_id || '=' || selections, "
+                            "',' ORDER BY user_id) FROM users"),
+            "alice=3,bob=0");
+  EXPECT_EQ(*server_->Query(database_,
+                            "SELECT schema_version || ' ' || "
+                            "(to_regproc('bitewise_enter_user') IS NULL) FROM "
+                            "bitewise_store"),
+            "2 true");
+  auto clean = store_->CheckStore();
+  ASSERT_TRUE(clean.ok()) << clean.status();
+  EXPECT_THAT(clean->findings, IsEmpty());
+  // A count that disagrees with the log is a finding naming the user.
+  Raw().Exec("UPDATE users SET selections = 7 WHERE user_id = 'bob'");
+  auto damaged = store_->CheckStore();
+  ASSERT_TRUE(damaged.ok()) << damaged.status();
+  ASSERT_EQ(damaged->findings.size(), 1u);
+  EXPECT_THAT(damaged->findings[0], HasSubstr("\"bob\" counts 7 selections"));
+}
+
 TEST_F(PostgresEventStoreTest, AStoppedServerIsUnavailableAndTheStoreRecovers) {
   // A server of its own, to stop.
   auto own = testing::TestPostgres::Create();
