@@ -257,6 +257,11 @@ TEST(ReplicaTest, ConcurrentReplicasKeepEveryUpdateOfTheSameUsers) {
   const int64_t caught_up = pair.replica(0).Counters().caught_up_events +
                             pair.replica(1).Counters().caught_up_events;
   EXPECT_GT(caught_up, 0);
+  // Each Select after the other replica's Update of the user met it: the
+  // write was refused, the model caught up, and the Select tried again.
+  EXPECT_GT(pair.replica(0).Counters().write_conflicts +
+                pair.replica(1).Counters().write_conflicts,
+            0);
 }
 
 TEST(ReplicaTest, AResetOnOneReplicaIsSeenByTheOther) {
