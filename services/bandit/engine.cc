@@ -336,6 +336,7 @@ UserLogPosition BanditEngine::SlotPosition(const UserSlot& slot) {
 
 void BanditEngine::Unload(UserSlot& slot) {
   slot.model.reset();
+  slot.last_selected.reset();
   slot.checkpoint_version = 0;
   slot.last_event_id = 0;
   slot.products_event = 0;
@@ -351,7 +352,11 @@ void BanditEngine::Unload(UserSlot& slot) {
 
 void BanditEngine::Touch(UserSlot& slot) {
   // The model and the latest Select's products the user's Update will use.
-  const size_t bytes = slot.model->MemoryBytes() + slot.products.Bytes();
+  const size_t bytes =
+      slot.model->MemoryBytes() + slot.products.Bytes() +
+      (slot.last_selected.has_value()
+           ? sizeof(double) * slot.last_selected->context.size()
+           : 0);
   absl::MutexLock lock(&cache_mu_);
   if (slot.in_lru) {
     lru_.erase(slot.lru_pos);
@@ -372,6 +377,7 @@ void BanditEngine::Touch(UserSlot& slot) {
     victim->model.reset();
     victim->products_event = 0;
     victim->products = SelectProducts();
+    victim->last_selected.reset();
     victim->checkpoint_version = 0;
     victim->last_event_id = 0;
     cached_bytes_ -= victim->bytes;
@@ -589,6 +595,9 @@ absl::StatusOr<std::optional<SelectResult>> BanditEngine::TrySelect(
   result.event_id = *event_id;
   ++slot.select_count;
   ++slot.record.pending_events;
+  event.event_id = *event_id;
+  slot.last_selected = std::move(event);
+  RememberSelect(*event_id, input.user_id);
   slot.products_event = result.event_id;
   slot.products = std::move(products);
   slot.last_used = absl::Now();
@@ -607,14 +616,52 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
     return absl::InvalidArgumentError(absl::StrCat(
         "event_id: must be a positive integer, got ", input.event_id));
   }
-  ASSIGN_OR_RETURN(const EventRecord found, store_->GetEvent(input.event_id));
-  ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(found.user_id, false));
+  // The event as this process's Select wrote it, without a read when it is
+  // still remembered (its selection never changes; whether it is still
+  // pending, the store decides when completing it).
+  std::optional<EventRecord> found;
+  std::shared_ptr<UserSlot> slot;
+  if (std::optional<std::string> user = ForgetSelect(input.event_id)) {
+    absl::StatusOr<std::shared_ptr<UserSlot>> remembered = Slot(*user, false);
+    if (remembered.ok()) slot = *std::move(remembered);
+  }
+  if (slot == nullptr) {
+    ASSIGN_OR_RETURN(found, store_->GetEvent(input.event_id));
+    ASSIGN_OR_RETURN(slot, Slot(found->user_id, false));
+  }
   absl::MutexLock lock(&slot->mu);
+  if (!found.has_value()) {
+    if (slot->last_selected.has_value() &&
+        slot->last_selected->event_id == input.event_id) {
+      found = std::move(slot->last_selected);
+    } else {
+      ASSIGN_OR_RETURN(found, store_->GetEvent(input.event_id));
+    }
+    slot->last_selected.reset();
+  }
   for (int attempt = 1;; ++attempt) {
     ASSIGN_OR_RETURN(std::optional<UpdateResult> result,
-                     TryUpdate(input, found, *slot, attempt));
+                     TryUpdate(input, *found, *slot, attempt));
     if (result.has_value()) return *std::move(result);
   }
+}
+
+void BanditEngine::RememberSelect(int64_t event_id,
+                                  const std::string& user_id) {
+  absl::MutexLock lock(&selects_mu_);
+  // Bounded: past the limit the oldest are not told apart, and their
+  // Updates read the event instead.
+  if (recent_selects_.size() >= kRememberedSelects) recent_selects_.clear();
+  recent_selects_[event_id] = user_id;
+}
+
+std::optional<std::string> BanditEngine::ForgetSelect(int64_t event_id) {
+  absl::MutexLock lock(&selects_mu_);
+  auto it = recent_selects_.find(event_id);
+  if (it == recent_selects_.end()) return std::nullopt;
+  std::string user_id = std::move(it->second);
+  recent_selects_.erase(it);
+  return user_id;
 }
 
 absl::StatusOr<std::optional<UpdateResult>> BanditEngine::TryUpdate(

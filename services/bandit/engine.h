@@ -202,6 +202,9 @@ class BanditEngine {
     // only while the model has not changed; dropped with the model).
     int64_t products_event ABSL_GUARDED_BY(mu) = 0;
     SelectProducts products ABSL_GUARDED_BY(mu);
+    // The latest Select's event as written (its id set), so its Update
+    // need not read it back; taken by that Update, dropped with the model.
+    std::optional<EventRecord> last_selected ABSL_GUARDED_BY(mu);
     // The event at the model's version (what a checkpoint of it names),
     // the version the newest checkpoint covers, and the last call's time.
     int64_t last_event_id ABSL_GUARDED_BY(mu) = 0;
@@ -249,6 +252,11 @@ class BanditEngine {
   // kMaxWriteAttempts-th attempt, which returns the store's error.
   bool RetryAfterConflict(const absl::Status& status, int attempt);
   static constexpr int kMaxWriteAttempts = 8;
+  // The users of the events this process selected and not yet updated:
+  // what lets an Update find its user's slot without reading the event.
+  void RememberSelect(int64_t event_id, const std::string& user_id);
+  std::optional<std::string> ForgetSelect(int64_t event_id);
+  static constexpr size_t kRememberedSelects = 4096;
   // Records the slot's size as most recently used and evicts others.
   void Touch(UserSlot& slot) ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
 
@@ -268,6 +276,10 @@ class BanditEngine {
   mutable absl::Mutex slots_mu_;
   absl::flat_hash_map<std::string, std::shared_ptr<UserSlot>> slots_
       ABSL_GUARDED_BY(slots_mu_);
+
+  absl::Mutex selects_mu_;
+  absl::flat_hash_map<int64_t, std::string> recent_selects_
+      ABSL_GUARDED_BY(selects_mu_);
 
   mutable absl::Mutex cache_mu_;
   std::list<UserSlot*> lru_ ABSL_GUARDED_BY(cache_mu_);  // front: newest

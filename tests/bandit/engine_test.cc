@@ -137,16 +137,17 @@ TEST_F(EngineTest, CacheCountsTheSelectsProductsUntilTheUpdate) {
   absl::StatusOr<SelectResult> chosen = engine_->Select(select);
   ASSERT_TRUE(chosen.ok()) << chosen.status();
   // The context (8 doubles) and each dual action's product with it, one
-  // double per round (5 rounds): exactly 13 doubles more.
-  EXPECT_EQ(engine_->CachedBytes(), after_update + 13 * sizeof(double));
+  // double per round (5 rounds), and the event's context as written (8
+  // more, so the Update need not read it): exactly 21 doubles more.
+  EXPECT_EQ(engine_->CachedBytes(), after_update + 21 * sizeof(double));
   UpdateInput update{chosen->event_id, 0.0, RandomVector(4, rng)};
   ASSERT_TRUE(engine_->Update(update).ok());
-  // Released at the Update: the next Select adds its own 8 + 6 doubles to
-  // the model alone.
+  // Released at the Update: the next Select adds its own 8 + 6 + 8
+  // doubles to the model alone.
   const size_t model_only = engine_->CachedBytes();
   SelectInput again{"alice", RandomVector(8, rng), "m", "item"};
   ASSERT_TRUE(engine_->Select(again).ok());
-  EXPECT_EQ(engine_->CachedBytes(), model_only + 14 * sizeof(double));
+  EXPECT_EQ(engine_->CachedBytes(), model_only + 22 * sizeof(double));
 }
 
 TEST_F(EngineTest, BadInputGetsPreciseStatusAndWritesNothing) {
@@ -329,6 +330,46 @@ TEST_F(EngineTest, ModelSurvivesReopenWithin1e12) {
   }
   EXPECT_TRUE(engine_->Update({pending->event_id, 1.0, {0, 1, 0, 0}}).ok());
   EXPECT_EQ(engine_->GetUser("carol")->model_version, 121);
+}
+
+TEST_F(EngineTest, AnUpdateOfAnEventGoneWithItsUserIsNotFound) {
+  // The engine remembers the events it selected (so their Updates need not
+  // read them back); an event deleted since, with a reset or with its user,
+  // is still unknown, and a new user of the same id learns nothing.
+  ASSERT_TRUE(engine_->CreateUser("gus", SmallConfig()).ok());
+  std::mt19937_64 rng(8);
+  for (int gone = 0; gone < 3; ++gone) {
+    auto selected = engine_->Select({"gus", RandomVector(8, rng), "m", "i"});
+    ASSERT_TRUE(selected.ok()) << selected.status();
+    if (gone == 0) {
+      ASSERT_TRUE(engine_->ResetUser("gus").ok());
+    } else {
+      ASSERT_TRUE(engine_->DeleteUser("gus").ok());
+      if (gone == 2) {
+        ASSERT_TRUE(engine_->CreateUser("gus", SmallConfig()).ok());
+      }
+    }
+    const absl::Status updated =
+        engine_->Update({selected->event_id, 0.5, RandomVector(4, rng)})
+            .status();
+    EXPECT_EQ(updated.code(), absl::StatusCode::kNotFound) << updated;
+    EXPECT_THAT(
+        std::string(updated.message()),
+        ::testing::HasSubstr(absl::StrCat("event ", selected->event_id)));
+    if (gone == 1) {
+      ASSERT_TRUE(engine_->CreateUser("gus", SmallConfig()).ok());
+    }
+    EXPECT_EQ(engine_->GetUser("gus")->model_version, 0);
+  }
+  // A retried Update (after it was applied) is answered from the store.
+  auto selected = engine_->Select({"gus", RandomVector(8, rng), "m", "i"});
+  ASSERT_TRUE(selected.ok());
+  const UpdateInput update{selected->event_id, 0.25, RandomVector(4, rng)};
+  ASSERT_TRUE(engine_->Update(update).ok());
+  auto again = engine_->Update(update);
+  ASSERT_TRUE(again.ok()) << again.status();
+  EXPECT_TRUE(again->already_applied);
+  EXPECT_EQ(again->model_version, 1);
 }
 
 TEST_F(EngineTest, SeededStrategiesAreReproducibleAcrossResetAndRestart) {
