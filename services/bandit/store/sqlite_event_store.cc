@@ -20,6 +20,7 @@
 #include "absl/strings/str_join.h"
 #include "absl/strings/string_view.h"
 #include "absl/time/clock.h"
+#include "services/bandit/store/context_file.h"
 #include "services/bandit/store/event_checksum.h"
 #include "services/bandit/store/sqlite_helpers.h"
 #include "services/bandit/store/sqlite_schema.h"
@@ -60,12 +61,32 @@ FROM users u
 // LEFT JOIN: an event whose context row is missing reads with none, and
 // its selection checksum then fails (DATA_LOSS) rather than the event
 // silently vanishing from the log.
+// A context kept in the contexts file is read from there
+// (bitewise_context, registered at Open).
 constexpr char kEventColumns[] = R"sql(
-SELECT event_id, user_id, meal_id, item_label, context, action, propensity,
-       selected_at_us, completed, loss, posthoc, weight, model_version,
-       updated_at_us, selection_checksum, outcome_checksum
+SELECT event_id, user_id, meal_id, item_label,
+       CASE WHEN context_offset IS NULL THEN context
+            ELSE bitewise_context(context_offset, context_bytes) END,
+       action, propensity, selected_at_us, completed, loss, posthoc, weight,
+       model_version, updated_at_us, selection_checksum, outcome_checksum
 FROM events LEFT JOIN event_contexts USING (event_id)
 )sql";
+
+// bitewise_context(offset, length): the bytes there in the store's contexts
+// file (sqlite3_user_data); NULL without one. A short read returns what
+// there is, and the event's checksum then names it.
+void ReadContextFunction(sqlite3_context* call, int argc,
+                         sqlite3_value** argv) {
+  const auto* contexts =
+      static_cast<const ContextFile*>(sqlite3_user_data(call));
+  if (contexts == nullptr || argc != 2) {
+    sqlite3_result_null(call);
+    return;
+  }
+  const std::string bytes = contexts->Read(sqlite3_value_int64(argv[0]),
+                                           sqlite3_value_int64(argv[1]));
+  sqlite3_result_blob64(call, bytes.data(), bytes.size(), SQLITE_TRANSIENT);
+}
 
 // The action names of one user or pool, stored one row per action in
 // `table` (user_actions, pool_actions) under `key_column`.
@@ -168,25 +189,55 @@ absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
   ASSIGN_OR_RETURN(const int lock_fd, LockStoreFile(options.path));
   absl::Status ready = InitializeDatabase(db.get(), options);
   if (ready.ok()) ready = CheckIntegrity(db.get(), options.path);
+  std::unique_ptr<ContextFile> contexts;
+  if (ready.ok() && options.path != ":memory:") {
+    // Where the rows' contexts in the file end: a missing file is then
+    // told from one never used.
+    absl::StatusOr<int64_t> referenced_end = sqlite::ReadInt(
+        db.get(),
+        "SELECT COALESCE(MAX(context_offset + context_bytes), 0) "
+        "FROM events",
+        absl::StrCat("opening ", options.path));
+    ready = referenced_end.status();
+    if (ready.ok()) {
+      absl::StatusOr<std::unique_ptr<ContextFile>> opened =
+          ContextFile::Open(options.path + ".contexts", *referenced_end);
+      ready = opened.status();
+      if (ready.ok()) contexts = *std::move(opened);
+    }
+  }
+  if (ready.ok()) {
+    const int rc = sqlite3_create_function_v2(
+        db.get(), "bitewise_context", 2, SQLITE_UTF8, contexts.get(),
+        &ReadContextFunction, nullptr, nullptr, nullptr);
+    if (rc != SQLITE_OK) {
+      ready = SqliteError(db.get(), rc, absl::StrCat("opening ", options.path));
+    }
+  }
+  struct stat file {};
+  if (ready.ok() && options.path != ":memory:" &&
+      stat(options.path.c_str(), &file) != 0) {
+    ready = absl::UnavailableError(
+        absl::StrCat("cannot stat ", options.path, ": ", std::strerror(errno)));
+  }
   if (!ready.ok()) {
     if (lock_fd >= 0) close(lock_fd);
     return ready;
   }
-  struct stat file {};
-  if (options.path != ":memory:" && stat(options.path.c_str(), &file) != 0) {
-    if (lock_fd >= 0) close(lock_fd);
-    return absl::UnavailableError(
-        absl::StrCat("cannot stat ", options.path, ": ", std::strerror(errno)));
-  }
   return std::unique_ptr<SqliteEventStore>(new SqliteEventStore(
       db.release(), lock_fd, options.path, static_cast<uint64_t>(file.st_dev),
-      static_cast<uint64_t>(file.st_ino)));
+      static_cast<uint64_t>(file.st_ino), std::move(contexts),
+      options.context_file_min_bytes));
 }
 
 SqliteEventStore::SqliteEventStore(sqlite3* db, int lock_fd, std::string path,
-                                   uint64_t device, uint64_t inode)
+                                   uint64_t device, uint64_t inode,
+                                   std::unique_ptr<ContextFile> contexts,
+                                   int64_t context_file_min_bytes)
     : db_(db),
       statements_(std::make_unique<sqlite::StatementCache>(db)),
+      contexts_(std::move(contexts)),
+      context_file_min_bytes_(context_file_min_bytes),
       lock_fd_(lock_fd),
       path_(std::move(path)),
       device_(device),
@@ -203,6 +254,16 @@ absl::Status SqliteEventStore::CheckHealth() {
         " was removed or replaced while the service had it open; writes "
         "would be lost at the next start. Restore it and restart the "
         "service"));
+  }
+  if (contexts_ != nullptr &&
+      (stat(contexts_->path().c_str(), &file) != 0 ||
+       static_cast<uint64_t>(file.st_dev) != contexts_->device() ||
+       static_cast<uint64_t>(file.st_ino) != contexts_->inode())) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "the contexts file ", contexts_->path(),
+        " was removed or replaced while the service had it open; the "
+        "contexts written since would be lost at the next start. Restore "
+        "it and restart the service"));
   }
   return absl::OkStatus();
 }
@@ -286,6 +347,10 @@ void SqliteEventStore::CommitGroup(const std::vector<QueuedWrite*>& group) {
         }
         failed = Exec(db_, "RELEASE w", "group commit");
         if (!failed.ok()) break;
+      }
+      // The contexts the rows point at are on disk before the rows.
+      if (failed.ok() && contexts_ != nullptr && contexts_->dirty()) {
+        failed = contexts_->Sync();
       }
       if (!failed.ok()) {
         fail_all(failed);
@@ -413,6 +478,7 @@ absl::Status SqliteEventStore::DeleteUser(const std::string& user_id) {
   ASSIGN_OR_RETURN(
       Transaction txn,
       Transaction::Begin(db_, Transaction::Kind::kWrite, "DeleteUser"));
+  ASSIGN_OR_RETURN(const auto ranges, ContextRangesLocked(user_id));
   {
     // The user's events go with it through ON DELETE CASCADE.
     ASSIGN_OR_RETURN(Statement st,
@@ -425,7 +491,39 @@ absl::Status SqliteEventStore::DeleteUser(const std::string& user_id) {
     RETURN_IF_ERROR(st.Run());
     if (!deleted) return UserNotFound(user_id);
   }
-  return txn.Commit();
+  RETURN_IF_ERROR(txn.Commit());
+  EraseContexts(ranges);
+  return absl::OkStatus();
+}
+
+absl::StatusOr<std::vector<std::pair<int64_t, int64_t>>>
+SqliteEventStore::ContextRangesLocked(const std::string& user_id) {
+  std::vector<std::pair<int64_t, int64_t>> ranges;
+  if (contexts_ == nullptr) return ranges;
+  ASSIGN_OR_RETURN(Statement st,
+                   Statement::Prepare(db_,
+                                      "SELECT context_offset, context_bytes "
+                                      "FROM events WHERE user_id = ?1 AND "
+                                      "context_offset IS NOT NULL",
+                                      "reading where contexts are"));
+  st.BindText(1, user_id);
+  while (true) {
+    ASSIGN_OR_RETURN(const bool row, st.Step());
+    if (!row) break;
+    ranges.emplace_back(st.Int64(0), st.Int64(1));
+  }
+  return ranges;
+}
+
+void SqliteEventStore::EraseContexts(
+    const std::vector<std::pair<int64_t, int64_t>>& ranges) {
+  if (contexts_ == nullptr) return;
+  if (const absl::Status erased = contexts_->Erase(ranges); !erased.ok()) {
+    std::fprintf(stderr,
+                 "bitewise-bandit: deleted events' contexts were not erased "
+                 "from the contexts file (they stay, unreferenced): %s\n",
+                 erased.ToString().c_str());
+  }
 }
 
 absl::Status SqliteEventStore::ResetUser(const std::string& user_id) {
@@ -445,6 +543,7 @@ absl::Status SqliteEventStore::ResetUser(const std::string& user_id) {
     RETURN_IF_ERROR(st.Run());
     if (!found) return UserNotFound(user_id);
   }
+  ASSIGN_OR_RETURN(const auto ranges, ContextRangesLocked(user_id));
   {
     ASSIGN_OR_RETURN(
         Statement st,
@@ -454,7 +553,9 @@ absl::Status SqliteEventStore::ResetUser(const std::string& user_id) {
     RETURN_IF_ERROR(st.Run());
   }
   RETURN_IF_ERROR(DeleteCheckpointLocked(user_id));
-  return txn.Commit();
+  RETURN_IF_ERROR(txn.Commit());
+  EraseContexts(ranges);
+  return absl::OkStatus();
 }
 
 absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
@@ -469,6 +570,9 @@ absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
       event.propensity, ToMicros(event.selected_at));
   const absl::Time start = absl::Now();
   int64_t event_id = 0;
+  const bool in_file =
+      contexts_ != nullptr &&
+      static_cast<int64_t>(context.size()) >= context_file_min_bytes_;
   RETURN_IF_ERROR(RunInGroup([&]() ABSL_NO_THREAD_SAFETY_ANALYSIS {
     // The row is inserted only if the user exists, and no row back means
     // it does not; then its context (both in this write's savepoint).
@@ -477,8 +581,9 @@ absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
           Statement st,
           statements_->Get(
               "INSERT INTO events (user_id, meal_id, item_label, action, "
-              "propensity, selected_at_us, completed, selection_checksum) "
-              "SELECT ?1, ?2, ?3, ?4, ?5, ?6, 0, ?7 "
+              "propensity, selected_at_us, completed, selection_checksum, "
+              "context_offset, context_bytes) "
+              "SELECT ?1, ?2, ?3, ?4, ?5, ?6, 0, ?7, ?8, ?9 "
               "WHERE EXISTS (SELECT 1 FROM users WHERE user_id = ?1) "
               "RETURNING event_id",
               "AppendPending"));
@@ -489,12 +594,22 @@ absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
       st.BindDouble(5, event.propensity);
       st.BindInt64(6, ToMicros(event.selected_at));
       st.BindInt64(7, checksum);
+      if (in_file) {
+        // Written now, synced before the group's commit; bytes of a write
+        // that does not commit stay unreferenced.
+        ASSIGN_OR_RETURN(const int64_t offset, contexts_->Append(context));
+        st.BindInt64(8, offset);
+        st.BindInt64(9, static_cast<int64_t>(context.size()));
+      } else {
+        st.BindNull(8);
+        st.BindNull(9);
+      }
       ASSIGN_OR_RETURN(const bool inserted, st.Step());
       event_id = inserted ? st.Int64(0) : 0;
       RETURN_IF_ERROR(st.Run());
     }
     const bool inserted = event_id != 0;
-    if (inserted) {
+    if (inserted && !in_file) {
       ASSIGN_OR_RETURN(
           Statement st,
           statements_->Get("INSERT INTO event_contexts (event_id, context) "

@@ -57,6 +57,8 @@ class StatementCache;
 
 namespace bitewise::bandit {
 
+class ContextFile;
+
 struct SqliteStoreOptions {
   // The database file. Created, with the schema, if it does not exist; an
   // existing file must be a bitewise store of a schema version this build
@@ -74,6 +76,12 @@ struct SqliteStoreOptions {
   // store, created with owner-only permissions. The service sets it only
   // with --create; otherwise Open is FAILED_PRECONDITION naming the path.
   bool create_if_missing = true;
+  // Contexts of at least this many bytes (d >= 512 with the default) are
+  // kept in the contexts file "<path>.contexts" (context_file.h), written
+  // once, rather than in the database, where the write-ahead log writes
+  // them twice; smaller ones stay in the database, which saves the file's
+  // own sync in their commits. A ":memory:" store keeps every context.
+  int64_t context_file_min_bytes = 4096;
 };
 
 class SqliteEventStore final : public EventStore {
@@ -82,7 +90,9 @@ class SqliteEventStore final : public EventStore {
   // file is not a SQLite database, belongs to another application, has a
   // schema version this build does not know, or is already open in another
   // process (an advisory lock on "<path>.lock"); DATA_LOSS if SQLite's
-  // integrity check finds it damaged; INVALID_ARGUMENT for an empty path.
+  // integrity check finds it damaged, or if its contexts file is missing
+  // while the database refers to it, or is not ours; INVALID_ARGUMENT for
+  // an empty path.
   static absl::StatusOr<std::unique_ptr<SqliteEventStore>> Open(
       const SqliteStoreOptions& options);
 
@@ -103,9 +113,10 @@ class SqliteEventStore final : public EventStore {
                                             absl::Time updated_at) override;
   absl::StatusOr<EventRecord> GetEvent(int64_t event_id) override;
   absl::StatusOr<int64_t> AddPool(const PoolRecord& pool) override;
-  // FAILED_PRECONDITION naming the path when the database file was removed
-  // or replaced since it was opened: writes would then be acknowledged and
-  // lost at the next start. Every write checks this first.
+  // FAILED_PRECONDITION naming the path when the database file (or its
+  // contexts file) was removed or replaced since it was opened: writes
+  // would then be acknowledged and lost at the next start. Every write
+  // checks this first.
   absl::Status CheckHealth() override;
   absl::StatusOr<PoolRecord> LatestPool(const BanditConfig& config) override;
   absl::StatusOr<int64_t> AppendAudit(const AuditEntry& entry) override;
@@ -137,7 +148,16 @@ class SqliteEventStore final : public EventStore {
 
  private:
   SqliteEventStore(sqlite3* db, int lock_fd, std::string path, uint64_t device,
-                   uint64_t inode);
+                   uint64_t inode, std::unique_ptr<ContextFile> contexts,
+                   int64_t context_file_min_bytes);
+  // The contexts of `user_id`'s events kept in the contexts file, as
+  // (offset, length): what to erase once their deletion is committed.
+  absl::StatusOr<std::vector<std::pair<int64_t, int64_t>>> ContextRangesLocked(
+      const std::string& user_id) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+  // Erases them after the commit that deleted their events; a failure is
+  // logged (the bytes stay, unreferenced).
+  void EraseContexts(const std::vector<std::pair<int64_t, int64_t>>& ranges)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
 
   absl::StatusOr<UserRecord> GetUserLocked(const std::string& user_id)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
@@ -170,6 +190,10 @@ class SqliteEventStore final : public EventStore {
   CommitObserver commit_observer_;
   mutable absl::Mutex stats_mu_;
   StoreWriteStats write_stats_ ABSL_GUARDED_BY(stats_mu_);
+  // Large contexts (null for ":memory:"): appended, and synced before the
+  // commit of the rows that point at them, under mu_.
+  const std::unique_ptr<ContextFile> contexts_ ABSL_PT_GUARDED_BY(mu_);
+  const int64_t context_file_min_bytes_;
   // The store's lock file, held while the store is open; -1 for ":memory:".
   const int lock_fd_;
   // The database file as opened (device and inode; both 0 for ":memory:").

@@ -66,6 +66,7 @@ class Statement {
   void BindInt64(int index, int64_t value) {
     Check(sqlite3_bind_int64(stmt_, index, value));
   }
+  void BindNull(int index) { Check(sqlite3_bind_null(stmt_, index)); }
   void BindDouble(int index, double value) {
     Check(sqlite3_bind_double(stmt_, index, value));
   }

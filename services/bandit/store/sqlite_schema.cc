@@ -96,6 +96,14 @@ INSERT INTO event_contexts (event_id, context)
 ALTER TABLE events DROP COLUMN context;
 )sql";
 
+// Schema 6: a large context may live in the contexts file beside the
+// database (context_file.h) instead of event_contexts: its offset and length
+// there, both NULL for a context in event_contexts.
+constexpr char kContextFileSql[] = R"sql(
+ALTER TABLE events ADD COLUMN context_offset INTEGER;
+ALTER TABLE events ADD COLUMN context_bytes INTEGER;
+)sql";
+
 // Action names, one row per action in the user's order (schema 3). Names
 // may hold any byte; TEXT keeps them as bound, and readable in the shell.
 constexpr char kUserActionsSql[] = R"sql(
@@ -427,7 +435,14 @@ absl::Status InitializeDatabase(sqlite3* db,
   const std::string op = absl::StrCat("opening ", path);
   // Check before changing anything: a foreign file must stay untouched, and
   // switching to WAL rewrites the header.
-  RETURN_IF_ERROR(CheckExistingFile(db, path).status());
+  ASSIGN_OR_RETURN(const int64_t found_version, CheckExistingFile(db, path));
+  if (found_version == 0) {
+    // A new file's pages are 1 KB (SQLite's default is 4): each commit
+    // writes whole pages of every table and index it touches, twice with
+    // the write-ahead log, and the hot path's rows are small (benchmarks.md,
+    // bytes written per pair). Only possible before the first table.
+    RETURN_IF_ERROR(Exec(db, "PRAGMA page_size = 1024", op));
+  }
 
   {
     ASSIGN_OR_RETURN(Statement st,
@@ -467,6 +482,7 @@ absl::Status InitializeDatabase(sqlite3* db,
     RETURN_IF_ERROR(Exec(db, kAuditSql, op));
     RETURN_IF_ERROR(Exec(db, kCheckpointsSql, op));
     RETURN_IF_ERROR(Exec(db, kEventContextsSql, op));
+    RETURN_IF_ERROR(Exec(db, kContextFileSql, op));
     RETURN_IF_ERROR(Exec(
         db, absl::StrCat("PRAGMA application_id = ", kApplicationId).c_str(),
         op));
@@ -486,6 +502,9 @@ absl::Status InitializeDatabase(sqlite3* db,
     if (version <= 4) {
       RETURN_IF_ERROR(Exec(db, kEventContextsSql, op));
       RETURN_IF_ERROR(Exec(db, kMoveContextsSql, op));
+    }
+    if (version <= 5) {
+      RETURN_IF_ERROR(Exec(db, kContextFileSql, op));
     }
     RETURN_IF_ERROR(
         Exec(db, absl::StrCat("PRAGMA user_version = ", kSchemaVersion).c_str(),

@@ -4,8 +4,11 @@
 // Schema versions: 1 events and users; 2 adds the users' population priors
 // and the pools; 3 moves action names from JSON columns into the child
 // tables user_actions and pool_actions, gives every event its checksums
-// (event_checksum.h) and adds the audit log. Older files are migrated in one
-// transaction when opened; a newer file is refused untouched.
+// (event_checksum.h) and adds the audit log; 4 adds model checkpoints; 5
+// moves the contexts into event_contexts; 6 lets a large context live in the
+// contexts file beside the database (context_file.h). Older files are
+// migrated in one transaction when opened; a newer file is refused
+// untouched. New files have 1 KB pages.
 #ifndef BITEWISE_SERVICES_BANDIT_STORE_SQLITE_SCHEMA_H_
 #define BITEWISE_SERVICES_BANDIT_STORE_SQLITE_SCHEMA_H_
 
@@ -20,7 +23,7 @@
 
 namespace bitewise::bandit::sqlite {
 
-inline constexpr int kSchemaVersion = 5;
+inline constexpr int kSchemaVersion = 6;
 
 // Checks that the file is a bitewise store (or empty), switches to WAL with
 // foreign keys and the options' synchronous mode, then creates the schema or

@@ -117,10 +117,21 @@ EventRecord MakeEvent(const std::string& user_id, const std::string& meal_id,
   return event;
 }
 
-enum class Backend { kSqlite, kPostgres };
+// SQLite as shipped (contexts of 4 KB and more in the contexts file, the
+// tests' small ones in the database), SQLite with every context in the
+// contexts file, and PostgreSQL.
+enum class Backend { kSqlite, kSqliteContextFile, kPostgres };
 
 std::string BackendName(const ::testing::TestParamInfo<Backend>& info) {
-  return info.param == Backend::kSqlite ? "Sqlite" : "Postgres";
+  switch (info.param) {
+    case Backend::kSqlite:
+      return "Sqlite";
+    case Backend::kSqliteContextFile:
+      return "SqliteContextFile";
+    case Backend::kPostgres:
+      break;
+  }
+  return "Postgres";
 }
 
 // The store's tables as another process (or an administrator's shell)
@@ -168,6 +179,7 @@ class PostgresRaw final : public RawSql {
 class StoreTestBase : public ::testing::Test {
  protected:
   virtual Backend backend() const = 0;
+  bool sqlite() const { return backend() != Backend::kPostgres; }
 
   void SetUp() override {
     std::string base = ::testing::TempDir();
@@ -212,6 +224,9 @@ class StoreTestBase : public ::testing::Test {
     SqliteStoreOptions options;
     options.path = path_;
     options.synchronous_full = synchronous_full;
+    if (backend() == Backend::kSqliteContextFile) {
+      options.context_file_min_bytes = 1;
+    }
     auto store = SqliteEventStore::Open(options);
     if (!store.ok()) return store.status();
     return std::unique_ptr<EventStore>(std::move(store).value());
@@ -284,6 +299,7 @@ class EventStoreTest : public StoreTestBase,
 
 INSTANTIATE_TEST_SUITE_P(Stores, EventStoreTest,
                          ::testing::Values(Backend::kSqlite,
+                                           Backend::kSqliteContextFile,
                                            Backend::kPostgres),
                          BackendName);
 
@@ -586,7 +602,7 @@ TEST_P(EventStoreTest, ConcurrentWritesCommitInGroupsAndFailAlone) {
   EXPECT_EQ(contested_wins.load(), kRounds);
   EXPECT_EQ(contested_refusals.load(), kRounds);
   const StoreWriteStats stats = store_->write_stats();
-  if (backend() == Backend::kSqlite) {
+  if (sqlite()) {
     // Every hot-path write went through a group commit (how many shared
     // one depends on timing: not asserted beyond at most one commit each).
     EXPECT_EQ(stats.committed_writes,
@@ -924,7 +940,7 @@ TEST_P(EventStoreTest, AcknowledgedUpdateSurvivesKill9) {
 TEST_F(SqliteEventStoreTest, FileIsWalWithSchemaVersion) {
   RawDb raw(path_);
   EXPECT_EQ(raw.Text("PRAGMA journal_mode"), "wal");
-  EXPECT_EQ(raw.Text("PRAGMA user_version"), "5");
+  EXPECT_EQ(raw.Text("PRAGMA user_version"), "6");
   EXPECT_NE(raw.Text("PRAGMA application_id"), "0");
 }
 
@@ -973,14 +989,14 @@ TEST_F(SqliteEventStoreTest, NotADatabaseIsFailedPrecondition) {
 
 TEST_F(SqliteEventStoreTest, NewerSchemaVersionIsFailedPrecondition) {
   store_.reset();
-  RawDb(path_).Exec("PRAGMA user_version = 6");
+  RawDb(path_).Exec("PRAGMA user_version = 7");
   SqliteStoreOptions options;
   options.path = path_;
   auto store = SqliteEventStore::Open(options);
   EXPECT_EQ(store.status().code(), absl::StatusCode::kFailedPrecondition)
       << store.status();
   EXPECT_THAT(store.status().message(), HasSubstr(path_));
-  EXPECT_THAT(store.status().message(), HasSubstr("version 6"));
+  EXPECT_THAT(store.status().message(), HasSubstr("version 7"));
 }
 
 PopulationPrior SmallPrior(int64_t version, double rounds) {
@@ -1109,9 +1125,22 @@ TEST_F(SqliteEventStoreTest, ADamagedFileIsDataLossNotAnEmptyStore) {
   EXPECT_THAT(store.status().message(), HasSubstr(path_));
 }
 
+// Turns the current store at `path` back into what a version 5 build wrote:
+// no contexts file (every context, all small here, in event_contexts).
+void RewriteAsVersion5(const std::string& path) {
+  RawDb raw(path);
+  EXPECT_EQ(raw.Text("SELECT COUNT(*) FROM events WHERE context_offset IS "
+                     "NOT NULL"),
+            "0");
+  raw.Exec("ALTER TABLE events DROP COLUMN context_offset");
+  raw.Exec("ALTER TABLE events DROP COLUMN context_bytes");
+  raw.Exec("PRAGMA user_version = 5");
+}
+
 // Turns the current store at `path` back into what a version 4 build wrote:
 // each event's context in its own row.
 void RewriteAsVersion4(const std::string& path) {
+  RewriteAsVersion5(path);
   RawDb raw(path);
   raw.Exec("ALTER TABLE events ADD COLUMN context BLOB");
   raw.Exec(
@@ -1162,7 +1191,7 @@ TEST_F(SqliteEventStoreTest, VersionFourContextsMoveToTheirOwnTable) {
             "2");
   store_ = OpenStore();
   ASSERT_NE(store_, nullptr);
-  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "5");
+  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "6");
   EXPECT_EQ(RawDb(path_).Text("SELECT COUNT(*) FROM event_contexts"), "2");
   const EventRecord after_done = MustGetEvent(done);
   const EventRecord after_pending = MustGetEvent(pending);
@@ -1204,7 +1233,7 @@ TEST_F(SqliteEventStoreTest, VersionOneFilesAreMigratedKeepingEverything) {
   options.path = path_;
   auto store = SqliteEventStore::Open(options);
   ASSERT_TRUE(store.ok()) << store.status();
-  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "5");
+  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "6");
   auto user = (*store)->GetUser("old");
   ASSERT_TRUE(user.ok()) << user.status();
   EXPECT_EQ(user->pending_events, 1);
@@ -1555,11 +1584,15 @@ TEST_F(SqliteEventStoreTest, OpenRejectsEmptyPathAndAcceptsMemory) {
 TEST_P(EventStoreTest, CorruptVectorIsDataLoss) {
   ASSERT_TRUE(store_->CreateUser(MakeUser("alice")).ok());
   const int64_t id = MustAppend(MakeEvent("alice", "m"));
-  Raw().Exec(absl::StrCat(
-      "UPDATE event_contexts SET context = ", BlobLiteral("00010203040506"),
-      " WHERE "
-      "event_id = ",
-      id));
+  if (backend() == Backend::kSqliteContextFile) {
+    // Seven bytes of the context in the contexts file.
+    Raw().Exec(absl::StrCat(
+        "UPDATE events SET context_bytes = 7 WHERE event_id = ", id));
+  } else {
+    Raw().Exec(absl::StrCat(
+        "UPDATE event_contexts SET context = ", BlobLiteral("00010203040506"),
+        " WHERE event_id = ", id));
+  }
   auto event = store_->GetEvent(id);
   EXPECT_EQ(event.status().code(), absl::StatusCode::kDataLoss)
       << event.status();
@@ -1571,7 +1604,7 @@ TEST_P(EventStoreTest, FailedCompletionRollsBackEverything) {
   const int64_t id = MustAppend(MakeEvent("alice", "m"));
   // Fails the last write of the transaction, after model_version was bumped.
   RawSql& raw = Raw();
-  if (backend() == Backend::kSqlite) {
+  if (sqlite()) {
     raw.Exec(
         "CREATE TRIGGER fail_completion BEFORE UPDATE OF completed ON events "
         "BEGIN SELECT RAISE(ABORT, 'injected failure'); END");
@@ -1591,10 +1624,162 @@ TEST_P(EventStoreTest, FailedCompletionRollsBackEverything) {
   EXPECT_EQ(MustGetUser("alice").model_version, 0);
   EXPECT_FALSE(MustGetEvent(id).completed);
 
-  raw.Exec(backend() == Backend::kSqlite
-               ? "DROP TRIGGER fail_completion"
-               : "DROP TRIGGER fail_completion ON events");
+  raw.Exec(sqlite() ? "DROP TRIGGER fail_completion"
+                    : "DROP TRIGGER fail_completion ON events");
   EXPECT_EQ(MustComplete(id).model_version, 1);
+}
+
+// A context of 600 doubles (4,800 bytes): over the contexts file's
+// threshold as shipped.
+EventRecord LargeEvent(const std::string& user_id, double x) {
+  EventRecord event = MakeEvent(user_id, "m", x);
+  event.context.assign(600, x);
+  event.context[1] = -0.0;
+  return event;
+}
+
+std::string FileBytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+TEST_F(SqliteEventStoreTest, LargeContextsLiveInTheContextsFile) {
+  // New files have 1 KB pages; large contexts go to "<db>.contexts", each
+  // at a 4 KB boundary, and read back bit for bit, also after a restart.
+  EXPECT_EQ(RawDb(path_).Text("PRAGMA page_size"), "1024");
+  const std::string file = path_ + ".contexts";
+  ASSERT_TRUE(store_->CreateUser(MakeUser("ann")).ok());
+  const int64_t small = MustAppend(MakeEvent("ann", "m"));
+  const int64_t first = MustAppend(LargeEvent("ann", 0.5));
+  const int64_t second = MustAppend(LargeEvent("ann", 1.5));
+  MustComplete(first);
+  {
+    RawDb raw(path_);
+    EXPECT_EQ(raw.Text("SELECT COUNT(*) FROM event_contexts"), "1");
+    EXPECT_EQ(raw.Text(absl::StrCat(
+                  "SELECT context_offset IS NULL FROM events WHERE event_id = ",
+                  small)),
+              "1");
+    EXPECT_EQ(raw.Text(absl::StrCat("SELECT (context_offset % 4096) || ' ' || "
+                                    "context_bytes FROM events WHERE "
+                                    "event_id = ",
+                                    second)),
+              "0 4800");
+  }
+  EXPECT_EQ(FileBytes(file).substr(0, 16), "bitewise ctx v1\n");
+  EXPECT_EQ(
+      std::filesystem::status(file).permissions() & std::filesystem::perms::all,
+      std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  store_ = nullptr;
+  store_ = OpenStore();
+  ASSERT_NE(store_, nullptr);
+  const EventRecord read = MustGetEvent(second);
+  ASSERT_EQ(read.context.size(), 600u);
+  EXPECT_EQ(read.context[0], 1.5);
+  EXPECT_TRUE(std::signbit(read.context[1]));
+  EXPECT_EQ(MustGetEvent(first).context, LargeEvent("ann", 0.5).context);
+  auto log = store_->CompletedEvents("ann");
+  ASSERT_TRUE(log.ok());
+  ASSERT_EQ(log->size(), 1u);
+  EXPECT_EQ((*log)[0].context, LargeEvent("ann", 0.5).context);
+  // A new context goes after everything before the restart.
+  const int64_t third = MustAppend(LargeEvent("ann", 2.5));
+  EXPECT_EQ(MustGetEvent(second).context, LargeEvent("ann", 1.5).context);
+  EXPECT_EQ(MustGetEvent(third).context, LargeEvent("ann", 2.5).context);
+  auto check = store_->CheckStore();
+  ASSERT_TRUE(check.ok()) << check.status();
+  EXPECT_THAT(check->findings, IsEmpty());
+}
+
+TEST_F(SqliteEventStoreTest, AMissingOrForeignContextsFileIsRefused) {
+  const std::string file = path_ + ".contexts";
+  ASSERT_TRUE(store_->CreateUser(MakeUser("ann")).ok());
+  MustAppend(LargeEvent("ann", 0.5));
+  store_ = nullptr;
+  const std::string kept = FileBytes(file);
+  // Missing while the database points into it: refused, naming it.
+  std::filesystem::remove(file);
+  auto missing = TryOpenStore();
+  EXPECT_EQ(missing.status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(missing.status().message(), HasSubstr(file));
+  EXPECT_THAT(missing.status().message(), HasSubstr("missing"));
+  EXPECT_FALSE(std::filesystem::exists(file));  // not made up anew
+  // Not ours: refused, untouched.
+  std::ofstream(file, std::ios::binary) << "some other file's bytes";
+  auto foreign = TryOpenStore();
+  EXPECT_EQ(foreign.status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(foreign.status().message(),
+              HasSubstr("is not a bitewise contexts file"));
+  EXPECT_EQ(FileBytes(file), "some other file's bytes");
+  // Put back: served again.
+  std::ofstream(file, std::ios::binary | std::ios::trunc) << kept;
+  store_ = OpenStore();
+  ASSERT_NE(store_, nullptr);
+  EXPECT_EQ(MustGetUser("ann").pending_events, 1);
+}
+
+TEST_F(SqliteEventStoreTest, ADamagedContextIsDataLossNamingTheEvent) {
+  const std::string file = path_ + ".contexts";
+  ASSERT_TRUE(store_->CreateUser(MakeUser("ann")).ok());
+  const int64_t kept = MustAppend(LargeEvent("ann", 0.5));
+  const int64_t cut = MustAppend(LargeEvent("ann", 1.5));
+  // The file loses its end (a torn copy): the last context reads short.
+  std::filesystem::resize_file(file, std::filesystem::file_size(file) - 100);
+  auto event = store_->GetEvent(cut);
+  EXPECT_EQ(event.status().code(), absl::StatusCode::kDataLoss);
+  EXPECT_THAT(event.status().message(), HasSubstr(absl::StrCat("event ", cut)));
+  EXPECT_EQ(MustGetEvent(kept).context, LargeEvent("ann", 0.5).context);
+  auto check = store_->CheckStore();
+  ASSERT_TRUE(check.ok()) << check.status();
+  ASSERT_EQ(check->findings.size(), 1u);
+  EXPECT_THAT(check->findings[0], HasSubstr(absl::StrCat("event ", cut)));
+  // New contexts never land where the lost one was.
+  const int64_t next = MustAppend(LargeEvent("ann", 2.5));
+  EXPECT_EQ(MustGetEvent(next).context, LargeEvent("ann", 2.5).context);
+  EXPECT_EQ(store_->GetEvent(cut).status().code(), absl::StatusCode::kDataLoss);
+}
+
+TEST_F(SqliteEventStoreTest, DeletedUsersContextsAreErasedFromTheFile) {
+  const std::string file = path_ + ".contexts";
+  ASSERT_TRUE(store_->CreateUser(MakeUser("ann")).ok());
+  ASSERT_TRUE(store_->CreateUser(MakeUser("bob")).ok());
+  const int64_t anns = MustAppend(LargeEvent("ann", 0.5));
+  const int64_t bobs = MustAppend(LargeEvent("bob", 7.25));
+  const int64_t anns_second = MustAppend(LargeEvent("ann", 0.75));
+  auto where = [&](int64_t id) {
+    const int64_t offset = std::stoll(RawDb(path_).Text(absl::StrCat(
+        "SELECT context_offset FROM events WHERE event_id = ", id)));
+    return FileBytes(file).substr(static_cast<size_t>(offset), 4800);
+  };
+  const std::string anns_bytes = where(anns);
+  const std::string anns_second_bytes = where(anns_second);
+  ASSERT_NE(anns_bytes, std::string(4800, '\0'));
+  const std::string bobs_bytes = where(bobs);
+  // The file's bytes, to find ann's afterwards.
+  ASSERT_TRUE(store_->ResetUser("ann").ok());
+  const std::string after_reset = FileBytes(file);
+  EXPECT_EQ(after_reset.find(anns_bytes), std::string::npos);
+  EXPECT_EQ(after_reset.find(anns_second_bytes), std::string::npos);
+  EXPECT_NE(after_reset.find(bobs_bytes), std::string::npos);
+  EXPECT_EQ(MustGetEvent(bobs).context, LargeEvent("bob", 7.25).context);
+  ASSERT_TRUE(store_->DeleteUser("bob").ok());
+  EXPECT_EQ(FileBytes(file).find(bobs_bytes), std::string::npos);
+}
+
+TEST_F(SqliteEventStoreTest, AReplacedContextsFileFailsHealth) {
+  const std::string file = path_ + ".contexts";
+  ASSERT_TRUE(store_->CreateUser(MakeUser("ann")).ok());
+  MustAppend(LargeEvent("ann", 0.5));
+  EXPECT_TRUE(store_->CheckHealth().ok());
+  const std::string kept = FileBytes(file);
+  std::filesystem::remove(file);
+  std::ofstream(file, std::ios::binary) << kept;
+  const absl::Status health = store_->CheckHealth();
+  EXPECT_EQ(health.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(health.message(), HasSubstr(file));
+  // Writes are refused rather than acknowledged into the old file.
+  EXPECT_EQ(store_->AppendPending(LargeEvent("ann", 1.0)).status().code(),
+            absl::StatusCode::kFailedPrecondition);
 }
 
 TEST_F(SqliteEventStoreTest, LockHeldElsewhereIsUnavailable) {
