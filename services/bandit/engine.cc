@@ -303,6 +303,14 @@ absl::Status BanditEngine::Sync(const std::string& user_id, UserSlot& slot) {
       // meanwhile): start afresh rather than from a shifted random stream.
       Unload(slot);
     }
+    if (slot.model.has_value() && !events.empty()) {
+      // The events were read after the position: if the log started over
+      // in between (a new incarnation, never an old one again), some may
+      // be the new log's. The model is then of neither.
+      ASSIGN_OR_RETURN(const UserLogPosition after,
+                       store_->LogPosition(user_id));
+      if (after.incarnation != log.incarnation) Unload(slot);
+    }
     if (slot.model.has_value()) {
       // The Select products were of the older model.
       slot.products_event = 0;
@@ -326,6 +334,18 @@ bool BanditEngine::RetryAfterConflict(const absl::Status& status, int attempt) {
   absl::MutexLock cache(&cache_mu_);
   ++counters_.write_conflicts;
   return attempt < kMaxWriteAttempts;
+}
+
+absl::Status BanditEngine::GiveUpAfterConflicts(const absl::Status& status,
+                                                const std::string& user_id) {
+  if (!absl::IsAborted(status) || !store_->shared()) return status;
+  // UNAVAILABLE: clients retry it (and the orchestrator keeps the Update
+  // in its journal), which is what it needs.
+  return absl::UnavailableError(absl::StrCat(
+      "user \"", user_id,
+      "\": other processes wrote to the user's log at each of ",
+      kMaxWriteAttempts, " attempts; nothing was written, try again (",
+      status.message(), ")"));
 }
 
 UserLogPosition BanditEngine::SlotPosition(const UserSlot& slot) {
@@ -591,7 +611,7 @@ absl::StatusOr<std::optional<SelectResult>> BanditEngine::TrySelect(
       store_->shared() ? store_->AppendPendingAt(event, SlotPosition(slot))
                        : store_->AppendPending(event);
   if (RetryAfterConflict(event_id.status(), attempt)) return std::nullopt;
-  RETURN_IF_ERROR(event_id.status());
+  RETURN_IF_ERROR(GiveUpAfterConflicts(event_id.status(), input.user_id));
   result.event_id = *event_id;
   ++slot.select_count;
   ++slot.record.pending_events;
@@ -634,10 +654,10 @@ absl::StatusOr<UpdateResult> BanditEngine::Update(const UpdateInput& input) {
     if (slot->last_selected.has_value() &&
         slot->last_selected->event_id == input.event_id) {
       found = std::move(slot->last_selected);
+      slot->last_selected.reset();
     } else {
       ASSIGN_OR_RETURN(found, store_->GetEvent(input.event_id));
     }
-    slot->last_selected.reset();
   }
   for (int attempt = 1;; ++attempt) {
     ASSIGN_OR_RETURN(std::optional<UpdateResult> result,
@@ -718,7 +738,7 @@ absl::StatusOr<std::optional<UpdateResult>> BanditEngine::TryUpdate(
     ASSIGN_OR_RETURN(const EventRecord now, store_->GetEvent(found.event_id));
     if (now.completed) return answer_retry(now);
   }
-  RETURN_IF_ERROR(completed.status());
+  RETURN_IF_ERROR(GiveUpAfterConflicts(completed.status(), found.user_id));
   if (completed->model_version != slot.record.model_version + 1) {
     // Not the next version of the cached model (unreachable: one process
     // serialises a store's writes, and replicas write at the model's

@@ -249,8 +249,12 @@ class BanditEngine {
       int attempt) ABSL_EXCLUSIVE_LOCKS_REQUIRED(slot.mu);
   // Whether `status` is a write refused for another process's (ABORTED
   // from a shared store) that may be tried again: counted; false from the
-  // kMaxWriteAttempts-th attempt, which returns the store's error.
+  // kMaxWriteAttempts-th attempt (then GiveUpAfterConflicts).
   bool RetryAfterConflict(const absl::Status& status, int attempt);
+  // `status`, or UNAVAILABLE naming the user for the last attempt's
+  // conflict (clients retry UNAVAILABLE; ABORTED would be dropped).
+  absl::Status GiveUpAfterConflicts(const absl::Status& status,
+                                    const std::string& user_id);
   static constexpr int kMaxWriteAttempts = 8;
   // The users of the events this process selected and not yet updated:
   // what lets an Update find its user's slot without reading the event.

@@ -67,15 +67,23 @@ absl::StatusOr<std::unique_ptr<ContextFile>> ContextFile::Open(
           " bytes of events' contexts in it; restore it together with the "
           "database from the same backup"));
     }
-    fd = open(path.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
-    if (fd < 0) return WriteError(path, "create", errno);
+    // Made whole under another name, then renamed: a crash meanwhile
+    // leaves no header-less file under the real name.
+    const std::string temporary = path + ".new";
+    fd = open(temporary.c_str(), O_RDWR | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+    if (fd < 0) return WriteError(temporary, "create", errno);
     absl::Status made =
-        WriteAll(fd, absl::string_view(kHeader, kHeaderBytes), 0, path);
-    if (made.ok() && fdatasync(fd) != 0) made = WriteError(path, "sync", errno);
+        WriteAll(fd, absl::string_view(kHeader, kHeaderBytes), 0, temporary);
+    if (made.ok() && fdatasync(fd) != 0) {
+      made = WriteError(temporary, "sync", errno);
+    }
+    if (made.ok() && rename(temporary.c_str(), path.c_str()) != 0) {
+      made = WriteError(path, "rename a new file to", errno);
+    }
     if (made.ok()) made = SyncDirectoryOf(path);
     if (!made.ok()) {
       close(fd);
-      unlink(path.c_str());
+      unlink(temporary.c_str());
       return made;
     }
   } else if (fd < 0) {
@@ -138,7 +146,13 @@ absl::Status ContextFile::Sync() {
 
 std::string ContextFile::Read(int64_t offset, int64_t length) const {
   std::string out;
-  if (offset < kHeaderBytes || length <= 0) return out;
+  // Never more than the file holds, whatever a damaged row says.
+  struct stat file {};
+  if (offset < kHeaderBytes || length <= 0 || fstat(fd_, &file) != 0 ||
+      offset >= file.st_size) {
+    return out;
+  }
+  length = std::min<int64_t>(length, file.st_size - offset);
   out.resize(static_cast<size_t>(length));
   size_t done = 0;
   while (done < out.size()) {
@@ -150,6 +164,29 @@ std::string ContextFile::Read(int64_t offset, int64_t length) const {
   }
   out.resize(done);
   return out;
+}
+
+absl::Status ContextFile::EraseAllBut(
+    std::vector<std::pair<int64_t, int64_t>> live) {
+  std::sort(live.begin(), live.end());
+  std::vector<std::pair<int64_t, int64_t>> gaps;
+  int64_t from = kHeaderBytes;
+  auto gap_to = [&](int64_t to) {
+    // Whole blocks only: a block a live context shares is kept.
+    const int64_t start = (from + kBlockBytes - 1) / kBlockBytes * kBlockBytes;
+    const int64_t stop = to / kBlockBytes * kBlockBytes;
+    if (stop > start) gaps.emplace_back(start, stop - start);
+  };
+  for (const auto& [offset, length] : live) {
+    gap_to(offset);
+    from = std::max(from, offset + length);
+  }
+  struct stat file {};
+  if (fstat(fd_, &file) != 0) return WriteError(path_, "stat", errno);
+  // The tail, to the block boundary past the file's end.
+  gap_to((static_cast<int64_t>(file.st_size) + kBlockBytes - 1) / kBlockBytes *
+         kBlockBytes);
+  return Erase(gaps);
 }
 
 absl::Status ContextFile::Erase(

@@ -11,7 +11,9 @@
 // points at bytes that are not on disk. Bytes appended by a group that did
 // not commit stay unreferenced (never reused: appends go after them).
 // Deleted events' ranges are zeroed and freed (Erase), so a deleted user's
-// contexts do not stay on disk.
+// contexts do not stay on disk; what a crash or a write that never
+// committed left unreferenced is erased at the next open (EraseAllBut). A
+// new file is made whole under a temporary name, then renamed.
 //
 // The file starts with a 16-byte header that names it; each context starts
 // at a 4 KB boundary. Not thread-safe for
@@ -61,6 +63,10 @@ class ContextFile {
   // Zeroes the ranges (offset, length) and frees their whole blocks: the
   // contexts of deleted events. UNAVAILABLE naming the file on failure.
   absl::Status Erase(const std::vector<std::pair<int64_t, int64_t>>& ranges);
+  // Erases every whole block that none of the `live` ranges touches: the
+  // contexts of writes that never committed, or whose erasure was lost to
+  // a crash between their deletion's commit and the erase (run at open).
+  absl::Status EraseAllBut(std::vector<std::pair<int64_t, int64_t>> live);
 
   const std::string& path() const { return path_; }
   // The file's identity when opened, to notice it being replaced.

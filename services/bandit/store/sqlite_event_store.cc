@@ -144,6 +144,63 @@ absl::StatusOr<EventRecord> ReadEvent(Statement& st) {
   return store_rows::ReadEventRow(st);
 }
 
+// Sets synchronous = FULL for its lifetime (from NORMAL), so the
+// transaction it spans is fsynced at its commit. SQLite allows the change
+// only outside a transaction: construct it before the transaction begins.
+class DurableCommit {
+ public:
+  DurableCommit(sqlite3* db, bool needed) : db_(needed ? db : nullptr) {
+    if (db_ != nullptr) {
+      sqlite3_exec(db_, "PRAGMA synchronous = FULL", nullptr, nullptr, nullptr);
+    }
+  }
+  ~DurableCommit() {
+    if (db_ != nullptr) {
+      sqlite3_exec(db_, "PRAGMA synchronous = NORMAL", nullptr, nullptr,
+                   nullptr);
+    }
+  }
+  DurableCommit(const DurableCommit&) = delete;
+  DurableCommit& operator=(const DurableCommit&) = delete;
+
+ private:
+  sqlite3* const db_;
+};
+
+// The database's contexts file, opened knowing which ranges its rows point
+// at (so a missing file is told from one never used, and what no row
+// points at is erased).
+absl::StatusOr<std::unique_ptr<ContextFile>> OpenContextFile(
+    sqlite3* db, const std::string& path) {
+  const std::string op = absl::StrCat("opening ", path);
+  std::vector<std::pair<int64_t, int64_t>> live;
+  int64_t referenced_end = 0;
+  {
+    ASSIGN_OR_RETURN(Statement st,
+                     Statement::Prepare(db,
+                                        "SELECT context_offset, context_bytes "
+                                        "FROM events WHERE context_offset IS "
+                                        "NOT NULL",
+                                        op));
+    while (true) {
+      ASSIGN_OR_RETURN(const bool row, st.Step());
+      if (!row) break;
+      live.emplace_back(st.Int64(0), st.Int64(1));
+      referenced_end = std::max(referenced_end, st.Int64(0) + st.Int64(1));
+    }
+  }
+  ASSIGN_OR_RETURN(std::unique_ptr<ContextFile> contexts,
+                   ContextFile::Open(path + ".contexts", referenced_end));
+  if (const absl::Status erased = contexts->EraseAllBut(std::move(live));
+      !erased.ok()) {
+    std::fprintf(stderr,
+                 "bitewise-bandit: unreferenced contexts were not erased from "
+                 "the contexts file (they stay until the next start): %s\n",
+                 erased.ToString().c_str());
+  }
+  return contexts;
+}
+
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
@@ -191,20 +248,10 @@ absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
   if (ready.ok()) ready = CheckIntegrity(db.get(), options.path);
   std::unique_ptr<ContextFile> contexts;
   if (ready.ok() && options.path != ":memory:") {
-    // Where the rows' contexts in the file end: a missing file is then
-    // told from one never used.
-    absl::StatusOr<int64_t> referenced_end = sqlite::ReadInt(
-        db.get(),
-        "SELECT COALESCE(MAX(context_offset + context_bytes), 0) "
-        "FROM events",
-        absl::StrCat("opening ", options.path));
-    ready = referenced_end.status();
-    if (ready.ok()) {
-      absl::StatusOr<std::unique_ptr<ContextFile>> opened =
-          ContextFile::Open(options.path + ".contexts", *referenced_end);
-      ready = opened.status();
-      if (ready.ok()) contexts = *std::move(opened);
-    }
+    absl::StatusOr<std::unique_ptr<ContextFile>> opened =
+        OpenContextFile(db.get(), options.path);
+    ready = opened.status();
+    if (ready.ok()) contexts = *std::move(opened);
   }
   if (ready.ok()) {
     const int rc = sqlite3_create_function_v2(
@@ -227,17 +274,19 @@ absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
   return std::unique_ptr<SqliteEventStore>(new SqliteEventStore(
       db.release(), lock_fd, options.path, static_cast<uint64_t>(file.st_dev),
       static_cast<uint64_t>(file.st_ino), std::move(contexts),
-      options.context_file_min_bytes));
+      options.context_file_min_bytes, options.synchronous_full));
 }
 
 SqliteEventStore::SqliteEventStore(sqlite3* db, int lock_fd, std::string path,
                                    uint64_t device, uint64_t inode,
                                    std::unique_ptr<ContextFile> contexts,
-                                   int64_t context_file_min_bytes)
+                                   int64_t context_file_min_bytes,
+                                   bool synchronous_full)
     : db_(db),
       statements_(std::make_unique<sqlite::StatementCache>(db)),
       contexts_(std::move(contexts)),
       context_file_min_bytes_(context_file_min_bytes),
+      synchronous_full_(synchronous_full),
       lock_fd_(lock_fd),
       path_(std::move(path)),
       device_(device),
@@ -475,6 +524,10 @@ absl::StatusOr<PageResult<UserRecord>> SqliteEventStore::ListUsers(
 absl::Status SqliteEventStore::DeleteUser(const std::string& user_id) {
   RETURN_IF_ERROR(CheckHealth());
   absl::MutexLock lock(&mu_);
+  // The deletion is on disk before the contexts are erased, whatever the
+  // store's synchronous mode: otherwise a power loss could bring the
+  // events back without them.
+  const DurableCommit durable(db_, !synchronous_full_);
   ASSIGN_OR_RETURN(
       Transaction txn,
       Transaction::Begin(db_, Transaction::Kind::kWrite, "DeleteUser"));
@@ -529,6 +582,10 @@ void SqliteEventStore::EraseContexts(
 absl::Status SqliteEventStore::ResetUser(const std::string& user_id) {
   RETURN_IF_ERROR(CheckHealth());
   absl::MutexLock lock(&mu_);
+  // The deletion is on disk before the contexts are erased, whatever the
+  // store's synchronous mode: otherwise a power loss could bring the
+  // events back without them.
+  const DurableCommit durable(db_, !synchronous_full_);
   ASSIGN_OR_RETURN(
       Transaction txn,
       Transaction::Begin(db_, Transaction::Kind::kWrite, "ResetUser"));

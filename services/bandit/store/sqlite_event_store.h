@@ -149,7 +149,7 @@ class SqliteEventStore final : public EventStore {
  private:
   SqliteEventStore(sqlite3* db, int lock_fd, std::string path, uint64_t device,
                    uint64_t inode, std::unique_ptr<ContextFile> contexts,
-                   int64_t context_file_min_bytes);
+                   int64_t context_file_min_bytes, bool synchronous_full);
   // The contexts of `user_id`'s events kept in the contexts file, as
   // (offset, length): what to erase once their deletion is committed.
   absl::StatusOr<std::vector<std::pair<int64_t, int64_t>>> ContextRangesLocked(
@@ -190,10 +190,12 @@ class SqliteEventStore final : public EventStore {
   CommitObserver commit_observer_;
   mutable absl::Mutex stats_mu_;
   StoreWriteStats write_stats_ ABSL_GUARDED_BY(stats_mu_);
-  // Large contexts (null for ":memory:"): appended, and synced before the
-  // commit of the rows that point at them, under mu_.
-  const std::unique_ptr<ContextFile> contexts_ ABSL_PT_GUARDED_BY(mu_);
+  // Large contexts (null for ":memory:"): appended, synced before the
+  // commit of the rows that point at them, and erased, all under mu_; read
+  // from any thread (the file's identity by CheckHealth).
+  const std::unique_ptr<ContextFile> contexts_;
   const int64_t context_file_min_bytes_;
+  const bool synchronous_full_;
   // The store's lock file, held while the store is open; -1 for ":memory:".
   const int lock_fd_;
   // The database file as opened (device and inode; both 0 for ":memory:").

@@ -1716,6 +1716,17 @@ TEST_F(SqliteEventStoreTest, AMissingOrForeignContextsFileIsRefused) {
   store_ = OpenStore();
   ASSERT_NE(store_, nullptr);
   EXPECT_EQ(MustGetUser("ann").pending_events, 1);
+  // A new store's file is made under a temporary name: one left by a crash
+  // during that is replaced, and never taken for the file.
+  store_ = nullptr;
+  const std::string fresh = dir_ + "/fresh.db";
+  std::ofstream(fresh + ".contexts.new", std::ios::binary) << "half";
+  SqliteStoreOptions options;
+  options.path = fresh;
+  auto made = SqliteEventStore::Open(options);
+  ASSERT_TRUE(made.ok()) << made.status();
+  EXPECT_EQ(FileBytes(fresh + ".contexts"), "bitewise ctx v1\n");
+  EXPECT_FALSE(std::filesystem::exists(fresh + ".contexts.new"));
 }
 
 TEST_F(SqliteEventStoreTest, ADamagedContextIsDataLossNamingTheEvent) {
@@ -1737,6 +1748,41 @@ TEST_F(SqliteEventStoreTest, ADamagedContextIsDataLossNamingTheEvent) {
   const int64_t next = MustAppend(LargeEvent("ann", 2.5));
   EXPECT_EQ(MustGetEvent(next).context, LargeEvent("ann", 2.5).context);
   EXPECT_EQ(store_->GetEvent(cut).status().code(), absl::StatusCode::kDataLoss);
+  // A row claiming a petabyte reads what the file holds, and is DATA_LOSS.
+  RawDb(path_).Exec(absl::StrCat(
+      "UPDATE events SET context_bytes = 1000000000000000 WHERE event_id = ",
+      kept));
+  EXPECT_EQ(store_->GetEvent(kept).status().code(),
+            absl::StatusCode::kDataLoss);
+}
+
+// The first bytes of `event`'s context as the contexts file holds them.
+std::string ContextPrefix(const EventRecord& event) {
+  std::string bytes(64, '\0');
+  std::memcpy(bytes.data(), event.context.data(), bytes.size());
+  return bytes;
+}
+
+TEST_F(SqliteEventStoreTest, UnreferencedContextsAreErasedAtOpen) {
+  // A write that did not commit (here: for a user that does not exist)
+  // leaves its context in the file, unreferenced, until the next open.
+  const std::string file = path_ + ".contexts";
+  ASSERT_TRUE(store_->CreateUser(MakeUser("ann")).ok());
+  const int64_t kept = MustAppend(LargeEvent("ann", 0.5));
+  EXPECT_EQ(store_->AppendPending(LargeEvent("ghost", 3.75)).status().code(),
+            absl::StatusCode::kNotFound);
+  const int64_t after = MustAppend(LargeEvent("ann", 1.25));
+  EXPECT_NE(FileBytes(file).find(ContextPrefix(LargeEvent("ghost", 3.75))),
+            std::string::npos);
+  store_ = nullptr;
+  store_ = OpenStore();
+  ASSERT_NE(store_, nullptr);
+  EXPECT_EQ(FileBytes(file).find(ContextPrefix(LargeEvent("ghost", 3.75))),
+            std::string::npos);
+  EXPECT_EQ(MustGetEvent(kept).context, LargeEvent("ann", 0.5).context);
+  EXPECT_EQ(MustGetEvent(after).context, LargeEvent("ann", 1.25).context);
+  const int64_t next = MustAppend(LargeEvent("ann", 2.0));
+  EXPECT_EQ(MustGetEvent(next).context, LargeEvent("ann", 2.0).context);
 }
 
 TEST_F(SqliteEventStoreTest, DeletedUsersContextsAreErasedFromTheFile) {
