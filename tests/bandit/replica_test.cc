@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "absl/strings/str_cat.h"
+#include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/bandit/engine.h"
 #include "services/bandit/store/postgres_event_store.h"
@@ -57,8 +58,9 @@ class Deployment {
     EXPECT_NE(server, nullptr);
     if (server == nullptr) return;
     static int databases = 0;
-    absl::StatusOr<std::string> conninfo =
-        server->CreateDatabase(absl::StrCat(name, "_", ++databases));
+    server_ = server;
+    database_ = absl::StrCat(name, "_", ++databases);
+    absl::StatusOr<std::string> conninfo = server->CreateDatabase(database_);
     EXPECT_TRUE(conninfo.ok()) << conninfo.status();
     conninfo_ = conninfo.value_or("");
     for (int r = 0; r < replicas; ++r) AddReplica();
@@ -80,8 +82,15 @@ class Deployment {
   BanditEngine& replica(size_t i) { return *engines_.at(i); }
   EventStore& store() { return *stores_.at(0); }
   size_t size() const { return engines_.size(); }
+  // SQL on the database, as an administrator's shell would run it.
+  void Sql(const std::string& sql) {
+    absl::StatusOr<std::string> done = server_->Query(database_, sql);
+    EXPECT_TRUE(done.ok()) << done.status();
+  }
 
  private:
+  bitewise::testing::TestPostgres* server_ = nullptr;
+  std::string database_;
   std::string conninfo_;
   std::vector<std::unique_ptr<PostgresEventStore>> stores_;
   std::vector<std::unique_ptr<BanditEngine>> engines_;
@@ -306,6 +315,38 @@ TEST(ReplicaTest, AResetOnOneReplicaIsSeenByTheOther) {
                 .status()
                 .code(),
             absl::StatusCode::kNotFound);
+}
+
+TEST(ReplicaTest, AWriteThatKeepsMeetingOthersGivesUpAsUnavailable) {
+  // Every append made to look as if another replica had just written (a
+  // trigger drops the update of the user's count of selections): the
+  // engine catches up and tries again, and after its last attempt answers
+  // UNAVAILABLE naming the user, which clients retry; nothing is written.
+  Deployment one("conflicts", 1);
+  ASSERT_TRUE(
+      one.replica(0).CreateUser("ann", ConfigWith(Strategy::kLinUcb)).ok());
+  std::mt19937_64 rng(9);
+  one.Sql(
+      "CREATE FUNCTION keep_selections() RETURNS trigger LANGUAGE plpgsql AS "
+      "$$ BEGIN IF NEW.selections <> OLD.selections THEN RETURN NULL; END IF; "
+      "RETURN NEW; END $$; CREATE TRIGGER keep_selections BEFORE UPDATE ON "
+      "users FOR EACH ROW EXECUTE FUNCTION keep_selections()");
+  const absl::StatusOr<SelectResult> refused =
+      one.replica(0).Select({"ann", RandomVector(kDim, rng), "m", "i"});
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kUnavailable)
+      << refused.status();
+  EXPECT_THAT(std::string(refused.status().message()),
+              ::testing::HasSubstr("user \"ann\""));
+  EXPECT_THAT(std::string(refused.status().message()),
+              ::testing::HasSubstr("at each of 8 attempts"));
+  EXPECT_EQ(one.replica(0).Counters().write_conflicts, 8);
+  EXPECT_EQ(one.store().GetUser("ann")->pending_events, 0);
+  // The trigger gone, the next Select goes through.
+  one.Sql("DROP TRIGGER keep_selections ON users");
+  const absl::StatusOr<SelectResult> selected =
+      one.replica(0).Select({"ann", RandomVector(kDim, rng), "m", "i"});
+  ASSERT_TRUE(selected.ok()) << selected.status();
+  EXPECT_EQ(one.store().GetUser("ann")->pending_events, 1);
 }
 
 }  // namespace
