@@ -714,8 +714,9 @@ absl::StatusOr<std::optional<UpdateResult>> BanditEngine::TryUpdate(
   };
   if (found.completed) return answer_retry(found);
 
-  // The selection read before the locks is what was stored (it never
-  // changes); whether the event is still pending, the store decides.
+  // The selection (read before the user's lock, or remembered from this
+  // process's Select) is what was stored, and never changes; whether the
+  // event is still pending, the store decides.
   Round round = EventRound(found);
   round.loss = input.loss;
   round.posthoc = input.posthoc;
