@@ -400,7 +400,9 @@ INSTANTIATE_TEST_SUITE_P(Stores, BanditBinaryTest,
 
 TEST_P(BanditBinaryTest, SigkillLosesNoAcknowledgedUpdate) {
   constexpr char kUser[] = "kill-user";
-  constexpr int kDim = 16;
+  // 600 features: each context (4,800 bytes) lives in the SQLite store's
+  // contexts file, beside the database, as SPANet's would.
+  constexpr int kDim = 600;
   constexpr int kPostHocDim = 4;
   constexpr int kRounds = 60;
   absl::Status started = StartServer();
@@ -490,6 +492,12 @@ TEST_P(BanditBinaryTest, SigkillLosesNoAcknowledgedUpdate) {
   ASSERT_TRUE(user.ok()) << user.status();
   EXPECT_EQ(user->model_version(), static_cast<int64_t>(acknowledged.size()));
   EXPECT_EQ(user->pending_events(), 3);
+  if (GetParam() == "sqlite") {
+    // The contexts were in the contexts file, one 4 KB-aligned 4,800-byte
+    // range (two blocks) per event.
+    EXPECT_GE(std::filesystem::file_size(db_ + ".contexts"),
+              static_cast<uintmax_t>(acknowledged.size()) * 8192);
+  }
   EXPECT_EQ(user->config().context_dim(), static_cast<uint32_t>(kDim));
   EXPECT_EQ(user->config().alpha(), 0.3);
   EXPECT_EQ(user->config().lambda_c(), 2.0);
