@@ -307,9 +307,15 @@ absl::Status BanditEngine::Sync(const std::string& user_id, UserSlot& slot) {
       // The events were read after the position: if the log started over
       // in between (a new incarnation, never an old one again), some may
       // be the new log's. The model is then of neither.
-      ASSIGN_OR_RETURN(const UserLogPosition after,
-                       store_->LogPosition(user_id));
-      if (after.incarnation != log.incarnation) Unload(slot);
+      const absl::StatusOr<UserLogPosition> after =
+          store_->LogPosition(user_id);
+      if (!after.ok()) {
+        // The model already holds the events: not knowing whether they
+        // were the log's, it must not be kept as if it did not.
+        Unload(slot);
+        return after.status();
+      }
+      if (after->incarnation != log.incarnation) Unload(slot);
     }
     if (slot.model.has_value()) {
       // The Select products were of the older model.

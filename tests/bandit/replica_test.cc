@@ -347,6 +347,25 @@ TEST(ReplicaTest, AWriteThatKeepsMeetingOthersGivesUpAsUnavailable) {
       one.replica(0).Select({"ann", RandomVector(kDim, rng), "m", "i"});
   ASSERT_TRUE(selected.ok()) << selected.status();
   EXPECT_EQ(one.store().GetUser("ann")->pending_events, 1);
+  // The same for an Update whose completion always looks overtaken.
+  one.Sql(
+      "CREATE FUNCTION keep_version() RETURNS trigger LANGUAGE plpgsql AS $$ "
+      "BEGIN IF NEW.model_version <> OLD.model_version THEN RETURN NULL; END "
+      "IF; RETURN NEW; END $$; CREATE TRIGGER keep_version BEFORE UPDATE ON "
+      "users FOR EACH ROW EXECUTE FUNCTION keep_version()");
+  const UpdateInput update{selected->event_id, 0.5,
+                           RandomVector(kPostHocDim, rng)};
+  const absl::StatusOr<UpdateResult> not_applied =
+      one.replica(0).Update(update);
+  EXPECT_EQ(not_applied.status().code(), absl::StatusCode::kUnavailable)
+      << not_applied.status();
+  EXPECT_EQ(one.replica(0).Counters().write_conflicts, 16);
+  EXPECT_FALSE(one.store().GetEvent(selected->event_id)->completed);
+  one.Sql("DROP TRIGGER keep_version ON users");
+  const absl::StatusOr<UpdateResult> applied = one.replica(0).Update(update);
+  ASSERT_TRUE(applied.ok()) << applied.status();
+  EXPECT_EQ(applied->model_version, 1);
+  ExpectDenseReference(one.replica(0), one.store(), "ann");
 }
 
 }  // namespace

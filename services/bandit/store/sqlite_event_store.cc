@@ -151,20 +151,28 @@ class DurableCommit {
  public:
   DurableCommit(sqlite3* db, bool needed) : db_(needed ? db : nullptr) {
     if (db_ != nullptr) {
-      sqlite3_exec(db_, "PRAGMA synchronous = FULL", nullptr, nullptr, nullptr);
+      status_ = Exec(db_, "PRAGMA synchronous = FULL", "a durable commit");
     }
   }
   ~DurableCommit() {
-    if (db_ != nullptr) {
-      sqlite3_exec(db_, "PRAGMA synchronous = NORMAL", nullptr, nullptr,
-                   nullptr);
+    if (db_ != nullptr && status_.ok()) {
+      const absl::Status restored =
+          Exec(db_, "PRAGMA synchronous = NORMAL", "a durable commit");
+      if (!restored.ok()) {
+        std::fprintf(stderr, "bitewise-bandit: %s\n",
+                     restored.ToString().c_str());
+      }
     }
   }
   DurableCommit(const DurableCommit&) = delete;
   DurableCommit& operator=(const DurableCommit&) = delete;
 
+  // Not OK if FULL could not be set: the caller must not go on.
+  const absl::Status& status() const { return status_; }
+
  private:
   sqlite3* const db_;
+  absl::Status status_;
 };
 
 // The database's contexts file, opened knowing which ranges its rows point
@@ -528,6 +536,7 @@ absl::Status SqliteEventStore::DeleteUser(const std::string& user_id) {
   // store's synchronous mode: otherwise a power loss could bring the
   // events back without them.
   const DurableCommit durable(db_, !synchronous_full_);
+  RETURN_IF_ERROR(durable.status());
   ASSIGN_OR_RETURN(
       Transaction txn,
       Transaction::Begin(db_, Transaction::Kind::kWrite, "DeleteUser"));
@@ -586,6 +595,7 @@ absl::Status SqliteEventStore::ResetUser(const std::string& user_id) {
   // store's synchronous mode: otherwise a power loss could bring the
   // events back without them.
   const DurableCommit durable(db_, !synchronous_full_);
+  RETURN_IF_ERROR(durable.status());
   ASSIGN_OR_RETURN(
       Transaction txn,
       Transaction::Begin(db_, Transaction::Kind::kWrite, "ResetUser"));
