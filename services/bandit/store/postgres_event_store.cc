@@ -173,25 +173,52 @@ SELECT u.user_id, u.learner, u.strategy, u.alpha, u.lambda_c, u.lambda_p,
 FROM users u
 )sql";
 
+// An event's columns, as store_rows::ReadEventRow reads them, from `e` and
+// its context `c`.
+#define BITEWISE_EVENT_SELECT                                          \
+  "SELECT e.event_id, e.user_id, e.meal_id, e.item_label, c.context, " \
+  "e.action, e.propensity, e.selected_at_us, e.completed, e.loss, "    \
+  "e.posthoc, e.weight, e.model_version, e.updated_at_us, "            \
+  "e.selection_checksum, e.outcome_checksum "
+
 // LEFT JOIN as in the SQLite store: a missing context fails the selection
 // checksum (DATA_LOSS) instead of the event vanishing from the log.
-constexpr char kEventColumns[] = R"sql(
-SELECT e.event_id, e.user_id, e.meal_id, e.item_label, c.context, e.action,
-       e.propensity, e.selected_at_us, e.completed, e.loss, e.posthoc,
-       e.weight, e.model_version, e.updated_at_us, e.selection_checksum,
-       e.outcome_checksum
-FROM events e LEFT JOIN event_contexts c ON c.event_id = e.event_id
-)sql";
+constexpr char kEventColumns[] = BITEWISE_EVENT_SELECT
+    "FROM events e LEFT JOIN event_contexts c ON c.event_id = e.event_id ";
 
-// The event a completion's `e` (UPDATE ... RETURNING *) wrote, as
-// kEventColumns reads it.
-constexpr char kCompletedEvent[] = R"sql(
-SELECT e.event_id, e.user_id, e.meal_id, e.item_label, c.context, e.action,
-       e.propensity, e.selected_at_us, e.completed, e.loss, e.posthoc,
-       e.weight, e.model_version, e.updated_at_us, e.selection_checksum,
-       e.outcome_checksum
-FROM e LEFT JOIN event_contexts c ON c.event_id = e.event_id
-)sql";
+// The event a completion's `e` (UPDATE ... RETURNING *) wrote, read the
+// same way.
+constexpr char kCompletedEvent[] = BITEWISE_EVENT_SELECT
+    "FROM e LEFT JOIN event_contexts c ON c.event_id = e.event_id";
+#undef BITEWISE_EVENT_SELECT
+
+// $1..$7 of a completion: the event and its outcome, with the outcome's
+// checksum.
+Params OutcomeParams(int64_t event_id, double loss,
+                     const std::string& posthoc_bytes, double weight,
+                     int64_t model_version, int64_t updated_us) {
+  return Params()
+      .Int64(event_id)
+      .Double(loss)
+      .Bytes(posthoc_bytes)
+      .Double(weight)
+      .Int64(model_version)
+      .Int64(updated_us)
+      .Int64(OutcomeChecksum(loss, posthoc_bytes, weight, model_version,
+                             updated_us));
+}
+
+// Why a completion wrote nothing: NOT_FOUND for an unknown event,
+// FAILED_PRECONDITION for a completed one, else `if_pending`.
+absl::Status NotCompleted(Connection& conn, int64_t event_id,
+                          absl::Status if_pending) {
+  ASSIGN_OR_RETURN(Rows found,
+                   conn.Exec("SELECT completed FROM events WHERE event_id = $1",
+                             Params().Int64(event_id), "CompleteEvent"));
+  if (!found.Next()) return EventNotFound(event_id);
+  if (found.Int64(0) != 0) return store_rows::AlreadyCompleted(event_id);
+  return if_pending;
+}
 
 // A conditioned write refused because the user's log is no longer where
 // the caller read it.
@@ -667,12 +694,7 @@ absl::StatusOr<EventRecord> PostgresEventStore::CompleteEvent(
     int64_t event_id, double loss, const std::vector<double>& posthoc,
     double weight, absl::Time updated_at) {
   constexpr char kOp[] = "CompleteEvent";
-  if (std::isnan(loss)) {
-    return absl::InvalidArgumentError("loss must not be NaN");
-  }
-  if (std::isnan(weight)) {
-    return absl::InvalidArgumentError("weight must not be NaN");
-  }
+  RETURN_IF_ERROR(store_rows::CheckOutcome(loss, weight));
   const absl::Time start = absl::Now();
   const std::string posthoc_bytes = EncodeDoubles(posthoc);
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
@@ -703,25 +725,14 @@ absl::StatusOr<EventRecord> PostgresEventStore::CompleteEvent(
               "$6, outcome_checksum = $7 WHERE event_id = $1 AND NOT completed "
               "RETURNING *) ",
               kCompletedEvent),
-          Params()
-              .Int64(event_id)
-              .Double(loss)
-              .Bytes(posthoc_bytes)
-              .Double(weight)
-              .Int64(model_version)
-              .Int64(updated_us)
-              .Int64(OutcomeChecksum(loss, posthoc_bytes, weight, model_version,
-                                     updated_us)),
+          OutcomeParams(event_id, loss, posthoc_bytes, weight, model_version,
+                        updated_us),
           kOp));
   if (!rows.Next()) {
     // Rolled back: it was completed already, or removed by a reset that
     // committed just before this transaction locked the user.
-    ASSIGN_OR_RETURN(Rows found,
-                     conn->Exec("SELECT completed FROM events WHERE "
-                                "event_id = $1",
-                                Params().Int64(event_id), kOp));
-    if (!found.Next()) return EventNotFound(event_id);
-    return store_rows::AlreadyCompleted(event_id);
+    return NotCompleted(*conn, event_id,
+                        store_rows::AlreadyCompleted(event_id));
   }
   ASSIGN_OR_RETURN(EventRecord event, store_rows::ReadEventRow(rows));
   const absl::Time commit_start = absl::Now();
@@ -735,12 +746,7 @@ absl::StatusOr<EventRecord> PostgresEventStore::CompleteEventAt(
     const std::vector<double>& posthoc, double weight, absl::Time updated_at,
     const UserLogPosition& at) {
   constexpr char kOp[] = "CompleteEvent";
-  if (std::isnan(loss)) {
-    return absl::InvalidArgumentError("loss must not be NaN");
-  }
-  if (std::isnan(weight)) {
-    return absl::InvalidArgumentError("weight must not be NaN");
-  }
+  RETURN_IF_ERROR(store_rows::CheckOutcome(loss, weight));
   const absl::Time start = absl::Now();
   const std::string posthoc_bytes = EncodeDoubles(posthoc);
   const int64_t model_version = at.model_version + 1;
@@ -765,27 +771,12 @@ absl::StatusOr<EventRecord> PostgresEventStore::CompleteEventAt(
               "WHERE event_id = $1 AND user_id = $8 AND NOT completed AND "
               "EXISTS (SELECT 1 FROM u) RETURNING *) ",
               kCompletedEvent),
-          Params()
-              .Int64(event_id)
-              .Double(loss)
-              .Bytes(posthoc_bytes)
-              .Double(weight)
-              .Int64(model_version)
-              .Int64(updated_us)
-              .Int64(OutcomeChecksum(loss, posthoc_bytes, weight, model_version,
-                                     updated_us))
+          OutcomeParams(event_id, loss, posthoc_bytes, weight, model_version,
+                        updated_us)
               .Text(user_id)
               .Int64(at.incarnation),
           kOp));
-  if (!rows.Next()) {
-    ASSIGN_OR_RETURN(Rows found,
-                     conn->Exec("SELECT completed FROM events WHERE "
-                                "event_id = $1",
-                                Params().Int64(event_id), kOp));
-    if (!found.Next()) return EventNotFound(event_id);
-    if (found.Int64(0) != 0) return store_rows::AlreadyCompleted(event_id);
-    return LogMoved(user_id);
-  }
+  if (!rows.Next()) return NotCompleted(*conn, event_id, LogMoved(user_id));
   ASSIGN_OR_RETURN(EventRecord event, store_rows::ReadEventRow(rows));
   CountWrite(/*append=*/false, start, start);
   return event;

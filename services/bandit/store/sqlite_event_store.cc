@@ -701,12 +701,7 @@ absl::StatusOr<EventRecord> SqliteEventStore::CompleteEvent(
     int64_t event_id, double loss, const std::vector<double>& posthoc,
     double weight, absl::Time updated_at) {
   RETURN_IF_ERROR(CheckHealth());
-  if (std::isnan(loss)) {
-    return absl::InvalidArgumentError("loss must not be NaN");
-  }
-  if (std::isnan(weight)) {
-    return absl::InvalidArgumentError("weight must not be NaN");
-  }
+  RETURN_IF_ERROR(store_rows::CheckOutcome(loss, weight));
   const std::string posthoc_bytes = EncodeDoubles(posthoc);
   const absl::Time start = absl::Now();
   EventRecord event;

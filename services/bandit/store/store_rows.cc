@@ -159,6 +159,16 @@ absl::Status EventNotFound(int64_t event_id) {
   return absl::NotFoundError(absl::StrCat("event ", event_id, " not found"));
 }
 
+absl::Status CheckOutcome(double loss, double weight) {
+  if (std::isnan(loss)) {
+    return absl::InvalidArgumentError("loss must not be NaN");
+  }
+  if (std::isnan(weight)) {
+    return absl::InvalidArgumentError("weight must not be NaN");
+  }
+  return absl::OkStatus();
+}
+
 absl::Status AlreadyCompleted(int64_t event_id) {
   return absl::FailedPreconditionError(
       absl::StrCat("event ", event_id, " is already completed"));

@@ -175,6 +175,9 @@ absl::StatusOr<int> ToInt(int64_t value, absl::string_view what);
 absl::Status UserNotFound(absl::string_view user_id);
 absl::Status EventNotFound(int64_t event_id);
 absl::Status AlreadyCompleted(int64_t event_id);
+// A completion's scalars: INVALID_ARGUMENT for a NaN loss or weight, which
+// neither store can keep.
+absl::Status CheckOutcome(double loss, double weight);
 
 // The checks of a user's stored learner and strategy codes.
 absl::Status CheckUserCodes(int64_t learner, int64_t strategy,

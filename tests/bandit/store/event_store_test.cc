@@ -2018,27 +2018,19 @@ TEST_F(PostgresEventStoreTest, WritesAtAPositionAreRefusedOnceTheLogMoved) {
   EXPECT_EQ(done->context, MakeEvent("alice", "m", 0).context);
   // Completed already, unknown, or another user's: as CompleteEvent says.
   at = store_->LogPosition("alice");
-  EXPECT_EQ(store_
-                ->CompleteEventAt("alice", *first, 0.0, {1.0, 2.0}, 1.0,
-                                  absl::FromUnixMicros(1), *at)
-                .status()
-                .code(),
-            absl::StatusCode::kFailedPrecondition);
-  EXPECT_EQ(store_
-                ->CompleteEventAt("alice", 999999, 0.0, {1.0, 2.0}, 1.0,
-                                  absl::FromUnixMicros(1), *at)
-                .status()
-                .code(),
-            absl::StatusCode::kNotFound);
+  auto complete_as_alice = [&](int64_t event_id) {
+    return store_
+        ->CompleteEventAt("alice", event_id, 0.0, {1.0, 2.0}, 1.0,
+                          absl::FromUnixMicros(1), *at)
+        .status()
+        .code();
+  };
+  EXPECT_EQ(complete_as_alice(*first), absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ(complete_as_alice(999999), absl::StatusCode::kNotFound);
   ASSERT_TRUE(store_->CreateUser(MakeUser("bob")).ok());
   auto bobs = store_->AppendPending(MakeEvent("bob", "m", 0));
   ASSERT_TRUE(bobs.ok());
-  EXPECT_EQ(store_
-                ->CompleteEventAt("alice", *bobs, 0.0, {1.0, 2.0}, 1.0,
-                                  absl::FromUnixMicros(1), *at)
-                .status()
-                .code(),
-            absl::StatusCode::kAborted);
+  EXPECT_EQ(complete_as_alice(*bobs), absl::StatusCode::kAborted);
   EXPECT_FALSE(store_->GetEvent(*bobs)->completed);
   // A reset starts a new incarnation: an older read no longer writes.
   ASSERT_TRUE(store_->ResetUser("alice").ok());
