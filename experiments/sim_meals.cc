@@ -10,6 +10,7 @@
 #include "services/bandit/core/linucb.h"
 #include "services/bandit/core/policy.h"
 #include "services/common/status_macros.h"
+#include "services/domain/context_ridge.h"
 #include "services/domain/random.h"
 #include "services/haptic/default_model.h"
 #include "services/haptic/training/labelled_traces.h"
@@ -139,12 +140,11 @@ absl::Status ValidateSimMealsConfig(const SimMealsConfig& config) {
 }
 
 double ResolvedLambdaC(const SimMealsConfig& config) {
-  if (config.lambda_c > 0.0) return config.lambda_c;
   const double msn =
       config.context_msn > 0.0
           ? config.context_msn
           : perception::DefaultFeaturizer().context_mean_squared_norm();
-  return config.rho_c * msn;
+  return domain::NewUserContextRidge(config.lambda_c, config.rho_c, msn);
 }
 
 absl::StatusOr<std::vector<const sim::FoodType*>> MealFoods(

@@ -1,21 +1,26 @@
 // bitewise-orchestrator: runs bites for one user through the four services.
-// Flags are parsed here into MealRunnerOptions; the meal logic is
-// MealRunner (meal_runner.h).
+// Flags are parsed here into MealOptions; the meal logic is the meal
+// library (clients/meal/meal.h).
+#include <unistd.h>
+
 #include <algorithm>
 #include <cstdio>
+#include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
+#include "absl/strings/ascii.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
-#include "bitewise/v1/bandit.grpc.pb.h"
-#include "bitewise/v1/haptic.grpc.pb.h"
-#include "bitewise/v1/perception.grpc.pb.h"
-#include "bitewise/v1/robot.grpc.pb.h"
-#include "clients/orchestrator/meal_runner.h"
+#include "clients/meal/meal.h"
+#include "clients/meal/service_clients.h"
+#include "clients/meal/update_journal.h"
 #include "services/common/channel.h"
 #include "services/common/flags_usage.h"
 
@@ -75,7 +80,87 @@ ABSL_FLAG(double, alpha, -1.0,
 namespace {
 
 namespace v1 = bitewise::v1;
-namespace orchestrator = bitewise::orchestrator;
+namespace meals = bitewise::meals;
+namespace mealpb = bitewise::meal::v1;
+
+// Prints notes, and on a terminal one line that follows the Acquire's
+// phases as they stream in.
+class TerminalListener : public meals::MealListener {
+ public:
+  TerminalListener() : show_progress_(isatty(STDOUT_FILENO) != 0) {}
+
+  void OnEvent(const mealpb::BiteEvent& event,
+               const mealpb::MealState& state) override {
+    if (!show_progress_ || event.step() != mealpb::STEP_ACQUIRE) return;
+    if (event.state() == mealpb::STEP_STATE_PROGRESS) {
+      std::string phase = v1::AcquirePhase_Name(event.phase());
+      phase = absl::AsciiStrToLower(phase.substr(phase.rfind('_') + 1));
+      std::printf("\r  acquiring: %-9s %5.2f s %5.1f N", phase.c_str(),
+                  event.elapsed_s(), event.force_n());
+      std::fflush(stdout);
+    } else if (event.state() != mealpb::STEP_STATE_STARTED) {
+      std::printf("\r%60s\r", "");
+    }
+  }
+
+  void OnNote(const std::string& note) override {
+    std::printf("%s\n", note.c_str());
+    std::fflush(stdout);
+  }
+
+ private:
+  const bool show_progress_;
+};
+
+// One line per bite: food, action, the lower confidence bounds, the
+// outcome, the haptic class and what was learned.
+void PrintBite(const mealpb::Bite& bite) {
+  std::string lcbs;
+  for (const v1::ActionEstimate& e : bite.estimates()) {
+    absl::StrAppend(&lcbs,
+                    absl::StrFormat(" %s %+.3f", e.action_name(), e.lcb()));
+  }
+  const std::string outcome = bite.outcome() == "success"   ? "success"
+                              : bite.outcome() == "failure" ? "FAILED"
+                              : bite.outcome() == "pending" ? "?"
+                                                            : bite.outcome();
+  const std::string haptic =
+      bite.haptic().label().empty()
+          ? std::string("n/a")
+          : absl::StrFormat("%s %.2f", bite.haptic().label(),
+                            bite.haptic().probability());
+  std::string learned = bite.learned();
+  if (learned == "journaled") {
+    learned = absl::StrCat("journaled (", bite.error(), ")");
+  }
+  std::printf("bite %2d  %-14s %-5s lcb[%s ]  %-7s  haptic %-14s %s\n",
+              bite.number(), bite.food().empty() ? "?" : bite.food().c_str(),
+              bite.action().name().c_str(), lcbs.c_str(), outcome.c_str(),
+              haptic.c_str(), learned.c_str());
+  std::fflush(stdout);
+}
+
+// Asks at the terminal until the answer is y or n; end of input is "no".
+bool AskOperator(const std::string& question) {
+  while (true) {
+    std::printf("%s [y/n] ", question.c_str());
+    std::fflush(stdout);
+    std::string answer;
+    if (!std::getline(std::cin, answer)) return false;
+    if (answer == "y" || answer == "Y") return true;
+    if (answer == "n" || answer == "N") return false;
+  }
+}
+
+void PrintSummary(const mealpb::MealState& state) {
+  std::printf("\nmeal %s: %s\n", state.meal_id().c_str(),
+              state.summary().text().c_str());
+  std::printf("  %-14s %8s %8s\n", "food", "attempts", "failures");
+  for (const mealpb::FoodTally& tally : state.summary().foods()) {
+    std::printf("  %-14s %8d %8d\n", tally.food().c_str(), tally.attempts(),
+                tally.failures());
+  }
+}
 
 }  // namespace
 
@@ -138,52 +223,98 @@ int main(int argc, char** argv) {
                    made.status().ToString().c_str());
       std::exit(1);
     }
-    return *made;
+    return std::shared_ptr<grpc::ChannelInterface>(*made);
   };
-  orchestrator::MealStubs stubs;
-  stubs.bandit = v1::BanditService::NewStub(channel("bandit"));
-  stubs.perception = v1::PerceptionService::NewStub(channel("perception"));
-  stubs.haptic = v1::HapticService::NewStub(channel("haptic"));
-  stubs.robot = v1::RobotService::NewStub(channel("robot"));
+  meals::ServiceChannels channels;
+  channels.bandit = channel("bandit");
+  channels.perception = channel("perception");
+  channels.haptic = channel("haptic");
+  channels.robot = channel("robot");
+  meals::CallDeadlines deadlines;
+  deadlines.unary = absl::Milliseconds(absl::GetFlag(FLAGS_deadline_ms));
+  deadlines.acquire =
+      absl::Milliseconds(absl::GetFlag(FLAGS_acquire_deadline_ms));
+  meals::ServiceClients clients(channels, deadlines);
 
-  orchestrator::MealRunnerOptions options;
+  meals::MealOptions options;
   options.user_id = absl::GetFlag(FLAGS_user);
-  options.posthoc =
-      posthoc == "logprob" ? orchestrator::PosthocMode::kLogProbabilities
-      : posthoc == "prob"  ? orchestrator::PosthocMode::kProbabilities
-                           : orchestrator::PosthocMode::kNone;
-  options.confirm = confirm == "operator" ? orchestrator::ConfirmBy::kOperator
-                                          : orchestrator::ConfirmBy::kRobot;
+  options.meal_id = absl::GetFlag(FLAGS_meal);
+  options.posthoc = posthoc == "logprob" ? meals::PosthocMode::kLogProbabilities
+                    : posthoc == "prob"  ? meals::PosthocMode::kProbabilities
+                                         : meals::PosthocMode::kNone;
+  options.confirm = confirm == "operator" ? meals::ConfirmBy::kOperator
+                                          : meals::ConfirmBy::kRobot;
   options.lambda_c = absl::GetFlag(FLAGS_lambda_c);
   options.rho_c = absl::GetFlag(FLAGS_rho_c);
   options.alpha = absl::GetFlag(FLAGS_alpha);
   options.prior_rounds = absl::GetFlag(FLAGS_prior_rounds);
-  options.deadline_ms = absl::GetFlag(FLAGS_deadline_ms);
-  options.acquire_deadline_ms = absl::GetFlag(FLAGS_acquire_deadline_ms);
 
-  orchestrator::UpdateJournal journal(absl::GetFlag(FLAGS_journal));
-  const std::string meal_id = absl::GetFlag(FLAGS_meal);
+  meals::UpdateJournal journal(absl::GetFlag(FLAGS_journal));
+  TerminalListener listener;
   // A new user's context dimension follows the featurizer in use, so the
-  // user is found or created at the first Featurize.
-  orchestrator::MealRunner runner(std::move(stubs), &journal, options);
-  runner.DrainJournal();
+  // user is found or created at the first bite.
+  meals::Meal meal(&clients, &journal, options, &listener);
+  const absl::StatusOr<int> delivered = meal.DeliverJournal();
+  if (!delivered.ok()) {
+    std::fprintf(stderr, "journal: %s\n",
+                 delivered.status().ToString().c_str());
+  } else if (*delivered > 0) {
+    std::printf("journal: delivered %d update(s) left from an earlier run\n",
+                *delivered);
+  }
 
   int limit = absl::GetFlag(FLAGS_bites);
   if (limit <= 0) limit = 64;
-  std::printf("meal %s for %s\n", meal_id.c_str(), options.user_id.c_str());
+  std::printf("meal %s for %s\n", options.meal_id.c_str(),
+              options.user_id.c_str());
   int exit_code = 0;
+  auto stop = [&](const std::string& why) {
+    std::fprintf(stderr, "stopping the meal: %s\n", why.c_str());
+    exit_code = 1;
+  };
   for (int bite = 1; bite <= limit; ++bite) {
-    const orchestrator::BiteResult result = runner.Bite(meal_id, bite);
-    if (result.end == orchestrator::BiteEnd::kPlateEmpty) {
+    absl::Status looked = meal.LookAtPlate();
+    if (!looked.ok()) {
+      stop(std::string(looked.message()));
+      break;
+    }
+    if (!meal.state().running()) {
       std::printf("the plate is empty\n");
       break;
     }
-    if (result.end == orchestrator::BiteEnd::kFailed) {
-      std::fprintf(stderr, "stopping the meal: %s\n", result.error.c_str());
-      exit_code = 1;
+    absl::Status bitten = meal.Bite(std::nullopt);
+    mealpb::Bite current = meal.state().current();
+    if (!bitten.ok()) {
+      if (current.number() == bite) PrintBite(current);
+      stop(std::string(bitten.message()));
+      break;
+    }
+    if (!current.question().empty()) {
+      // The bite's line first, so the question is read knowing which food
+      // and which action it is about.
+      PrintBite(current);
+      const bool success = AskOperator(current.question());
+      absl::Status answered = meal.Answer(current.event_id(), success);
+      if (!answered.ok()) {
+        stop(std::string(answered.message()));
+        break;
+      }
+      meal.ConfirmAnswer();
+      current = meal.state().current();
+      std::printf("  answered %s: %s\n", current.answer().c_str(),
+                  current.learned().c_str());
+    } else {
+      PrintBite(current);
+    }
+    if (current.learned() != "learned") {
+      stop(current.error().empty() ? current.learned() : current.error());
       break;
     }
   }
-  runner.PrintSummary(meal_id);
+  const absl::Status finished = meal.Finish();
+  if (!finished.ok()) {
+    std::fprintf(stderr, "%s\n", finished.ToString().c_str());
+  }
+  PrintSummary(meal.state());
   return exit_code;
 }

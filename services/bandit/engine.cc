@@ -15,31 +15,6 @@
 
 namespace bitewise::bandit {
 
-absl::Status ValidateUserId(const std::string& user_id) {
-  if (user_id.empty() || user_id.size() > 128) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "user_id: must be 1-128 characters, got ", user_id.size()));
-  }
-  const auto alnum = [](char ch) {
-    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') ||
-           (ch >= '0' && ch <= '9');
-  };
-  if (!alnum(user_id[0])) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "user_id: must start with a letter or digit, got \"", user_id, "\""));
-  }
-  for (const char ch : user_id) {
-    const bool ok = alnum(ch) || ch == '.' || ch == '_' || ch == '-';
-    if (!ok) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("user_id: only letters, digits, '.', '_' and '-' are "
-                       "allowed, got \"",
-                       user_id, "\""));
-    }
-  }
-  return absl::OkStatus();
-}
-
 BanditEngine::BanditEngine(EventStore* store, const EngineOptions& options)
     : store_(store), options_(options) {
   if (options_.checkpoint_min_events > 0) {

@@ -34,6 +34,7 @@
 #include "services/bandit/core/config.h"
 #include "services/bandit/core/linucb.h"
 #include "services/bandit/store/event_store.h"
+#include "services/domain/user_id.h"
 
 namespace bitewise::bandit {
 
@@ -122,7 +123,7 @@ struct ModelExport {
 };
 
 // INVALID_ARGUMENT unless `user_id` is 1-128 characters of [A-Za-z0-9._-].
-absl::Status ValidateUserId(const std::string& user_id);
+using ::bitewise::domain::ValidateUserId;
 
 class BanditEngine {
  public:

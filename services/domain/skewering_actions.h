@@ -15,6 +15,9 @@ struct SkeweringAction {
   double pitch_rad;
   double roll_rad;
   double max_force_n;
+  // For people at the table: a short title and what the fork does.
+  const char* title;
+  const char* description;
 };
 
 inline constexpr int kNumActions = 6;
@@ -23,12 +26,24 @@ inline constexpr double kQuarterTurnRad = 1.57079632679489661923;
 // VS0, VS90 (vertical skewer), TV0, TV90 (tines vertical), TA0, TA90 (tilted
 // angled), in this index order everywhere.
 inline constexpr std::array<SkeweringAction, kNumActions> kSkeweringActions = {
-    {{"VS0", 0.0, 0.0, 25.0},
-     {"VS90", 0.0, kQuarterTurnRad, 25.0},
-     {"TV0", -0.5, 0.0, 20.0},
-     {"TV90", -0.5, kQuarterTurnRad, 20.0},
-     {"TA0", 0.4, 0.0, 10.0},
-     {"TA90", 0.4, kQuarterTurnRad, 10.0}}};
+    {{"VS0", 0.0, 0.0, 25.0, "Vertical skewer",
+      "The fork comes straight down with its tines along the food's long "
+      "side, pushing with up to 25 N."},
+     {"VS90", 0.0, kQuarterTurnRad, 25.0, "Vertical skewer, turned",
+      "The fork comes straight down with its tines across the food's long "
+      "side, pushing with up to 25 N."},
+     {"TV0", -0.5, 0.0, 20.0, "Tines vertical",
+      "The handle leans back so the tines go in straight, along the food's "
+      "long side, pushing with up to 20 N."},
+     {"TV90", -0.5, kQuarterTurnRad, 20.0, "Tines vertical, turned",
+      "The handle leans back so the tines go in straight, across the food's "
+      "long side, pushing with up to 20 N."},
+     {"TA0", 0.4, 0.0, 10.0, "Tilted, angled",
+      "The fork tilts forward and slides in at an angle along the food's "
+      "long side, gently, with up to 10 N, for soft food."},
+     {"TA90", 0.4, kQuarterTurnRad, 10.0, "Tilted, angled, turned",
+      "The fork tilts forward and slides in at an angle across the food's "
+      "long side, gently, with up to 10 N, for soft food."}}};
 
 }  // namespace bitewise::domain
 

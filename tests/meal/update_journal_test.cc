@@ -1,4 +1,4 @@
-#include "clients/orchestrator/update_journal.h"
+#include "clients/meal/update_journal.h"
 
 #include <stdlib.h>
 
@@ -10,7 +10,7 @@
 
 #include "gtest/gtest.h"
 
-namespace bitewise::orchestrator {
+namespace bitewise::meals {
 namespace {
 
 std::string TempPath() {
@@ -72,6 +72,28 @@ TEST(UpdateJournalTest, DrainKeepsOnlyWhatFailed) {
   EXPECT_FALSE(std::ifstream(journal.path()).good());
 }
 
+// An operator who changes an answer appends the event again: only the last
+// answer is delivered, and once delivered none is left.
+TEST(UpdateJournalTest, LaterLineForAnEventSupersedes) {
+  UpdateJournal journal(TempPath());
+  ASSERT_TRUE(journal.Append({"7", 0.0, {-0.1}}).ok());
+  ASSERT_TRUE(journal.Append({"8", 1.0, {-0.2}}).ok());
+  ASSERT_TRUE(journal.Append({"7", 1.0, {-0.1}}).ok());
+  std::vector<JournaledUpdate> seen;
+  absl::StatusOr<int> delivered =
+      journal.Drain([&](const JournaledUpdate& update) {
+        seen.push_back(update);
+        return absl::OkStatus();
+      });
+  ASSERT_TRUE(delivered.ok());
+  EXPECT_EQ(*delivered, 2);
+  ASSERT_EQ(seen.size(), 2u);
+  EXPECT_EQ(seen[0].event_id, "8");
+  EXPECT_EQ(seen[1].event_id, "7");
+  EXPECT_EQ(seen[1].loss, 1.0);
+  EXPECT_FALSE(std::ifstream(journal.path()).good());
+}
+
 TEST(UpdateJournalTest, MalformedLineIsDataLossNamingTheLine) {
   const std::string path = TempPath();
   std::ofstream(path) << "5\t1\t-0.5\n6\tnot-a-number\n";
@@ -83,4 +105,4 @@ TEST(UpdateJournalTest, MalformedLineIsDataLossNamingTheLine) {
 }
 
 }  // namespace
-}  // namespace bitewise::orchestrator
+}  // namespace bitewise::meals

@@ -1,4 +1,4 @@
-#include "clients/orchestrator/update_journal.h"
+#include "clients/meal/update_journal.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -9,12 +9,13 @@
 #include <fstream>
 #include <sstream>
 
+#include "absl/container/flat_hash_map.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 
-namespace bitewise::orchestrator {
+namespace bitewise::meals {
 namespace {
 
 std::string FormatLine(const JournaledUpdate& update) {
@@ -49,6 +50,7 @@ absl::Status WriteAllAndSync(int fd, const std::string& data,
 }  // namespace
 
 absl::Status UpdateJournal::Append(const JournaledUpdate& update) {
+  absl::MutexLock lock(&mu_);
   const int fd = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0600);
   if (fd < 0) {
     return absl::FailedPreconditionError(absl::StrCat(
@@ -60,6 +62,12 @@ absl::Status UpdateJournal::Append(const JournaledUpdate& update) {
 }
 
 absl::StatusOr<std::vector<JournaledUpdate>> UpdateJournal::ReadAll() const {
+  absl::ReaderMutexLock lock(&mu_);
+  return ReadAllLocked();
+}
+
+absl::StatusOr<std::vector<JournaledUpdate>> UpdateJournal::ReadAllLocked()
+    const {
   std::vector<JournaledUpdate> out;
   std::ifstream in(path_);
   if (!in) {
@@ -120,12 +128,18 @@ absl::Status UpdateJournal::Rewrite(
 
 absl::StatusOr<int> UpdateJournal::Drain(
     const std::function<absl::Status(const JournaledUpdate&)>& deliver) {
-  absl::StatusOr<std::vector<JournaledUpdate>> all = ReadAll();
+  absl::MutexLock lock(&mu_);
+  absl::StatusOr<std::vector<JournaledUpdate>> all = ReadAllLocked();
   if (!all.ok()) return all.status();
   if (all->empty()) return 0;
+  // A later line for the same event (a changed answer) supersedes.
+  absl::flat_hash_map<std::string, size_t> last;
+  for (size_t i = 0; i < all->size(); ++i) last[(*all)[i].event_id] = i;
   std::vector<JournaledUpdate> failed;
   int delivered = 0;
-  for (const JournaledUpdate& update : *all) {
+  for (size_t i = 0; i < all->size(); ++i) {
+    const JournaledUpdate& update = (*all)[i];
+    if (last[update.event_id] != i) continue;
     if (deliver(update).ok()) {
       ++delivered;
     } else {
@@ -137,4 +151,4 @@ absl::StatusOr<int> UpdateJournal::Drain(
   return delivered;
 }
 
-}  // namespace bitewise::orchestrator
+}  // namespace bitewise::meals

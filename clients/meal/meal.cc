@@ -1,0 +1,819 @@
+#include "clients/meal/meal.h"
+
+#include <algorithm>
+#include <utility>
+#include <vector>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/time/clock.h"
+#include "services/domain/context_ridge.h"
+#include "services/domain/haptic_class.h"
+#include "services/domain/skewering_actions.h"
+
+namespace bitewise::meals {
+namespace {
+
+// The API's haptic category (0 is unspecified) for people.
+const char* HapticLabel(v1::HapticCategory category) {
+  const int index = static_cast<int>(category) - 1;
+  if (index < 0 || index >= domain::kHapticClasses) return "unknown";
+  return domain::HapticClassLabel(static_cast<domain::HapticClass>(index));
+}
+
+mealpb::ActionInfo DescribeAction(int index, const std::string& name) {
+  mealpb::ActionInfo info;
+  info.set_index(index);
+  info.set_name(name);
+  if (index >= 0 && index < domain::kNumActions) {
+    const domain::SkeweringAction& action = domain::kSkeweringActions[index];
+    info.set_title(action.title);
+    info.set_description(action.description);
+  }
+  return info;
+}
+
+// "acquire" phases for people: "descend".
+std::string PhaseWord(v1::AcquirePhase phase) {
+  std::string name = v1::AcquirePhase_Name(phase);
+  return absl::AsciiStrToLower(name.substr(name.rfind('_') + 1));
+}
+
+// The food as people read it: its name when known, else where it lay.
+std::string FoodOf(const mealpb::Bite& bite) {
+  if (!bite.food().empty()) return bite.food();
+  return absl::StrCat("item ", bite.item_index() + 1);
+}
+
+// Holds the meal's busy lock, taken with TryLock, until the scope ends.
+class BusyGuard {
+ public:
+  explicit BusyGuard(absl::Mutex* mu) : mu_(mu) {}
+  ~BusyGuard() { mu_->Unlock(); }
+  BusyGuard(const BusyGuard&) = delete;
+  BusyGuard& operator=(const BusyGuard&) = delete;
+
+ private:
+  absl::Mutex* mu_;
+};
+
+bool Retryable(const absl::Status& status) {
+  return absl::IsUnavailable(status) || absl::IsDeadlineExceeded(status);
+}
+
+}  // namespace
+
+std::string Count(int n, const char* singular, const char* plural) {
+  return absl::StrCat(n, " ", n == 1 ? singular : plural);
+}
+
+std::string SummaryText(int attempts, int failures) {
+  return absl::StrCat(Count(attempts, "attempt", "attempts"), ", ",
+                      Count(failures, "failure", "failures"));
+}
+
+std::string OperatorQuestion(const mealpb::Bite& bite) {
+  const std::string food = bite.food().empty()
+                               ? absl::StrCat("item ", bite.item_index() + 1)
+                               : absl::StrCat("the ", bite.food());
+  return absl::StrFormat("Did %s come up on the fork with %s (%s)?", food,
+                         bite.action().name(), bite.action().title());
+}
+
+Meal::Meal(ServiceClients* clients, UpdateJournal* journal, MealOptions options,
+           MealListener* listener)
+    : clients_(clients),
+      journal_(journal),
+      options_(std::move(options)),
+      listener_(listener) {
+  state_.set_running(true);
+  state_.set_meal_id(options_.meal_id);
+  state_.set_user_id(options_.user_id);
+  state_.set_phase("idle");
+  state_.mutable_summary()->set_text(SummaryText(0, 0));
+}
+
+mealpb::MealState Meal::state() const {
+  absl::MutexLock lock(&mu_);
+  return state_;
+}
+
+std::optional<v1::Frame> Meal::plate_frame() const {
+  absl::MutexLock lock(&mu_);
+  return frame_;
+}
+
+absl::StatusOr<int> Meal::DeliverJournal() {
+  return journal_->Drain([&](const JournaledUpdate& update) -> absl::Status {
+    v1::UpdateRequest request;
+    request.set_event_id(update.event_id);
+    request.set_loss(update.loss);
+    request.mutable_posthoc()->Add(update.posthoc.begin(),
+                                   update.posthoc.end());
+    const absl::StatusOr<v1::UpdateResponse> sent =
+        clients_->bandit.Update(request);
+    if (sent.ok() || Retryable(sent.status())) return sent.status();
+    if (listener_ != nullptr) {
+      listener_->OnNote(absl::StrCat("journal: dropping the update of event ",
+                                     update.event_id, ": ",
+                                     sent.status().message()));
+    }
+    return absl::OkStatus();
+  });
+}
+
+void Meal::Emit(mealpb::Step step, mealpb::StepState step_state,
+                std::string text, std::string error) {
+  mealpb::BiteEvent event;
+  mealpb::MealState snapshot;
+  {
+    absl::MutexLock lock(&mu_);
+    event.set_bite(state_.bite());
+    event.set_step(step);
+    event.set_state(step_state);
+    event.set_text(std::move(text));
+    event.set_error(std::move(error));
+    event.set_wall_time_s(
+        absl::ToDoubleSeconds(absl::Now() - absl::UnixEpoch()));
+    const bool in_bite = step > mealpb::STEP_DETECT &&
+                         state_.bites_size() > 0 &&
+                         state_.bites().rbegin()->number() == state_.bite();
+    if (in_bite) {
+      mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
+      *bite->add_steps() = event;
+      *state_.mutable_current() = *bite;
+    }
+    state_.set_message(event.text());
+    snapshot = state_;
+  }
+  if (listener_ != nullptr) listener_->OnEvent(event, snapshot);
+}
+
+void Meal::EmitProgress(const v1::AcquireProgress& progress) {
+  mealpb::BiteEvent event;
+  mealpb::MealState snapshot;
+  {
+    absl::MutexLock lock(&mu_);
+    event.set_bite(state_.bite());
+    event.set_step(mealpb::STEP_ACQUIRE);
+    event.set_state(mealpb::STEP_STATE_PROGRESS);
+    event.set_phase(progress.phase());
+    event.set_elapsed_s(progress.elapsed_s());
+    event.set_force_n(progress.force_n());
+    event.set_wall_time_s(
+        absl::ToDoubleSeconds(absl::Now() - absl::UnixEpoch()));
+    if (state_.bites_size() == 0) return;
+    mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
+    if (bite->phase() != progress.phase()) {
+      event.set_text(
+          absl::StrCat("The arm is in ", PhaseWord(progress.phase()), "."));
+      state_.set_message(event.text());
+    }
+    bite->set_phase(progress.phase());
+    bite->set_force_n(progress.force_n());
+    mealpb::ForceSample* sample = bite->add_forces();
+    sample->set_t(progress.elapsed_s());
+    sample->set_f(progress.force_n());
+    *state_.mutable_current() = *bite;
+    snapshot = state_;
+  }
+  if (listener_ != nullptr) listener_->OnEvent(event, snapshot);
+}
+
+void Meal::Recount() {
+  int attempts = 0;
+  int failures = 0;
+  std::vector<mealpb::FoodTally> foods;
+  for (const mealpb::Bite& bite : state_.bites()) {
+    const bool failed = bite.outcome() == "failure";
+    if (!failed && bite.outcome() != "success") continue;
+    ++attempts;
+    failures += failed ? 1 : 0;
+    const std::string food = bite.food().empty() ? "unknown" : bite.food();
+    auto it = std::find_if(
+        foods.begin(), foods.end(),
+        [&](const mealpb::FoodTally& tally) { return tally.food() == food; });
+    if (it == foods.end()) {
+      foods.emplace_back();
+      it = foods.end() - 1;
+      it->set_food(food);
+    }
+    it->set_attempts(it->attempts() + 1);
+    it->set_failures(it->failures() + (failed ? 1 : 0));
+  }
+  std::sort(foods.begin(), foods.end(),
+            [](const mealpb::FoodTally& a, const mealpb::FoodTally& b) {
+              return a.food() < b.food();
+            });
+  mealpb::MealSummary* summary = state_.mutable_summary();
+  summary->set_attempts(attempts);
+  summary->set_failures(failures);
+  summary->set_text(SummaryText(attempts, failures));
+  summary->clear_foods();
+  for (mealpb::FoodTally& tally : foods) *summary->add_foods() = tally;
+}
+
+absl::Status Meal::Fail(mealpb::Step step, const absl::Status& status,
+                        const std::string& outcome, const std::string& kept) {
+  std::string text;
+  {
+    absl::MutexLock lock(&mu_);
+    text = absl::StrCat(status.message(), kept.empty() ? "" : "; ", kept);
+    state_.set_phase("failed");
+    state_.set_error(std::string(status.message()));
+    const bool in_bite = step > mealpb::STEP_DETECT &&
+                         state_.bites_size() > 0 &&
+                         state_.bites().rbegin()->number() == state_.bite();
+    if (in_bite) {
+      mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
+      bite->set_outcome(outcome);
+      bite->set_error(std::string(status.message()));
+      bite->set_text(text);
+      bite->clear_question();
+      if (bite->learned() == "pending" ||
+          bite->learned() == "awaiting answer") {
+        bite->set_learned("not learned");
+      }
+      update_.reset();
+      Recount();
+    }
+  }
+  Emit(step, mealpb::STEP_STATE_FAILED, text, std::string(status.message()));
+  return status;
+}
+
+absl::Status Meal::LookAtPlate() {
+  if (!busy_mu_.TryLock()) {
+    return absl::FailedPreconditionError(
+        "a bite or a look at the plate is already running");
+  }
+  BusyGuard busy(&busy_mu_);
+  {
+    absl::MutexLock lock(&mu_);
+    if (!state_.running()) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("meal ", state_.meal_id(), " is over"));
+    }
+    state_.set_phase("looking");
+    state_.clear_error();
+  }
+  Emit(mealpb::STEP_CAPTURE, mealpb::STEP_STATE_STARTED,
+       "Looking at the plate.");
+  absl::StatusOr<v1::Frame> frame = clients_->robot.CaptureFrame();
+  if (!frame.ok()) {
+    return Fail(mealpb::STEP_CAPTURE, frame.status(), "", "no bite was tried");
+  }
+  Emit(mealpb::STEP_CAPTURE, mealpb::STEP_STATE_DONE,
+       "The camera saw the plate.");
+  Emit(mealpb::STEP_DETECT, mealpb::STEP_STATE_STARTED, "Finding the food.");
+  absl::StatusOr<v1::DetectFoodResponse> detected =
+      clients_->perception.DetectFood(*frame);
+  if (!detected.ok()) {
+    return Fail(mealpb::STEP_DETECT, detected.status(), "",
+                "no bite was tried");
+  }
+  std::string text;
+  {
+    absl::MutexLock lock(&mu_);
+    state_.set_plate_version(state_.plate_version() + 1);
+    state_.set_frame_width(static_cast<int>(frame->width()));
+    state_.set_frame_height(static_cast<int>(frame->height()));
+    frame_ = *std::move(frame);
+    *state_.mutable_items() = detected->items();
+    if (detected->items_size() == 0) {
+      state_.set_phase("ended");
+      state_.set_running(false);
+      text = absl::StrCat("The plate is empty. ", state_.summary().text(), ".");
+    } else {
+      state_.set_phase("choosing");
+      text = absl::StrCat(
+          Count(detected->items_size(), "item", "items"),
+          " on the plate: choose the next bite, or let the robot choose.");
+    }
+  }
+  Emit(mealpb::STEP_DETECT, mealpb::STEP_STATE_DONE, text);
+  return absl::OkStatus();
+}
+
+absl::StatusOr<int> Meal::ChooseItem(std::optional<int> item_index) {
+  absl::MutexLock lock(&mu_);
+  const int count = state_.items_size();
+  if (count == 0) {
+    return absl::FailedPreconditionError("the plate is empty: nothing to eat");
+  }
+  if (item_index.has_value()) {
+    if (*item_index < 0 || *item_index >= count) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "item_index ", *item_index, " is not on the plate (",
+          Count(count, "item", "items"), ": 0 to ", count - 1, ")"));
+    }
+    return *item_index;
+  }
+  // The robot's choice: the most confident detection.
+  const auto& items = state_.items();
+  return static_cast<int>(
+      std::max_element(items.begin(), items.end(),
+                       [](const v1::FoodItem& a, const v1::FoodItem& b) {
+                         return a.score() < b.score();
+                       }) -
+      items.begin());
+}
+
+absl::Status Meal::Bite(std::optional<int> item_index) {
+  if (!busy_mu_.TryLock()) {
+    return absl::FailedPreconditionError("a bite is already running");
+  }
+  BusyGuard busy(&busy_mu_);
+  {
+    absl::MutexLock lock(&mu_);
+    if (!state_.running()) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("meal ", state_.meal_id(), " is over"));
+    }
+  }
+  std::optional<v1::Frame> frame = plate_frame();
+  if (!frame.has_value()) {
+    return absl::FailedPreconditionError(
+        "look at the plate before the first bite");
+  }
+  absl::StatusOr<int> chosen_index = ChooseItem(item_index);
+  if (!chosen_index.ok()) return chosen_index.status();
+  // The previous bite's answer is final now.
+  ConfirmAnswer();
+
+  v1::FoodItem item;
+  {
+    absl::MutexLock lock(&mu_);
+    item = state_.items(*chosen_index);
+    state_.set_bite(state_.bite() + 1);
+    state_.set_phase("biting");
+    state_.set_stopped(false);
+    state_.clear_error();
+    stop_requested_ = false;
+    update_.reset();
+    mealpb::Bite* bite = state_.add_bites();
+    bite->set_number(state_.bite());
+    bite->set_item_index(*chosen_index);
+    bite->set_robots_choice(!item_index.has_value());
+    bite->set_item_label(absl::StrFormat("item@%.0f,%.0f", item.center_px().u(),
+                                         item.center_px().v()));
+    bite->set_outcome("pending");
+    bite->set_learned("pending");
+  }
+  Emit(mealpb::STEP_CHOOSE, mealpb::STEP_STATE_DONE,
+       item_index.has_value()
+           ? absl::StrCat("Item ", *chosen_index + 1, " is next.")
+           : absl::StrCat("The robot chose item ", *chosen_index + 1, "."));
+
+  absl::StatusOr<v1::FeaturizeResponse> features = Featurize(*frame, item);
+  if (!features.ok()) return features.status();
+
+  v1::SelectRequest select;
+  {
+    absl::MutexLock lock(&mu_);
+    select.set_user_id(options_.user_id);
+    select.set_meal_id(options_.meal_id);
+    select.set_item_label(state_.bites().rbegin()->item_label());
+  }
+  *select.mutable_context() = features->context();
+  absl::StatusOr<v1::SelectResponse> chosen = Select(select);
+  if (!chosen.ok()) return chosen.status();
+
+  absl::StatusOr<v1::AcquireResult> result = Acquire(item, chosen->action());
+  if (!result.ok()) return result.status();
+  Judge(*result);
+  absl::Status classified = Classify(*result);
+  if (!classified.ok()) return classified;
+  Learn();
+  return absl::OkStatus();
+}
+
+absl::StatusOr<v1::FeaturizeResponse> Meal::Featurize(
+    const v1::Frame& frame, const v1::FoodItem& item) {
+  Emit(mealpb::STEP_FEATURIZE, mealpb::STEP_STATE_STARTED,
+       "Looking closely at the item.");
+  absl::StatusOr<v1::FeaturizeResponse> features =
+      clients_->perception.Featurize(frame, item.bbox());
+  if (!features.ok()) {
+    Fail(mealpb::STEP_FEATURIZE, features.status(), "error",
+         "nothing was selected; nothing is pending")
+        .IgnoreError();
+    return features.status();
+  }
+  if (!user_.has_value()) {
+    absl::Status ready = EnsureUser(features->context_size(),
+                                    features->context_mean_squared_norm());
+    if (!ready.ok()) {
+      Fail(mealpb::STEP_FEATURIZE, ready, "error",
+           "nothing was selected; nothing is pending")
+          .IgnoreError();
+      return ready;
+    }
+  }
+  Emit(mealpb::STEP_FEATURIZE, mealpb::STEP_STATE_DONE,
+       absl::StrCat("Described the item with ", features->context_size(),
+                    " numbers (", features->featurizer(), ")."));
+  return features;
+}
+
+absl::Status Meal::EnsureUser(int context_dim, double context_msn) {
+  absl::StatusOr<v1::User> user = clients_->bandit.GetUser(options_.user_id);
+  if (user.ok()) {
+    if (static_cast<int>(user->config().context_dim()) != context_dim) {
+      return absl::FailedPreconditionError(absl::StrFormat(
+          "%s learns from %u context values but the featurizer gives %d; use "
+          "another person or the featurizer %s started with",
+          options_.user_id, user->config().context_dim(), context_dim,
+          options_.user_id));
+    }
+    if (listener_ != nullptr) {
+      listener_->OnNote(absl::StrFormat(
+          "user %s continues from model version %lld (%s)", options_.user_id,
+          static_cast<long long>(user->model_version()),
+          v1::Learner_Name(user->config().learner())));
+    }
+    user_ = *std::move(user);
+    return absl::OkStatus();
+  }
+  if (!absl::IsNotFound(user.status())) return user.status();
+  v1::CreateUserRequest create;
+  create.set_user_id(options_.user_id);
+  v1::UserConfig* config = create.mutable_config();
+  config->set_context_dim(context_dim);
+  config->set_learner(options_.posthoc == PosthocMode::kNone
+                          ? v1::LEARNER_CONTEXT_ONLY
+                          : v1::LEARNER_POSTHOC);
+  const double lambda_c = domain::NewUserContextRidge(
+      options_.lambda_c, options_.rho_c, context_msn);
+  if (lambda_c > 0.0) config->set_lambda_c(lambda_c);
+  if (listener_ != nullptr) {
+    listener_->OnNote(
+        options_.lambda_c > 0.0
+            ? absl::StrFormat("context ridge lambda_c = %.4g (given)", lambda_c)
+        : lambda_c > 0.0
+            ? absl::StrFormat("context ridge lambda_c = %.4g (rho_c %.3g x "
+                              "E||c||^2 %.4g of the featurizer on seen foods)",
+                              lambda_c, options_.rho_c, context_msn)
+            : std::string("the featurizer reports no E||c||^2: the "
+                          "BanditService's default lambda_c applies"));
+  }
+  if (options_.alpha >= 0.0) config->set_alpha(options_.alpha);
+  if (options_.prior_rounds > 0.0) {
+    config->set_prior_rounds(options_.prior_rounds);
+  }
+  absl::StatusOr<v1::User> created = clients_->bandit.CreateUser(create);
+  if (!created.ok()) return created.status();
+  if (listener_ != nullptr) {
+    listener_->OnNote(absl::StrFormat(
+        "new user %s (%s, context dim %u%s)", options_.user_id,
+        v1::Learner_Name(created->config().learner()),
+        created->config().context_dim(),
+        created->config().prior_pool_version() > 0
+            ? absl::StrFormat(", population prior from pool %d worth %g rounds",
+                              created->config().prior_pool_version(),
+                              created->config().prior_rounds())
+            : ""));
+  }
+  user_ = *std::move(created);
+  return absl::OkStatus();
+}
+
+absl::StatusOr<v1::SelectResponse> Meal::Select(
+    const v1::SelectRequest& request) {
+  Emit(mealpb::STEP_SELECT, mealpb::STEP_STATE_STARTED,
+       "Choosing how to pick it up.");
+  absl::StatusOr<v1::SelectResponse> chosen = clients_->bandit.Select(request);
+  if (!chosen.ok()) {
+    Fail(mealpb::STEP_SELECT, chosen.status(), "error",
+         "nothing is pending unless the BanditService recorded the selection "
+         "before failing")
+        .IgnoreError();
+    return chosen.status();
+  }
+  std::string text;
+  {
+    absl::MutexLock lock(&mu_);
+    mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
+    *bite->mutable_action() =
+        DescribeAction(chosen->action(), chosen->action_name());
+    *bite->mutable_estimates() = chosen->estimates();
+    bite->set_event_id(chosen->event_id());
+    text =
+        absl::StrFormat("%s: %s. %s", chosen->action_name(),
+                        bite->action().title(), bite->action().description());
+  }
+  Emit(mealpb::STEP_SELECT, mealpb::STEP_STATE_DONE, text);
+  return chosen;
+}
+
+absl::StatusOr<v1::AcquireResult> Meal::Acquire(const v1::FoodItem& item,
+                                                int action) {
+  v1::AcquireRequest request;
+  *request.mutable_target()->mutable_center_camera_m() = item.center_camera_m();
+  request.mutable_target()->set_major_axis_angle_rad(
+      item.major_axis_angle_rad());
+  *request.mutable_target()->mutable_bbox() = item.bbox();
+  request.set_action(action);
+  Emit(mealpb::STEP_ACQUIRE, mealpb::STEP_STATE_STARTED, "The arm is moving.");
+  absl::StatusOr<v1::AcquireResult> result = clients_->robot.Acquire(
+      request, [&](const v1::AcquireProgress& progress) {
+        if (!progress.has_result()) EmitProgress(progress);
+      });
+  if (!result.ok()) {
+    bool stopped = false;
+    std::string phase;
+    {
+      absl::MutexLock lock(&mu_);
+      stopped = stop_requested_;
+      phase = PhaseWord(state_.bites().rbegin()->phase());
+    }
+    if (stopped) {
+      Fail(mealpb::STEP_ACQUIRE,
+           absl::AbortedError(absl::StrCat("Stopped by STOP during ", phase,
+                                           "; the arm is halted")),
+           "stopped", "nothing is learned from this bite (it stays pending)")
+          .IgnoreError();
+    } else {
+      Fail(mealpb::STEP_ACQUIRE, result.status(), "error",
+           "nothing is learned from this bite (it stays pending)")
+          .IgnoreError();
+    }
+    return result.status();
+  }
+  {
+    absl::MutexLock lock(&mu_);
+    mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
+    bite->set_phase(v1::ACQUIRE_PHASE_DONE);
+    bite->set_food(result->true_food_type());
+    bite->set_peak_force_n(result->peak_force_n());
+  }
+  Emit(mealpb::STEP_ACQUIRE, mealpb::STEP_STATE_DONE,
+       absl::StrFormat("The arm is back (peak force %.1f N).",
+                       result->peak_force_n()));
+  return result;
+}
+
+void Meal::Judge(const v1::AcquireResult& result) {
+  const bool ask = options_.confirm == ConfirmBy::kOperator ||
+                   result.success_decided_by_operator();
+  std::string text;
+  {
+    absl::MutexLock lock(&mu_);
+    mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
+    update_.emplace();
+    update_->event_id = bite->event_id();
+    if (ask) {
+      bite->set_question(OperatorQuestion(*bite));
+      bite->set_learned("awaiting answer");
+      text = bite->question();
+    } else {
+      update_->loss = result.success() ? 0.0 : 1.0;
+      bite->set_outcome(result.success() ? "success" : "failure");
+      text = absl::StrCat(
+          result.success() ? "Success: " : "Failure: ", FoodOf(*bite),
+          result.success() ? " came" : " did not come", " up on the fork.");
+      Recount();
+    }
+  }
+  Emit(mealpb::STEP_JUDGE,
+       ask ? mealpb::STEP_STATE_WAITING : mealpb::STEP_STATE_DONE, text);
+}
+
+absl::Status Meal::Classify(const v1::AcquireResult& result) {
+  Emit(mealpb::STEP_CLASSIFY, mealpb::STEP_STATE_STARTED,
+       "Feeling what the food was like.");
+  absl::StatusOr<v1::ClassifyResponse> haptic =
+      clients_->haptic.Classify(result.trace());
+  if (!haptic.ok()) {
+    if (options_.posthoc != PosthocMode::kNone) {
+      // Without a haptic class the post hoc learner cannot use this bite.
+      return Fail(mealpb::STEP_CLASSIFY, haptic.status(),
+                  state().current().outcome(),
+                  "nothing is learned from this bite (it stays pending)");
+    }
+    Emit(mealpb::STEP_CLASSIFY, mealpb::STEP_STATE_DONE,
+         absl::StrCat("No haptic class (", haptic.status().message(),
+                      "); vision only, so the bite is still learned."));
+    return absl::OkStatus();
+  }
+  std::string text;
+  std::optional<JournaledUpdate> answered;
+  {
+    absl::MutexLock lock(&mu_);
+    mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
+    const int category = static_cast<int>(haptic->category());
+    mealpb::HapticSummary* summary = bite->mutable_haptic();
+    summary->set_label(HapticLabel(haptic->category()));
+    summary->set_probability(category > 0 &&
+                                     haptic->probabilities_size() >= category
+                                 ? haptic->probabilities(category - 1)
+                                 : 0.0);
+    *summary->mutable_probabilities() = haptic->probabilities();
+    if (update_.has_value()) {
+      if (options_.posthoc == PosthocMode::kLogProbabilities) {
+        update_->posthoc.assign(haptic->log_probabilities().begin(),
+                                haptic->log_probabilities().end());
+      } else if (options_.posthoc == PosthocMode::kProbabilities) {
+        update_->posthoc.assign(haptic->probabilities().begin(),
+                                haptic->probabilities().end());
+      }
+    }
+    text = absl::StrFormat("It felt %s (%.0f%% sure).", summary->label(),
+                           100.0 * summary->probability());
+    // An answer given while the trace was being classified is saved now.
+    if (!bite->answer().empty() && update_.has_value()) answered = *update_;
+  }
+  Emit(mealpb::STEP_CLASSIFY, mealpb::STEP_STATE_DONE, text);
+  if (answered.has_value()) {
+    absl::Status saved = journal_->Append(*answered);
+    if (!saved.ok()) {
+      absl::MutexLock lock(&mu_);
+      state_.mutable_bites(state_.bites_size() - 1)
+          ->set_learned(absl::StrCat("LOST: ", saved.message()));
+    }
+  }
+  return absl::OkStatus();
+}
+
+void Meal::Learn() {
+  JournaledUpdate update;
+  std::string waiting;
+  {
+    absl::MutexLock lock(&mu_);
+    mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
+    if (!bite->question().empty()) {
+      // The operator's answer, when given, is learned when it is final.
+      waiting =
+          bite->answer().empty()
+              ? "Learned once the question is answered."
+              : "The answer is saved; it is learned when the next bite starts.";
+      bite->set_text(absl::StrCat(FoodOf(*bite), " with ",
+                                  bite->action().name(), ": ",
+                                  bite->question()));
+    } else {
+      update = *update_;
+    }
+  }
+  if (!waiting.empty()) {
+    Emit(mealpb::STEP_LEARN, mealpb::STEP_STATE_WAITING, waiting);
+    return;
+  }
+  Emit(mealpb::STEP_LEARN, mealpb::STEP_STATE_STARTED, "Learning.");
+  v1::UpdateRequest request;
+  request.set_event_id(update.event_id);
+  request.set_loss(update.loss);
+  request.mutable_posthoc()->Add(update.posthoc.begin(), update.posthoc.end());
+  const absl::StatusOr<v1::UpdateResponse> sent =
+      clients_->bandit.Update(request);
+  std::string learned;
+  std::string error;
+  if (sent.ok()) {
+    learned = "learned";
+  } else {
+    error = std::string(sent.status().message());
+    const absl::Status journaled = journal_->Append(update);
+    learned = journaled.ok() ? "journaled"
+                             : absl::StrCat("LOST: ", journaled.message());
+  }
+  std::string text;
+  {
+    absl::MutexLock lock(&mu_);
+    mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
+    bite->set_learned(learned);
+    bite->set_error(error);
+    text = absl::StrCat(
+        FoodOf(*bite), " with ", bite->action().name(), ": ", bite->outcome(),
+        "; ",
+        sent.ok() ? absl::StrCat("learned (model version ",
+                                 sent->model_version(), ")")
+        : learned == "journaled"
+            ? absl::StrCat("saved to be learned later (", error, ")")
+            : learned);
+    bite->set_text(text);
+  }
+  Emit(mealpb::STEP_LEARN,
+       sent.ok() || learned == "journaled" ? mealpb::STEP_STATE_DONE
+                                           : mealpb::STEP_STATE_FAILED,
+       text, error);
+}
+
+absl::Status Meal::Answer(const std::string& event_id, bool success) {
+  std::optional<JournaledUpdate> to_save;
+  std::string text;
+  {
+    absl::MutexLock lock(&mu_);
+    if (state_.bites_size() == 0 ||
+        state_.bites().rbegin()->question().empty()) {
+      return absl::FailedPreconditionError(
+          "no question is open: the robot judged this bite, or its answer is "
+          "already final");
+    }
+    mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
+    if (bite->event_id() != event_id) {
+      return absl::NotFoundError(absl::StrCat(
+          "event ", event_id, " is not the bite awaiting an answer (event ",
+          bite->event_id(), ")"));
+    }
+    bite->set_answer(success ? "yes" : "no");
+    bite->set_outcome(success ? "success" : "failure");
+    if (update_.has_value()) {
+      update_->loss = success ? 0.0 : 1.0;
+      // Saved once the trace is classified (the update needs its post hoc
+      // context); before that, Classify saves it.
+      const bool classified = options_.posthoc == PosthocMode::kNone ||
+                              bite->haptic().probabilities_size() > 0;
+      if (classified) to_save = *update_;
+    }
+    bite->set_learned("answer saved");
+    text = absl::StrFormat(
+        "Answer: %s. It can be changed until the next bite starts.",
+        success ? "yes" : "no");
+    Recount();
+  }
+  if (to_save.has_value()) {
+    absl::Status saved = journal_->Append(*to_save);
+    if (!saved.ok()) {
+      {
+        absl::MutexLock lock(&mu_);
+        state_.mutable_bites(state_.bites_size() - 1)
+            ->set_learned(absl::StrCat("LOST: ", saved.message()));
+      }
+      Emit(mealpb::STEP_JUDGE, mealpb::STEP_STATE_FAILED,
+           "The answer could not be saved.", std::string(saved.message()));
+      return saved;
+    }
+  }
+  Emit(mealpb::STEP_JUDGE, mealpb::STEP_STATE_DONE, text);
+  return absl::OkStatus();
+}
+
+void Meal::ConfirmAnswer() {
+  bool answered = false;
+  {
+    absl::MutexLock lock(&mu_);
+    if (state_.bites_size() == 0) return;
+    mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
+    if (bite->question().empty()) return;
+    bite->clear_question();
+    answered = !bite->answer().empty() && bite->learned() == "answer saved";
+    if (!answered) {
+      bite->set_learned("not learned");
+      bite->set_text(absl::StrCat(FoodOf(*bite), " with ",
+                                  bite->action().name(),
+                                  ": not answered; nothing learned (the "
+                                  "event stays pending)"));
+      *state_.mutable_current() = *bite;
+      return;
+    }
+  }
+  const absl::StatusOr<int> delivered = DeliverJournal();
+  std::string text;
+  {
+    absl::MutexLock lock(&mu_);
+    mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
+    const bool learned = delivered.ok() && *delivered > 0;
+    bite->set_learned(learned ? "learned" : "journaled");
+    text = absl::StrCat(
+        FoodOf(*bite), " with ", bite->action().name(), ": ", bite->outcome(),
+        " (operator); ",
+        learned ? "learned"
+                : absl::StrCat("saved to be learned later (",
+                               delivered.ok() ? "BanditService unavailable"
+                                              : delivered.status().message(),
+                               ")"));
+    bite->set_text(text);
+    *state_.mutable_current() = *bite;
+  }
+  Emit(mealpb::STEP_LEARN, mealpb::STEP_STATE_DONE, text);
+}
+
+absl::StatusOr<v1::StopResponse> Meal::Stop() {
+  {
+    absl::MutexLock lock(&mu_);
+    stop_requested_ = true;
+    state_.set_stopped(true);
+  }
+  return clients_->robot.Stop();
+}
+
+absl::Status Meal::Finish() {
+  if (!busy_mu_.TryLock()) {
+    return absl::FailedPreconditionError(
+        "a bite is running: press STOP or wait for it to end");
+  }
+  BusyGuard busy(&busy_mu_);
+  ConfirmAnswer();
+  std::string text;
+  {
+    absl::MutexLock lock(&mu_);
+    state_.set_running(false);
+    state_.set_phase("ended");
+    text = absl::StrCat("Meal ", state_.meal_id(),
+                        " is over: ", state_.summary().text(), ".");
+  }
+  Emit(mealpb::STEP_UNSPECIFIED, mealpb::STEP_STATE_DONE, text);
+  return absl::OkStatus();
+}
+
+}  // namespace bitewise::meals

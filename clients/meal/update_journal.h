@@ -1,0 +1,63 @@
+// UpdateJournal: a small local file of bandit updates not yet delivered. The
+// meal library appends an update here when the BanditService cannot take it
+// (down, network gone), and also an operator's answer as soon as it is given
+// (it may still change until the next bite starts), so that no learning is
+// lost when the process dies; the journal is delivered when the answer is
+// final, when the next meal starts, or at the next run. Updates are
+// idempotent per event_id, so delivering one twice is harmless; a later line
+// for the same event supersedes the earlier ones (a changed answer).
+//
+// Format: one update per line, tab-separated: event_id, loss, then the post
+// hoc values, all doubles printed with 17 significant digits so they read
+// back exactly. Thread-safe; one process owns one journal file.
+#ifndef BITEWISE_CLIENTS_MEAL_UPDATE_JOURNAL_H_
+#define BITEWISE_CLIENTS_MEAL_UPDATE_JOURNAL_H_
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
+
+namespace bitewise::meals {
+
+struct JournaledUpdate {
+  std::string event_id;
+  double loss = 0.0;
+  std::vector<double> posthoc;
+};
+
+class UpdateJournal {
+ public:
+  explicit UpdateJournal(std::string path) : path_(std::move(path)) {}
+
+  const std::string& path() const { return path_; }
+
+  // Appends one update and flushes it to disk (fsync) before returning.
+  absl::Status Append(const JournaledUpdate& update);
+
+  // Every journaled update, oldest first. An absent file is an empty
+  // journal; a malformed line is DATA_LOSS naming the line number.
+  absl::StatusOr<std::vector<JournaledUpdate>> ReadAll() const;
+
+  // Calls `deliver` for the last journaled update of each event, in order,
+  // and rewrites the journal (atomically, by rename) with those that
+  // failed. Returns how many were delivered.
+  absl::StatusOr<int> Drain(
+      const std::function<absl::Status(const JournaledUpdate&)>& deliver);
+
+ private:
+  absl::StatusOr<std::vector<JournaledUpdate>> ReadAllLocked() const
+      ABSL_SHARED_LOCKS_REQUIRED(mu_);
+  absl::Status Rewrite(const std::vector<JournaledUpdate>& updates)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
+
+  const std::string path_;
+  mutable absl::Mutex mu_;
+};
+
+}  // namespace bitewise::meals
+
+#endif  // BITEWISE_CLIENTS_MEAL_UPDATE_JOURNAL_H_

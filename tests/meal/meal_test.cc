@@ -1,0 +1,586 @@
+// The meal library against the four real services in this process (the
+// simulated robot streams real UDP): every step of a bite and its events,
+// the person's choice, the operator's answer and its change, STOP during the
+// descent, and the failure of each service at each step: what the person is
+// told, what stays pending in the BanditService and what is journaled.
+#include "clients/meal/meal.h"
+
+#include <algorithm>
+#include <fstream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "absl/strings/match.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/synchronization/mutex.h"
+#include "gmock/gmock.h"
+#include "gtest/gtest.h"
+#include "services/domain/context_ridge.h"
+#include "tests/common/status_matchers.h"
+#include "tests/meal/four_services.h"
+
+#define ASSERT_OK(expr) ASSERT_THAT(expr, IsOk())
+
+namespace bitewise::meals {
+namespace {
+
+using ::bitewise::testing::FourServices;
+using ::bitewise::testing::FourServicesOptions;
+using ::bitewise::testing::IsOk;
+using ::bitewise::testing::StatusIs;
+using ::testing::HasSubstr;
+
+// Records every event; can act on one (STOP at the descent).
+class RecordingListener : public MealListener {
+ public:
+  void OnEvent(const mealpb::BiteEvent& event,
+               const mealpb::MealState& state) override {
+    std::function<void(const mealpb::BiteEvent&)> hook;
+    {
+      absl::MutexLock lock(&mu_);
+      events_.push_back(event);
+      hook = hook_;
+    }
+    if (hook) hook(event);
+  }
+  void OnNote(const std::string& note) override {
+    absl::MutexLock lock(&mu_);
+    notes_.push_back(note);
+  }
+  void SetHook(std::function<void(const mealpb::BiteEvent&)> hook) {
+    absl::MutexLock lock(&mu_);
+    hook_ = std::move(hook);
+  }
+  std::vector<mealpb::BiteEvent> events() const {
+    absl::MutexLock lock(&mu_);
+    return events_;
+  }
+  std::vector<std::string> notes() const {
+    absl::MutexLock lock(&mu_);
+    return notes_;
+  }
+  // The steps' (step, state) pairs without progress reports.
+  std::vector<std::pair<mealpb::Step, mealpb::StepState>> Steps() const {
+    std::vector<std::pair<mealpb::Step, mealpb::StepState>> steps;
+    for (const mealpb::BiteEvent& e : events()) {
+      if (e.state() != mealpb::STEP_STATE_PROGRESS) {
+        steps.emplace_back(e.step(), e.state());
+      }
+    }
+    return steps;
+  }
+
+ private:
+  mutable absl::Mutex mu_;
+  std::vector<mealpb::BiteEvent> events_;
+  std::vector<std::string> notes_;
+  std::function<void(const mealpb::BiteEvent&)> hook_;
+};
+
+class MealTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    FourServicesOptions options;
+    options.foods = {"strawberry", "carrot", "banana",
+                     "grape",      "kiwi",   "celery"};
+    auto started = FourServices::Start(options);
+    ASSERT_TRUE(started.ok()) << started.status();
+    services_ = started->release();
+  }
+  static void TearDownTestSuite() {
+    delete services_;
+    services_ = nullptr;
+  }
+
+  void SetUp() override {
+    ASSERT_NE(services_, nullptr);
+    services_->faults().Clear();
+    clients_ = std::make_unique<ServiceClients>(services_->channels(),
+                                                CallDeadlines());
+    std::string name =
+        ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    std::replace(name.begin(), name.end(), '/', '-');
+    journal_ = std::make_unique<UpdateJournal>(
+        absl::StrCat(services_->dir(), "/", name, ".journal"));
+    options_.user_id = absl::StrCat("user-", name);
+    options_.meal_id = "lunch";
+  }
+
+  std::unique_ptr<Meal> NewMeal() {
+    return std::make_unique<Meal>(clients_.get(), journal_.get(), options_,
+                                  &listener_);
+  }
+
+  std::vector<v1::Event> Events() {
+    v1::ListEventsRequest request;
+    request.set_user_id(options_.user_id);
+    request.set_page_size(1000);
+    absl::StatusOr<v1::ListEventsResponse> events =
+        clients_->bandit.ListEvents(request);
+    if (absl::IsNotFound(events.status())) return {};
+    EXPECT_TRUE(events.ok()) << events.status();
+    if (!events.ok()) return {};
+    return {events->events().begin(), events->events().end()};
+  }
+
+  static FourServices* services_;
+  std::unique_ptr<ServiceClients> clients_;
+  std::unique_ptr<UpdateJournal> journal_;
+  MealOptions options_;
+  RecordingListener listener_;
+};
+
+FourServices* MealTest::services_ = nullptr;
+
+TEST(MealWordsTest, SingularAndPlural) {
+  EXPECT_EQ(SummaryText(1, 1), "1 attempt, 1 failure");
+  EXPECT_EQ(SummaryText(2, 0), "2 attempts, 0 failures");
+  EXPECT_EQ(SummaryText(0, 0), "0 attempts, 0 failures");
+  EXPECT_EQ(Count(1, "item", "items"), "1 item");
+}
+
+TEST(MealWordsTest, QuestionNamesTheFoodAndTheAction) {
+  mealpb::Bite bite;
+  bite.set_food("strawberry");
+  bite.mutable_action()->set_name("VS0");
+  bite.mutable_action()->set_title("Vertical skewer");
+  EXPECT_EQ(OperatorQuestion(bite),
+            "Did the strawberry come up on the fork with VS0 (Vertical "
+            "skewer)?");
+  bite.clear_food();
+  bite.set_item_index(2);
+  EXPECT_THAT(OperatorQuestion(bite), HasSubstr("Did item 3 come up"));
+}
+
+TEST(ContextRidgeTest, ExplicitThenScaledThenServiceDefault) {
+  EXPECT_EQ(domain::NewUserContextRidge(250.0, 1.0, 45.0), 250.0);
+  EXPECT_EQ(domain::NewUserContextRidge(0.0, 2.0, 45.0), 90.0);
+  EXPECT_EQ(domain::NewUserContextRidge(0.0, 1.0, 0.0), 0.0);
+}
+
+TEST_F(MealTest, RobotsChoiceRunsEveryStepInOrderAndLearns) {
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  mealpb::MealState looked = meal->state();
+  EXPECT_EQ(looked.phase(), "choosing");
+  ASSERT_GT(looked.items_size(), 0);
+  EXPECT_EQ(looked.plate_version(), 1);
+  EXPECT_EQ(looked.frame_width(), 640);
+  ASSERT_OK(meal->Bite(std::nullopt));
+
+  using P = std::pair<mealpb::Step, mealpb::StepState>;
+  const std::vector<P> expected = {
+      {mealpb::STEP_CAPTURE, mealpb::STEP_STATE_STARTED},
+      {mealpb::STEP_CAPTURE, mealpb::STEP_STATE_DONE},
+      {mealpb::STEP_DETECT, mealpb::STEP_STATE_STARTED},
+      {mealpb::STEP_DETECT, mealpb::STEP_STATE_DONE},
+      {mealpb::STEP_CHOOSE, mealpb::STEP_STATE_DONE},
+      {mealpb::STEP_FEATURIZE, mealpb::STEP_STATE_STARTED},
+      {mealpb::STEP_FEATURIZE, mealpb::STEP_STATE_DONE},
+      {mealpb::STEP_SELECT, mealpb::STEP_STATE_STARTED},
+      {mealpb::STEP_SELECT, mealpb::STEP_STATE_DONE},
+      {mealpb::STEP_ACQUIRE, mealpb::STEP_STATE_STARTED},
+      {mealpb::STEP_ACQUIRE, mealpb::STEP_STATE_DONE},
+      {mealpb::STEP_JUDGE, mealpb::STEP_STATE_DONE},
+      {mealpb::STEP_CLASSIFY, mealpb::STEP_STATE_STARTED},
+      {mealpb::STEP_CLASSIFY, mealpb::STEP_STATE_DONE},
+      {mealpb::STEP_LEARN, mealpb::STEP_STATE_STARTED},
+      {mealpb::STEP_LEARN, mealpb::STEP_STATE_DONE}};
+  EXPECT_EQ(listener_.Steps(), expected);
+
+  // Progress streamed through every phase of the motion.
+  std::vector<v1::AcquirePhase> phases;
+  for (const mealpb::BiteEvent& e : listener_.events()) {
+    if (e.state() != mealpb::STEP_STATE_PROGRESS) continue;
+    EXPECT_EQ(e.bite(), 1);
+    EXPECT_GT(e.wall_time_s(), 1.6e9);
+    if (phases.empty() || phases.back() != e.phase()) {
+      phases.push_back(e.phase());
+    }
+  }
+  EXPECT_THAT(phases, ::testing::ElementsAre(v1::ACQUIRE_PHASE_APPROACH,
+                                             v1::ACQUIRE_PHASE_ORIENT,
+                                             v1::ACQUIRE_PHASE_DESCEND,
+                                             v1::ACQUIRE_PHASE_EXTRACT));
+
+  const mealpb::MealState state = meal->state();
+  const mealpb::Bite& bite = state.current();
+  EXPECT_EQ(bite.number(), 1);
+  EXPECT_TRUE(bite.robots_choice());
+  // The robot's choice is the most confident detection.
+  int best = 0;
+  for (int i = 1; i < looked.items_size(); ++i) {
+    if (looked.items(i).score() > looked.items(best).score()) best = i;
+  }
+  EXPECT_EQ(bite.item_index(), best);
+  EXPECT_FALSE(bite.food().empty());
+  EXPECT_FALSE(bite.action().title().empty());
+  EXPECT_FALSE(bite.action().description().empty());
+  EXPECT_EQ(bite.estimates_size(), 6);
+  EXPECT_GT(bite.forces_size(), 5);
+  EXPECT_THAT(bite.outcome(), ::testing::AnyOf("success", "failure"));
+  EXPECT_EQ(bite.learned(), "learned");
+  EXPECT_FALSE(bite.haptic().label().empty());
+  EXPECT_EQ(state.summary().attempts(), 1);
+  EXPECT_EQ(state.bites_size(), 1);
+
+  // The BanditService holds the completed event, as the person was told.
+  const std::vector<v1::Event> events = Events();
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_TRUE(events[0].completed());
+  EXPECT_EQ(events[0].event_id(), bite.event_id());
+  EXPECT_EQ(events[0].meal_id(), "lunch");
+  EXPECT_EQ(events[0].item_label(), bite.item_label());
+  EXPECT_EQ(events[0].loss(), bite.outcome() == "success" ? 0.0 : 1.0);
+  EXPECT_EQ(events[0].posthoc_size(), 4);
+
+  // A new user's context ridge is rho_c x the featurizer's E||c||^2.
+  absl::StatusOr<v1::User> user = clients_->bandit.GetUser(options_.user_id);
+  ASSERT_OK(user.status());
+  EXPECT_EQ(user->config().learner(), v1::LEARNER_POSTHOC);
+  EXPECT_GT(user->config().lambda_c(), 0.0);
+  EXPECT_THAT(listener_.notes(),
+              ::testing::Contains(HasSubstr("context ridge lambda_c")));
+}
+
+TEST_F(MealTest, ThePersonChoosesTheItem) {
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  const mealpb::MealState looked = meal->state();
+  ASSERT_GE(looked.items_size(), 3);
+  ASSERT_OK(meal->Bite(2));
+  const mealpb::Bite bite = meal->state().current();
+  EXPECT_EQ(bite.item_index(), 2);
+  EXPECT_FALSE(bite.robots_choice());
+  EXPECT_EQ(bite.item_label(),
+            absl::StrFormat("item@%.0f,%.0f", looked.items(2).center_px().u(),
+                            looked.items(2).center_px().v()));
+}
+
+TEST_F(MealTest, AnItemNotOnThePlateChangesNothing) {
+  auto meal = NewMeal();
+  EXPECT_THAT(meal->Bite(0), StatusIs(absl::StatusCode::kFailedPrecondition,
+                                      HasSubstr("look at the plate")));
+  ASSERT_OK(meal->LookAtPlate());
+  const int count = meal->state().items_size();
+  EXPECT_THAT(meal->Bite(count), StatusIs(absl::StatusCode::kInvalidArgument,
+                                          HasSubstr("is not on the plate")));
+  EXPECT_THAT(meal->Bite(-1),
+              StatusIs(absl::StatusCode::kInvalidArgument, ::testing::_));
+  EXPECT_EQ(meal->state().bites_size(), 0);
+  EXPECT_EQ(meal->state().bite(), 0);
+  EXPECT_TRUE(Events().empty());
+}
+
+TEST_F(MealTest, OperatorAnswerCanChangeAndIsLearnedWhenFinal) {
+  options_.confirm = ConfirmBy::kOperator;
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  ASSERT_OK(meal->Bite(std::nullopt));
+  mealpb::Bite bite = meal->state().current();
+  // The question names the food and the action.
+  EXPECT_THAT(bite.question(), HasSubstr(bite.food()));
+  EXPECT_THAT(bite.question(), HasSubstr(bite.action().name()));
+  EXPECT_EQ(bite.outcome(), "pending");
+  EXPECT_EQ(bite.learned(), "awaiting answer");
+  EXPECT_EQ(meal->state().summary().attempts(), 0);
+  // Nothing is learned before the answer.
+  ASSERT_EQ(Events().size(), 1u);
+  EXPECT_FALSE(Events()[0].completed());
+
+  EXPECT_THAT(meal->Answer("no-such-event", true),
+              StatusIs(absl::StatusCode::kNotFound, ::testing::_));
+  ASSERT_OK(meal->Answer(bite.event_id(), true));
+  EXPECT_EQ(meal->state().current().answer(), "yes");
+  EXPECT_EQ(meal->state().summary().text(), "1 attempt, 0 failures");
+  // Changed once: still not learned, but saved.
+  ASSERT_OK(meal->Answer(bite.event_id(), false));
+  bite = meal->state().current();
+  EXPECT_EQ(bite.answer(), "no");
+  EXPECT_EQ(bite.learned(), "answer saved");
+  EXPECT_EQ(meal->state().summary().text(), "1 attempt, 1 failure");
+  EXPECT_FALSE(Events()[0].completed());
+  absl::StatusOr<std::vector<JournaledUpdate>> saved = journal_->ReadAll();
+  ASSERT_OK(saved.status());
+  ASSERT_EQ(saved->size(), 2u);
+  EXPECT_EQ(saved->back().loss, 1.0);
+
+  // The next bite makes the answer final: learned as "no".
+  ASSERT_OK(meal->LookAtPlate());
+  ASSERT_OK(meal->Bite(std::nullopt));
+  const mealpb::MealState state = meal->state();
+  EXPECT_EQ(state.bites(0).learned(), "learned");
+  EXPECT_TRUE(state.bites(0).question().empty());
+  std::vector<v1::Event> events = Events();
+  ASSERT_EQ(events.size(), 2u);
+  EXPECT_TRUE(events[0].completed());
+  EXPECT_EQ(events[0].loss(), 1.0);
+  EXPECT_EQ(events[0].posthoc_size(), 4);
+  EXPECT_TRUE(journal_->ReadAll()->empty());
+  // Finishing the meal settles the second bite: unanswered, not learned.
+  EXPECT_THAT(meal->Answer(state.bites(0).event_id(), true),
+              StatusIs(absl::StatusCode::kNotFound, ::testing::_));
+  ASSERT_OK(meal->Finish());
+  EXPECT_EQ(meal->state().bites(1).learned(), "not learned");
+  EXPECT_FALSE(Events()[1].completed());
+  EXPECT_THAT(meal->Answer(state.bites(1).event_id(), true),
+              StatusIs(absl::StatusCode::kFailedPrecondition, ::testing::_));
+  EXPECT_EQ(meal->state().phase(), "ended");
+  EXPECT_THAT(meal->LookAtPlate(),
+              StatusIs(absl::StatusCode::kFailedPrecondition, ::testing::_));
+}
+
+TEST_F(MealTest, StopDuringTheDescentEndsTheBiteAsStopped) {
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  std::optional<absl::StatusOr<v1::StopResponse>> stopped;
+  std::thread stopper;
+  listener_.SetHook([&](const mealpb::BiteEvent& e) {
+    if (e.phase() == v1::ACQUIRE_PHASE_DESCEND && !stopper.joinable()) {
+      stopper = std::thread([&] { stopped = meal->Stop(); });
+    }
+  });
+  EXPECT_THAT(meal->Bite(std::nullopt),
+              StatusIs(absl::StatusCode::kAborted, ::testing::_));
+  listener_.SetHook(nullptr);
+  ASSERT_TRUE(stopper.joinable());
+  stopper.join();
+  ASSERT_TRUE(stopped.has_value());
+  ASSERT_OK(stopped->status());
+  EXPECT_TRUE((*stopped)->was_moving());
+  const mealpb::MealState state = meal->state();
+  EXPECT_TRUE(state.stopped());
+  EXPECT_EQ(state.current().outcome(), "stopped");
+  EXPECT_EQ(state.current().learned(), "not learned");
+  EXPECT_THAT(state.message(), HasSubstr("Stopped by STOP during descend"));
+  EXPECT_EQ(state.summary().attempts(), 0);
+  // The selected event stays pending; nothing was learned.
+  ASSERT_EQ(Events().size(), 1u);
+  EXPECT_FALSE(Events()[0].completed());
+  // The meal goes on.
+  ASSERT_OK(meal->LookAtPlate());
+  ASSERT_OK(meal->Bite(std::nullopt));
+  EXPECT_EQ(meal->state().current().learned(), "learned");
+}
+
+TEST_F(MealTest, ASecondBiteWhileOneRunsIsRefused) {
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  std::optional<absl::Status> second;
+  std::optional<absl::Status> look;
+  listener_.SetHook([&](const mealpb::BiteEvent& e) {
+    if (e.step() == mealpb::STEP_ACQUIRE && !second.has_value()) {
+      second = meal->Bite(std::nullopt);
+      look = meal->LookAtPlate();
+    }
+  });
+  ASSERT_OK(meal->Bite(std::nullopt));
+  listener_.SetHook(nullptr);
+  ASSERT_TRUE(second.has_value());
+  EXPECT_THAT(*second, StatusIs(absl::StatusCode::kFailedPrecondition,
+                                HasSubstr("already running")));
+  EXPECT_THAT(*look,
+              StatusIs(absl::StatusCode::kFailedPrecondition, ::testing::_));
+  EXPECT_EQ(meal->state().bites_size(), 1);
+  EXPECT_EQ(Events().size(), 1u);
+}
+
+// The failure of each service at each step.
+struct StepFault {
+  const char* name;
+  const char* method;
+  mealpb::Step step;
+  bool at_look;        // fails LookAtPlate rather than Bite
+  int pending_events;  // selected but not learned
+  // Of the bite: "" when no bite began, "verdict" for the robot's.
+  const char* outcome;
+  const char* told;  // part of what the person reads
+};
+
+class MealFaultTest : public MealTest,
+                      public ::testing::WithParamInterface<StepFault> {};
+
+TEST_P(MealFaultTest, TellsWhatFailedAndKeepsWhatItMust) {
+  const StepFault& fault = GetParam();
+  auto meal = NewMeal();
+  services_->faults().Fail(fault.method,
+                           absl::UnavailableError("the service is down"));
+  absl::Status status = meal->LookAtPlate();
+  if (!fault.at_look) {
+    ASSERT_OK(status);
+    status = meal->Bite(std::nullopt);
+  }
+  EXPECT_THAT(status,
+              StatusIs(absl::StatusCode::kUnavailable, HasSubstr(fault.told)));
+  const mealpb::MealState state = meal->state();
+  EXPECT_EQ(state.phase(), "failed");
+  EXPECT_THAT(state.error(), HasSubstr(fault.told));
+  EXPECT_THAT(state.message(), HasSubstr("the service is down"));
+  const std::vector<mealpb::BiteEvent> events = listener_.events();
+  ASSERT_FALSE(events.empty());
+  EXPECT_EQ(events.back().step(), fault.step);
+  EXPECT_EQ(events.back().state(), mealpb::STEP_STATE_FAILED);
+  if (fault.at_look) {
+    EXPECT_EQ(state.bites_size(), 0);
+  } else {
+    if (std::string(fault.outcome) == "verdict") {
+      EXPECT_THAT(state.current().outcome(),
+                  ::testing::AnyOf("success", "failure"));
+    } else {
+      EXPECT_EQ(state.current().outcome(), fault.outcome);
+    }
+    EXPECT_EQ(state.current().learned(), "not learned");
+    EXPECT_THAT(state.current().text(), HasSubstr(fault.told));
+  }
+  const std::vector<v1::Event> stored = Events();
+  ASSERT_EQ(static_cast<int>(stored.size()), fault.pending_events);
+  for (const v1::Event& e : stored) EXPECT_FALSE(e.completed());
+  EXPECT_TRUE(journal_->ReadAll()->empty());
+
+  // With the service back, the meal goes on.
+  services_->faults().Clear();
+  ASSERT_OK(meal->LookAtPlate());
+  ASSERT_OK(meal->Bite(std::nullopt));
+  EXPECT_EQ(meal->state().current().learned(), "learned");
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    EachServiceAtEachStep, MealFaultTest,
+    ::testing::Values(
+        StepFault{"Capture", "/bitewise.v1.RobotService/CaptureFrame",
+                  mealpb::STEP_CAPTURE, true, 0, "",
+                  "RobotService.CaptureFrame failed: UNAVAILABLE"},
+        StepFault{"Detect", "/bitewise.v1.PerceptionService/DetectFood",
+                  mealpb::STEP_DETECT, true, 0, "",
+                  "PerceptionService.DetectFood failed"},
+        StepFault{"Featurize", "/bitewise.v1.PerceptionService/Featurize",
+                  mealpb::STEP_FEATURIZE, false, 0, "error",
+                  "PerceptionService.Featurize failed"},
+        StepFault{"FindUser", "/bitewise.v1.BanditService/GetUser",
+                  mealpb::STEP_FEATURIZE, false, 0, "error",
+                  "BanditService.GetUser failed"},
+        StepFault{"Select", "/bitewise.v1.BanditService/Select",
+                  mealpb::STEP_SELECT, false, 0, "error",
+                  "BanditService.Select failed"},
+        StepFault{"Acquire", "/bitewise.v1.RobotService/Acquire",
+                  mealpb::STEP_ACQUIRE, false, 1, "error",
+                  "RobotService.Acquire failed"},
+        StepFault{"Classify", "/bitewise.v1.HapticService/Classify",
+                  mealpb::STEP_CLASSIFY, false, 1, "verdict",
+                  "HapticService.Classify failed"}),
+    [](const ::testing::TestParamInfo<StepFault>& info) {
+      return std::string(info.param.name);
+    });
+
+// A failed haptic class keeps the robot's verdict: the bite counts as an
+// attempt, though nothing is learned from it.
+TEST_F(MealTest, ClassifyFailureKeepsTheVerdictButLearnsNothing) {
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  services_->faults().Fail("/bitewise.v1.HapticService/Classify",
+                           absl::UnavailableError("haptic down"));
+  EXPECT_THAT(meal->Bite(std::nullopt),
+              StatusIs(absl::StatusCode::kUnavailable, ::testing::_));
+  const mealpb::Bite bite = meal->state().current();
+  EXPECT_THAT(bite.outcome(), ::testing::AnyOf("success", "failure"));
+  EXPECT_EQ(meal->state().summary().attempts(), 1);
+  EXPECT_THAT(bite.text(), HasSubstr("nothing is learned"));
+}
+
+// Vision only: without a haptic class the bite is still learned.
+TEST_F(MealTest, VisionOnlyLearnsWithoutTheHapticService) {
+  options_.posthoc = PosthocMode::kNone;
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  services_->faults().Fail("/bitewise.v1.HapticService/Classify",
+                           absl::UnavailableError("haptic down"));
+  ASSERT_OK(meal->Bite(std::nullopt));
+  EXPECT_EQ(meal->state().current().learned(), "learned");
+  const std::vector<v1::Event> events = Events();
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_TRUE(events[0].completed());
+  EXPECT_EQ(events[0].posthoc_size(), 0);
+  absl::StatusOr<v1::User> user = clients_->bandit.GetUser(options_.user_id);
+  ASSERT_OK(user.status());
+  EXPECT_EQ(user->config().learner(), v1::LEARNER_CONTEXT_ONLY);
+}
+
+// An Update the BanditService cannot take goes to the journal, and is
+// delivered once the service is back.
+TEST_F(MealTest, AnUpdateThatCannotBeDeliveredIsJournaled) {
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  services_->faults().Fail("/bitewise.v1.BanditService/Update",
+                           absl::UnavailableError("bandit down"));
+  ASSERT_OK(meal->Bite(std::nullopt));
+  const mealpb::Bite bite = meal->state().current();
+  EXPECT_EQ(bite.learned(), "journaled");
+  EXPECT_THAT(bite.text(), HasSubstr("saved to be learned later"));
+  EXPECT_THAT(bite.error(), HasSubstr("BanditService.Update failed"));
+  absl::StatusOr<std::vector<JournaledUpdate>> saved = journal_->ReadAll();
+  ASSERT_OK(saved.status());
+  ASSERT_EQ(saved->size(), 1u);
+  EXPECT_EQ((*saved)[0].event_id, bite.event_id());
+  EXPECT_FALSE(Events()[0].completed());
+
+  // Still down: the journal keeps it.
+  EXPECT_EQ(*meal->DeliverJournal(), 0);
+  EXPECT_EQ(journal_->ReadAll()->size(), 1u);
+  services_->faults().Clear();
+  EXPECT_EQ(*meal->DeliverJournal(), 1);
+  EXPECT_TRUE(journal_->ReadAll()->empty());
+  EXPECT_TRUE(Events()[0].completed());
+  EXPECT_EQ(Events()[0].loss(), bite.outcome() == "success" ? 0.0 : 1.0);
+}
+
+// An answer given before a crash is delivered by the next run.
+TEST_F(MealTest, AnAnswerSurvivesTheProcess) {
+  options_.confirm = ConfirmBy::kOperator;
+  std::string event_id;
+  {
+    auto meal = NewMeal();
+    ASSERT_OK(meal->LookAtPlate());
+    ASSERT_OK(meal->Bite(std::nullopt));
+    event_id = meal->state().current().event_id();
+    ASSERT_OK(meal->Answer(event_id, true));
+    // The meal object is dropped without finishing, as a killed process.
+  }
+  EXPECT_FALSE(Events()[0].completed());
+  auto next = NewMeal();
+  EXPECT_EQ(*next->DeliverJournal(), 1);
+  ASSERT_TRUE(Events()[0].completed());
+  EXPECT_EQ(Events()[0].loss(), 0.0);
+}
+
+// The last item eaten, the plate is empty and the meal ends.
+TEST_F(MealTest, AnEmptyPlateEndsTheMeal) {
+  FourServicesOptions options;
+  options.foods = {"carrot"};
+  options.seed = 11;
+  auto small = FourServices::Start(options);
+  ASSERT_OK(small.status());
+  ServiceClients clients((*small)->channels(), CallDeadlines());
+  Meal meal(&clients, journal_.get(), options_, &listener_);
+  int bites = 0;
+  while (bites < 12) {
+    ASSERT_OK(meal.LookAtPlate());
+    if (!meal.state().running()) break;
+    ASSERT_OK(meal.Bite(std::nullopt));
+    ++bites;
+  }
+  const mealpb::MealState state = meal.state();
+  EXPECT_EQ(state.phase(), "ended");
+  EXPECT_EQ(state.items_size(), 0);
+  EXPECT_THAT(state.message(), HasSubstr("The plate is empty"));
+  EXPECT_EQ(state.summary().attempts(), bites);
+  EXPECT_EQ(state.summary().failures(), bites - 1);
+  EXPECT_THAT(meal.Bite(std::nullopt),
+              StatusIs(absl::StatusCode::kFailedPrecondition, ::testing::_));
+}
+
+}  // namespace
+}  // namespace bitewise::meals
