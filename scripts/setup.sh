@@ -14,6 +14,8 @@ PACKAGES=(
   libpq-dev postgresql-15  # the PostgreSQL store; its tests start a server
   prometheus-cpp-dev
   clang libclang-rt-14-dev  # the libFuzzer targets (scripts/fuzz.sh)
+  # bitewise-console: its HTTP(S) server, and Chromium for its browser test
+  libcpp-httplib-dev libssl-dev zlib1g-dev libbrotli-dev chromium
 )
 # SPANet's PyTorch definition, export tool and their tests (scripts/spanet):
 # CPU PyTorch, without its recommended C++ headers.
@@ -40,6 +42,11 @@ install_missing() {  # install_missing [apt options] -- packages...
   fi
 }
 install_missing -- "${PACKAGES[@]}"
+# The console's web app is bundled with npm at build time. A machine with
+# Node.js from elsewhere keeps it; otherwise Debian's.
+if ! command -v npm >/dev/null || ! command -v node >/dev/null; then
+  install_missing -- nodejs npm
+fi
 install_missing --no-install-recommends -- "${PYTHON_PACKAGES[@]}"
 
 JOBS="${BITEWISE_JOBS:-$(nproc)}"

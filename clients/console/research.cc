@@ -1,0 +1,189 @@
+#include "clients/console/research.h"
+
+#include <google/protobuf/util/time_util.h>
+
+#include <map>
+
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "services/domain/user_id.h"
+
+namespace bitewise::console {
+namespace {
+
+using google::protobuf::util::TimeUtil;
+
+// Enough pages for any person's history; a longer one is an error rather
+// than a silent cut.
+constexpr int kMaxPages = 10000;
+
+std::string Doubles(const google::protobuf::RepeatedField<double>& values) {
+  return absl::StrJoin(values, ";", [](std::string* out, double v) {
+    absl::StrAppend(out, absl::StrFormat("%.17g", v));
+  });
+}
+
+// A CSV cell: quoted when it holds a separator, a quote or a line break.
+std::string Cell(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (char c : text) {
+    if (c == '"') quoted += '"';
+    quoted += c;
+  }
+  return quoted + "\"";
+}
+
+std::string Time(const google::protobuf::Timestamp& t) {
+  if (t.seconds() == 0 && t.nanos() == 0) return "";
+  return TimeUtil::ToString(t);
+}
+
+}  // namespace
+
+absl::StatusOr<v1::ListUsersResponse> AllUsers(meals::BanditClient& bandit) {
+  v1::ListUsersResponse all;
+  v1::ListUsersRequest request;
+  request.set_page_size(1000);
+  for (int page = 0; page < kMaxPages; ++page) {
+    absl::StatusOr<v1::ListUsersResponse> response = bandit.ListUsers(request);
+    if (!response.ok()) return response.status();
+    for (v1::User& user : *response->mutable_users()) {
+      *all.add_users() = std::move(user);
+    }
+    if (response->next_page_token().empty()) return all;
+    request.set_page_token(response->next_page_token());
+  }
+  return absl::ResourceExhaustedError("more users than the console lists");
+}
+
+absl::StatusOr<std::vector<v1::Event>> AllEvents(meals::BanditClient& bandit,
+                                                 const std::string& user_id,
+                                                 const std::string& meal_id,
+                                                 bool with_contexts,
+                                                 bool* contexts_withheld) {
+  if (absl::Status valid = domain::ValidateUserId(user_id); !valid.ok()) {
+    return valid;
+  }
+  std::vector<v1::Event> events;
+  v1::ListEventsRequest request;
+  request.set_user_id(user_id);
+  request.set_meal_id(meal_id);
+  request.set_page_size(1000);
+  if (contexts_withheld != nullptr) *contexts_withheld = false;
+  for (int page = 0; page < kMaxPages; ++page) {
+    absl::StatusOr<v1::ListEventsResponse> response =
+        bandit.ListEvents(request);
+    if (!response.ok()) return response.status();
+    if (contexts_withheld != nullptr && response->contexts_withheld()) {
+      *contexts_withheld = true;
+    }
+    for (v1::Event& event : *response->mutable_events()) {
+      if (!with_contexts) event.clear_context();
+      events.push_back(std::move(event));
+    }
+    if (response->next_page_token().empty()) return events;
+    request.set_page_token(response->next_page_token());
+  }
+  return absl::ResourceExhaustedError(
+      absl::StrCat("more events of ", user_id, " than the console lists"));
+}
+
+consolepb::MealsReply MealsOf(const std::string& user_id,
+                              const std::vector<v1::Event>& events) {
+  consolepb::MealsReply reply;
+  reply.set_user_id(user_id);
+  std::map<std::string, int> index;
+  for (const v1::Event& event : events) {
+    auto [it, added] = index.emplace(event.meal_id(), reply.meals_size());
+    if (added) {
+      consolepb::MealTally* tally = reply.add_meals();
+      tally->set_meal_id(event.meal_id());
+      tally->set_first_selected_at(Time(event.selected_at()));
+    }
+    consolepb::MealTally* tally = reply.mutable_meals(it->second);
+    if (!event.completed()) {
+      tally->set_pending(tally->pending() + 1);
+      continue;
+    }
+    tally->set_attempts(tally->attempts() + 1);
+    if (event.loss() >= 0.5) tally->set_failures(tally->failures() + 1);
+  }
+  return reply;
+}
+
+std::string EventsCsv(const std::vector<v1::Event>& events,
+                      bool with_contexts) {
+  std::string csv =
+      "event_id,user_id,meal_id,item_label,action,propensity,completed,loss,"
+      "posthoc,model_version,selected_at,updated_at";
+  if (with_contexts) csv += ",context";
+  csv += "\r\n";
+  for (const v1::Event& e : events) {
+    absl::StrAppend(&csv, Cell(e.event_id()), ",", Cell(e.user_id()), ",",
+                    Cell(e.meal_id()), ",", Cell(e.item_label()), ",",
+                    e.action(), ",", absl::StrFormat("%.17g", e.propensity()),
+                    ",", e.completed() ? "true" : "false", ",",
+                    absl::StrFormat("%.17g", e.loss()), ",",
+                    Doubles(e.posthoc()), ",", e.model_version(), ",",
+                    Time(e.selected_at()), ",", Time(e.updated_at()));
+    if (with_contexts) absl::StrAppend(&csv, ",", Doubles(e.context()));
+    csv += "\r\n";
+  }
+  return csv;
+}
+
+absl::StatusOr<consolepb::EstimatesReply> EstimatesFor(
+    meals::BanditClient& bandit, const std::string& user_id,
+    const std::string& event_id) {
+  int64_t id = 0;
+  if (!absl::SimpleAtoi(event_id, &id) || id <= 0) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("event_id: expected the decimal id of a bite, got \"",
+                     event_id.substr(0, 64), "\""));
+  }
+  bool withheld = false;
+  absl::StatusOr<std::vector<v1::Event>> events =
+      AllEvents(bandit, user_id, "", true, &withheld);
+  if (!events.ok()) return events.status();
+  const v1::Event* event = nullptr;
+  for (const v1::Event& e : *events) {
+    if (e.event_id() == event_id) event = &e;
+  }
+  if (event == nullptr) {
+    return absl::NotFoundError(
+        absl::StrCat("event ", event_id, " is not one of ", user_id, "'s"));
+  }
+  if (withheld || event->context_size() == 0) {
+    return absl::PermissionDeniedError(
+        "the BanditService withholds contexts from this console's identity, "
+        "so no estimate can be computed");
+  }
+  absl::StatusOr<v1::Model> model = bandit.GetModel(user_id);
+  if (!model.ok()) return model.status();
+  consolepb::EstimatesReply reply;
+  reply.set_event_id(event_id);
+  reply.set_user_id(user_id);
+  reply.set_model_version(model->model_version());
+  for (const v1::ActionModel& action : model->actions()) {
+    if (action.theta_size() != event->context_size()) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "the model's theta has ", action.theta_size(),
+          " values but the bite's context ", event->context_size()));
+    }
+    double dot = 0.0;
+    for (int i = 0; i < action.theta_size(); ++i) {
+      dot += action.theta(i) * event->context(i);
+    }
+    consolepb::ActionEstimate* estimate = reply.add_estimates();
+    estimate->set_action(action.action());
+    estimate->set_action_name(action.action_name());
+    estimate->set_predicted_loss(dot);
+    estimate->set_count(action.count());
+  }
+  return reply;
+}
+
+}  // namespace bitewise::console

@@ -1,0 +1,59 @@
+// STOP: on every screen, wired before anything else loads. One POST per
+// press: a pointer press sends on pointerdown (no waiting for the release),
+// and the click that follows the same press is ignored; keyboard presses
+// (Enter, Space) have no pointerdown and send on click.
+
+import { postJSON } from './api.js';
+
+export function initStop(button, status) {
+  let pressSent = false; // this pointer press already sent its POST
+  let latest = 0; // the newest press owns the status line
+
+  // `started`: the input event's time (same clock as performance.now()), so
+  // any wait before this handler ran counts too.
+  async function stop(started) {
+    const press = ++latest;
+    button.setAttribute('aria-busy', 'true');
+    status.className = 'stop-status sending';
+    status.textContent = 'Stopping…';
+    delete status.dataset.wasMoving;
+    try {
+      // High priority, and keepalive: the request goes out even if the page is
+      // being closed or reloaded at that moment.
+      const reply = await postJSON('/api/stop', {}, { priority: 'high', keepalive: true });
+      const ms = performance.now() - started;
+      // Read by the browser tests: click-to-reply time as the page saw it.
+      document.body.dataset.stopReplyMs = ms.toFixed(1);
+      // The console's own part of it (request in to the robot's reply).
+      if (Number.isFinite(reply?.reply_ms)) document.body.dataset.stopServerMs = reply.reply_ms.toFixed(1);
+      if (press !== latest) return;
+      const moving = Boolean(reply?.was_moving);
+      status.className = 'stop-status stopped';
+      status.dataset.wasMoving = String(moving);
+      status.textContent =
+        `Stopped: the arm ${moving ? 'was moving and is halted' : 'was not moving'}` +
+        ` (reply in ${Math.round(ms)} ms, at ${new Date().toLocaleTimeString()}).`;
+    } catch (err) {
+      if (press !== latest) return;
+      status.className = 'stop-status failed';
+      status.textContent = `STOP did not go through: ${err.message}. Use the robot's own emergency stop.`;
+    } finally {
+      if (press === latest) button.removeAttribute('aria-busy');
+    }
+  }
+
+  button.addEventListener('pointerdown', (event) => {
+    if (event.button !== 0) return; // primary button, touch or pen contact
+    pressSent = true;
+    stop(event.timeStamp || performance.now());
+  });
+  button.addEventListener('click', (event) => {
+    // detail is 0 for keyboard and programmatic clicks, which have no pointerdown.
+    if (event.detail !== 0 && pressSent) {
+      pressSent = false;
+      return;
+    }
+    pressSent = false;
+    stop(event.timeStamp || performance.now());
+  });
+}

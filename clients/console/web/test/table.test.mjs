@@ -1,0 +1,286 @@
+// The table view, played through a simulated meal on a real bitewise-console:
+// choose someone new and start by keyboard alone, bite an item by keyboard,
+// tap an item, reload mid-bite, answer the operator's question (when the
+// console asks, BITEWISE_CONSOLE_OPERATOR=1), STOP during DESCEND, and the
+// meal's summary. axe-core checks every state, and each state is
+// screenshotted at 360x740 and 1024x768.
+
+import assert from 'node:assert/strict';
+import { after, before, describe, it } from 'node:test';
+import {
+  BASE,
+  OPERATOR,
+  SKIP,
+  api,
+  biteJudged,
+  checkAxe,
+  endAnyMeal,
+  launchBrowser,
+  mealState,
+  openPage,
+  press,
+  readyForBite,
+  screenshot,
+  screenshotDirectory,
+  tabTo,
+  waitForMeal,
+  waitIn,
+} from './helpers.mjs';
+
+const PHASE_ORDER = ['APPROACH', 'ORIENT', 'DESCEND', 'EXTRACT', 'DONE'].map((p) => `ACQUIRE_PHASE_${p}`);
+
+describe('table view', { skip: SKIP }, () => {
+  let chromium;
+  let page;
+  let record;
+  const person = `web-table-${Date.now().toString(36)}`;
+
+  /** Records, in the page, every step that becomes aria-current. */
+  const watchPhases = () =>
+    page.evaluate(() => {
+      window.__phasesSeen = [];
+      const steps = document.querySelector('.bite .steps');
+      const note = () => {
+        const now = steps.querySelector('li[aria-current="step"]')?.dataset.phase;
+        const seen = window.__phasesSeen;
+        if (now && seen[seen.length - 1] !== now) seen.push(now);
+      };
+      new MutationObserver(note).observe(steps, { subtree: true, attributes: true, attributeFilter: ['aria-current'] });
+    });
+
+  /** Waits until the page's plate takes a tap (the console is ready for a bite). */
+  const waitForPlate = async () => {
+    await waitForMeal(readyForBite, 60000, 'the plate to be ready');
+    await waitIn(
+      page,
+      () =>
+        document.querySelector('#robots-choice:not([aria-disabled])') &&
+        document.querySelector('.plate-overlay .item[aria-disabled="false"]'),
+    );
+  };
+
+  const currentPhase = (phase) =>
+    waitIn(page, (p) => document.querySelector(`.bite li[data-phase="${p}"][aria-current="step"]`), phase);
+
+  /** Waits for the verdict (or the question) of bite `number` on the page. */
+  const waitForVerdict = async (number) => {
+    const state = await waitForMeal(biteJudged(number), 60000, `bite ${number}'s verdict`);
+    await waitIn(
+      page,
+      (asked) =>
+        asked
+          ? !document.querySelector('.question').hidden
+          : !['', 'pending'].includes(document.querySelector('.bite').dataset.outcome),
+      Boolean(state.current.question),
+    );
+    return state;
+  };
+
+  const answerIfAsked = async (state, yes) => {
+    if (!state.current.question) return;
+    await press(page, yes ? '.question .yes' : '.question .no');
+    await waitForMeal((s) => s.current.answer === (yes ? 'yes' : 'no'), 10000, 'the answer');
+  };
+
+  before(async () => {
+    await endAnyMeal();
+    chromium = await launchBrowser();
+    ({ page, record } = await openPage(chromium.browser));
+    console.log(`screenshots in ${await screenshotDirectory()}`);
+  });
+
+  after(async () => {
+    await chromium?.close();
+    // Leave the console free for whoever comes next.
+    if (BASE) await endAnyMeal().catch(() => {});
+  });
+
+  it('shows STOP before any data has loaded', async () => {
+    await page.goto(`${BASE}/#/table`, { waitUntil: 'domcontentloaded' });
+    const stop = await page.$eval('#stop-button', (b) => {
+      const box = b.getBoundingClientRect();
+      return { text: b.textContent.trim(), visible: box.width > 0 && box.height > 0 && box.bottom <= innerHeight };
+    });
+    assert.deepEqual(stop, { text: 'STOP', visible: true });
+  });
+
+  it('starts a meal for someone new by keyboard alone', async () => {
+    await waitIn(page, () => document.querySelector('.start') && !document.querySelector('.start').hidden);
+    await waitIn(page, () => !document.querySelector('.people-status')?.textContent.startsWith('Loading'));
+    await screenshot(page, 'table-01-start', '.start');
+    await checkAxe(page, 'the start form');
+
+    await page.evaluate(() => document.activeElement?.blur());
+    await tabTo(page, '#new-person-name');
+    await page.keyboard.type(person);
+    await page.keyboard.press('Enter');
+    const chosen = await page.$eval('.people input[name="person"]:checked', (r) => r.value);
+    assert.equal(chosen, person);
+    await tabTo(page, '#start-meal');
+    await page.keyboard.press('Enter');
+
+    const state = await waitForMeal(readyForBite, 60000, 'the first look at the plate');
+    assert.equal(state.user_id, person);
+    await waitIn(page, () => document.querySelectorAll('.plate-overlay .item').length > 0);
+    await waitIn(page, () => document.querySelector('.plate-img') && !document.querySelector('.plate-img').hidden);
+    const names = await page.$$eval('.plate-overlay .item', (items) => items.map((i) => i.getAttribute('aria-label')));
+    assert.equal(names.length, state.items.length);
+    names.forEach((name, i) =>
+      assert.match(name, new RegExp(`^Item ${i + 1}, at (top |bottom )?(left|centre|right)?`), `item ${i + 1}'s name`),
+    );
+    await screenshot(page, 'table-02-plate', '.plate-card');
+    await checkAxe(page, 'the plate');
+  });
+
+  it('bites an item chosen by keyboard and shows its phases, action and force', async () => {
+    await waitForPlate();
+    await watchPhases();
+    await page.evaluate(() => document.activeElement?.blur());
+    await tabTo(page, '.plate-overlay .item');
+    const index = await page.evaluate(() => Number(document.activeElement.dataset.itemIndex));
+    await page.keyboard.press('Enter');
+
+    await currentPhase('ACQUIRE_PHASE_DESCEND');
+    let state = await mealState();
+    assert.equal(state.current.number, 1);
+    assert.equal(state.current.item_index, index);
+    assert.equal(state.current.robots_choice, false);
+    const shown = await page.evaluate(() => ({
+      heading: document.querySelector('#bite-heading').textContent,
+      title: document.querySelector('.action-title').textContent,
+      description: document.querySelector('.action-desc').textContent,
+    }));
+    assert.equal(shown.heading, 'Bite 1');
+    assert.equal(shown.title, state.current.action.title);
+    assert.equal(shown.description, state.current.action.description);
+    assert.ok(shown.description.length > 0, 'the action has a plain description');
+    await screenshot(page, 'table-03-biting', '.bite');
+    await checkAxe(page, 'a bite in DESCEND');
+
+    state = await waitForVerdict(1);
+    const seen = await page.evaluate(() => window.__phasesSeen);
+    const order = seen.map((p) => PHASE_ORDER.indexOf(p));
+    assert.deepEqual([...order].sort((a, b) => a - b), order, `phases in order: ${seen}`);
+    for (const phase of ['APPROACH', 'DESCEND', 'EXTRACT', 'DONE'].map((p) => `ACQUIRE_PHASE_${p}`)) {
+      assert.ok(seen.includes(phase), `${phase} was shown (seen: ${seen})`);
+    }
+    const force = await page.evaluate(() => ({
+      value: document.querySelector('.force-value').textContent,
+      points: document.querySelector('.spark-line').getAttribute('points').split(' ').length,
+    }));
+    assert.match(force.value, /^\d+\.\d N$/);
+    assert.ok(force.points > 5, `the force line has ${force.points} points`);
+  });
+
+  const byRobot = !OPERATOR && 'the console decides by itself (BITEWISE_CONSOLE_OPERATOR is not 1)';
+  it('asks the operator about the food and the action, and takes a changed answer', { skip: byRobot }, async () => {
+    const state = await waitForMeal(biteJudged(1), 30000, 'the question');
+    const { number, outcome } = state.current;
+    assert.ok(state.current.question, `the console asks the operator (bite ${number}: ${outcome}, ${state.message})`);
+    const question = await page.$eval('.question-text', (p) => p.textContent);
+    const food = state.current.food || `item ${state.current.item_index + 1}`;
+    assert.ok(question.includes(food), `"${question}" names the food (${food})`);
+    assert.ok(question.includes(state.current.action.name), `"${question}" names the action`);
+    await screenshot(page, 'table-04-question', '.question');
+    await checkAxe(page, 'the question');
+
+    await press(page, '.question .yes');
+    await waitIn(page, () => document.querySelector('.question .yes').getAttribute('aria-pressed') === 'true');
+    assert.equal((await mealState()).current.answer, 'yes');
+    await press(page, '.question .no');
+    await waitIn(page, () => document.querySelector('.question .no').getAttribute('aria-pressed') === 'true');
+    assert.equal(await page.$eval('.question .yes', (b) => b.getAttribute('aria-pressed')), 'false');
+    assert.equal((await mealState()).current.answer, 'no');
+    assert.match(await page.$eval('.answer-note', (p) => p.textContent), /Your answer: No/);
+    await screenshot(page, 'table-05-answered', '.question');
+    await checkAxe(page, 'the answered question');
+  });
+
+  it('shows the outcome the console decided', { skip: OPERATOR && 'the operator decides' }, async () => {
+    const state = await mealState();
+    assert.ok(['success', 'failure'].includes(state.current.outcome), `outcome ${state.current.outcome}`);
+    assert.equal(await page.$eval('.bite', (b) => b.dataset.outcome), state.current.outcome);
+    await screenshot(page, 'table-04-outcome', '.bite');
+    await checkAxe(page, 'the outcome');
+  });
+
+  it('bites a tapped item and shows the bite again after a reload', async () => {
+    await waitForPlate();
+    const items = await page.$$('.plate-overlay .item');
+    const index = items.length - 1; // another item than the keyboard's, when there is one
+    await press(page, items[index], { tap: true });
+    await waitForMeal((s) => s.current.number === 2, 20000, 'bite 2 to start');
+    await page.reload({ waitUntil: 'domcontentloaded' });
+    // The stream's first state repaints the running bite.
+    await waitIn(page, () => document.querySelector('#bite-heading')?.textContent === 'Bite 2');
+    const state = await waitForVerdict(2);
+    assert.equal(state.current.item_index, index);
+    await answerIfAsked(state, true);
+  });
+
+  it('stops the arm during DESCEND with one request and shows the reply', async () => {
+    await waitForPlate();
+    await press(page, '#robots-choice');
+    await currentPhase('ACQUIRE_PHASE_DESCEND');
+    const postsBefore = record.stopPosts;
+    await page.click('#stop-button'); // fixed on screen: no scrolling, no delay
+    await waitIn(page, () => document.querySelector('#stop-status').dataset.wasMoving !== undefined, null, 10000);
+    const stop = await page.evaluate(() => ({
+      text: document.querySelector('#stop-status').textContent,
+      wasMoving: document.querySelector('#stop-status').dataset.wasMoving,
+      ms: Number(document.body.dataset.stopReplyMs),
+      serverMs: Number(document.body.dataset.stopServerMs),
+    }));
+    console.log(`STOP: click to reply ${stop.ms} ms (page's clock), ${stop.serverMs} ms of it in the console`);
+    assert.match(stop.text, /^Stopped/);
+    assert.equal(stop.wasMoving, 'true', 'the arm was moving when STOP arrived');
+    assert.ok(stop.ms <= 100, `STOP replied in ${stop.ms} ms (at most 100)`);
+    assert.equal(record.stopPosts - postsBefore, 1, 'one press sends one POST /api/stop');
+
+    const stopped = (s) => s.current.number === 3 && s.current.outcome === 'stopped';
+    const state = await waitForMeal(stopped, 20000, 'the stopped bite');
+    assert.ok(state.stopped || state.current.outcome === 'stopped');
+    await waitIn(page, () => document.querySelector('.bite').dataset.outcome === 'stopped');
+    await screenshot(page, 'table-06-stopped', '.bite');
+    await checkAxe(page, 'the stopped bite');
+  });
+
+  it('ends the meal and shows its summary in words that count right', async () => {
+    await waitForMeal((s) => readyForBite(s) || !s.running, 60000, 'the stopped bite to settle');
+    await press(page, '#end-meal');
+    const state = await waitForMeal((s) => !s.running, 20000, 'the meal to end');
+    await waitIn(page, () => document.querySelector('.table-view').dataset.running === 'false');
+    const shown = await page.evaluate(() => ({
+      text: document.querySelector('.summary-text').textContent,
+      attempts: Number(document.querySelector('.summary').dataset.attempts),
+      failures: Number(document.querySelector('.summary').dataset.failures),
+      foods: [...document.querySelectorAll('.foods-table tbody tr')].map((tr) => ({
+        food: tr.dataset.food,
+        attempts: Number(tr.dataset.attempts),
+        failures: Number(tr.dataset.failures),
+      })),
+    }));
+    const { attempts, failures } = state.summary;
+    assert.equal(shown.attempts, attempts);
+    assert.equal(shown.failures, failures);
+    const words = (n, one) => `${n} ${n === 1 ? one : `${one}s`}`;
+    assert.equal(shown.text, `${words(attempts, 'attempt')}, ${words(failures, 'failure')}`);
+    assert.equal(shown.foods.reduce((n, f) => n + f.attempts, 0), attempts);
+    assert.equal(shown.foods.reduce((n, f) => n + f.failures, 0), failures);
+    // Two bites were judged (the third was stopped).
+    assert.equal(attempts, 2);
+    await screenshot(page, 'table-07-summary', '.summary');
+    await checkAxe(page, 'the summary');
+  });
+
+  it('left the console only for its own origin, with no page errors', async () => {
+    assert.deepEqual(record.offOrigin, []);
+    assert.deepEqual(record.errors, []);
+    const latencies = await page.evaluate(() => window.__progressLatencies || []);
+    if (latencies.length) {
+      const sorted = [...latencies].sort((a, b) => a - b);
+      const ms = (q) => (sorted[Math.min(sorted.length - 1, Math.floor(q * sorted.length))] * 1000).toFixed(1);
+      console.log(`progress paint latency over ${sorted.length} reports: median ${ms(0.5)} ms, p95 ${ms(0.95)} ms`);
+    }
+  });
+});

@@ -1,0 +1,48 @@
+# Sourced by scripts/meal.sh and scripts/console.sh: starts the four services
+# on loopback with their embedded defaults and stops them on exit.
+#   DATA_DIR, BASE_PORT: where data and logs go, and the first port;
+#   BUILD_DIR: the build (default build/).
+#   start_services SEED: starts them (the simulated plate seeded by SEED) and
+#   waits until each reports SERVING.
+
+BUILD_DIR="${BUILD_DIR:-build}"
+PIDS=()
+stop_services() {
+  for pid in "${PIDS[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
+  for pid in "${PIDS[@]}"; do wait "$pid" 2>/dev/null || true; done
+  PIDS=()
+}
+
+# start_one NAME SERVICE PORT BINARY [ARGS...]
+start_one() {
+  local name="$1" service="$2" port="$3" binary="$4"
+  shift 4
+  "$binary" --listen "127.0.0.1:$port" "$@" >>"$DATA_DIR/logs/$name.log" 2>&1 &
+  PIDS+=($!)
+  if ! "$BUILD_DIR"/clients/health/bitewise-health --address "127.0.0.1:$port" \
+    --service "bitewise.v1.$service" --timeout_s 60 >/dev/null; then
+    echo "$service did not become healthy; last lines of $DATA_DIR/logs/$name.log:" >&2
+    tail -n 20 "$DATA_DIR/logs/$name.log" >&2
+    exit 1
+  fi
+  printf '    %-18s 127.0.0.1:%s  SERVING\n' "$service" "$port"
+}
+
+start_services() {
+  local seed="$1"
+  mkdir -p "$DATA_DIR/logs"
+  printf '\n==> Starting the services (logs in %s/logs)\n' "$DATA_DIR"
+  start_one bandit BanditService "$BASE_PORT" "$BUILD_DIR"/services/bandit/bitewise-bandit \
+    --db "$DATA_DIR/bandit.db" --create
+  start_one perception PerceptionService "$((BASE_PORT + 1))" \
+    "$BUILD_DIR"/services/perception/bitewise-perception
+  start_one haptic HapticService "$((BASE_PORT + 2))" "$BUILD_DIR"/services/haptic/bitewise-haptic
+  start_one robot RobotService "$((BASE_PORT + 3))" "$BUILD_DIR"/services/robot/bitewise-robot \
+    --backend sim --seed "$seed"
+}
+
+# The addresses of the four services, as client flags.
+service_flags() {
+  echo --bandit "127.0.0.1:$BASE_PORT" --perception "127.0.0.1:$((BASE_PORT + 1))" \
+    --haptic "127.0.0.1:$((BASE_PORT + 2))" --robot "127.0.0.1:$((BASE_PORT + 3))"
+}
