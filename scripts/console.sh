@@ -20,16 +20,9 @@ done
 
 scripts/setup.sh
 
-DATA_DIR="${BITEWISE_DATA_DIR:-$PWD/data}"
-BASE_PORT="${BITEWISE_BASE_PORT:-50051}"
-mkdir -p "$DATA_DIR"
-# Each start gets a new plate, as each scripts/meal.sh run does.
-COUNTER="$DATA_DIR/meals.count"
-PLATE=$(( $(cat "$COUNTER" 2>/dev/null || echo 0) + 1 ))
-echo "$PLATE" >"$COUNTER"
-
 # shellcheck source=scripts/lib/services.sh
 source scripts/lib/services.sh
+PLATE=$(next_plate)
 trap stop_services EXIT
 start_services "$PLATE"
 

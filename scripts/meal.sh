@@ -26,17 +26,10 @@ done
 
 scripts/setup.sh
 
-DATA_DIR="${BITEWISE_DATA_DIR:-$PWD/data}"
-BASE_PORT="${BITEWISE_BASE_PORT:-50051}"
-mkdir -p "$DATA_DIR"
-# Each meal gets a new plate: the simulated world is seeded by a meal counter.
-COUNTER="$DATA_DIR/meals.count"
-MEAL_NUMBER=$(( $(cat "$COUNTER" 2>/dev/null || echo 0) + 1 ))
-echo "$MEAL_NUMBER" >"$COUNTER"
-if [ -z "$MEAL" ]; then MEAL="meal-$MEAL_NUMBER"; fi
-
 # shellcheck source=scripts/lib/services.sh
 source scripts/lib/services.sh
+MEAL_NUMBER=$(next_plate)
+if [ -z "$MEAL" ]; then MEAL="meal-$MEAL_NUMBER"; fi
 trap stop_services EXIT
 start_services "$MEAL_NUMBER"
 

@@ -255,6 +255,13 @@ void ConsoleServer::Route() {
     };
   };
 
+  // A meal action's reply: its error, or the meal's state.
+  auto reply_state = [this](httplib::Response& res, const absl::Status& done,
+                            int status) {
+    if (!done.ok()) return Error(res, done);
+    Json(res, host_->State(), status);
+  };
+
   http.Get("/api/session",
            guard(Need::kAny, false,
                  [access](const httplib::Request& req, httplib::Response& res,
@@ -348,61 +355,56 @@ void ConsoleServer::Route() {
               Json(res, *state, 201);
             }));
 
-  http.Post(
-      "/api/meal/bite",
-      guard(Need::kCaregiver, true,
-            [this](const httplib::Request& req, httplib::Response& res, Role) {
-              consolepb::BiteRequest request;
-              if (absl::Status ok = Parse(req, &request); !ok.ok()) {
-                return Error(res, ok);
-              }
-              if (!request.has_item_index()) {
-                return Error(res, absl::InvalidArgumentError(
-                                      "item_index: required (-1 for the "
-                                      "robot's choice)"));
-              }
-              std::optional<int> item;
-              if (request.item_index() != -1) item = request.item_index();
-              absl::Status started = host_->Bite(item);
-              if (!started.ok()) return Error(res, started);
-              Json(res, host_->State(), 202);
-            }));
+  http.Post("/api/meal/bite",
+            guard(Need::kCaregiver, true,
+                  [this, reply_state](const httplib::Request& req,
+                                      httplib::Response& res, Role) {
+                    consolepb::BiteRequest request;
+                    if (absl::Status ok = Parse(req, &request); !ok.ok()) {
+                      return Error(res, ok);
+                    }
+                    if (!request.has_item_index()) {
+                      return Error(res, absl::InvalidArgumentError(
+                                            "item_index: required (-1 for the "
+                                            "robot's choice)"));
+                    }
+                    std::optional<int> item;
+                    if (request.item_index() != -1) item = request.item_index();
+                    reply_state(res, host_->Bite(item), 202);
+                  }));
 
-  http.Post("/api/meal/look", guard(Need::kCaregiver, true,
-                                    [this](const httplib::Request&,
-                                           httplib::Response& res, Role) {
-                                      absl::Status started = host_->Look();
-                                      if (!started.ok())
-                                        return Error(res, started);
-                                      Json(res, host_->State(), 202);
-                                    }));
+  http.Post("/api/meal/look",
+            guard(Need::kCaregiver, true,
+                  [this, reply_state](const httplib::Request&,
+                                      httplib::Response& res, Role) {
+                    reply_state(res, host_->Look(), 202);
+                  }));
 
-  http.Post(
-      "/api/meal/answer",
-      guard(Need::kCaregiver, true,
-            [this](const httplib::Request& req, httplib::Response& res, Role) {
-              consolepb::AnswerRequest request;
-              if (absl::Status ok = Parse(req, &request); !ok.ok()) {
-                return Error(res, ok);
-              }
-              if (!request.has_success()) {
-                return Error(res, absl::InvalidArgumentError(
-                                      "success: required (true or "
-                                      "false)"));
-              }
-              absl::Status answered =
-                  host_->Answer(request.event_id(), request.success());
-              if (!answered.ok()) return Error(res, answered);
-              Json(res, host_->State());
-            }));
+  http.Post("/api/meal/answer",
+            guard(Need::kCaregiver, true,
+                  [this, reply_state](const httplib::Request& req,
+                                      httplib::Response& res, Role) {
+                    consolepb::AnswerRequest request;
+                    if (absl::Status ok = Parse(req, &request); !ok.ok()) {
+                      return Error(res, ok);
+                    }
+                    if (!request.has_success()) {
+                      return Error(res, absl::InvalidArgumentError(
+                                            "success: required (true or "
+                                            "false)"));
+                    }
+                    reply_state(
+                        res,
+                        host_->Answer(request.event_id(), request.success()),
+                        200);
+                  }));
 
-  http.Post("/api/meal/end", guard(Need::kCaregiver, true,
-                                   [this](const httplib::Request&,
-                                          httplib::Response& res, Role) {
-                                     absl::Status ended = host_->EndMeal();
-                                     if (!ended.ok()) return Error(res, ended);
-                                     Json(res, host_->State(), 202);
-                                   }));
+  http.Post("/api/meal/end",
+            guard(Need::kCaregiver, true,
+                  [this, reply_state](const httplib::Request&,
+                                      httplib::Response& res, Role) {
+                    reply_state(res, host_->EndMeal(), 202);
+                  }));
 
   // STOP: every authenticated user, and no body to parse.
   http.Post(
@@ -447,114 +449,97 @@ void ConsoleServer::Route() {
               Json(res, reply);
             }));
 
-  // /api/people/{user}/...: the user is checked as the BanditService checks.
+  // /api/people/{user}/...: researcher routes; the user is checked as the
+  // BanditService checks it.
   const std::string person = "/api/people/([^/]+)";
-  auto user_of = [](const httplib::Request& req,
-                    std::string* user) -> absl::Status {
-    *user = req.matches[1];
-    return domain::ValidateUserId(*user);
+  using PersonHandler = std::function<void(
+      const httplib::Request&, httplib::Response&, const std::string& user)>;
+  auto person_route = [guard](PersonHandler handler) {
+    return guard(
+        Need::kResearcher, false,
+        [handler](const httplib::Request& req, httplib::Response& res, Role) {
+          const std::string user = req.matches[1];
+          if (absl::Status ok = domain::ValidateUserId(user); !ok.ok()) {
+            return Error(res, ok);
+          }
+          handler(req, res, user);
+        });
   };
   auto flag = [](const httplib::Request& req, const char* name) {
     return req.has_param(name) && req.get_param_value(name) == "1";
   };
 
   http.Get(person + "/meals",
-           guard(Need::kResearcher, false,
-                 [this, user_of](const httplib::Request& req,
-                                 httplib::Response& res, Role) {
-                   std::string user;
-                   if (absl::Status ok = user_of(req, &user); !ok.ok()) {
-                     return Error(res, ok);
-                   }
-                   absl::StatusOr<std::vector<v1::Event>> events =
-                       AllEvents(clients_->bandit, user, "", false, nullptr);
-                   if (!events.ok()) return Error(res, events.status());
-                   Json(res, MealsOf(user, *events));
-                 }));
+           person_route([this](const httplib::Request&, httplib::Response& res,
+                               const std::string& user) {
+             absl::StatusOr<std::vector<v1::Event>> events =
+                 AllEvents(clients_->bandit, user, "", false, nullptr);
+             if (!events.ok()) return Error(res, events.status());
+             Json(res, MealsOf(user, *events));
+           }));
 
-  http.Get(person + "/events",
-           guard(Need::kResearcher, false,
-                 [this, user_of, flag](const httplib::Request& req,
-                                       httplib::Response& res, Role) {
-                   std::string user;
-                   if (absl::Status ok = user_of(req, &user); !ok.ok()) {
-                     return Error(res, ok);
-                   }
-                   v1::ListEventsRequest request;
-                   request.set_user_id(user);
-                   request.set_meal_id(req.get_param_value("meal_id"));
-                   request.set_page_token(req.get_param_value("page_token"));
-                   if (req.has_param("page_size")) {
-                     int size = 0;
-                     if (!absl::SimpleAtoi(req.get_param_value("page_size"),
-                                           &size) ||
-                         size < 0 || size > 1000) {
-                       return Error(res, absl::InvalidArgumentError(
-                                             "page_size: expected 0-1000"));
-                     }
-                     request.set_page_size(size);
-                   }
-                   absl::StatusOr<v1::ListEventsResponse> page =
-                       clients_->bandit.ListEvents(request);
-                   if (!page.ok()) return Error(res, page.status());
-                   if (!flag(req, "contexts")) {
-                     for (v1::Event& e : *page->mutable_events())
-                       e.clear_context();
-                   }
-                   Json(res, *page);
-                 }));
+  http.Get(
+      person + "/events", person_route([this, flag](const httplib::Request& req,
+                                                    httplib::Response& res,
+                                                    const std::string& user) {
+        v1::ListEventsRequest request;
+        request.set_user_id(user);
+        request.set_meal_id(req.get_param_value("meal_id"));
+        request.set_page_token(req.get_param_value("page_token"));
+        if (req.has_param("page_size")) {
+          int size = 0;
+          if (!absl::SimpleAtoi(req.get_param_value("page_size"), &size) ||
+              size < 0 || size > 1000) {
+            return Error(
+                res, absl::InvalidArgumentError("page_size: expected 0-1000"));
+          }
+          request.set_page_size(size);
+        }
+        absl::StatusOr<v1::ListEventsResponse> page =
+            clients_->bandit.ListEvents(request);
+        if (!page.ok()) return Error(res, page.status());
+        if (!flag(req, "contexts")) {
+          for (v1::Event& e : *page->mutable_events()) e.clear_context();
+        }
+        Json(res, *page);
+      }));
 
   http.Get(person + "/events.csv",
-           guard(Need::kResearcher, false,
-                 [this, user_of, flag](const httplib::Request& req,
-                                       httplib::Response& res, Role) {
-                   std::string user;
-                   if (absl::Status ok = user_of(req, &user); !ok.ok()) {
-                     return Error(res, ok);
-                   }
-                   const std::string meal = req.get_param_value("meal_id");
-                   bool withheld = false;
-                   const bool contexts = flag(req, "contexts");
-                   absl::StatusOr<std::vector<v1::Event>> events = AllEvents(
-                       clients_->bandit, user, meal, contexts, &withheld);
-                   if (!events.ok()) return Error(res, events.status());
-                   res.set_header("Cache-Control", "no-store");
-                   res.set_header("Content-Disposition",
-                                  absl::StrCat("attachment; filename=\"", user,
-                                               meal.empty() ? "" : "-", meal,
-                                               "-events.csv\""));
-                   res.set_content(EventsCsv(*events, contexts && !withheld),
-                                   "text/csv; charset=utf-8");
-                 }));
+           person_route([this, flag](const httplib::Request& req,
+                                     httplib::Response& res,
+                                     const std::string& user) {
+             const std::string meal = req.get_param_value("meal_id");
+             bool withheld = false;
+             const bool contexts = flag(req, "contexts");
+             absl::StatusOr<std::vector<v1::Event>> events =
+                 AllEvents(clients_->bandit, user, meal, contexts, &withheld);
+             if (!events.ok()) return Error(res, events.status());
+             res.set_header("Cache-Control", "no-store");
+             res.set_header(
+                 "Content-Disposition",
+                 absl::StrCat("attachment; filename=\"", user,
+                              meal.empty() ? "" : "-", meal, "-events.csv\""));
+             res.set_content(EventsCsv(*events, contexts && !withheld),
+                             "text/csv; charset=utf-8");
+           }));
 
   http.Get(person + "/model",
-           guard(Need::kResearcher, false,
-                 [this, user_of](const httplib::Request& req,
-                                 httplib::Response& res, Role) {
-                   std::string user;
-                   if (absl::Status ok = user_of(req, &user); !ok.ok()) {
-                     return Error(res, ok);
-                   }
-                   absl::StatusOr<v1::Model> model =
-                       clients_->bandit.GetModel(user);
-                   if (!model.ok()) return Error(res, model.status());
-                   Json(res, *model);
-                 }));
+           person_route([this](const httplib::Request&, httplib::Response& res,
+                               const std::string& user) {
+             absl::StatusOr<v1::Model> model = clients_->bandit.GetModel(user);
+             if (!model.ok()) return Error(res, model.status());
+             Json(res, *model);
+           }));
 
-  http.Get(person + "/estimates",
-           guard(Need::kResearcher, false,
-                 [this, user_of](const httplib::Request& req,
-                                 httplib::Response& res, Role) {
-                   std::string user;
-                   if (absl::Status ok = user_of(req, &user); !ok.ok()) {
-                     return Error(res, ok);
-                   }
-                   absl::StatusOr<consolepb::EstimatesReply> reply =
-                       EstimatesFor(clients_->bandit, user,
-                                    req.get_param_value("event_id"));
-                   if (!reply.ok()) return Error(res, reply.status());
-                   Json(res, *reply);
-                 }));
+  http.Get(
+      person + "/estimates",
+      person_route([this](const httplib::Request& req, httplib::Response& res,
+                          const std::string& user) {
+        absl::StatusOr<consolepb::EstimatesReply> reply = EstimatesFor(
+            clients_->bandit, user, req.get_param_value("event_id"));
+        if (!reply.ok()) return Error(res, reply.status());
+        Json(res, *reply);
+      }));
 
   // The web app itself; any other path is 404 (after authentication, so an
   // unauthenticated caller learns nothing).

@@ -1,11 +1,24 @@
 # Sourced by scripts/meal.sh and scripts/console.sh: starts the four services
 # on loopback with their embedded defaults and stops them on exit.
-#   DATA_DIR, BASE_PORT: where data and logs go, and the first port;
+#   DATA_DIR, BASE_PORT: where data and logs go (default data/, or
+#   $BITEWISE_DATA_DIR), and the first port (50051, or $BITEWISE_BASE_PORT);
 #   BUILD_DIR: the build (default build/).
 #   start_services SEED: starts them (the simulated plate seeded by SEED) and
 #   waits until each reports SERVING.
 
 BUILD_DIR="${BUILD_DIR:-build}"
+DATA_DIR="${DATA_DIR:-${BITEWISE_DATA_DIR:-$PWD/data}}"
+BASE_PORT="${BASE_PORT:-${BITEWISE_BASE_PORT:-50051}}"
+mkdir -p "$DATA_DIR"
+
+# The next simulated plate's number (kept in DATA_DIR): every run gets a
+# new plate, seeded by it.
+next_plate() {
+  local counter="$DATA_DIR/meals.count" n
+  n=$(($(cat "$counter" 2>/dev/null || echo 0) + 1))
+  echo "$n" >"$counter"
+  echo "$n"
+}
 PIDS=()
 stop_services() {
   for pid in "${PIDS[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
