@@ -131,6 +131,9 @@ absl::StatusOr<std::unique_ptr<ConsoleServer>> ConsoleServer::Start(
   server->options_ = std::move(options);
   server->host_ = host;
   server->clients_ = clients;
+  server->research_ = server->options_.research_bandit != nullptr
+                          ? server->options_.research_bandit
+                          : &clients->bandit;
   if (tls) {
     auto ssl = std::make_unique<httplib::SSLServer>(
         server->options_.tls_cert_file.c_str(),
@@ -284,7 +287,7 @@ void ConsoleServer::Route() {
            guard(Need::kAny, false,
                  [this](const httplib::Request&, httplib::Response& res, Role) {
                    absl::StatusOr<v1::ListUsersResponse> users =
-                       AllUsers(clients_->bandit);
+                       AllUsers(*research_);
                    if (!users.ok()) return Error(res, users.status());
                    Json(res, *users);
                  }));
@@ -473,7 +476,7 @@ void ConsoleServer::Route() {
            person_route([this](const httplib::Request&, httplib::Response& res,
                                const std::string& user) {
              absl::StatusOr<std::vector<v1::Event>> events =
-                 AllEvents(clients_->bandit, user, "", false, nullptr);
+                 AllEvents(*research_, user, "", false, nullptr);
              if (!events.ok()) return Error(res, events.status());
              Json(res, MealsOf(user, *events));
            }));
@@ -496,7 +499,7 @@ void ConsoleServer::Route() {
           request.set_page_size(size);
         }
         absl::StatusOr<v1::ListEventsResponse> page =
-            clients_->bandit.ListEvents(request);
+            research_->ListEvents(request);
         if (!page.ok()) return Error(res, page.status());
         if (!flag(req, "contexts")) {
           for (v1::Event& e : *page->mutable_events()) e.clear_context();
@@ -512,7 +515,7 @@ void ConsoleServer::Route() {
              bool withheld = false;
              const bool contexts = flag(req, "contexts");
              absl::StatusOr<std::vector<v1::Event>> events =
-                 AllEvents(clients_->bandit, user, meal, contexts, &withheld);
+                 AllEvents(*research_, user, meal, contexts, &withheld);
              if (!events.ok()) return Error(res, events.status());
              res.set_header("Cache-Control", "no-store");
              res.set_header(
@@ -526,7 +529,7 @@ void ConsoleServer::Route() {
   http.Get(person + "/model",
            person_route([this](const httplib::Request&, httplib::Response& res,
                                const std::string& user) {
-             absl::StatusOr<v1::Model> model = clients_->bandit.GetModel(user);
+             absl::StatusOr<v1::Model> model = research_->GetModel(user);
              if (!model.ok()) return Error(res, model.status());
              Json(res, *model);
            }));
@@ -535,8 +538,8 @@ void ConsoleServer::Route() {
       person + "/estimates",
       person_route([this](const httplib::Request& req, httplib::Response& res,
                           const std::string& user) {
-        absl::StatusOr<consolepb::EstimatesReply> reply = EstimatesFor(
-            clients_->bandit, user, req.get_param_value("event_id"));
+        absl::StatusOr<consolepb::EstimatesReply> reply =
+            EstimatesFor(*research_, user, req.get_param_value("event_id"));
         if (!reply.ok()) return Error(res, reply.status());
         Json(res, *reply);
       }));

@@ -50,6 +50,10 @@ struct ConsoleServerOptions {
     std::shared_ptr<grpc::Channel> channel;
   };
   std::vector<Service> services;
+  // The BanditService client of the researcher's calls (people, events,
+  // models), when the console has a second identity for them (the robot
+  // role may not list people or events); null: the meal's client.
+  meals::BanditClient* research_bandit = nullptr;
 };
 
 // True for 127.0.0.0/8, ::1 and "localhost".
@@ -79,6 +83,7 @@ class ConsoleServer {
   ConsoleServerOptions options_;
   MealHost* host_ = nullptr;
   meals::ServiceClients* clients_ = nullptr;
+  meals::BanditClient* research_ = nullptr;
   std::unique_ptr<httplib::Server> server_;
   std::thread thread_;
   int port_ = 0;

@@ -43,6 +43,12 @@ ABSL_FLAG(std::string, services_tls_cert, "",
           "The console's client certificate for mutual TLS to the services "
           "(its identity there; the robot role).");
 ABSL_FLAG(std::string, services_tls_key, "", "Key of --services_tls_cert.");
+ABSL_FLAG(std::string, research_tls_cert, "",
+          "A second client certificate, for the researcher view's calls to the "
+          "BanditService (listing people and events, models): its identity "
+          "should have the researcher role there, since the robot role may "
+          "not list. Default: the calls use --services_tls_cert.");
+ABSL_FLAG(std::string, research_tls_key, "", "Key of --research_tls_cert.");
 ABSL_FLAG(std::string, confirm, "robot",
           "Who decides success: robot, or operator (the table view asks).");
 ABSL_FLAG(std::string, posthoc, "logprob",
@@ -167,6 +173,18 @@ int main(int argc, char** argv) {
   deadlines.acquire =
       absl::Milliseconds(absl::GetFlag(FLAGS_acquire_deadline_ms));
   meals::ServiceClients clients(channels, deadlines);
+  std::unique_ptr<meals::BanditClient> research_bandit;
+  if (!absl::GetFlag(FLAGS_research_tls_cert).empty()) {
+    bitewise::ChannelOptions research = channel_options;
+    research.tls_cert_file = absl::GetFlag(FLAGS_research_tls_cert);
+    research.tls_key_file = absl::GetFlag(FLAGS_research_tls_key);
+    absl::StatusOr<std::shared_ptr<grpc::Channel>> channel =
+        bitewise::MakeChannel(absl::GetFlag(FLAGS_bandit), research);
+    if (!channel.ok()) return Fail(channel.status().ToString());
+    research_bandit =
+        std::make_unique<meals::BanditClient>(*channel, deadlines);
+    server_options.research_bandit = research_bandit.get();
+  }
 
   console::MealHostOptions host_options;
   host_options.journal_path = absl::GetFlag(FLAGS_journal);
