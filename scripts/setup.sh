@@ -52,7 +52,7 @@ install_missing --no-install-recommends -- "${PYTHON_PACKAGES[@]}"
 JOBS="${BITEWISE_JOBS:-$(nproc)}"
 if [ ! -f build/CMakeCache.txt ]; then
   step "Configuring (CMake, Ninja, Release)"
-  cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release
+  cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DBITEWISE_WERROR=ON
 fi
 step "Building with $JOBS jobs (first build takes a few minutes; ccache makes later ones fast)"
 cmake --build build -j "$JOBS"

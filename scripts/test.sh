@@ -40,7 +40,7 @@ CORE_TESTS=(tests/bandit/bandit_core_test tests/bandit/store/bandit_store_test
 configure_sanitize() {
   if [ ! -f build-sanitize/CMakeCache.txt ]; then
     cmake -S . -B build-sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-      -DBITEWISE_SANITIZE=ON
+      -DBITEWISE_SANITIZE=ON -DBITEWISE_WERROR=ON
   fi
 }
 

@@ -20,6 +20,7 @@
 #include "clients/meal/service_clients.h"
 #include "services/common/channel.h"
 #include "services/common/flags_usage.h"
+#include "services/common/server.h"
 
 ABSL_FLAG(std::string, listen, "127.0.0.1:8080",
           "HOST:PORT to serve on. Off loopback, --tls_cert/--tls_key and "
@@ -80,13 +81,8 @@ int Fail(const std::string& message) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // SIGTERM and SIGINT are taken by sigwait at the end: blocked here, before
-  // any thread starts, so that every thread inherits the mask.
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGTERM);
-  sigaddset(&signals, SIGINT);
-  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  // SIGTERM and SIGINT are taken by sigwait at the end.
+  bitewise::BlockTerminationSignals();
   absl::SetProgramUsageMessage(
       "Serves the table view and the researcher view of bitewise meals.");
   bitewise::ShowOwnFlagsInHelp();
@@ -221,6 +217,10 @@ int main(int argc, char** argv) {
                      : ", loopback only, no credentials");
   std::fflush(stdout);
 
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGTERM);
+  sigaddset(&signals, SIGINT);
   int signal = 0;
   sigwait(&signals, &signal);
   std::fprintf(stderr, "bitewise-console: stopping\n");

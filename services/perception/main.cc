@@ -54,6 +54,14 @@ int main(int argc, char** argv) {
   const std::string which = absl::GetFlag(FLAGS_featurizer);
   std::unique_ptr<bitewise::perception::Featurizer> featurizer;
   if (which == "default") {
+    if (!absl::GetFlag(FLAGS_spanet_model).empty()) {
+      // A model that would be ignored is a mistake, not a choice.
+      return bitewise::ReportFatal(
+          kProgram, "bad flags",
+          absl::InvalidArgumentError(
+              "--spanet_model has no effect with --featurizer=default: add "
+              "--featurizer=spanet to serve SPANet features"));
+    }
     featurizer = std::make_unique<bitewise::perception::DefaultFeaturizer>();
   } else if (which == "spanet") {
     const std::string model = absl::GetFlag(FLAGS_spanet_model);

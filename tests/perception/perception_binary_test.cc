@@ -97,6 +97,21 @@ TEST(PerceptionBinaryTest, UnknownFeaturizerStopsTheStart) {
   EXPECT_THAT(child.log(), HasSubstr("unknown featurizer \"resnet\""));
 }
 
+// A SPANet model given without --featurizer=spanet would be silently
+// ignored (the default featurizer would serve): the start stops instead,
+// naming the flag that makes it count.
+TEST(PerceptionBinaryTest, SpanetModelWithoutTheSpanetFeaturizerStops) {
+  const std::string log = LogPath();
+  ChildProcess child;
+  ASSERT_NO_FATAL_FAILURE(Spawn(
+      child, {absl::StrCat("--spanet_model=", BITEWISE_SPANET_MODEL)}, log));
+  const absl::StatusOr<int> status = child.Wait(absl::Seconds(30));
+  ASSERT_TRUE(status.ok()) << status.status() << "; log:\n" << child.log();
+  ASSERT_TRUE(WIFEXITED(*status)) << DescribeWaitStatus(*status);
+  EXPECT_NE(WEXITSTATUS(*status), 0);
+  EXPECT_THAT(child.log(), HasSubstr("add --featurizer=spanet"));
+}
+
 // The child's peak resident memory (VmHWM) in MB, from /proc.
 double PeakRssMb(pid_t pid) {
   std::ifstream status(absl::StrCat("/proc/", pid, "/status"));
