@@ -352,6 +352,12 @@ absl::Status Meal::Bite(std::optional<int> item_index) {
     state_.clear_error();
     stop_requested_ = false;
     update_.reset();
+    // Earlier bites keep their outcome, not their force samples and steps,
+    // so the state a UI is sent stays small through a long meal.
+    for (mealpb::Bite& earlier : *state_.mutable_bites()) {
+      earlier.clear_forces();
+      earlier.clear_steps();
+    }
     mealpb::Bite* bite = state_.add_bites();
     bite->set_number(state_.bite());
     bite->set_item_index(*chosen_index);

@@ -315,6 +315,9 @@ TEST_F(MealTest, OperatorAnswerCanChangeAndIsLearnedWhenFinal) {
   const mealpb::MealState state = meal->state();
   EXPECT_EQ(state.bites(0).learned(), "learned");
   EXPECT_TRUE(state.bites(0).question().empty());
+  // Only the current bite keeps its force samples.
+  EXPECT_EQ(state.bites(0).forces_size(), 0);
+  EXPECT_GT(state.bites(1).forces_size(), 0);
   std::vector<v1::Event> events = Events();
   ASSERT_EQ(events.size(), 2u);
   EXPECT_TRUE(events[0].completed());
