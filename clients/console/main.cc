@@ -44,6 +44,11 @@ ABSL_FLAG(std::string, services_tls_cert, "",
           "The console's client certificate for mutual TLS to the services "
           "(its identity there; the robot role).");
 ABSL_FLAG(std::string, services_tls_key, "", "Key of --services_tls_cert.");
+ABSL_FLAG(std::string, services_tls_for, "all",
+          "Which service links use the TLS flags: all, or a comma-separated "
+          "subset of bandit, perception, haptic, robot (say, the "
+          "workstation's services while the robot computer's own stay "
+          "plaintext on loopback).");
 ABSL_FLAG(std::string, research_tls_cert, "",
           "A second client certificate, for the researcher view's calls to the "
           "BanditService (listing people and events, models): its identity "
@@ -134,44 +139,34 @@ int main(int argc, char** argv) {
         std::make_shared<const console::AccessList>(*access);
   }
 
-  bitewise::ChannelOptions channel_options;
-  channel_options.tls_ca_file = absl::GetFlag(FLAGS_services_tls_ca);
-  channel_options.tls_cert_file = absl::GetFlag(FLAGS_services_tls_cert);
-  channel_options.tls_key_file = absl::GetFlag(FLAGS_services_tls_key);
-  channel_options.max_message_bytes = 64 << 20;
-  channel_options.max_attempts = absl::GetFlag(FLAGS_retries) + 1;
-  meals::ServiceChannels channels;
-  struct Link {
-    const char* service;
-    std::string address;
-    std::shared_ptr<grpc::ChannelInterface>* slot;
-  };
-  const Link links[] = {{"bitewise.v1.BanditService",
-                         absl::GetFlag(FLAGS_bandit), &channels.bandit},
-                        {"bitewise.v1.PerceptionService",
-                         absl::GetFlag(FLAGS_perception), &channels.perception},
-                        {"bitewise.v1.HapticService",
-                         absl::GetFlag(FLAGS_haptic), &channels.haptic},
-                        {"bitewise.v1.RobotService", absl::GetFlag(FLAGS_robot),
-                         &channels.robot}};
-  for (const Link& link : links) {
-    absl::StatusOr<std::shared_ptr<grpc::Channel>> channel =
-        bitewise::MakeChannel(link.address, channel_options);
-    if (!channel.ok()) {
-      return Fail(
-          absl::StrCat(link.address, ": ", channel.status().ToString()));
-    }
-    *link.slot = *channel;
-    server_options.services.push_back({link.service, link.address, *channel});
-  }
+  meals::ServiceLinks links;
+  links.bandit = absl::GetFlag(FLAGS_bandit);
+  links.perception = absl::GetFlag(FLAGS_perception);
+  links.haptic = absl::GetFlag(FLAGS_haptic);
+  links.robot = absl::GetFlag(FLAGS_robot);
+  links.tls.tls_ca_file = absl::GetFlag(FLAGS_services_tls_ca);
+  links.tls.tls_cert_file = absl::GetFlag(FLAGS_services_tls_cert);
+  links.tls.tls_key_file = absl::GetFlag(FLAGS_services_tls_key);
+  links.tls_for = absl::GetFlag(FLAGS_services_tls_for);
+  links.max_attempts = absl::GetFlag(FLAGS_retries) + 1;
+  absl::StatusOr<meals::ServiceChannels> channels =
+      meals::OpenServiceChannels(links);
+  if (!channels.ok()) return Fail(channels.status().ToString());
+  server_options.services = {
+      {"bitewise.v1.BanditService", links.bandit, channels->bandit},
+      {"bitewise.v1.PerceptionService", links.perception, channels->perception},
+      {"bitewise.v1.HapticService", links.haptic, channels->haptic},
+      {"bitewise.v1.RobotService", links.robot, channels->robot}};
   meals::CallDeadlines deadlines;
   deadlines.unary = absl::Milliseconds(absl::GetFlag(FLAGS_deadline_ms));
   deadlines.acquire =
       absl::Milliseconds(absl::GetFlag(FLAGS_acquire_deadline_ms));
-  meals::ServiceClients clients(channels, deadlines);
+  meals::ServiceClients clients(*channels, deadlines);
   std::unique_ptr<meals::BanditClient> research_bandit;
   if (!absl::GetFlag(FLAGS_research_tls_cert).empty()) {
-    bitewise::ChannelOptions research = channel_options;
+    bitewise::ChannelOptions research = links.tls;
+    research.max_message_bytes = links.max_message_bytes;
+    research.max_attempts = links.max_attempts;
     research.tls_cert_file = absl::GetFlag(FLAGS_research_tls_cert);
     research.tls_key_file = absl::GetFlag(FLAGS_research_tls_key);
     absl::StatusOr<std::shared_ptr<grpc::Channel>> channel =

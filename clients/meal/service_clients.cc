@@ -2,11 +2,14 @@
 
 #include <grpcpp/client_context.h>
 
+#include <algorithm>
 #include <chrono>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
 #include "services/common/grpc_status.h"
+#include "services/common/status_macros.h"
 
 namespace bitewise::meals {
 namespace {
@@ -173,6 +176,45 @@ absl::StatusOr<v1::ListEventsResponse> BanditClient::ListEvents(
     const v1::ListEventsRequest& request) {
   return Unary(stub_.get(), &v1::BanditService::Stub::ListEvents,
                "BanditService.ListEvents", request, deadlines_.unary);
+}
+
+absl::StatusOr<ServiceChannels> OpenServiceChannels(const ServiceLinks& links) {
+  const std::vector<std::string> tls_links = absl::StrSplit(links.tls_for, ',');
+  for (const std::string& link : tls_links) {
+    if (link != "all" && link != "bandit" && link != "perception" &&
+        link != "haptic" && link != "robot") {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "unknown link \"", link,
+          "\" in the TLS links (all, or some of bandit, perception, haptic, "
+          "robot)"));
+    }
+  }
+  auto open = [&](const std::string& link, const std::string& address)
+      -> absl::StatusOr<std::shared_ptr<grpc::Channel>> {
+    const bool use_tls =
+        links.tls_for == "all" ||
+        std::find(tls_links.begin(), tls_links.end(), link) != tls_links.end();
+    ChannelOptions options = use_tls ? links.tls : ChannelOptions{};
+    options.max_message_bytes = links.max_message_bytes;
+    options.max_attempts = links.max_attempts;
+    if (link == "bandit" && use_tls) {
+      options.tls_server_name_override = links.bandit_tls_name;
+    }
+    absl::StatusOr<std::shared_ptr<grpc::Channel>> channel =
+        MakeChannel(address, options);
+    if (!channel.ok()) {
+      return absl::Status(
+          channel.status().code(),
+          absl::StrCat(address, ": ", channel.status().message()));
+    }
+    return channel;
+  };
+  ServiceChannels channels;
+  ASSIGN_OR_RETURN(channels.bandit, open("bandit", links.bandit));
+  ASSIGN_OR_RETURN(channels.perception, open("perception", links.perception));
+  ASSIGN_OR_RETURN(channels.haptic, open("haptic", links.haptic));
+  ASSIGN_OR_RETURN(channels.robot, open("robot", links.robot));
+  return channels;
 }
 
 ServiceClients::ServiceClients(const ServiceChannels& channels,

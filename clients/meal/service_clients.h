@@ -21,6 +21,7 @@
 #include "bitewise/v1/haptic.grpc.pb.h"
 #include "bitewise/v1/perception.grpc.pb.h"
 #include "bitewise/v1/robot.grpc.pb.h"
+#include "services/common/channel.h"
 
 namespace bitewise::meals {
 
@@ -33,11 +34,36 @@ struct CallDeadlines {
 
 // A channel to each service. Several may be the same channel.
 struct ServiceChannels {
-  std::shared_ptr<grpc::ChannelInterface> bandit;
-  std::shared_ptr<grpc::ChannelInterface> perception;
-  std::shared_ptr<grpc::ChannelInterface> haptic;
-  std::shared_ptr<grpc::ChannelInterface> robot;
+  std::shared_ptr<grpc::Channel> bandit;
+  std::shared_ptr<grpc::Channel> perception;
+  std::shared_ptr<grpc::Channel> haptic;
+  std::shared_ptr<grpc::Channel> robot;
 };
+
+// Where the four services are and how to reach them, as a client's flags
+// say it.
+struct ServiceLinks {
+  std::string bandit = "127.0.0.1:50051";
+  std::string perception = "127.0.0.1:50052";
+  std::string haptic = "127.0.0.1:50053";
+  std::string robot = "127.0.0.1:50054";
+  // TLS files (all empty: plaintext), for the links `tls_for` names: "all",
+  // or a comma-separated subset of bandit, perception, haptic, robot (say,
+  // the workstation's services while the robot computer's own stay
+  // plaintext on loopback).
+  ChannelOptions tls;
+  std::string tls_for = "all";
+  // With TLS: the name every BanditService replica's certificate carries.
+  std::string bandit_tls_name;
+  // gRPC's retry policy: attempts in all (1-5).
+  int max_attempts = 1;
+  // Frames and long traces.
+  int max_message_bytes = 64 << 20;
+};
+
+// Opens the four channels. INVALID_ARGUMENT naming an unknown link in
+// tls_for; the errors of MakeChannel, naming the address.
+absl::StatusOr<ServiceChannels> OpenServiceChannels(const ServiceLinks& links);
 
 class RobotClient {
  public:

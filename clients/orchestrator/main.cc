@@ -3,13 +3,11 @@
 // library (clients/meal/meal.h).
 #include <unistd.h>
 
-#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <memory>
 #include <optional>
 #include <string>
-#include <vector>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
@@ -17,7 +15,6 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
-#include "absl/strings/str_split.h"
 #include "clients/meal/meal.h"
 #include "clients/meal/service_clients.h"
 #include "clients/meal/update_journal.h"
@@ -187,54 +184,28 @@ int main(int argc, char** argv) {
     return 2;
   }
 
-  bitewise::ChannelOptions tls;
-  tls.tls_ca_file = absl::GetFlag(FLAGS_tls_ca);
-  tls.tls_cert_file = absl::GetFlag(FLAGS_tls_cert);
-  tls.tls_key_file = absl::GetFlag(FLAGS_tls_key);
-  tls.max_message_bytes = 64 << 20;  // frames and long traces
-  const std::string tls_for = absl::GetFlag(FLAGS_tls_for);
-  const std::vector<std::string> tls_links = absl::StrSplit(tls_for, ',');
-  for (const std::string& link : tls_links) {
-    if (link != "all" && link != "bandit" && link != "perception" &&
-        link != "haptic" && link != "robot") {
-      std::fprintf(stderr, "--tls_for: unknown link \"%s\"\n", link.c_str());
-      return 2;
-    }
+  meals::ServiceLinks links;
+  links.bandit = absl::GetFlag(FLAGS_bandit);
+  links.perception = absl::GetFlag(FLAGS_perception);
+  links.haptic = absl::GetFlag(FLAGS_haptic);
+  links.robot = absl::GetFlag(FLAGS_robot);
+  links.tls.tls_ca_file = absl::GetFlag(FLAGS_tls_ca);
+  links.tls.tls_cert_file = absl::GetFlag(FLAGS_tls_cert);
+  links.tls.tls_key_file = absl::GetFlag(FLAGS_tls_key);
+  links.tls_for = absl::GetFlag(FLAGS_tls_for);
+  links.bandit_tls_name = absl::GetFlag(FLAGS_bandit_tls_name);
+  links.max_attempts = absl::GetFlag(FLAGS_retries) + 1;
+  absl::StatusOr<meals::ServiceChannels> channels =
+      meals::OpenServiceChannels(links);
+  if (!channels.ok()) {
+    std::fprintf(stderr, "%s\n", channels.status().ToString().c_str());
+    return absl::IsInvalidArgument(channels.status()) ? 2 : 1;
   }
-  auto channel = [&](const std::string& link) {
-    const std::string address = link == "bandit" ? absl::GetFlag(FLAGS_bandit)
-                                : link == "perception"
-                                    ? absl::GetFlag(FLAGS_perception)
-                                : link == "haptic" ? absl::GetFlag(FLAGS_haptic)
-                                                   : absl::GetFlag(FLAGS_robot);
-    const bool use_tls =
-        tls_for == "all" ||
-        std::find(tls_links.begin(), tls_links.end(), link) != tls_links.end();
-    bitewise::ChannelOptions options = tls;
-    if (!use_tls) options = bitewise::ChannelOptions{};
-    options.max_message_bytes = tls.max_message_bytes;
-    options.max_attempts = absl::GetFlag(FLAGS_retries) + 1;
-    if (link == "bandit" && use_tls) {
-      options.tls_server_name_override = absl::GetFlag(FLAGS_bandit_tls_name);
-    }
-    auto made = bitewise::MakeChannel(address, options);
-    if (!made.ok()) {
-      std::fprintf(stderr, "%s: %s\n", address.c_str(),
-                   made.status().ToString().c_str());
-      std::exit(1);
-    }
-    return std::shared_ptr<grpc::ChannelInterface>(*made);
-  };
-  meals::ServiceChannels channels;
-  channels.bandit = channel("bandit");
-  channels.perception = channel("perception");
-  channels.haptic = channel("haptic");
-  channels.robot = channel("robot");
   meals::CallDeadlines deadlines;
   deadlines.unary = absl::Milliseconds(absl::GetFlag(FLAGS_deadline_ms));
   deadlines.acquire =
       absl::Milliseconds(absl::GetFlag(FLAGS_acquire_deadline_ms));
-  meals::ServiceClients clients(channels, deadlines);
+  meals::ServiceClients clients(*channels, deadlines);
 
   meals::MealOptions options;
   options.user_id = absl::GetFlag(FLAGS_user);
