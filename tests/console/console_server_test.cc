@@ -10,6 +10,7 @@
 #include <fstream>
 #include <memory>
 #include <string>
+#include <thread>
 
 #include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
@@ -234,6 +235,49 @@ TEST_F(ConsoleServerTest, AMealRunsApartFromTheBrowserAndASecondIsRefused) {
   ASSERT_TRUE(next);
   EXPECT_EQ(next->status, 201);
   WaitForPhase({"choosing"});
+}
+
+// Two browsers watching at once see the same bite: the same event, the
+// same phases.
+TEST_F(ConsoleServerTest, TwoBrowsersSeeTheSameMeal) {
+  StartServer();
+  auto started = Client().Post("/api/meals", kPost, R"({"user_id":"duo"})",
+                               "application/json");
+  ASSERT_TRUE(started);
+  ASSERT_EQ(started->status, 201);
+  WaitForPhase({"choosing"});
+  std::string seen[2];
+  std::thread watchers[2];
+  for (int i = 0; i < 2; ++i) {
+    watchers[i] = std::thread([this, &seen, i] {
+      Client().Get(
+          "/api/meal/stream", [&seen, i](const char* data, size_t length) {
+            seen[i].append(data, length);
+            return !absl::StrContains(seen[i], "\"learned\":\"learned\"");
+          });
+    });
+  }
+  // Both are subscribed once each has been sent the current state.
+  const absl::Time deadline = absl::Now() + absl::Seconds(10);
+  while (absl::Now() < deadline &&
+         !(absl::StrContains(seen[0], "event: state") &&
+           absl::StrContains(seen[1], "event: state"))) {
+    absl::SleepFor(absl::Milliseconds(10));
+  }
+  auto bite = Client().Post("/api/meal/bite", kPost, R"({"item_index":-1})",
+                            "application/json");
+  ASSERT_TRUE(bite);
+  ASSERT_EQ(bite->status, 202);
+  for (std::thread& watcher : watchers) watcher.join();
+  const mealpb::MealState state = WaitForPhase({"choosing", "ended"});
+  ASSERT_EQ(state.bites_size(), 1);
+  const std::string event =
+      absl::StrCat("\"event_id\":\"", state.bites(0).event_id(), "\"");
+  for (const std::string& stream : seen) {
+    EXPECT_THAT(stream, HasSubstr(event));
+    EXPECT_THAT(stream, HasSubstr("ACQUIRE_PHASE_DESCEND"));
+    EXPECT_THAT(stream, HasSubstr("\"learned\":\"learned\""));
+  }
 }
 
 TEST_F(ConsoleServerTest, StopAnswersWithOrWithoutAMeal) {
