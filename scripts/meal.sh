@@ -24,7 +24,7 @@ while (($#)); do
   esac
 done
 
-scripts/setup.sh
+scripts/setup.sh --meal
 
 # shellcheck source=scripts/lib/services.sh
 source scripts/lib/services.sh
