@@ -18,6 +18,7 @@
 #include "clients/console/console_server.h"
 #include "clients/console/meal_host.h"
 #include "clients/meal/service_clients.h"
+#include "clients/meal/trace_recording.h"
 #include "services/common/channel.h"
 #include "services/common/flags_usage.h"
 #include "services/common/server.h"
@@ -63,6 +64,10 @@ ABSL_FLAG(std::string, journal, "bitewise-console.journal",
           "File of updates not yet delivered (answers, failed Updates).");
 ABSL_FLAG(double, rho_c, 1.0,
           "For a NEW person: lambda_c = rho_c x the featurizer's E||c||^2.");
+ABSL_FLAG(std::string, record_traces, "",
+          "Directory in which to record every bite's force/torque trace "
+          "with the bite, for retraining HapticNet (docs/haptic.md). Empty: "
+          "no recording.");
 ABSL_FLAG(double, lambda_c, 0.0, "For a NEW person: the context ridge.");
 ABSL_FLAG(double, alpha, -1.0,
           "For a NEW person: exploration; negative keeps the service's.");
@@ -190,6 +195,17 @@ int main(int argc, char** argv) {
   defaults.rho_c = absl::GetFlag(FLAGS_rho_c);
   defaults.alpha = absl::GetFlag(FLAGS_alpha);
   defaults.prior_rounds = absl::GetFlag(FLAGS_prior_rounds);
+  std::unique_ptr<meals::TraceRecording> recording;
+  if (!absl::GetFlag(FLAGS_record_traces).empty()) {
+    absl::StatusOr<std::unique_ptr<meals::TraceRecording>> opened =
+        meals::TraceRecording::Open(absl::GetFlag(FLAGS_record_traces));
+    if (!opened.ok()) {
+      return Fail(
+          absl::StrCat("--record_traces: ", opened.status().ToString()));
+    }
+    recording = std::move(opened).value();
+    defaults.recording = recording.get();
+  }
   console::MealHost host(&clients, host_options);
   // What a killed console left undelivered goes first.
   const absl::StatusOr<int> delivered = host.DeliverJournal();

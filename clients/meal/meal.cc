@@ -591,6 +591,7 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
        "Feeling what the food was like.");
   absl::StatusOr<v1::ClassifyResponse> haptic =
       clients_->haptic.Classify(result.trace());
+  Record(result, haptic.ok() ? &*haptic : nullptr);
   if (!haptic.ok()) {
     if (options_.posthoc != PosthocMode::kNone) {
       // Without a haptic class the post hoc learner cannot use this bite.
@@ -640,6 +641,40 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
     }
   }
   return absl::OkStatus();
+}
+
+void Meal::Record(const v1::AcquireResult& result,
+                  const v1::ClassifyResponse* haptic) {
+  if (options_.recording == nullptr || result.trace().empty()) return;
+  RecordedBite bite;
+  bite.user_id = options_.user_id;
+  bite.meal_id = options_.meal_id;
+  {
+    absl::MutexLock lock(&mu_);
+    const mealpb::Bite& current = state_.bites(state_.bites_size() - 1);
+    bite.event_id = current.event_id();
+    bite.food = current.food();
+    bite.action = current.action().name();
+    bite.outcome =
+        current.question().empty() ? current.outcome() : "asked the operator";
+  }
+  const int true_category = static_cast<int>(result.true_haptic_category());
+  if (true_category >= 1 && true_category <= domain::kHapticClasses) {
+    bite.label = static_cast<domain::HapticClass>(true_category - 1);
+  }
+  const int category =
+      haptic == nullptr ? 0 : static_cast<int>(haptic->category());
+  if (category >= 1 && category <= domain::kHapticClasses) {
+    bite.haptic = static_cast<domain::HapticClass>(category - 1);
+    bite.probabilities.assign(haptic->probabilities().begin(),
+                              haptic->probabilities().end());
+  }
+  absl::StatusOr<std::string> id =
+      options_.recording->Record(bite, result.trace());
+  if (!id.ok() && listener_ != nullptr) {
+    listener_->OnNote(
+        absl::StrCat("the trace was not recorded: ", id.status().message()));
+  }
 }
 
 void Meal::Learn() {

@@ -43,6 +43,7 @@
 #include "absl/synchronization/mutex.h"
 #include "bitewise/meal/v1/meal.pb.h"
 #include "clients/meal/service_clients.h"
+#include "clients/meal/trace_recording.h"
 #include "clients/meal/update_journal.h"
 
 namespace bitewise::meals {
@@ -73,6 +74,10 @@ struct MealOptions {
   // prior_rounds > 0 starts from the facility's population pool.
   double alpha = -1.0;
   double prior_rounds = 0.0;
+  // When set (it must outlive the meal), every Acquire's trace is recorded
+  // with its bite for retraining HapticNet (trace_recording.h). A failed
+  // recording is noted and never stops the meal.
+  TraceRecording* recording = nullptr;
 };
 
 // Hears every step and every change of the meal.
@@ -153,6 +158,10 @@ class Meal {
                                             int action);
   void Judge(const v1::AcquireResult& result);
   absl::Status Classify(const v1::AcquireResult& result);
+  // Records the trace when options_.recording is set (`haptic` null when
+  // the HapticService did not answer).
+  void Record(const v1::AcquireResult& result,
+              const v1::ClassifyResponse* haptic);
   void Learn();
 
   void Emit(mealpb::Step step, mealpb::StepState state, std::string text,

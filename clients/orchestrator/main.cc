@@ -17,6 +17,7 @@
 #include "absl/strings/str_format.h"
 #include "clients/meal/meal.h"
 #include "clients/meal/service_clients.h"
+#include "clients/meal/trace_recording.h"
 #include "clients/meal/update_journal.h"
 #include "services/common/channel.h"
 #include "services/common/flags_usage.h"
@@ -58,6 +59,11 @@ ABSL_FLAG(int, retries, 4,
           "Retries of a call that ends UNAVAILABLE (0-4; gRPC's retry policy, "
           "random backoff below 0.5 s * 2^n, at most 4 s, within the call's "
           "deadline).");
+ABSL_FLAG(std::string, record_traces, "",
+          "Directory in which to record every bite's force/torque trace with "
+          "the bite (traces.csv in bitewise-haptic-train's format, bites.csv "
+          "one row per bite), for retraining HapticNet on the lab's own data "
+          "(docs/haptic.md). Empty: no recording.");
 ABSL_FLAG(double, lambda_c, 0.0,
           "Context ridge for a NEW user, honoured exactly; 0 derives it from "
           "--rho_c and the featurizer's E||c||^2.");
@@ -219,6 +225,18 @@ int main(int argc, char** argv) {
   options.rho_c = absl::GetFlag(FLAGS_rho_c);
   options.alpha = absl::GetFlag(FLAGS_alpha);
   options.prior_rounds = absl::GetFlag(FLAGS_prior_rounds);
+  std::unique_ptr<meals::TraceRecording> recording;
+  if (!absl::GetFlag(FLAGS_record_traces).empty()) {
+    absl::StatusOr<std::unique_ptr<meals::TraceRecording>> opened =
+        meals::TraceRecording::Open(absl::GetFlag(FLAGS_record_traces));
+    if (!opened.ok()) {
+      std::fprintf(stderr, "--record_traces: %s\n",
+                   opened.status().ToString().c_str());
+      return 2;
+    }
+    recording = std::move(opened).value();
+    options.recording = recording.get();
+  }
 
   meals::UpdateJournal journal(absl::GetFlag(FLAGS_journal));
   TerminalListener listener;
@@ -287,5 +305,10 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s\n", finished.ToString().c_str());
   }
   PrintSummary(meal.state());
+  if (recording != nullptr) {
+    std::printf("recorded %lld trace(s) in %s\n",
+                static_cast<long long>(recording->recorded()),
+                recording->dir().c_str());
+  }
   return exit_code;
 }

@@ -51,6 +51,11 @@ void OutcomeToProto(const AcquireOutcome& outcome, const ActionSpec& action,
   proto->set_success(outcome.attempt.success);
   proto->set_success_decided_by_operator(outcome.attempt.decided_by_operator);
   proto->set_true_food_type(outcome.attempt.true_food_type);
+  if (outcome.attempt.true_haptic_class.has_value()) {
+    // HapticCategory is HapticClass + 1 (UNSPECIFIED is 0).
+    proto->set_true_haptic_category(static_cast<v1::HapticCategory>(
+        static_cast<int>(*outcome.attempt.true_haptic_class) + 1));
+  }
   proto->set_peak_force_n(outcome.peak_force_n);
   proto->set_force_limit_reached(outcome.force_limit_reached);
   proto->set_contact_time_s(outcome.contact_time_s);

@@ -5,7 +5,10 @@
 #ifndef BITEWISE_SERVICES_ROBOT_SUCCESS_JUDGE_H_
 #define BITEWISE_SERVICES_ROBOT_SUCCESS_JUDGE_H_
 
+#include <optional>
 #include <string>
+
+#include "services/domain/haptic_class.h"
 
 namespace bitewise::robot {
 
@@ -16,6 +19,8 @@ struct AttemptOutcome {
   bool decided_by_operator = false;
   // Simulation only: the food the fork actually touched ("" for none).
   std::string true_food_type;
+  // Simulation only: that food's haptic category.
+  std::optional<domain::HapticClass> true_haptic_class;
 };
 
 // Called by the acquisition loop, one attempt at a time.

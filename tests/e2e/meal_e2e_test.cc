@@ -6,6 +6,8 @@
 
 #include <array>
 #include <chrono>
+#include <cstdio>
+#include <fstream>
 #include <memory>
 #include <regex>
 #include <string>
@@ -16,8 +18,10 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/time.h"
 #include "bitewise/v1/bandit.grpc.pb.h"
+#include "bitewise/v1/haptic.grpc.pb.h"
 #include "gtest/gtest.h"
 #include "services/common/channel.h"
+#include "services/haptic/training/labelled_traces.h"
 #include "tests/common/child_process.h"
 
 namespace bitewise {
@@ -253,6 +257,106 @@ TEST_F(MealEndToEndTest, KilledBanditMidMealLosesNoAcknowledgedUpdate) {
       << "first run:\n"
       << out << "\nsecond run:\n"
       << out2;
+}
+
+// The lab's retraining path, end to end: meals record their traces, the
+// trainer learns from the recording (with a story), the HapticService
+// serves the new model, and it answers for a recorded trace.
+TEST_F(MealEndToEndTest, RecordedMealsRetrainHapticNetAndTheServiceServesIt) {
+  const std::string recording = absl::StrCat(dir_, "/recording");
+  int status = 0;
+  std::vector<std::string> args = OrchestratorArgs("lab", "m1", 6);
+  args.push_back(absl::StrCat("--record_traces=", recording));
+  std::string out = RunOrchestrator(args, "rec1.log", &status);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << out;
+  EXPECT_TRUE(absl::StrContains(out, "recorded 6 trace(s) in")) << out;
+  // A second meal continues the same recording.
+  args = OrchestratorArgs("lab", "m2", 4);
+  args.push_back(absl::StrCat("--record_traces=", recording));
+  out = RunOrchestrator(args, "rec2.log", &status);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << out;
+
+  // Ten bites: ids 0-9, each labelled with the simulated food's class and
+  // HapticNet's answer, the trace readable by the trainer's reader.
+  absl::StatusOr<std::vector<haptic::RecordedTrace>> traces =
+      haptic::ReadRecordedTraces(absl::StrCat(recording, "/traces.csv"));
+  ASSERT_TRUE(traces.ok()) << traces.status();
+  ASSERT_EQ(traces->size(), 10u);
+  for (size_t i = 0; i < traces->size(); ++i) {
+    EXPECT_EQ((*traces)[i].id, absl::StrCat(i));
+    EXPECT_TRUE((*traces)[i].label.has_value());
+    EXPECT_GT((*traces)[i].samples.size(), 100u);
+  }
+  std::ifstream bites_file(absl::StrCat(recording, "/bites.csv"));
+  std::vector<std::string> bites;
+  for (std::string line; std::getline(bites_file, line);) bites.push_back(line);
+  ASSERT_EQ(bites.size(), 11u);
+  EXPECT_TRUE(absl::StartsWith(bites[0], "trace,time_utc,user,meal,event_id"));
+  const std::vector<std::string> row = absl::StrSplit(bites[7], ',');
+  ASSERT_EQ(row.size(), 14u) << bites[7];
+  EXPECT_EQ(row[0], "6");
+  EXPECT_EQ(row[2], "lab");
+  EXPECT_EQ(row[3], "m2");
+  EXPECT_NE(row[9], "none");  // HapticNet answered
+
+  // Retrain on the recording mixed with one story; the trainer reports the
+  // held-out recorded traces and every story it did not train on.
+  ChildProcess trainer;
+  const std::string model = absl::StrCat(dir_, "/retrained.onnx");
+  ASSERT_TRUE(
+      trainer
+          .Start({BITEWISE_HAPTIC_TRAIN_BINARY,
+                  absl::StrCat("--traces=", recording, "/traces.csv"),
+                  absl::StrCat("--labels=", recording, "/bites.csv"),
+                  "--traces_repeat=5", "--stories=world",
+                  "--traces_per_class=60", "--max_epochs=4",
+                  "--held_out_per_class=10", absl::StrCat("--out=", model)},
+                 absl::StrCat(dir_, "/train.log"))
+          .ok());
+  absl::StatusOr<int> trained = trainer.Wait(absl::Seconds(240));
+  ASSERT_TRUE(trained.ok()) << trained.status();
+  const std::string train_log = trainer.log();
+  ASSERT_TRUE(WIFEXITED(*trained) && WEXITSTATUS(*trained) == 0) << train_log;
+  std::printf("%s", train_log.c_str());  // the new model's numbers
+  EXPECT_TRUE(absl::StrContains(train_log, "recorded traces: 10 labelled"))
+      << train_log;
+  EXPECT_TRUE(absl::StrContains(train_log, "held-out recorded traces ("))
+      << train_log;
+  EXPECT_TRUE(absl::StrContains(train_log, "held-out story piecewise"))
+      << train_log;
+  EXPECT_TRUE(absl::StrContains(train_log, "held-out story mechanics"))
+      << train_log;
+
+  // The HapticService restarted on the new model serves it.
+  RunningService& haptic_service = services_[2];
+  haptic_service.process.Kill();
+  haptic_service.extra_args = {absl::StrCat("--model=", model)};
+  ASSERT_TRUE(Start(haptic_service).ok());
+  auto channel = MakeChannel(haptic_service.address(), ChannelOptions());
+  ASSERT_TRUE(channel.ok());
+  auto stub = v1::HapticService::NewStub(*channel);
+  v1::ClassifyRequest request;
+  for (const haptic::WrenchSample& s : (*traces)[0].samples) {
+    v1::WrenchSample* sample = request.add_samples();
+    sample->set_t_s(s.t_s);
+    sample->set_fx_n(s.values[0]);
+    sample->set_fy_n(s.values[1]);
+    sample->set_fz_n(s.values[2]);
+    sample->set_tx_nm(s.values[3]);
+    sample->set_ty_nm(s.values[4]);
+    sample->set_tz_nm(s.values[5]);
+  }
+  v1::ClassifyResponse response;
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() +
+                       std::chrono::seconds(20));
+  const grpc::Status classified = stub->Classify(&context, request, &response);
+  ASSERT_TRUE(classified.ok()) << classified.error_message();
+  EXPECT_EQ(response.probabilities_size(), 4);
+  const std::regex fingerprint("bytes, (fnv1a64:[0-9a-f]+)\\)");
+  std::smatch match;
+  ASSERT_TRUE(std::regex_search(train_log, match, fingerprint)) << train_log;
+  EXPECT_EQ(response.model_fingerprint(), match[1].str());
 }
 
 }  // namespace

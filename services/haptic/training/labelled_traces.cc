@@ -13,14 +13,12 @@
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "services/domain/random.h"
+#include "services/domain/trace_csv.h"
 #include "services/sim/force_trace.h"
 #include "services/sim/trace_stories.h"
 
 namespace bitewise::haptic {
 namespace {
-
-constexpr char kCsvHeader[] =
-    "trace,label,t_s,fx_n,fy_n,fz_n,tx_nm,ty_nm,tz_nm";
 
 double Uniform(std::mt19937_64& rng, double lo, double hi) {
   if (lo == hi) return lo;
@@ -226,15 +224,16 @@ absl::Status WriteTraceCsv(const std::string& path,
   if (file == nullptr) {
     return absl::InternalError(absl::StrCat("cannot write ", path));
   }
-  std::fprintf(file, "%s\n", kCsvHeader);
+  std::fprintf(file, "%s\n", domain::kTraceCsvHeader);
+  std::string rows;
   for (size_t i = 0; i < traces.size(); ++i) {
-    const char* label = HapticClassName(traces[i].label);
+    rows.clear();
+    const std::string id = absl::StrCat(i);
     for (const WrenchSample& s : traces[i].samples) {
-      // %.17g: doubles survive the round trip exactly.
-      std::fprintf(file, "%zu,%s,%.17g", i, label, s.t_s);
-      for (double v : s.values) std::fprintf(file, ",%.17g", v);
-      std::fputc('\n', file);
+      domain::AppendTraceCsvRow(&rows, id, HapticClassName(traces[i].label),
+                                s.t_s, s.values);
     }
+    std::fwrite(rows.data(), 1, rows.size(), file);
   }
   const bool failed = std::ferror(file) != 0;
   if (std::fclose(file) != 0 || failed) {
@@ -243,33 +242,43 @@ absl::Status WriteTraceCsv(const std::string& path,
   return absl::OkStatus();
 }
 
-absl::StatusOr<std::vector<LabelledTrace>> ReadTraceCsv(
-    const std::string& path) {
+namespace {
+
+// The CSV reader behind ReadTraceCsv and ReadRecordedTraces: "unknown" is a
+// label only where `allow_unlabelled`.
+absl::StatusOr<std::vector<RecordedTrace>> ReadCsv(const std::string& path,
+                                                   bool allow_unlabelled) {
   std::ifstream in(path);
   if (!in) return absl::NotFoundError(absl::StrCat("cannot open ", path));
   std::string line;
-  if (!std::getline(in, line) || absl::StripTrailingAsciiWhitespace(line) !=
-                                     absl::string_view(kCsvHeader)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat(path, ":1: expected the header \"", kCsvHeader, "\""));
+  if (!std::getline(in, line) ||
+      absl::StripTrailingAsciiWhitespace(line) !=
+          absl::string_view(domain::kTraceCsvHeader)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        path, ":1: expected the header \"", domain::kTraceCsvHeader, "\""));
   }
-  std::vector<LabelledTrace> traces;
-  std::string current_id;
+  std::vector<RecordedTrace> traces;
+  std::string label_text;
   int line_number = 1;
   while (std::getline(in, line)) {
     ++line_number;
     const absl::string_view row = absl::StripTrailingAsciiWhitespace(line);
     if (row.empty()) continue;
     const std::vector<absl::string_view> fields = absl::StrSplit(row, ',');
-    if (fields.size() != 9) {
+    if (fields.size() != domain::kTraceCsvFields) {
       return absl::InvalidArgumentError(absl::StrCat(
-          path, ":", line_number, ": expected 9 fields, got ", fields.size()));
+          path, ":", line_number, ": expected ", domain::kTraceCsvFields,
+          " fields, got ", fields.size()));
     }
-    HapticClass label;
-    if (!ParseLabel(fields[1], &label)) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(path, ":", line_number, ": unknown label \"", fields[1],
-                       "\" (hard, medium, soft, hard_skin)"));
+    std::optional<HapticClass> label;
+    HapticClass parsed;
+    if (ParseLabel(fields[1], &parsed)) {
+      label = parsed;
+    } else if (!allow_unlabelled || fields[1] != domain::kUnlabelled) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          path, ":", line_number, ": unknown label \"", fields[1],
+          allow_unlabelled ? "\" (hard, medium, soft, hard_skin, unknown)"
+                           : "\" (hard, medium, soft, hard_skin)"));
     }
     WrenchSample sample;
     bool ok = absl::SimpleAtod(fields[2], &sample.t_s);
@@ -280,17 +289,92 @@ absl::StatusOr<std::vector<LabelledTrace>> ReadTraceCsv(
       return absl::InvalidArgumentError(
           absl::StrCat(path, ":", line_number, ": malformed number"));
     }
-    if (traces.empty() || fields[0] != current_id) {
-      current_id = std::string(fields[0]);
-      traces.push_back({label, {}});
-    } else if (traces.back().label != label) {
+    if (traces.empty() || fields[0] != traces.back().id) {
+      if (fields[0].empty()) {
+        return absl::InvalidArgumentError(
+            absl::StrCat(path, ":", line_number, ": empty trace id"));
+      }
+      traces.push_back({std::string(fields[0]), label, {}});
+      label_text = std::string(fields[1]);
+    } else if (fields[1] != label_text) {
       return absl::InvalidArgumentError(
-          absl::StrCat(path, ":", line_number, ": trace ", current_id,
+          absl::StrCat(path, ":", line_number, ": trace ", traces.back().id,
                        " changes its label to ", fields[1]));
     }
     traces.back().samples.push_back(sample);
   }
   return traces;
+}
+
+}  // namespace
+
+absl::StatusOr<std::vector<LabelledTrace>> ReadTraceCsv(
+    const std::string& path) {
+  absl::StatusOr<std::vector<RecordedTrace>> read =
+      ReadCsv(path, /*allow_unlabelled=*/false);
+  if (!read.ok()) return read.status();
+  std::vector<LabelledTrace> traces;
+  traces.reserve(read->size());
+  for (RecordedTrace& trace : *read) {
+    traces.push_back({*trace.label, std::move(trace.samples)});
+  }
+  return traces;
+}
+
+absl::StatusOr<std::vector<RecordedTrace>> ReadRecordedTraces(
+    const std::string& path) {
+  return ReadCsv(path, /*allow_unlabelled=*/true);
+}
+
+absl::StatusOr<std::map<std::string, std::optional<HapticClass>>>
+ReadTraceLabels(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) return absl::NotFoundError(absl::StrCat("cannot open ", path));
+  std::string line;
+  if (!std::getline(in, line)) {
+    return absl::InvalidArgumentError(absl::StrCat(path, ": empty file"));
+  }
+  const std::vector<std::string> header =
+      absl::StrSplit(absl::StripTrailingAsciiWhitespace(line), ',');
+  const auto column = [&](absl::string_view name) {
+    return static_cast<int>(std::find(header.begin(), header.end(), name) -
+                            header.begin());
+  };
+  const int trace_column = column("trace");
+  const int label_column = column("label");
+  const int columns = static_cast<int>(header.size());
+  if (trace_column == columns || label_column == columns) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        path, ":1: the header needs the columns \"trace\" and \"label\""));
+  }
+  std::map<std::string, std::optional<HapticClass>> labels;
+  int line_number = 1;
+  while (std::getline(in, line)) {
+    ++line_number;
+    const absl::string_view row = absl::StripTrailingAsciiWhitespace(line);
+    if (row.empty()) continue;
+    const std::vector<absl::string_view> fields = absl::StrSplit(row, ',');
+    if (static_cast<int>(fields.size()) != columns) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(path, ":", line_number, ": expected ", columns,
+                       " fields, got ", fields.size()));
+    }
+    std::optional<HapticClass> label;
+    HapticClass parsed;
+    if (ParseLabel(fields[label_column], &parsed)) {
+      label = parsed;
+    } else if (fields[label_column] != domain::kUnlabelled) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          path, ":", line_number, ": unknown label \"", fields[label_column],
+          "\" (hard, medium, soft, hard_skin, unknown)"));
+    }
+    if (!labels.emplace(std::string(fields[trace_column]), label).second) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(path, ":", line_number, ": trace ", fields[trace_column],
+                       " is listed twice"));
+    }
+  }
+  return labels;
 }
 
 LabelledWindows WindowsFromTraces(const std::vector<LabelledTrace>& traces,

@@ -1,19 +1,15 @@
 // Labelled force/torque traces for HapticNet's trainer and its evaluation:
 // drawn from the simulated world's force-trace model under chosen sensor
-// conditions, or read from and written to the documented CSV format
-// (docs/haptic.md):
-//
-//   trace,label,t_s,fx_n,fy_n,fz_n,tx_nm,ty_nm,tz_nm
-//   0,hard,0,0.01,-0.02,0.3,0.001,0.0,-0.002
-//   ...
-//
-// one row per sample, rows of a trace contiguous and in time order, the
-// label (hard, medium, soft, hard_skin) repeated on every row of its trace.
+// conditions or from the independent trace stories, or read from and written
+// to the trace CSV format of services/domain/trace_csv.h (docs/haptic.md),
+// including the recordings of real bites that the meal writes.
 #ifndef BITEWISE_SERVICES_HAPTIC_TRAINING_LABELLED_TRACES_H_
 #define BITEWISE_SERVICES_HAPTIC_TRAINING_LABELLED_TRACES_H_
 
 #include <array>
 #include <cstdint>
+#include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -131,6 +127,27 @@ absl::Status WriteTraceCsv(const std::string& path,
 // unknown label or a label that changes within a trace.
 absl::StatusOr<std::vector<LabelledTrace>> ReadTraceCsv(
     const std::string& path);
+
+// A trace as recorded by a meal (clients/meal/trace_recording.h): its id in
+// the file, and its label unless the food was unknown ("unknown").
+struct RecordedTrace {
+  std::string id;
+  std::optional<HapticClass> label;
+  std::vector<WrenchSample> samples;
+};
+
+// Reads the CSV format above, accepting the label "unknown". Errors as
+// ReadTraceCsv.
+absl::StatusOr<std::vector<RecordedTrace>> ReadRecordedTraces(
+    const std::string& path);
+
+// Reads the labels of a recording's bites file (any CSV whose header has the
+// columns "trace" and "label"; one row per trace), by trace id, so a lab can
+// label or relabel its recordings one bite per row. NOT_FOUND if the file
+// cannot be opened; INVALID_ARGUMENT naming the line for a missing column, a
+// short row, an unknown label or a trace listed twice.
+absl::StatusOr<std::map<std::string, std::optional<HapticClass>>>
+ReadTraceLabels(const std::string& path);
 
 // Network inputs of `traces` through the service's own feature pipeline.
 // Traces the pipeline rejects (no contact, too short) are skipped and

@@ -9,6 +9,7 @@
 #include <map>
 #include <memory>
 #include <numeric>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -28,15 +29,27 @@
 
 ABSL_FLAG(std::string, out, "hapticnet.onnx", "Where to write the model.");
 ABSL_FLAG(std::string, traces, "",
-          "Labelled traces in the CSV format of docs/haptic.md. Empty: draw "
-          "them from the simulated trace stories of --stories.");
+          "Recorded traces in the CSV format of docs/haptic.md (a meal's "
+          "--record_traces directory holds them as traces.csv), trained on "
+          "together with --stories. Traces labelled \"unknown\" are "
+          "skipped and counted.");
+ABSL_FLAG(std::string, labels, "",
+          "A recording's bites.csv (or any CSV with the columns trace and "
+          "label): its labels replace those of --traces, trace by trace.");
+ABSL_FLAG(int, traces_repeat, 1,
+          "Each recorded training trace counts this many times (so a few "
+          "hundred recordings are not drowned by the stories).");
 ABSL_FLAG(std::string, stories, "world,piecewise",
-          "Simulated trace stories to train on (when --traces is empty), "
-          "comma-separated: world (the simulated world's force-trace model, "
-          "augmented), piecewise, mechanics (services/sim/trace_stories.h). "
-          "The shipped model holds mechanics out for its evaluation.");
+          "Simulated trace stories to train on, comma-separated: world (the "
+          "simulated world's force-trace model, augmented), piecewise, "
+          "mechanics (services/sim/trace_stories.h); \"none\" to train on "
+          "--traces alone. The shipped model holds mechanics out for its "
+          "evaluation.");
 ABSL_FLAG(std::string, write_traces, "",
           "Also write the traces used (simulated or read) to this CSV file.");
+ABSL_FLAG(bool, write_traces_only, false,
+          "With --write_traces: write the traces and stop, without training "
+          "(to make a recording-format file from a story, for example).");
 ABSL_FLAG(int, traces_per_class, 3000,
           "Simulated traces per class and story (when --traces is empty).");
 ABSL_FLAG(uint64_t, seed, 1,
@@ -82,42 +95,84 @@ int main(int argc, char** argv) {
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
 
   std::vector<LabelledTrace> traces;
+  std::vector<int> story_of;  // per simulated trace: its story
   std::string source;
   std::vector<TraceStory> held_out;  // stories not trained on
-  if (absl::GetFlag(FLAGS_traces).empty()) {
-    absl::StatusOr<std::vector<TraceStory>> stories =
+  std::vector<TraceStory> stories;
+  if (absl::GetFlag(FLAGS_stories) != "none") {
+    absl::StatusOr<std::vector<TraceStory>> parsed =
         ParseTraceStories(absl::GetFlag(FLAGS_stories));
-    if (!stories.ok()) return Die(stories.status().ToString());
-    std::vector<std::string> names;
-    for (TraceStory story : *stories) {
-      std::vector<LabelledTrace> drawn =
-          StoryTraces(story, absl::GetFlag(FLAGS_traces_per_class), seed);
-      std::move(drawn.begin(), drawn.end(), std::back_inserter(traces));
-      names.push_back(TraceStoryName(story));
+    if (!parsed.ok()) return Die(parsed.status().ToString());
+    stories = std::move(parsed).value();
+  }
+  if (stories.empty() && absl::GetFlag(FLAGS_traces).empty()) {
+    return Die("--stories=none needs --traces");
+  }
+  std::vector<std::string> names;
+  for (TraceStory story : stories) {
+    std::vector<LabelledTrace> drawn =
+        StoryTraces(story, absl::GetFlag(FLAGS_traces_per_class), seed);
+    story_of.insert(story_of.end(), drawn.size(), static_cast<int>(story));
+    std::move(drawn.begin(), drawn.end(), std::back_inserter(traces));
+    names.push_back(TraceStoryName(story));
+  }
+  for (int i = 0; i < kTraceStories; ++i) {
+    const auto story = static_cast<TraceStory>(i);
+    if (std::find(stories.begin(), stories.end(), story) == stories.end()) {
+      held_out.push_back(story);
     }
-    for (int i = 0; i < kTraceStories; ++i) {
-      const auto story = static_cast<TraceStory>(i);
-      if (std::find(stories->begin(), stories->end(), story) ==
-          stories->end()) {
-        held_out.push_back(story);
-      }
-    }
+  }
+  if (!stories.empty()) {
     source = absl::StrCat("simulated stories ", absl::StrJoin(names, "+"), " (",
                           absl::GetFlag(FLAGS_traces_per_class),
                           " per class and story, seed ", seed,
                           "; world augmented: amplitude, time scale, noise, "
                           "bias, rate, lateral, touch)");
-  } else {
-    absl::StatusOr<std::vector<LabelledTrace>> read =
-        ReadTraceCsv(absl::GetFlag(FLAGS_traces));
+  }
+  // Recorded traces: their own split, so that their held-out part is
+  // reported on its own.
+  std::vector<LabelledTrace> recorded;
+  if (!absl::GetFlag(FLAGS_traces).empty()) {
+    absl::StatusOr<std::vector<RecordedTrace>> read =
+        ReadRecordedTraces(absl::GetFlag(FLAGS_traces));
     if (!read.ok()) return Die(read.status().ToString());
-    traces = std::move(read).value();
-    source = absl::GetFlag(FLAGS_traces);
+    if (!absl::GetFlag(FLAGS_labels).empty()) {
+      absl::StatusOr<std::map<std::string, std::optional<HapticClass>>> labels =
+          ReadTraceLabels(absl::GetFlag(FLAGS_labels));
+      if (!labels.ok()) return Die(labels.status().ToString());
+      for (RecordedTrace& trace : *read) {
+        const auto it = labels->find(trace.id);
+        if (it != labels->end()) trace.label = it->second;
+      }
+    }
+    int unlabelled = 0;
+    for (RecordedTrace& trace : *read) {
+      if (!trace.label.has_value()) {
+        ++unlabelled;
+        continue;
+      }
+      recorded.push_back({*trace.label, std::move(trace.samples)});
+    }
+    std::printf("recorded traces: %zu labelled, %d unknown (skipped) in %s\n",
+                recorded.size(), unlabelled,
+                absl::GetFlag(FLAGS_traces).c_str());
+    if (recorded.empty()) return Die("no labelled recorded traces to train on");
+    absl::StrAppend(&source, source.empty() ? "" : " + ", "recorded ",
+                    absl::GetFlag(FLAGS_traces), " (", recorded.size(),
+                    " labelled traces, each x",
+                    absl::GetFlag(FLAGS_traces_repeat), ")");
   }
   if (!absl::GetFlag(FLAGS_write_traces).empty()) {
+    std::vector<LabelledTrace> all = traces;
+    all.insert(all.end(), recorded.begin(), recorded.end());
     absl::Status written =
-        WriteTraceCsv(absl::GetFlag(FLAGS_write_traces), traces);
+        WriteTraceCsv(absl::GetFlag(FLAGS_write_traces), all);
     if (!written.ok()) return Die(written.ToString());
+    if (absl::GetFlag(FLAGS_write_traces_only)) {
+      std::printf("wrote %zu traces to %s\n", all.size(),
+                  absl::GetFlag(FLAGS_write_traces).c_str());
+      return 0;
+    }
   }
 
   // Split by trace, so no food item is in two sets.
@@ -129,22 +184,42 @@ int main(int argc, char** argv) {
         "--validation_fraction and --test_fraction must be > 0 with a sum "
         "below 1");
   }
-  std::vector<int> order(traces.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::mt19937_64 split_rng(seed ^ 0x5eed5eed5eed5eedull);
-  for (int i = static_cast<int>(order.size()) - 1; i > 0; --i) {
-    std::swap(order[i], order[split_rng() % static_cast<uint64_t>(i + 1)]);
-  }
-  const size_t test_count =
-      static_cast<size_t>(std::round(test_fraction * traces.size()));
-  const size_t validation_count =
-      static_cast<size_t>(std::round(validation_fraction * traces.size()));
+  // Shuffles `set` into test, validation and train parts (in that order of
+  // the shuffled list), tagging each trace with `tags[i]` when given.
   std::vector<LabelledTrace> test, validation, train;
-  for (size_t i = 0; i < order.size(); ++i) {
-    auto& set = i < test_count                      ? test
-                : i < test_count + validation_count ? validation
-                                                    : train;
-    set.push_back(std::move(traces[order[i]]));
+  std::vector<int> test_tag;  // story of each test trace, -1 recorded
+  std::vector<LabelledTrace> recorded_test;
+  auto split = [&](std::vector<LabelledTrace>& set,
+                   const std::vector<int>* tags, uint64_t split_seed,
+                   std::vector<LabelledTrace>* test_part, int repeat) {
+    std::vector<int> order(set.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::mt19937_64 split_rng(split_seed);
+    for (int i = static_cast<int>(order.size()) - 1; i > 0; --i) {
+      std::swap(order[i], order[split_rng() % static_cast<uint64_t>(i + 1)]);
+    }
+    const size_t test_count =
+        static_cast<size_t>(std::round(test_fraction * set.size()));
+    const size_t validation_count =
+        static_cast<size_t>(std::round(validation_fraction * set.size()));
+    for (size_t i = 0; i < order.size(); ++i) {
+      if (i < test_count) {
+        if (tags != nullptr) test_tag.push_back((*tags)[order[i]]);
+        test_part->push_back(std::move(set[order[i]]));
+      } else if (i < test_count + validation_count) {
+        validation.push_back(std::move(set[order[i]]));
+      } else {
+        for (int r = 1; r < repeat; ++r) train.push_back(set[order[i]]);
+        train.push_back(std::move(set[order[i]]));
+      }
+    }
+  };
+  split(traces, &story_of, seed ^ 0x5eed5eed5eed5eedull, &test, 1);
+  split(recorded, nullptr, seed ^ 0x7ecd7ecd7ecd7ecdull, &recorded_test,
+        std::max(1, absl::GetFlag(FLAGS_traces_repeat)));
+  if (test.empty()) {  // trained on recordings alone
+    test = std::move(recorded_test);
+    recorded_test.clear();
   }
 
   const HapticPipelineOptions pipeline;
@@ -202,6 +277,47 @@ int main(int argc, char** argv) {
       100.0 * score.confusion.Accuracy(), score.mean_log_loss,
       score.expected_calibration_error, score.confusion.ToString().c_str());
 
+  // Each source's part of the held-out test split, when there are several.
+  std::string recorded_summary;
+  if (stories.size() > 1 || (!stories.empty() && !recorded_test.empty())) {
+    for (TraceStory story : stories) {
+      std::vector<LabelledTrace> part;
+      for (size_t i = 0; i < test.size(); ++i) {
+        if (test_tag[i] == static_cast<int>(story)) part.push_back(test[i]);
+      }
+      std::vector<std::array<double, kHapticClasses>> probabilities;
+      const ProbabilisticScore part_score = score_windows(
+          WindowsFromTraces(part, pipeline, nullptr), &probabilities);
+      std::printf(
+          "  story %s (trained on): accuracy %.2f%%, calibration "
+          "error %.4f, per class %s\n",
+          TraceStoryName(story), 100.0 * part_score.confusion.Accuracy(),
+          part_score.expected_calibration_error,
+          absl::StrJoin(
+              {absl::StrFormat("%.1f", 100 * part_score.confusion.Recall(0)),
+               absl::StrFormat("%.1f", 100 * part_score.confusion.Recall(1)),
+               absl::StrFormat("%.1f", 100 * part_score.confusion.Recall(2)),
+               absl::StrFormat("%.1f", 100 * part_score.confusion.Recall(3))},
+              "/")
+              .c_str());
+    }
+  }
+  if (!recorded_test.empty()) {
+    int skipped = 0;
+    const LabelledWindows windows =
+        WindowsFromTraces(recorded_test, pipeline, &skipped);
+    std::vector<std::array<double, kHapticClasses>> probabilities;
+    const ProbabilisticScore held = score_windows(windows, &probabilities);
+    std::printf(
+        "\nheld-out recorded traces (%zu never trained on, %d without "
+        "contact): accuracy %.2f%%, log loss %.4f, calibration error "
+        "%.4f\n%s",
+        recorded_test.size(), skipped, 100.0 * held.confusion.Accuracy(),
+        held.mean_log_loss, held.expected_calibration_error,
+        held.confusion.ToString().c_str());
+    recorded_summary = absl::StrFormat("%.4f", held.confusion.Accuracy());
+  }
+
   // Stories the model never saw: fresh items from another seed's stream.
   std::string held_out_summary;
   for (TraceStory story : held_out) {
@@ -225,7 +341,7 @@ int main(int argc, char** argv) {
                     absl::StrFormat("%.4f", held.confusion.Accuracy()));
   }
 
-  const std::map<std::string, std::string> metadata = {
+  std::map<std::string, std::string> metadata = {
       {"bitewise.classes", "hard,medium,soft,hard_skin"},
       {"bitewise.input",
        "tared fx,fy,fz (N), tx,ty,tz (N m) from first contact, each "
@@ -242,6 +358,9 @@ int main(int argc, char** argv) {
       {"bitewise.held_out_accuracy",
        held_out_summary.empty() ? "none" : held_out_summary},
   };
+  if (!recorded_summary.empty()) {
+    metadata["bitewise.recorded_test_accuracy"] = recorded_summary;
+  }
   const std::string bytes = HapticNetToOnnx(result->weights, metadata);
   const std::string out = absl::GetFlag(FLAGS_out);
   std::FILE* file = std::fopen(out.c_str(), "wb");

@@ -65,7 +65,10 @@ robot::AttemptOutcome SimWorld::EndAttempt(double) {
   absl::MutexLock lock(&mu_);
   robot::AttemptOutcome outcome;
   outcome.success = carried_.has_value();
-  if (engaged_) outcome.true_food_type = engaged_->food->name;
+  if (engaged_) {
+    outcome.true_food_type = engaged_->food->name;
+    outcome.true_haptic_class = engaged_->food->category;
+  }
   // The bite is delivered: the carried item is gone for good.
   action_ = -1;
   engaged_.reset();

@@ -1,0 +1,218 @@
+#include "clients/meal/trace_recording.h"
+
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <cstring>
+#include <utility>
+
+#include "absl/strings/ascii.h"
+#include "absl/strings/numbers.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
+#include "absl/strings/str_split.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
+#include "services/domain/trace_csv.h"
+
+namespace bitewise::meals {
+namespace {
+
+constexpr char kTracesFile[] = "traces.csv";
+constexpr char kBitesFile[] = "bites.csv";
+constexpr char kBitesHeader[] =
+    "trace,time_utc,user,meal,event_id,food,label,action,outcome,haptic,"
+    "p_hard,p_medium,p_soft,p_hard_skin";
+
+std::string Errno(const std::string& what, const std::string& path) {
+  return absl::StrCat(what, " ", path, ": ", std::strerror(errno));
+}
+
+// Reads up to the last 64 KiB of `fd` (an open file of `size` bytes).
+std::string Tail(int fd, off_t size) {
+  const off_t start = size > 65536 ? size - 65536 : 0;
+  std::string text(static_cast<size_t>(size - start), '\0');
+  const ssize_t n = pread(fd, text.data(), text.size(), start);
+  text.resize(n > 0 ? static_cast<size_t>(n) : 0);
+  return text;
+}
+
+// Opens `path` for appending, writing `header` if the file is new or empty
+// and checking it otherwise. Sets `*last_id` to the first field of the last
+// complete row, if it is a number. A last row cut short is cut off.
+absl::StatusOr<int> OpenCsv(const std::string& path, const char* header,
+                            int64_t* last_id) {
+  const int fd =
+      open(path.c_str(), O_RDWR | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+  if (fd < 0) return absl::InternalError(Errno("cannot open", path));
+  struct stat st;
+  if (fstat(fd, &st) != 0) {
+    close(fd);
+    return absl::InternalError(Errno("cannot stat", path));
+  }
+  *last_id = -1;
+  if (st.st_size == 0) {
+    const std::string line = absl::StrCat(header, "\n");
+    if (write(fd, line.data(), line.size()) !=
+            static_cast<ssize_t>(line.size()) ||
+        fsync(fd) != 0) {
+      close(fd);
+      return absl::InternalError(Errno("cannot write", path));
+    }
+    return fd;
+  }
+  std::string first(std::strlen(header) + 1, '\0');
+  const ssize_t n = pread(fd, first.data(), first.size(), 0);
+  if (n != static_cast<ssize_t>(first.size()) ||
+      first != absl::StrCat(header, "\n")) {
+    close(fd);
+    return absl::InvalidArgumentError(
+        absl::StrCat(path,
+                     " is not a bitewise recording: its first line is "
+                     "not \"",
+                     header, "\""));
+  }
+  std::string tail = Tail(fd, st.st_size);
+  if (!tail.empty() && tail.back() != '\n') {
+    // A row cut short (a power loss between write and fsync): drop it.
+    const size_t keep = tail.rfind('\n') + 1;
+    if (ftruncate(fd, st.st_size - static_cast<off_t>(tail.size() - keep)) !=
+        0) {
+      close(fd);
+      return absl::InternalError(Errno("cannot repair", path));
+    }
+    tail.erase(keep);
+  }
+  const std::vector<absl::string_view> lines =
+      absl::StrSplit(tail, '\n', absl::SkipEmpty());
+  if (!lines.empty()) {
+    const absl::string_view last = lines.back();
+    int64_t id;
+    if (absl::SimpleAtoi(last.substr(0, last.find(',')), &id)) *last_id = id;
+  }
+  return fd;
+}
+
+// A field of bites.csv: ids are checked by the services (no commas), but
+// food names and outcomes come from elsewhere.
+std::string Field(const std::string& text) {
+  std::string out = text;
+  for (char& c : out) {
+    if (c == ',' || c == '\n' || c == '\r') c = ' ';
+  }
+  return out;
+}
+
+bool WriteAll(int fd, const std::string& text) {
+  size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = write(fd, text.data() + done, text.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    done += static_cast<size_t>(n);
+  }
+  return fdatasync(fd) == 0;
+}
+
+}  // namespace
+
+absl::StatusOr<std::unique_ptr<TraceRecording>> TraceRecording::Open(
+    const std::string& dir) {
+  if (dir.empty()) {
+    return absl::InvalidArgumentError("the recording directory is empty");
+  }
+  if (mkdir(dir.c_str(), 0755) != 0 && errno != EEXIST) {
+    return absl::InternalError(Errno("cannot create the directory", dir));
+  }
+  int64_t last_trace = -1, last_bite = -1;
+  absl::StatusOr<int> traces = OpenCsv(absl::StrCat(dir, "/", kTracesFile),
+                                       domain::kTraceCsvHeader, &last_trace);
+  if (!traces.ok()) return traces.status();
+  absl::StatusOr<int> bites =
+      OpenCsv(absl::StrCat(dir, "/", kBitesFile), kBitesHeader, &last_bite);
+  if (!bites.ok()) {
+    close(*traces);
+    return bites.status();
+  }
+  return std::unique_ptr<TraceRecording>(new TraceRecording(
+      dir, *traces, *bites, std::max(last_trace, last_bite) + 1));
+}
+
+TraceRecording::TraceRecording(std::string dir, int traces_fd, int bites_fd,
+                               int64_t next_id)
+    : dir_(std::move(dir)),
+      traces_fd_(traces_fd),
+      bites_fd_(bites_fd),
+      next_id_(next_id) {}
+
+TraceRecording::~TraceRecording() {
+  absl::MutexLock lock(&mu_);
+  close(traces_fd_);
+  close(bites_fd_);
+}
+
+int64_t TraceRecording::recorded() const {
+  absl::MutexLock lock(&mu_);
+  return recorded_;
+}
+
+absl::StatusOr<std::string> TraceRecording::Record(
+    const RecordedBite& bite,
+    const google::protobuf::RepeatedPtrField<v1::WrenchSample>& trace) {
+  if (trace.empty()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("event ", bite.event_id, ": the trace is empty"));
+  }
+  const char* label = bite.label.has_value()
+                          ? domain::HapticClassName(*bite.label)
+                          : domain::kUnlabelled;
+  absl::MutexLock lock(&mu_);
+  if (broken_) {
+    return absl::InternalError(absl::StrCat(
+        "the recording in ", dir_, " stopped at an earlier write error"));
+  }
+  const std::string id = absl::StrCat(next_id_);
+  std::string rows;
+  rows.reserve(static_cast<size_t>(trace.size()) * 120);
+  for (const v1::WrenchSample& s : trace) {
+    domain::AppendTraceCsvRow(
+        &rows, id, label, s.t_s(),
+        {s.fx_n(), s.fy_n(), s.fz_n(), s.tx_nm(), s.ty_nm(), s.tz_nm()});
+  }
+  std::string row = absl::StrCat(
+      id, ",",
+      absl::FormatTime("%Y-%m-%dT%H:%M:%E3SZ", absl::Now(),
+                       absl::UTCTimeZone()),
+      ",", Field(bite.user_id), ",", Field(bite.meal_id), ",",
+      Field(bite.event_id), ",", Field(bite.food), ",", label, ",",
+      Field(bite.action), ",", Field(bite.outcome), ",",
+      bite.haptic.has_value() ? domain::HapticClassName(*bite.haptic) : "none");
+  for (int k = 0; k < domain::kHapticClasses; ++k) {
+    if (bite.haptic.has_value() &&
+        static_cast<int>(bite.probabilities.size()) == domain::kHapticClasses) {
+      absl::StrAppend(&row, ",",
+                      absl::StrFormat("%.6f", bite.probabilities[k]));
+    } else {
+      absl::StrAppend(&row, ",");
+    }
+  }
+  row.push_back('\n');
+  if (!WriteAll(traces_fd_, rows)) {
+    broken_ = true;
+    return absl::InternalError(
+        Errno("cannot write", absl::StrCat(dir_, "/", kTracesFile)));
+  }
+  if (!WriteAll(bites_fd_, row)) {
+    broken_ = true;
+    return absl::InternalError(
+        Errno("cannot write", absl::StrCat(dir_, "/", kBitesFile)));
+  }
+  ++next_id_;
+  ++recorded_;
+  return id;
+}
+
+}  // namespace bitewise::meals

@@ -1,0 +1,88 @@
+// The lab's own haptic data: every Acquire's force/torque trace, recorded
+// with its bite so that bitewise-haptic-train can retrain HapticNet on the
+// lab's fork and foods (docs/haptic.md, "The lab's own data"). A recording
+// is a directory of two files, appended to bite by bite:
+//
+//   traces.csv  the trainer's input format (services/domain/trace_csv.h):
+//               one row per sample, the raw trace as the robot measured it,
+//               labelled with the food's haptic class when it is known (the
+//               simulation reports it) and "unknown" otherwise;
+//   bites.csv   one row per trace: trace, time_utc, user, meal, event_id,
+//               food, label, action, outcome, haptic (HapticNet's answer,
+//               "none" if the HapticService did not answer), p_hard,
+//               p_medium, p_soft, p_hard_skin. A lab labels its bites here,
+//               one row per bite, and passes the file to the trainer with
+//               --labels.
+//
+// Each bite is written with one write per file and fsync'd before Record
+// returns. Trace ids continue across runs, so one directory can collect
+// many meals. One process records into a directory at a time.
+//
+// Thread-safe.
+#ifndef BITEWISE_CLIENTS_MEAL_TRACE_RECORDING_H_
+#define BITEWISE_CLIENTS_MEAL_TRACE_RECORDING_H_
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "absl/base/thread_annotations.h"
+#include "absl/status/status.h"
+#include "absl/status/statusor.h"
+#include "absl/synchronization/mutex.h"
+#include "bitewise/v1/common.pb.h"
+#include "google/protobuf/repeated_ptr_field.h"
+#include "services/domain/haptic_class.h"
+
+namespace bitewise::meals {
+
+// What is known of the bite a trace belongs to.
+struct RecordedBite {
+  std::string user_id;
+  std::string meal_id;
+  std::string event_id;
+  std::string food;  // "" when unknown
+  std::optional<domain::HapticClass> label;
+  std::string action;   // "VS0", ...
+  std::string outcome;  // success, failure, awaiting answer, ...
+  // HapticNet's answer; empty when the HapticService did not answer.
+  std::optional<domain::HapticClass> haptic;
+  std::vector<double> probabilities;  // 4 when `haptic` is set
+};
+
+class TraceRecording {
+ public:
+  // Opens (creating it and its files if need be) the recording in `dir`.
+  // INVALID_ARGUMENT if a file there has another header; INTERNAL naming
+  // the file if it cannot be created or read.
+  static absl::StatusOr<std::unique_ptr<TraceRecording>> Open(
+      const std::string& dir);
+  ~TraceRecording();
+
+  // Appends `trace` with `bite`. Returns the trace's id. INVALID_ARGUMENT
+  // for an empty trace or an id field holding a comma or a newline;
+  // INTERNAL naming the file if a write or fsync fails (the recording is
+  // then unusable: what was written before stays readable).
+  absl::StatusOr<std::string> Record(
+      const RecordedBite& bite,
+      const google::protobuf::RepeatedPtrField<v1::WrenchSample>& trace);
+
+  const std::string& dir() const { return dir_; }
+  int64_t recorded() const;  // traces recorded through this object
+
+ private:
+  TraceRecording(std::string dir, int traces_fd, int bites_fd, int64_t next_id);
+
+  const std::string dir_;
+  mutable absl::Mutex mu_;
+  int traces_fd_ ABSL_GUARDED_BY(mu_);
+  int bites_fd_ ABSL_GUARDED_BY(mu_);
+  int64_t next_id_ ABSL_GUARDED_BY(mu_);
+  int64_t recorded_ ABSL_GUARDED_BY(mu_) = 0;
+  bool broken_ ABSL_GUARDED_BY(mu_) = false;
+};
+
+}  // namespace bitewise::meals
+
+#endif  // BITEWISE_CLIENTS_MEAL_TRACE_RECORDING_H_
