@@ -17,6 +17,13 @@
 //    soft foods; with a recorded-style sensor: untared offset and thermal
 //    drift, arm vibration, mains hum, the gauges' low-pass, quantisation to
 //    the Nano25's counts and UDP records lost on the way.
+//  - Compliant (compliant_story.cc): the fork driven through the arm's
+//    compliance with a massive tip, so drops are as fast as the tip can
+//    move and ring at the arm's frequency; layered continuum food (a flat
+//    punch and cohesive cracks, a bursting membrane over viscous flesh,
+//    collapsing cells, a viscoplastic paste); another sensor: tilted tines,
+//    a second-order anti-alias filter, 250 Hz-4 kHz host-stamped samples,
+//    coloured noise and drift.
 //
 // Thread-compatible; deterministic in the generator's state.
 #ifndef BITEWISE_SERVICES_SIM_TRACE_STORIES_H_
@@ -38,6 +45,11 @@ std::vector<TimedWrench> PiecewiseStoryTrace(HapticCategory category,
 // One trace of a new item of `category` from the mechanics story: contact
 // 0.1-0.3 s into the trace, 0.25 s after it, at 250 Hz to 7 kHz.
 std::vector<TimedWrench> MechanicsStoryTrace(HapticCategory category,
+                                             std::mt19937_64& rng);
+
+// One trace of a new item of `category` from the compliant-arm story:
+// contact 0.1-0.3 s into the trace, 0.25 s after it, at 250 Hz to 4 kHz.
+std::vector<TimedWrench> CompliantStoryTrace(HapticCategory category,
                                              std::mt19937_64& rng);
 
 }  // namespace bitewise::sim

@@ -104,7 +104,8 @@ TEST_P(TraceStoryTest, IsSeededAndKeepsTheClassSignatures) {
 INSTANTIATE_TEST_SUITE_P(Stories, TraceStoryTest,
                          ::testing::Values(TraceStory::kWorld,
                                            TraceStory::kPiecewise,
-                                           TraceStory::kMechanics),
+                                           TraceStory::kMechanics,
+                                           TraceStory::kCompliant),
                          [](const ::testing::TestParamInfo<TraceStory>& info) {
                            return std::string(TraceStoryName(info.param));
                          });

@@ -37,6 +37,13 @@ ABSL_FLAG(uint64_t, seed, 20261123,
           "Seed of the test traces; differs from the trainer's so every "
           "trace is new.");
 ABSL_FLAG(bool, confusion, true, "Print a confusion matrix per condition.");
+ABSL_FLAG(std::string, probabilities_csv, "",
+          "Also write every classified trace's true label and probabilities "
+          "(condition,label,p_hard,p_medium,p_soft,p_hard_skin) to this CSV, "
+          "for calibration studies.");
+ABSL_FLAG(std::string, stories, "",
+          "Evaluate only these trace stories (comma-separated; empty: the "
+          "world conditions and every story).");
 
 namespace {
 
@@ -102,12 +109,23 @@ int main(int argc, char** argv) {
       "\nlog-probability columns: the smallest log-probability of each trace "
       "(its least likely class), as the median, 1st percentile and minimum "
       "over the traces\n\n| traces | accuracy | hard | medium | soft | "
-      "hard-skin | log loss | ECE | min log p: median | 1 %% | min | "
-      "rejected |\n"
-      "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+      "hard-skin | log loss | ECE | over-confidence: hard | medium | soft | "
+      "hard-skin | min log p: median | 1 %% | min | rejected |\n"
+      "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+      "---:|---:|\n");
   std::string matrices;
   const int per_class = absl::GetFlag(FLAGS_traces_per_class);
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
+  std::FILE* dump = nullptr;
+  if (!absl::GetFlag(FLAGS_probabilities_csv).empty()) {
+    dump = std::fopen(absl::GetFlag(FLAGS_probabilities_csv).c_str(), "w");
+    if (dump == nullptr) {
+      std::fprintf(stderr, "bitewise-haptic-eval: cannot write %s\n",
+                   absl::GetFlag(FLAGS_probabilities_csv).c_str());
+      return 1;
+    }
+    std::fprintf(dump, "condition,label,p_hard,p_medium,p_soft,p_hard_skin\n");
+  }
   auto evaluate = [&](const std::string& name,
                       const std::vector<LabelledTrace>& traces) {
     std::vector<std::array<double, kHapticClasses>> probabilities;
@@ -123,6 +141,12 @@ int main(int argc, char** argv) {
       }
       probabilities.push_back(result->probabilities);
       labels.push_back(static_cast<int>(trace.label));
+      if (dump != nullptr) {
+        std::fprintf(dump, "%s,%s,%.9g,%.9g,%.9g,%.9g\n", name.c_str(),
+                     HapticClassName(trace.label), result->probabilities[0],
+                     result->probabilities[1], result->probabilities[2],
+                     result->probabilities[3]);
+      }
       smallest.push_back(*std::min_element(result->log_probabilities.begin(),
                                            result->log_probabilities.end()));
     }
@@ -138,20 +162,38 @@ int main(int argc, char** argv) {
     for (int k = 0; k < kHapticClasses; ++k) {
       std::printf(" | %.1f%%", 100.0 * score.confusion.Recall(k));
     }
-    std::printf(" | %.4f | %.4f | %.2f | %.2f | %.2f | %d |\n",
-                score.mean_log_loss, score.expected_calibration_error,
-                quantile(0.5), quantile(0.01), quantile(0.0), rejected);
+    std::printf(" | %.4f | %.4f", score.mean_log_loss,
+                score.expected_calibration_error);
+    for (int k = 0; k < kHapticClasses; ++k) {
+      std::printf(" | %+.3f", score.overconfidence[k]);
+    }
+    std::printf(" | %.2f | %.2f | %.2f | %d |\n", quantile(0.5), quantile(0.01),
+                quantile(0.0), rejected);
     std::fflush(stdout);
     matrices += "\n" + name + "\n" + score.confusion.ToString();
   };
-  for (const Condition& condition : Conditions()) {
-    evaluate(condition.name,
-             SimulateLabelledTraces(per_class, condition.conditions, seed));
+  std::vector<TraceStory> stories = {
+      TraceStory::kPiecewise, TraceStory::kMechanics, TraceStory::kCompliant};
+  if (!absl::GetFlag(FLAGS_stories).empty()) {
+    absl::StatusOr<std::vector<TraceStory>> parsed =
+        ParseTraceStories(absl::GetFlag(FLAGS_stories));
+    if (!parsed.ok()) {
+      std::fprintf(stderr, "bitewise-haptic-eval: %s\n",
+                   parsed.status().ToString().c_str());
+      return 2;
+    }
+    stories = *parsed;
+  } else {
+    for (const Condition& condition : Conditions()) {
+      evaluate(condition.name,
+               SimulateLabelledTraces(per_class, condition.conditions, seed));
+    }
   }
-  for (TraceStory story : {TraceStory::kPiecewise, TraceStory::kMechanics}) {
+  for (TraceStory story : stories) {
     evaluate(absl::StrCat("story: ", TraceStoryName(story)),
              StoryTraces(story, per_class, seed));
   }
+  if (dump != nullptr) std::fclose(dump);
   if (absl::GetFlag(FLAGS_confusion)) std::printf("%s", matrices.c_str());
   return 0;
 }

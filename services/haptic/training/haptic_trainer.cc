@@ -459,11 +459,16 @@ ProbabilisticScore ScorePredictions(
   constexpr int kBins = 10;
   std::array<double, kBins> confidence{}, correct{};
   std::array<int, kBins> count{};
+  std::array<double, kHapticClasses> top_sum{}, right{};
+  std::array<int, kHapticClasses> of_class{};
   for (size_t i = 0; i < labels.size(); ++i) {
     const auto& p = probabilities[i];
     const int predicted =
         static_cast<int>(std::max_element(p.begin(), p.end()) - p.begin());
     ++score.confusion.counts[labels[i]][predicted];
+    top_sum[labels[i]] += p[predicted];
+    right[labels[i]] += predicted == labels[i] ? 1.0 : 0.0;
+    ++of_class[labels[i]];
     // Clamped so one impossible-looking miss does not make the mean infinite.
     score.mean_log_loss -= std::log(std::max(p[labels[i]], 1e-12));
     const int bin = std::min(static_cast<int>(p[predicted] * kBins), kBins - 1);
@@ -476,6 +481,11 @@ ProbabilisticScore ScorePredictions(
     for (int b = 0; b < kBins; ++b) {
       score.expected_calibration_error +=
           std::abs(confidence[b] - correct[b]) / labels.size();
+    }
+  }
+  for (int k = 0; k < kHapticClasses; ++k) {
+    if (of_class[k] > 0) {
+      score.overconfidence[k] = (top_sum[k] - right[k]) / of_class[k];
     }
   }
   return score;

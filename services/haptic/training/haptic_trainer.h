@@ -9,6 +9,7 @@
 #ifndef BITEWISE_SERVICES_HAPTIC_TRAINING_HAPTIC_TRAINER_H_
 #define BITEWISE_SERVICES_HAPTIC_TRAINING_HAPTIC_TRAINER_H_
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <functional>
@@ -92,6 +93,12 @@ struct ProbabilisticScore {
   double mean_log_loss = 0.0;  // nats
   // Expected calibration error of the top class over 10 equal-width bins.
   double expected_calibration_error = 0.0;
+  // Per true class: the mean top probability minus the accuracy over that
+  // class's traces (> 0: more sure than right).
+  std::array<double, kHapticClasses> overconfidence{};
+  double MaxOverconfidence() const {
+    return *std::max_element(overconfidence.begin(), overconfidence.end());
+  }
 };
 
 // Scores predictions `probabilities[i]` against `labels[i]`.

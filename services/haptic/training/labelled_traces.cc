@@ -161,6 +161,8 @@ const char* TraceStoryName(TraceStory story) {
       return "piecewise";
     case TraceStory::kMechanics:
       return "mechanics";
+    case TraceStory::kCompliant:
+      return "compliant";
   }
   return "unknown";
 }
@@ -182,8 +184,9 @@ absl::StatusOr<std::vector<TraceStory>> ParseTraceStories(
       stories.push_back(story);
     }
     if (!known) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "unknown trace story \"", name, "\" (world, piecewise, mechanics)"));
+      return absl::InvalidArgumentError(
+          absl::StrCat("unknown trace story \"", name,
+                       "\" (world, piecewise, mechanics, compliant)"));
     }
   }
   if (stories.empty()) {
@@ -198,9 +201,15 @@ std::vector<LabelledTrace> StoryTraces(TraceStory story, int per_class,
     return SimulateLabelledTraces(per_class, TrainingConditions(), seed);
   }
   // Each story its own stream of the seed.
-  std::mt19937_64 rng(seed ^ (story == TraceStory::kPiecewise
-                                  ? 0x00d00d00d00d00dull
-                                  : 0x3ec4a41c53ec4a41ull));
+  const uint64_t stream = story == TraceStory::kPiecewise ? 0x00d00d00d00d00dull
+                          : story == TraceStory::kMechanics
+                              ? 0x3ec4a41c53ec4a41ull
+                              : 0xc0111a9700c0111aull;
+  const auto draw = story == TraceStory::kPiecewise ? sim::PiecewiseStoryTrace
+                    : story == TraceStory::kMechanics
+                        ? sim::MechanicsStoryTrace
+                        : sim::CompliantStoryTrace;
+  std::mt19937_64 rng(seed ^ stream);
   std::vector<LabelledTrace> traces;
   traces.reserve(static_cast<size_t>(per_class) * kHapticClasses);
   for (int i = 0; i < per_class; ++i) {
@@ -208,14 +217,128 @@ std::vector<LabelledTrace> StoryTraces(TraceStory story, int per_class,
       const auto category = static_cast<sim::HapticCategory>(k);
       LabelledTrace trace;
       trace.label = static_cast<HapticClass>(k);
-      trace.samples =
-          ToWrenchSamples(story == TraceStory::kPiecewise
-                              ? sim::PiecewiseStoryTrace(category, rng)
-                              : sim::MechanicsStoryTrace(category, rng));
+      trace.samples = ToWrenchSamples(draw(category, rng));
       traces.push_back(std::move(trace));
     }
   }
   return traces;
+}
+
+std::vector<WrenchSample> AugmentTrace(const std::vector<WrenchSample>& samples,
+                                       const TraceAugmentation& augmentation,
+                                       std::mt19937_64& rng) {
+  const auto log_uniform_around_one = [&](double max_scale) {
+    return std::exp(Uniform(rng, -std::log(max_scale), std::log(max_scale)));
+  };
+  const double time_scale = log_uniform_around_one(augmentation.max_time_scale);
+  const double amplitude =
+      log_uniform_around_one(augmentation.max_amplitude_scale);
+  // Rotation by `tilt` about the horizontal axis (cos a, sin a, 0)
+  // (Rodrigues), the same for forces and torques.
+  const double tilt =
+      Uniform(rng, 0.0, augmentation.max_tilt_deg) * M_PI / 180.0;
+  const double axis_angle = Uniform(rng, 0.0, 2.0 * M_PI);
+  const double kx = std::cos(axis_angle), ky = std::sin(axis_angle);
+  const double c = std::cos(tilt), s = std::sin(tilt);
+  const std::array<std::array<double, 3>, 3> rotation = {{
+      {c + kx * kx * (1 - c), kx * ky * (1 - c), ky * s},
+      {kx * ky * (1 - c), c + ky * ky * (1 - c), -kx * s},
+      {-ky * s, kx * s, c},
+  }};
+  const std::array<double, 3> offset = {
+      Uniform(rng, -augmentation.max_offset_m, augmentation.max_offset_m),
+      Uniform(rng, -augmentation.max_offset_m, augmentation.max_offset_m), 0.0};
+  const double lag_s = Uniform(rng, 0.0, augmentation.max_lag_s);
+  const bool resample =
+      random::Canonical(rng) < augmentation.resample_probability;
+  const double resample_draw = random::Canonical(rng);
+  std::array<double, kWrenchChannels> drift;
+  for (int k = 0; k < kWrenchChannels; ++k) {
+    drift[k] = Uniform(rng, -augmentation.max_drift_n_per_s,
+                       augmentation.max_drift_n_per_s) *
+               (k < 3 ? 1.0 : 0.02);
+  }
+  const double correlation_s =
+      std::exp(Uniform(rng, std::log(1e-3), std::log(1e-2)));
+  const double noise_sd = Uniform(rng, 0.0, augmentation.max_coloured_noise_n);
+
+  // Clock, amplitude, angle and lever.
+  std::vector<WrenchSample> out;
+  out.reserve(samples.size());
+  for (const WrenchSample& sample : samples) {
+    WrenchSample w;
+    w.t_s = sample.t_s * time_scale;
+    std::array<double, 3> f, t;
+    for (int i = 0; i < 3; ++i) {
+      f[i] = t[i] = 0.0;
+      for (int j = 0; j < 3; ++j) {
+        f[i] += rotation[i][j] * sample.values[j] * amplitude;
+        t[i] += rotation[i][j] * sample.values[3 + j] * amplitude;
+      }
+    }
+    t[0] += offset[1] * f[2] - offset[2] * f[1];
+    t[1] += offset[2] * f[0] - offset[0] * f[2];
+    t[2] += offset[0] * f[1] - offset[1] * f[0];
+    for (int i = 0; i < 3; ++i) {
+      w.values[i] = f[i];
+      w.values[3 + i] = t[i];
+    }
+    out.push_back(w);
+  }
+  // The lag (exact for a first-order filter between samples).
+  if (lag_s > 0.0) {
+    for (size_t i = 1; i < out.size(); ++i) {
+      const double keep = std::exp(-(out[i].t_s - out[i - 1].t_s) / lag_s);
+      for (int k = 0; k < kWrenchChannels; ++k) {
+        out[i].values[k] =
+            keep * out[i - 1].values[k] + (1.0 - keep) * out[i].values[k];
+      }
+    }
+  }
+  // A slower sensor.
+  if (resample && out.size() > 2) {
+    const double duration = out.back().t_s - out.front().t_s;
+    const double rate = (out.size() - 1) / duration;
+    if (rate > augmentation.min_rate_hz * 1.2) {
+      const double new_rate =
+          std::exp(std::log(augmentation.min_rate_hz) +
+                   resample_draw *
+                       (std::log(rate) - std::log(augmentation.min_rate_hz)));
+      std::vector<WrenchSample> resampled;
+      size_t j = 0;
+      for (double t = out.front().t_s; t <= out.back().t_s;
+           t += 1.0 / new_rate) {
+        while (j + 2 < out.size() && out[j + 1].t_s < t) ++j;
+        const double span = out[j + 1].t_s - out[j].t_s;
+        const double w = span > 0.0 ? (t - out[j].t_s) / span : 0.0;
+        WrenchSample sample;
+        sample.t_s = t;
+        for (int k = 0; k < kWrenchChannels; ++k) {
+          sample.values[k] =
+              (1.0 - w) * out[j].values[k] + w * out[j + 1].values[k];
+        }
+        resampled.push_back(sample);
+      }
+      out = std::move(resampled);
+    }
+  }
+  // Drift and coloured noise.
+  random::Normal normal;
+  std::array<double, kWrenchChannels> noise{};
+  for (int k = 0; k < kWrenchChannels; ++k) {
+    noise[k] = noise_sd * (k < 3 ? 1.0 : 0.02) * normal(rng);
+  }
+  for (size_t i = 0; i < out.size(); ++i) {
+    const double dt = i == 0 ? 0.0 : out[i].t_s - out[i - 1].t_s;
+    const double keep = std::exp(-dt / correlation_s);
+    for (int k = 0; k < kWrenchChannels; ++k) {
+      const double sd = noise_sd * (k < 3 ? 1.0 : 0.02);
+      noise[k] =
+          keep * noise[k] + std::sqrt(1.0 - keep * keep) * sd * normal(rng);
+      out[i].values[k] += drift[k] * out[i].t_s + noise[k];
+    }
+  }
+  return out;
 }
 
 absl::Status WriteTraceCsv(const std::string& path,

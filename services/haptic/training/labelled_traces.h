@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -100,10 +101,15 @@ std::vector<WrenchSample> ToWrenchSamples(
 // under TrainingConditions() (augmented), or one of the independent stories
 // of services/sim/trace_stories.h. HapticNet is trained on some and judged on
 // one it never saw.
-enum class TraceStory { kWorld = 0, kPiecewise = 1, kMechanics = 2 };
-inline constexpr int kTraceStories = 3;
+enum class TraceStory {
+  kWorld = 0,
+  kPiecewise = 1,
+  kMechanics = 2,
+  kCompliant = 3
+};
+inline constexpr int kTraceStories = 4;
 
-// "world", "piecewise", "mechanics".
+// "world", "piecewise", "mechanics", "compliant".
 const char* TraceStoryName(TraceStory story);
 
 // A comma-separated list of story names, each at most once. INVALID_ARGUMENT
@@ -127,6 +133,47 @@ absl::Status WriteTraceCsv(const std::string& path,
 // unknown label or a label that changes within a trace.
 absl::StatusOr<std::vector<LabelledTrace>> ReadTraceCsv(
     const std::string& path);
+
+// Augmentation of any trace, drawn from what differs between one fork,
+// sensor and arm and another, not from any story's shapes (the trainer's
+// --augment; applied to the training and validation traces of every story
+// and recording). Per trace, in this order:
+//  - time: the whole trace's clock stretched, log-uniform in
+//    [1/max_time_scale, max_time_scale] (a faster or slower descent; the
+//    sample rate changes with it);
+//  - amplitude: every channel scaled, log-uniform in [1/max_amplitude_scale,
+//    max_amplitude_scale] (a firmer or weaker item);
+//  - fork angle: the wrench rotated by up to max_tilt_deg about a random
+//    horizontal axis (the tines not along the sensor's z: Fz mixes into Fx,
+//    Fy and the torques), plus a lever offset of up to max_offset_m
+//    (torque += offset x force);
+//  - lag: a first-order low-pass with a time constant uniform in
+//    [0, max_lag_s] (another sensor's gauges and filter);
+//  - sample rate: with probability resample_probability, resampled by
+//    linear interpolation to a log-uniform rate in [min_rate_hz, its own
+//    rate] (a slower sensor);
+//  - drift: each channel drifts linearly by up to +-max_drift_n_per_s
+//    (torques 0.02 m times as much; thermal drift during the trace);
+//  - coloured noise: a first-order autoregression per channel with a
+//    correlation time log-uniform in [1 ms, 10 ms] and a standard deviation
+//    uniform in [0, max_coloured_noise_n] (arm vibration, mains hum, cable
+//    motion).
+struct TraceAugmentation {
+  double max_time_scale = 1.3;
+  double max_amplitude_scale = 1.3;
+  double max_tilt_deg = 15.0;
+  double max_offset_m = 0.003;
+  double max_lag_s = 1e-3;
+  double resample_probability = 0.3;
+  double min_rate_hz = 250.0;
+  double max_drift_n_per_s = 0.5;
+  double max_coloured_noise_n = 0.08;
+};
+
+// One augmented copy of `samples` (see TraceAugmentation).
+std::vector<WrenchSample> AugmentTrace(const std::vector<WrenchSample>& samples,
+                                       const TraceAugmentation& augmentation,
+                                       std::mt19937_64& rng);
 
 // A trace as recorded by a meal (clients/meal/trace_recording.h): its id in
 // the file, and its label unless the food was unknown ("unknown").

@@ -50,6 +50,11 @@ ABSL_FLAG(std::string, write_traces, "",
 ABSL_FLAG(bool, write_traces_only, false,
           "With --write_traces: write the traces and stop, without training "
           "(to make a recording-format file from a story, for example).");
+ABSL_FLAG(bool, augment, false,
+          "Augment every training and validation trace (of every story and "
+          "recording) with TraceAugmentation's defaults (labelled_traces.h): "
+          "clock and amplitude scale, fork angle and lever, sensor lag, "
+          "a slower rate, drift and coloured noise.");
 ABSL_FLAG(int, traces_per_class, 3000,
           "Simulated traces per class and story (when --traces is empty).");
 ABSL_FLAG(uint64_t, seed, 1,
@@ -217,6 +222,16 @@ int main(int argc, char** argv) {
   split(traces, &story_of, seed ^ 0x5eed5eed5eed5eedull, &test, 1);
   split(recorded, nullptr, seed ^ 0x7ecd7ecd7ecd7ecdull, &recorded_test,
         std::max(1, absl::GetFlag(FLAGS_traces_repeat)));
+  if (absl::GetFlag(FLAGS_augment)) {
+    const TraceAugmentation augmentation;
+    std::mt19937_64 augment_rng(seed ^ 0xa095e47a095e47aull);
+    for (auto* set : {&train, &validation}) {
+      for (LabelledTrace& trace : *set) {
+        trace.samples = AugmentTrace(trace.samples, augmentation, augment_rng);
+      }
+    }
+    absl::StrAppend(&source, "; augmented (--augment)");
+  }
   if (test.empty()) {  // trained on recordings alone
     test = std::move(recorded_test);
     recorded_test.clear();
