@@ -106,6 +106,58 @@ TEST(HapticNetTest, OnnxRoundTripOfTrainedWeightsOnRealWindows) {
   ExpectSameOutputs(result->weights, **net, validation.inputs);
 }
 
+TEST(HapticNetTest, WeightsReadBackFromTheFileExactly) {
+  const HapticNetWeights weights = RandomWeights(21);
+  absl::StatusOr<HapticNetWeights> read =
+      HapticNetWeightsFromOnnx(HapticNetToOnnx(weights, {}), "test");
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->input_mean, weights.input_mean);
+  EXPECT_EQ(read->input_stddev, weights.input_stddev);
+  EXPECT_EQ(read->w1, weights.w1);
+  EXPECT_EQ(read->b1, weights.b1);
+  EXPECT_EQ(read->w2, weights.w2);
+  EXPECT_EQ(read->b2, weights.b2);
+  EXPECT_EQ(read->w3, weights.w3);
+  EXPECT_EQ(read->b3, weights.b3);
+}
+
+TEST(HapticNetTest, AnEnsembleFileIsTheMeanOfItsMembersUnderTheSameContract) {
+  const std::vector<HapticNetWeights> members = {
+      RandomWeights(31), RandomWeights(32), RandomWeights(33)};
+  const std::string bytes = HapticEnsembleToOnnx(members, {});
+  absl::StatusOr<std::unique_ptr<HapticNet>> net =
+      HapticNet::FromOnnxBytes(bytes, "ensemble");
+  ASSERT_TRUE(net.ok()) << net.status();
+  std::mt19937_64 rng(34);
+  for (int i = 0; i < 50; ++i) {
+    const auto x = RandomInput(rng);
+    absl::StatusOr<HapticNetOutput> out = (*net)->Run(x);
+    ASSERT_TRUE(out.ok()) << out.status();
+    // The reference: a dense double mean of the members' softmax.
+    std::array<double, kHapticClasses> mean{};
+    for (const HapticNetWeights& m : members) {
+      const auto p = ReferenceProbabilities(m, x);
+      for (int k = 0; k < kHapticClasses; ++k) mean[k] += p[k] / 3.0;
+    }
+    const auto reference = ReferenceEnsembleProbabilities(members, x);
+    for (int k = 0; k < kHapticClasses; ++k) {
+      EXPECT_NEAR(reference[k], mean[k], 1e-15);
+      EXPECT_NEAR(out->probabilities[k], mean[k], 1e-5);
+      EXPECT_NEAR(out->log_probabilities[k], std::log(mean[k]),
+                  1e-5 * std::max(1.0, std::abs(std::log(mean[k]))));
+    }
+  }
+  // An ensemble file is not one member: reading weights from it says so.
+  const absl::Status not_one =
+      HapticNetWeightsFromOnnx(bytes, "ensemble.onnx").status();
+  EXPECT_EQ(not_one.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(not_one.message(),
+              HasSubstr("ensemble.onnx has no initializer \"input_mean\""));
+  // One member gives exactly the single model's bytes.
+  EXPECT_EQ(HapticEnsembleToOnnx({members[0]}, {}),
+            HapticNetToOnnx(members[0], {}));
+}
+
 TEST(HapticNetTest, RejectsBytesThatAreNotOnnx) {
   absl::StatusOr<std::unique_ptr<HapticNet>> net =
       HapticNet::FromOnnxBytes("this is not a model", "garbage.onnx");

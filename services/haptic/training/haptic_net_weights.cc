@@ -1,9 +1,11 @@
 #include "services/haptic/training/haptic_net_weights.h"
 
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "google/protobuf/io/coded_stream.h"
 #include "google/protobuf/io/zero_copy_stream_impl_lite.h"
 #include "onnx/onnx_pb.h"
@@ -115,8 +117,134 @@ std::array<double, kHapticClasses> ReferenceProbabilities(
   return p;
 }
 
+namespace {
+
+void SetIntAttribute(onnx::NodeProto* node, const char* name, int64_t value) {
+  onnx::AttributeProto* attribute = node->add_attribute();
+  attribute->set_name(name);
+  attribute->set_type(onnx::AttributeProto::INT);
+  attribute->set_i(value);
+}
+
+// One member's layers, names prefixed by `prefix`, from the input window
+// to `logits`.
+void AddMember(onnx::GraphProto* graph, const HapticNetWeights& weights,
+               const std::string& prefix, const std::string& logits) {
+  AddFloatTensor(graph, prefix + "input_mean", {1, kHapticInputs},
+                 weights.input_mean.data(), kHapticInputs);
+  AddFloatTensor(graph, prefix + "input_stddev", {1, kHapticInputs},
+                 weights.input_stddev.data(), kHapticInputs);
+  // Gemm weights go out as [fan_out, fan_in] with transB = 1, PyTorch's
+  // export convention: OpenCV 4.6's importer mishandles transB = 0.
+  AddGemmWeights(graph, prefix + "fc1", weights.w1, weights.b1);
+  AddGemmWeights(graph, prefix + "fc2", weights.w2, weights.b2);
+  AddGemmWeights(graph, prefix + "fc3", weights.w3, weights.b3);
+
+  AddNode(graph, "Sub", {kHapticNetInputName, prefix + "input_mean"},
+          prefix + "centred");
+  AddNode(graph, "Div", {prefix + "centred", prefix + "input_stddev"},
+          prefix + "normalised");
+  AddGemm(graph, prefix + "normalised", prefix + "fc1", prefix + "fc1");
+  AddNode(graph, "Relu", {prefix + "fc1"}, prefix + "relu1");
+  AddGemm(graph, prefix + "relu1", prefix + "fc2", prefix + "fc2");
+  AddNode(graph, "Relu", {prefix + "fc2"}, prefix + "relu2");
+  AddGemm(graph, prefix + "relu2", prefix + "fc3", logits);
+}
+
+}  // namespace
+
 std::string HapticNetToOnnx(
     const HapticNetWeights& weights,
+    const std::map<std::string, std::string>& metadata) {
+  return HapticEnsembleToOnnx({weights}, metadata);
+}
+
+absl::StatusOr<HapticNetWeights> HapticNetWeightsFromOnnx(
+    const std::string& bytes, const std::string& source) {
+  onnx::ModelProto model;
+  if (!model.ParseFromString(bytes)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(source, " is not an ONNX model"));
+  }
+  std::map<std::string, const onnx::TensorProto*> tensors;
+  for (const onnx::TensorProto& tensor : model.graph().initializer()) {
+    tensors[tensor.name()] = &tensor;
+  }
+  HapticNetWeights weights;
+  // Reads initializer `name` (float_data or raw little-endian floats) of
+  // `rows` x `cols` values into `out`, transposed when the file holds it
+  // [cols, rows] (the Gemm weights).
+  auto read = [&](const std::string& name, int64_t count,
+                  std::vector<double>* out) -> absl::Status {
+    const auto it = tensors.find(name);
+    if (it == tensors.end()) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          source, " has no initializer \"", name,
+          "\" (not a single HapticNet written by bitewise-haptic-train)"));
+    }
+    const onnx::TensorProto& tensor = *it->second;
+    out->clear();
+    if (tensor.float_data_size() > 0) {
+      for (float v : tensor.float_data()) out->push_back(v);
+    } else {
+      const std::string& raw = tensor.raw_data();
+      for (size_t i = 0; i + 4 <= raw.size(); i += 4) {
+        float v;
+        std::memcpy(&v, raw.data() + i, 4);
+        out->push_back(v);
+      }
+    }
+    if (static_cast<int64_t>(out->size()) != count) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(source, ": initializer \"", name, "\" holds ",
+                       out->size(), " values, expected ", count));
+    }
+    return absl::OkStatus();
+  };
+  std::vector<double> v;
+  absl::Status status = read("input_mean", kHapticInputs, &v);
+  if (!status.ok()) return status;
+  for (int i = 0; i < kHapticInputs; ++i) weights.input_mean[i] = v[i];
+  status = read("input_stddev", kHapticInputs, &v);
+  if (!status.ok()) return status;
+  for (int i = 0; i < kHapticInputs; ++i) weights.input_stddev[i] = v[i];
+  struct Layer {
+    const char* name;
+    RowMatrix* w;
+    Eigen::RowVectorXd* b;
+  };
+  for (const Layer& layer : {Layer{"fc1", &weights.w1, &weights.b1},
+                             Layer{"fc2", &weights.w2, &weights.b2},
+                             Layer{"fc3", &weights.w3, &weights.b3}}) {
+    const int64_t in = layer.w->rows(), out = layer.w->cols();
+    status = read(absl::StrCat(layer.name, ".weight"), in * out, &v);
+    if (!status.ok()) return status;
+    for (int64_t o = 0; o < out; ++o) {  // stored [fan_out, fan_in]
+      for (int64_t i = 0; i < in; ++i) (*layer.w)(i, o) = v[o * in + i];
+    }
+    status = read(absl::StrCat(layer.name, ".bias"), out, &v);
+    if (!status.ok()) return status;
+    for (int64_t o = 0; o < out; ++o) (*layer.b)[o] = v[o];
+  }
+  return weights;
+}
+
+std::array<double, kHapticClasses> ReferenceEnsembleProbabilities(
+    const std::vector<HapticNetWeights>& members,
+    const std::array<float, kHapticInputs>& inputs) {
+  std::array<double, kHapticClasses> mean{};
+  for (const HapticNetWeights& member : members) {
+    const std::array<double, kHapticClasses> p =
+        ReferenceProbabilities(member, inputs);
+    for (int k = 0; k < kHapticClasses; ++k) {
+      mean[k] += p[k] / static_cast<double>(members.size());
+    }
+  }
+  return mean;
+}
+
+std::string HapticEnsembleToOnnx(
+    const std::vector<HapticNetWeights>& members,
     const std::map<std::string, std::string>& metadata) {
   onnx::ModelProto model;
   // IR version 6 goes with opset 11, which OpenCV 4.6's importer covers.
@@ -125,10 +253,15 @@ std::string HapticNetToOnnx(
   model.set_domain("bitewise.haptic");
   model.set_model_version(1);
   model.set_doc_string(
-      "HapticNet: tared force/torque window (6 channels fx fy fz tx ty tz, "
-      "each resampled to 64 points, channel-major) -> 4 classes hard, "
-      "medium, soft, hard_skin. Normalisation (x - input_mean) / "
-      "input_stddev is part of the graph.");
+      members.size() == 1
+          ? "HapticNet: tared force/torque window (6 channels fx fy fz tx ty "
+            "tz, each resampled to 64 points, channel-major) -> 4 classes "
+            "hard, medium, soft, hard_skin. Normalisation (x - input_mean) / "
+            "input_stddev is part of the graph."
+          : "HapticNet ensemble: members m0, m1, ... each a HapticNet "
+            "(normalisation and three Gemm layers); logits = log of the mean "
+            "of the members' softmax, probabilities = softmax(logits), the "
+            "same mean.");
   onnx::OperatorSetIdProto* opset = model.add_opset_import();
   opset->set_domain("");
   opset->set_version(11);
@@ -140,29 +273,29 @@ std::string HapticNetToOnnx(
 
   onnx::GraphProto* graph = model.mutable_graph();
   graph->set_name("hapticnet");
-  AddFloatTensor(graph, "input_mean", {1, kHapticInputs},
-                 weights.input_mean.data(), kHapticInputs);
-  AddFloatTensor(graph, "input_stddev", {1, kHapticInputs},
-                 weights.input_stddev.data(), kHapticInputs);
-  // Gemm weights go out as [fan_out, fan_in] with transB = 1, PyTorch's
-  // export convention: OpenCV 4.6's importer mishandles transB = 0.
-  AddGemmWeights(graph, "fc1", weights.w1, weights.b1);
-  AddGemmWeights(graph, "fc2", weights.w2, weights.b2);
-  AddGemmWeights(graph, "fc3", weights.w3, weights.b3);
-
-  AddNode(graph, "Sub", {kHapticNetInputName, "input_mean"}, "centred");
-  AddNode(graph, "Div", {"centred", "input_stddev"}, "normalised");
-  AddGemm(graph, "normalised", "fc1", "fc1");
-  AddNode(graph, "Relu", {"fc1"}, "relu1");
-  AddGemm(graph, "relu1", "fc2", "fc2");
-  AddNode(graph, "Relu", {"fc2"}, "relu2");
-  AddGemm(graph, "relu2", "fc3", kHapticNetLogitsName);
+  if (members.size() == 1) {
+    // A single model keeps the names of the original graph.
+    AddMember(graph, members[0], "", kHapticNetLogitsName);
+  } else {
+    std::vector<std::string> member_probabilities;
+    for (size_t m = 0; m < members.size(); ++m) {
+      const std::string prefix = absl::StrCat("m", m, ".");
+      AddMember(graph, members[m], prefix, prefix + "logits");
+      onnx::NodeProto* softmax = AddNode(graph, "Softmax", {prefix + "logits"},
+                                         prefix + "probabilities");
+      SetIntAttribute(softmax, "axis", 1);
+      member_probabilities.push_back(prefix + "probabilities");
+    }
+    const std::vector<double> share(kHapticClasses, 1.0 / members.size());
+    AddFloatTensor(graph, "member_share", {1, kHapticClasses}, share.data(),
+                   kHapticClasses);
+    AddNode(graph, "Sum", member_probabilities, "member_sum");
+    AddNode(graph, "Mul", {"member_sum", "member_share"}, "mean_probabilities");
+    AddNode(graph, "Log", {"mean_probabilities"}, kHapticNetLogitsName);
+  }
   onnx::NodeProto* softmax = AddNode(graph, "Softmax", {kHapticNetLogitsName},
                                      kHapticNetProbabilitiesName);
-  onnx::AttributeProto* axis = softmax->add_attribute();
-  axis->set_name("axis");
-  axis->set_type(onnx::AttributeProto::INT);
-  axis->set_i(1);
+  SetIntAttribute(softmax, "axis", 1);
 
   SetFloatShape(graph->add_input(), kHapticNetInputName, 1, kHapticInputs);
   SetFloatShape(graph->add_output(), kHapticNetLogitsName, 1, kHapticClasses);

@@ -9,8 +9,10 @@
 #include <array>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "Eigen/Dense"
+#include "absl/status/statusor.h"
 #include "services/haptic/core/haptic_window.h"
 #include "services/haptic/core/wrench_trace.h"
 
@@ -57,6 +59,27 @@ std::array<double, kHapticClasses> ReferenceProbabilities(
 // give equal bytes.
 std::string HapticNetToOnnx(const HapticNetWeights& weights,
                             const std::map<std::string, std::string>& metadata);
+
+// The weights of a single HapticNet file written by HapticNetToOnnx (for
+// assembling an ensemble from separately trained members). INVALID_ARGUMENT
+// naming `source` and the initializer for anything else.
+absl::StatusOr<HapticNetWeights> HapticNetWeightsFromOnnx(
+    const std::string& bytes, const std::string& source);
+
+// An ensemble of members (HapticNet's ensemble over stories): the mean of
+// their ReferenceProbabilities.
+std::array<double, kHapticClasses> ReferenceEnsembleProbabilities(
+    const std::vector<HapticNetWeights>& members,
+    const std::array<float, kHapticInputs>& inputs);
+
+// One ONNX file holding every member (names prefixed m0., m1., ...): each
+// member's softmax, their mean, "logits" = its log and "probabilities" =
+// Softmax(logits), the same mean. So it keeps the graph contract of one
+// model and the service needs nothing new. With one member, exactly
+// HapticNetToOnnx's graph.
+std::string HapticEnsembleToOnnx(
+    const std::vector<HapticNetWeights>& members,
+    const std::map<std::string, std::string>& metadata);
 
 }  // namespace bitewise::haptic
 

@@ -20,6 +20,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
 #include "services/common/flags_usage.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/core/haptic_net.h"
@@ -55,6 +56,11 @@ ABSL_FLAG(bool, augment, false,
           "recording) with TraceAugmentation's defaults (labelled_traces.h): "
           "clock and amplitude scale, fork angle and lever, sensor lag, "
           "a slower rate, drift and coloured noise.");
+ABSL_FLAG(std::string, ensemble_of, "",
+          "Instead of training: assemble these HapticNet files (comma-"
+          "separated, each written by this trainer) into one ensemble model "
+          "(the mean of their probabilities, docs/haptic.md), score it on "
+          "every story and write it to --out.");
 ABSL_FLAG(int, traces_per_class, 3000,
           "Simulated traces per class and story (when --traces is empty).");
 ABSL_FLAG(uint64_t, seed, 1,
@@ -88,6 +94,107 @@ int Die(const std::string& what) {
   return 1;
 }
 
+// Reads a whole file.
+absl::StatusOr<std::string> ReadFile(const std::string& path) {
+  std::FILE* file = std::fopen(path.c_str(), "rb");
+  if (file == nullptr) {
+    return absl::NotFoundError(absl::StrCat("cannot open ", path));
+  }
+  std::string bytes;
+  char buffer[65536];
+  size_t n;
+  while ((n = std::fread(buffer, 1, sizeof buffer, file)) > 0) {
+    bytes.append(buffer, n);
+  }
+  std::fclose(file);
+  return bytes;
+}
+
+int WriteModel(const std::string& out, const std::string& bytes) {
+  std::FILE* file = std::fopen(out.c_str(), "wb");
+  if (file == nullptr ||
+      std::fwrite(bytes.data(), 1, bytes.size(), file) != bytes.size() ||
+      std::fclose(file) != 0) {
+    return Die(absl::StrCat("cannot write ", out));
+  }
+  return 0;
+}
+
+// --ensemble_of: the members' weights, one ensemble file, its score on
+// fresh items of every story (reference pass), and OpenCV's agreement.
+int AssembleEnsemble() {
+  const uint64_t seed = absl::GetFlag(FLAGS_seed);
+  std::vector<HapticNetWeights> members;
+  std::vector<std::string> names;
+  for (absl::string_view path : absl::StrSplit(absl::GetFlag(FLAGS_ensemble_of),
+                                               ',', absl::SkipEmpty())) {
+    absl::StatusOr<std::string> bytes = ReadFile(std::string(path));
+    if (!bytes.ok()) return Die(bytes.status().ToString());
+    absl::StatusOr<std::unique_ptr<HapticNet>> net =
+        HapticNet::FromOnnxBytes(*bytes, std::string(path));
+    if (!net.ok()) return Die(net.status().ToString());
+    absl::StatusOr<HapticNetWeights> weights =
+        HapticNetWeightsFromOnnx(*bytes, std::string(path));
+    if (!weights.ok()) return Die(weights.status().ToString());
+    members.push_back(*weights);
+    names.push_back(absl::StrCat(path, " (", (*net)->fingerprint(), ")"));
+  }
+  if (members.size() < 2) return Die("--ensemble_of needs two or more models");
+  const std::map<std::string, std::string> metadata = {
+      {"bitewise.classes", "hard,medium,soft,hard_skin"},
+      {"bitewise.ensemble", absl::StrJoin(names, "; ")},
+  };
+  const std::string bytes = HapticEnsembleToOnnx(members, metadata);
+  const std::string out = absl::GetFlag(FLAGS_out);
+  if (int failed = WriteModel(out, bytes); failed != 0) return failed;
+  absl::StatusOr<std::unique_ptr<HapticNet>> net = HapticNet::FromOnnxFile(out);
+  if (!net.ok()) return Die(net.status().ToString());
+  std::printf("ensemble of %zu members:\n  %s\n", members.size(),
+              absl::StrJoin(names, "\n  ").c_str());
+  const HapticPipelineOptions pipeline;
+  double max_difference = 0.0;
+  for (int i = 0; i < kTraceStories; ++i) {
+    const auto story = static_cast<TraceStory>(i);
+    const int per_class = absl::GetFlag(FLAGS_held_out_per_class);
+    if (per_class <= 0) break;
+    int skipped = 0;
+    const LabelledWindows windows = WindowsFromTraces(
+        StoryTraces(story, per_class, seed + 1000), pipeline, &skipped);
+    std::vector<std::array<double, kHapticClasses>> probabilities;
+    for (size_t w = 0; w < windows.inputs.size(); ++w) {
+      probabilities.push_back(
+          ReferenceEnsembleProbabilities(members, windows.inputs[w]));
+      absl::StatusOr<HapticNetOutput> output = (*net)->Run(windows.inputs[w]);
+      if (!output.ok()) return Die(output.status().ToString());
+      for (int k = 0; k < kHapticClasses; ++k) {
+        max_difference = std::max(
+            max_difference,
+            std::abs(output->probabilities[k] - probabilities.back()[k]));
+      }
+    }
+    const ProbabilisticScore score =
+        ScorePredictions(probabilities, windows.labels);
+    std::printf(
+        "\nstory %s (fresh items: %d per class, seed %lu, %d without "
+        "contact): accuracy %.2f%%, calibration error %.4f, over-confidence "
+        "%+.3f/%+.3f/%+.3f/%+.3f\n%s",
+        TraceStoryName(story), per_class,
+        static_cast<unsigned long>(seed + 1000), skipped,
+        100.0 * score.confusion.Accuracy(), score.expected_calibration_error,
+        score.overconfidence[0], score.overconfidence[1],
+        score.overconfidence[2], score.overconfidence[3],
+        score.confusion.ToString().c_str());
+  }
+  std::printf(
+      "\nwrote %s (%zu bytes, %s); OpenCV DNN vs reference: max |dp| = "
+      "%.2e\n",
+      out.c_str(), bytes.size(), (*net)->fingerprint().c_str(), max_difference);
+  if (max_difference > 1e-5) {
+    return Die("the exported ensemble disagrees with the trainer");
+  }
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -97,6 +204,7 @@ int main(int argc, char** argv) {
       "1, model to ./hapticnet.onnx.");
   bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
+  if (!absl::GetFlag(FLAGS_ensemble_of).empty()) return AssembleEnsemble();
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
 
   std::vector<LabelledTrace> traces;
@@ -378,12 +486,7 @@ int main(int argc, char** argv) {
   }
   const std::string bytes = HapticNetToOnnx(result->weights, metadata);
   const std::string out = absl::GetFlag(FLAGS_out);
-  std::FILE* file = std::fopen(out.c_str(), "wb");
-  if (file == nullptr ||
-      std::fwrite(bytes.data(), 1, bytes.size(), file) != bytes.size() ||
-      std::fclose(file) != 0) {
-    return Die(absl::StrCat("cannot write ", out));
-  }
+  if (int failed = WriteModel(out, bytes); failed != 0) return failed;
 
   // The file as the service will load it: OpenCV must agree with the
   // trainer on every held-out window.
