@@ -17,6 +17,7 @@
 #include "services/perception/spanet_featurizer.h"
 #include "services/sim/force_trace.h"
 #include "services/sim/scene.h"
+#include "services/sim/trace_stories.h"
 
 namespace bitewise::experiments {
 namespace {
@@ -35,6 +36,8 @@ enum Stream : uint64_t {
 
 // Draws of a plate before giving up on fitting every food on it.
 constexpr int kMaxPlateDraws = 20;
+// Redraws of a story trace the haptic pipeline rejects, before giving up.
+constexpr int kMaxStoryDraws = 20;
 
 // Fisher-Yates through our own UniformIndex (std::shuffle's algorithm is
 // left to the library).
@@ -130,6 +133,12 @@ absl::Status ValidateSimMealsConfig(const SimMealsConfig& config) {
     return absl::InvalidArgumentError(absl::StrCat(
         "haptic_accuracy must be in [0, 1) and thompson_v positive, got ",
         config.haptic_accuracy, " and ", config.thompson_v));
+  }
+  if (config.trace_story != "world" && config.trace_story != "piecewise" &&
+      config.trace_story != "mechanics" && config.trace_story != "compliant") {
+    return absl::InvalidArgumentError(
+        absl::StrCat("unknown trace story \"", config.trace_story,
+                     "\" (world, piecewise, mechanics, compliant)"));
   }
   if (config.lambda_c < 0.0 || !(config.rho_c > 0.0)) {
     return absl::InvalidArgumentError(
@@ -279,11 +288,26 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
     attempt.food = food;
     attempt.plate = attempts_so_far[food]++ % plates_per_trial;
     attempt.context = contexts[attempt.plate][food];
-    const std::vector<haptic::WrenchSample> trace =
-        haptic::ToWrenchSamples(sim::SimulateTrace(
-            profiles[attempt.plate][food], trace_options, trace_rng));
-    absl::StatusOr<haptic::HapticClassification> classified =
-        classifier_->Classify(trace);
+    absl::StatusOr<haptic::HapticClassification> classified;
+    if (config.trace_story == "world") {
+      classified =
+          classifier_->Classify(haptic::ToWrenchSamples(sim::SimulateTrace(
+              profiles[attempt.plate][food], trace_options, trace_rng)));
+    } else {
+      const auto story =
+          config.trace_story == "piecewise"   ? sim::PiecewiseStoryTrace
+          : config.trace_story == "mechanics" ? sim::MechanicsStoryTrace
+                                              : sim::CompliantStoryTrace;
+      for (int draw = 0; draw < kMaxStoryDraws; ++draw) {
+        classified = classifier_->Classify(
+            haptic::ToWrenchSamples(story(foods[food]->category, trace_rng)));
+        if (classified.ok() ||
+            !absl::IsFailedPrecondition(classified.status())) {
+          break;
+        }
+        ++world.story_redraws;
+      }
+    }
     if (!classified.ok()) {
       return absl::InternalError(absl::StrCat(
           "classifying the trace of attempt ", world.attempts.size(), " (",

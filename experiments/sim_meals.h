@@ -104,6 +104,14 @@ struct SimMealsConfig {
   // wrong answer: the top probability moves to a random other class), on
   // a random stream of its own.
   double haptic_accuracy = 0.0;
+  // Where the attempts' force/torque traces come from: "world" (the
+  // simulated world's force-trace model, as the simulated robot streams it:
+  // one force profile per item), or an independent trace story that
+  // HapticNet may never have seen ("piecewise", "mechanics", "compliant";
+  // services/sim/trace_stories.h: a new item of the food's category per
+  // attempt). A story trace the haptic pipeline rejects (a soft item too
+  // weak to register contact) is drawn again.
+  std::string trace_story = "world";
 };
 
 // The lambda_c the learners use under `config` (see SimMealsConfig).
@@ -138,6 +146,8 @@ struct SimMealWorld {
   std::vector<SimAttempt> attempts;  // in the order they are made
   // Plates drawn again because an item did not fit or was not visible.
   int plate_redraws = 0;
+  // Story traces drawn again because the pipeline found no contact.
+  int story_redraws = 0;
 };
 
 // The project's components the experiment runs on. Thread-compatible (the

@@ -45,6 +45,10 @@ ABSL_FLAG(double, thompson_v, 0.5,
 ABSL_FLAG(double, haptic_accuracy, 0.0,
           "Sensitivity: make HapticNet right with this probability (confident "
           "wrong answers otherwise); 0 uses the shipped model as it is.");
+ABSL_FLAG(std::string, trace_story, "world",
+          "Where the attempts' force/torque traces come from: world (the "
+          "simulated robot's model) or a trace story HapticNet may never "
+          "have seen: piecewise, mechanics, compliant.");
 ABSL_FLAG(uint64_t, seed, 1,
           "Base seed; trial i uses a seed mixed from (seed, i).");
 ABSL_FLAG(std::string, haptic_model, "",
@@ -108,6 +112,7 @@ int Run() {
   config.rho_c = absl::GetFlag(FLAGS_rho_c);
   config.thompson_v = absl::GetFlag(FLAGS_thompson_v);
   config.haptic_accuracy = absl::GetFlag(FLAGS_haptic_accuracy);
+  config.trace_story = absl::GetFlag(FLAGS_trace_story);
   config.lambda_p = absl::GetFlag(FLAGS_lambda_p);
   const std::string order = absl::GetFlag(FLAGS_order);
   if (order == "shuffled") {

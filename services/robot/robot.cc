@@ -6,7 +6,7 @@
 #include <limits>
 #include <utility>
 
-#include "absl/strings/match.h"
+#include "absl/strings/cord.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "services/common/status_macros.h"
@@ -16,6 +16,10 @@ namespace bitewise::robot {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// Marks the ABORTED status of a motion halted by the force limit, so the
+// trip is counted from the status's type, not from its wording.
+constexpr char kForceLimitTripPayload[] = "type.bitewise/robot.ForceLimitTrip";
 
 ForkPose Interpolate(const ForkPose& a, const ForkPose& b, double s) {
   ForkPose out;
@@ -174,11 +178,13 @@ class Robot::Run {
       if (over_limit && (dry_run_ || phase != AcquirePhase::kExtract)) {
         if (dry_run_ || phase != AcquirePhase::kDescend) {
           RETURN_IF_ERROR(HaltArm());
-          return absl::AbortedError(absl::StrFormat(
+          absl::Status tripped = absl::AbortedError(absl::StrFormat(
               "force %.1f N exceeded the %s%s limit of %.1f N during %s "
               "(a collision?); arm halted",
               ft_.last_force_n(), action_.name, dry_run_ ? " dry-run" : "",
               action_.max_force_n, AcquirePhaseName(phase)));
+          tripped.SetPayload(kForceLimitTripPayload, absl::Cord("1"));
+          return tripped;
         }
         RETURN_IF_ERROR(HaltArm());
         *force_stop = true;
@@ -387,8 +393,7 @@ absl::StatusOr<AcquireOutcome> Robot::Acquire(
   ++acquisitions_;
   if (!result.ok()) ++acquisitions_failed_;
   if ((result.ok() && result->force_limit_reached) ||
-      (absl::IsAborted(result.status()) &&
-       absl::StrContains(result.status().message(), "exceeded the"))) {
+      result.status().GetPayload(kForceLimitTripPayload).has_value()) {
     ++force_limit_trips_;
   }
   return result;

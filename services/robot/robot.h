@@ -121,7 +121,7 @@ struct RobotStatusInfo {
   AcquirePhase busy_with = AcquirePhase::kIdle;
   // Since the Robot was made (for metrics): acquisitions run (dry runs
   // included), those that ended in an error, and force-limit trips (the
-  // descent stopped at the limit, or an ABORTED naming the force limit).
+  // descent stopped at the limit, or a motion aborted by it).
   int64_t acquisitions = 0;
   int64_t acquisitions_failed = 0;
   int64_t force_limit_trips = 0;

@@ -33,7 +33,6 @@ class ItemContact {
   // must come in time order.
   Wrench Update(double depth_m);
 
-  double max_depth_m() const { return max_depth_m_; }
   // True once the fork has pulled back by release_m after going in.
   bool released() const { return released_; }
 

@@ -186,6 +186,9 @@ TEST_F(RobotTest, AnyForceInADryRunStopsTheArm) {
   EXPECT_THAT(dry.status().message(),
               ::testing::HasSubstr("TV0 dry-run limit of 10.0 N"));
   EXPECT_TRUE(ArmFrozen());
+  // Counted as a force-limit trip from the status's type, not its words.
+  EXPECT_EQ(backend_->robot().Status().force_limit_trips, 1);
+  EXPECT_EQ(backend_->robot().Status().acquisitions_failed, 1);
 }
 
 TEST_F(RobotTest, TheSeedDecidesTheOutcome) {

@@ -139,11 +139,6 @@ Rows::~Rows() { PQclear(result_); }
 
 int Rows::size() const { return PQntuples(result_); }
 
-int64_t Rows::affected() const {
-  const char* tuples = PQcmdTuples(result_);
-  return tuples == nullptr || *tuples == '\0' ? 0 : std::atoll(tuples);
-}
-
 bool Rows::Next() { return ++row_ < PQntuples(result_); }
 
 bool Rows::IsNull(int col) const {

@@ -63,7 +63,6 @@ class Rows {
   ~Rows();
 
   int size() const;
-  int64_t affected() const;  // rows an INSERT/UPDATE/DELETE touched
   bool Next();
   bool IsNull(int col) const;
   int64_t Int64(int col) const;  // int2, int4, int8 or bool
