@@ -5,7 +5,8 @@ With a `grpcurl` on PATH, starts the services from BUILD_DIR on free loopback
 ports (a fresh SQLite database, the simulated robot and camera) and:
   - runs every grpcurl line of the README's "grpcurl" section; each must
     exit 0;
-  - runs every `$ grpcurl ...` command of the ```console sessions in the
+  - runs every `$ grpcurl ...` command (or `$ (...grpcurl...) | grpcurl ...`
+    pipeline, through bash) of the ```console sessions in the
     docs listed in SESSIONS, in order, and compares what it prints (stdout,
     then stderr) with the lines shown under it. A `…` in a shown line matches
     any text; a line that is only `…` matches any number of lines. A shown
@@ -27,7 +28,9 @@ import sys
 import tempfile
 import time
 
-SESSIONS = ["docs/api.md"]
+SESSIONS = [
+    "docs/api.md", "docs/robot.md", "docs/haptic.md", "docs/perception.md"
+]
 
 # Default port of each service in the docs, its binary, health name, flags.
 SERVICES = [
@@ -95,15 +98,25 @@ class Services:
                       command)
 
 
-def run(services, command):
+def run(services, command, source):
+    """Runs `command` (`< FILE` reads FILE, relative to the repository)."""
+    if "|" in command:  # a pipeline, as a shell runs it
+        done = subprocess.run(["bash", "-c", services.rewrite(command)],
+                              capture_output=True, text=True, timeout=120)
+        return done.returncode, (done.stdout + done.stderr).rstrip("\n").split("\n")
+    stdin = None
+    if " < " in command:
+        command, path = command.rsplit(" < ", 1)
+        stdin = open(os.path.join(source, path.strip()))
     argv = shlex.split(services.rewrite(command), comments=True)
-    done = subprocess.run(argv, capture_output=True, text=True, timeout=120)
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=120,
+                          stdin=stdin)
     return done.returncode, (done.stdout + done.stderr).rstrip("\n").split("\n")
 
 
 def line_matches(pattern, line):
-    parts = [re.escape(p) for p in pattern.split("…")]
-    return re.fullmatch(".*".join(parts), line) is not None
+    parts = [re.escape(p) for p in pattern.rstrip().split("…")]
+    return re.fullmatch(".*".join(parts), line.rstrip()) is not None
 
 
 def output_matches(shown, actual):
@@ -158,7 +171,7 @@ def session_steps(path):
         else:
             shown.append(line)
     return [(c, s[:-1] if s and s[-1] == "" else s) for c, s in steps
-            if c.startswith("grpcurl")]
+            if "grpcurl" in c]
 
 
 def main():
@@ -173,7 +186,7 @@ def main():
         services.start()
         for doc in SESSIONS:
             for command, shown in session_steps(os.path.join(source, doc)):
-                status, actual = run(services, command)
+                status, actual = run(services, command, source)
                 expect_error = bool(shown) and shown[0] == "ERROR:"
                 if (status != 0) != expect_error or not output_matches(shown, actual):
                     failures.append(f"{doc}: {command}\n  exit {status}; printed:\n    "
@@ -185,7 +198,7 @@ def main():
         services.stop()
         services.start()
         for command in readme_commands(source):
-            status, actual = run(services, command)
+            status, actual = run(services, command, source)
             if status != 0:
                 failures.append(f"README.md: {command}\n  exit {status}:\n    "
                                 + "\n    ".join(actual))
