@@ -6,7 +6,8 @@
 # haptic encodings, and Thompson sampling for both learners), and the
 # sensitivity cells on the same seed: rho_c 0.3 and 3, blocked order,
 # HapticNet degraded to 95% and 80%, the (seeded, untrained) SPANet
-# featurizer, and a look-alike pair on the plate.
+# featurizer, a look-alike pair on the plate, and traces from trace stories
+# HapticNet never saw (mechanics, compliant; docs/haptic.md).
 # Nothing here was chosen by looking at these seeds' results.
 # Usage: scripts/experiments/sim_meals_all.sh [build dir] [output dir]
 set -euo pipefail
@@ -28,6 +29,7 @@ meals() {
   meals sim_meals_rho3 --rho_c=3
   meals sim_meals_haptic95 --haptic_accuracy=0.95
   meals sim_meals_spanet --spanet_model="$build/models/spanet_seed1.onnx"
+  meals sim_meals_story_mechanics --trace_story=mechanics
 ) &
 lane=$!
 meals sim_meals_rho0.3 --rho_c=0.3
@@ -37,6 +39,7 @@ meals sim_meals_haptic80 --haptic_accuracy=0.8
 # looking like the ripe banana (soft).
 meals sim_meals_lookalike \
   --foods=carrot,celery,strawberry,cantaloupe,banana,banana_unripe,cherry_tomato,grape
+meals sim_meals_story_compliant --trace_story=compliant
 wait "$lane"
 if command -v gnuplot >/dev/null; then
   gnuplot -e "dir='$out'; out='$out'; name='sim_meals'" \
