@@ -18,8 +18,16 @@ serves, and refuses to write a file that disagrees with PyTorch.
    SPANet's 144x144 input canvas pixel for pixel, and features, action
    scores and skewer points within --tolerance relative (max |difference| /
    max |PyTorch value|, per vector).
-4. Only then moves the file to --out. Exit 0: written; 1: refused (the
-   message says why); 2: bad arguments.
+4. Only then moves the file to --out.
+5. Writes the context scale beside it, <out>.stats (E||c||^2 of the model's
+   features on seen foods, which sets a new user's context ridge), with
+   bitewise-featurizer-stats: about 2 minutes on two cores for 400 plates
+   (--stats_plates). --no_stats skips it and prints the command instead.
+Exit 0: written; 1: refused (the message says why) or the statistics could
+not be written (the model stays); 2: bad arguments.
+
+The binaries are looked for in --build_dir (default $BITEWISE_BUILD_DIR, else
+the checkout's build/), then on PATH (an installed bitewise).
 
 --check_onnx FILE skips the export and runs steps 1 and 3 on an ONNX file
 made some other way (for example by hand, or with training mode left on).
@@ -28,6 +36,8 @@ Run it with Debian's python3 (python3-torch, python3-pil, python3-numpy).
 
 import argparse
 import os
+import shutil
+import subprocess
 import sys
 import tempfile
 
@@ -37,9 +47,16 @@ import torch
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import spanet_model as sm  # noqa: E402
 
-DEFAULT_BINARY = os.path.join(os.path.dirname(os.path.abspath(__file__)),
-                              "..", "..", "build", "services", "perception",
-                              "bitewise-perception")
+DEFAULT_BUILD_DIR = os.environ.get("BITEWISE_BUILD_DIR") or os.path.join(
+    os.path.dirname(os.path.abspath(__file__)), "..", "..", "build")
+
+
+def find_binary(build_dir, relative):
+    """The build tree's binary, else one on PATH, else None."""
+    path = os.path.join(build_dir, relative)
+    if os.path.exists(path):
+        return path
+    return shutil.which(os.path.basename(relative))
 
 
 class _Interface(torch.nn.Module):
@@ -128,6 +145,34 @@ def compare(model, onnx_path, binary, crops, tolerance, out=sys.stdout):
     return failures
 
 
+def write_stats(args):
+    """<out>.stats with bitewise-featurizer-stats, or the command to run."""
+    stats = args.out + ".stats"
+    tool = find_binary(args.build_dir, os.path.join(
+        "experiments", "bitewise-featurizer-stats"))
+    command = [tool or "bitewise-featurizer-stats", "--featurizer=spanet",
+               f"--spanet_model={args.out}", f"--plates={args.stats_plates}",
+               f"--out={stats}"]
+    if args.no_stats or tool is None:
+        why = ("--no_stats" if args.no_stats else
+               f"bitewise-featurizer-stats not found in {args.build_dir} "
+               "nor on PATH")
+        print(f"export_onnx: {why}: no {stats} written. Without it the "
+              "PerceptionService warns at start and new users get the "
+              "BanditService's default context ridge. Write it with "
+              f"(about 2 minutes on two cores):\n  {' '.join(command)}")
+        return 0 if args.no_stats else 1
+    print(f"export_onnx: writing {stats} ({args.stats_plates} plates of "
+          "seen foods; about 2 minutes on two cores at 400)", flush=True)
+    done = subprocess.run(command, capture_output=True, text=True)
+    if done.returncode != 0:
+        print(f"export_onnx: could not write {stats}: {done.stderr.strip()}",
+              file=sys.stderr)
+        return 1
+    print(f"export_onnx: {done.stdout.strip().splitlines()[-1]}")
+    return 0
+
+
 def main():
     parser = argparse.ArgumentParser(
         description=__doc__.split("\n\n")[0],
@@ -138,8 +183,17 @@ def main():
     parser.add_argument("--check_onnx",
                         help="compare this existing ONNX file instead of "
                              "exporting")
-    parser.add_argument("--perception_binary", default=DEFAULT_BINARY,
-                        help="bitewise-perception (default: the build tree's)")
+    parser.add_argument("--build_dir", default=DEFAULT_BUILD_DIR,
+                        help="where to find bitewise-perception and "
+                             "bitewise-featurizer-stats (default: "
+                             "$BITEWISE_BUILD_DIR or the checkout's build/; "
+                             "then PATH)")
+    parser.add_argument("--perception_binary",
+                        help="bitewise-perception (default: from --build_dir)")
+    parser.add_argument("--no_stats", action="store_true",
+                        help="do not write <out>.stats (print the command)")
+    parser.add_argument("--stats_plates", type=int, default=400,
+                        help="plates of seen foods for <out>.stats")
     parser.add_argument("--crops", default="",
                         help="comma-separated PNG crops to compare on "
                              "(default: eight synthetic crops)")
@@ -147,9 +201,16 @@ def main():
     args = parser.parse_args()
     if bool(args.out) == bool(args.check_onnx):
         parser.error("give exactly one of --out and --check_onnx")
-    if not os.path.exists(args.perception_binary):
-        parser.error(f"{args.perception_binary} does not exist; build it "
-                     "(scripts/setup.sh) or pass --perception_binary")
+    if args.perception_binary is None:
+        args.perception_binary = find_binary(
+            args.build_dir, os.path.join("services", "perception",
+                                         "bitewise-perception"))
+    if args.perception_binary is None or not os.path.exists(
+            args.perception_binary):
+        parser.error("bitewise-perception not found in "
+                     f"{args.build_dir} nor on PATH; build it "
+                     "(scripts/setup.sh), or pass --build_dir or "
+                     "--perception_binary")
 
     def refuse(why):
         print(f"export_onnx: refused: {why}", file=sys.stderr)
@@ -193,6 +254,7 @@ def main():
             tmp = None
             print(f"export_onnx: wrote {args.out} (checked on {len(crops)} "
                   f"crops, tolerance {args.tolerance:g})")
+            return write_stats(args)
         else:
             print(f"export_onnx: {args.check_onnx} agrees with "
                   f"{args.checkpoint} on {len(crops)} crops")

@@ -15,6 +15,7 @@
 #include "services/perception/food_detector.h"
 #include "services/perception/model_check.h"
 #include "services/perception/perception_service.h"
+#include "services/perception/context_scale.h"
 #include "services/perception/spanet_featurizer.h"
 
 ABSL_FLAG(std::string, featurizer, "default",
@@ -77,6 +78,20 @@ int main(int argc, char** argv) {
                                    spanet.status());
     }
     featurizer = *std::move(spanet);
+    if (featurizer->context_mean_squared_norm() <= 0.0) {
+      // Not an error (a lab may set lambda_c per user), but never silent.
+      const std::string stats =
+          bitewise::perception::ContextScalePathFor(model);
+      std::fprintf(
+          stderr,
+          "%s: warning: no %s beside the model, so Featurize reports "
+          "context_mean_squared_norm 0 and a new user's context ridge will "
+          "be the BanditService's --default_lambda_c (1000 unless set) "
+          "instead of rho_c x E||c||^2 of this featurizer; write the file "
+          "with: bitewise-featurizer-stats --featurizer=spanet "
+          "--spanet_model=%s --out=%s\n",
+          kProgram, stats.c_str(), model.c_str(), stats.c_str());
+    }
   } else {
     return bitewise::ReportFatal(kProgram, "bad flags",
                                  absl::InvalidArgumentError(absl::StrCat(

@@ -174,6 +174,30 @@ TEST(PerceptionBinaryTest, DecompressionBombIsRefusedWithoutMemory) {
   ASSERT_TRUE(child.Wait(absl::Seconds(30)).ok());
 }
 
+TEST(PerceptionBinaryTest, SpanetWithoutStatsSaysWhatRidgeNewUsersGet) {
+  // The model without its .stats file beside it.
+  const std::string model =
+      absl::StrCat(::testing::TempDir(), "/spanet_without_stats.onnx");
+  unlink(model.c_str());
+  ASSERT_EQ(symlink(BITEWISE_SPANET_MODEL, model.c_str()), 0);
+  const std::string log = LogPath();
+  ChildProcess child;
+  ASSERT_NO_FATAL_FAILURE(Spawn(child,
+                                {"--featurizer=spanet",
+                                 absl::StrCat("--spanet_model=", model),
+                                 "--check_model"},
+                                log));
+  const absl::StatusOr<int> status = child.Wait(absl::Seconds(120));
+  ASSERT_TRUE(status.ok()) << status.status();
+  EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << child.log();
+  EXPECT_THAT(child.log(),
+              HasSubstr(absl::StrCat("warning: no ", model,
+                                     ".stats beside the model")));
+  EXPECT_THAT(child.log(), HasSubstr("--default_lambda_c"));
+  EXPECT_THAT(child.log(), HasSubstr("bitewise-featurizer-stats"));
+  unlink(model.c_str());
+}
+
 TEST(PerceptionBinaryTest, ServesSpanetFeaturesAndDrainsOnSigterm) {
   const absl::StatusOr<int> port = bitewise::testing::PickFreePort();
   ASSERT_TRUE(port.ok()) << port.status();
@@ -211,6 +235,8 @@ TEST(PerceptionBinaryTest, ServesSpanetFeaturesAndDrainsOnSigterm) {
   ASSERT_TRUE(stub->Featurize(&c2, request, &features).ok());
   EXPECT_EQ(features.context_size(), 2048);
   EXPECT_EQ(features.featurizer(), "spanet");
+  // Its .stats file is beside it: no warning.
+  EXPECT_THAT(child.log(), ::testing::Not(HasSubstr("warning: no")));
 
   const absl::StatusOr<int> status =
       child.SignalAndWait(SIGTERM, absl::Seconds(30));
