@@ -28,6 +28,18 @@ ABSL_FLAG(int, plates, 200, "Plates to render.");
 ABSL_FLAG(uint64_t, seed, 9001, "Seeds the plates.");
 ABSL_FLAG(int, max_items, 8, "Items per plate: 2 to this.");
 ABSL_FLAG(bool, verbose, false, "Name the foods of every merge on stderr.");
+ABSL_FLAG(double, overlap, 0.0,
+          "Crowded plates (sim::CrowdedPlate): chance that a flat item lies "
+          "partly on a flat neighbour (a slice partly under another). With "
+          "any crowding flag, items at least --min_visible of whose "
+          "footprint shows are the ones that must be found.");
+ABSL_FLAG(double, same_food_touch, 0.0,
+          "Crowded plates: chance that an item touches one of its own food "
+          "(same colour, side by side).");
+ABSL_FLAG(double, touch, 0.5, "Crowded plates: chance of touching any item.");
+ABSL_FLAG(double, min_visible, 0.2,
+          "Crowded plates: the share of its footprint an item must show to "
+          "count (the target: every such item found with IoU >= 0.5).");
 ABSL_FLAG(std::string, dump, "",
           "Directory for plate<N>.png (truth green, detections red) of every "
           "plate with a merge.");
@@ -66,6 +78,14 @@ int main(int argc, char** argv) {
   const std::vector<const bitewise::sim::FoodType*> unseen =
       bitewise::sim::UnseenFoods();
   const bitewise::perception::FoodDetector detector;
+  bitewise::sim::PlateCrowding crowding;
+  crowding.overlap_probability = absl::GetFlag(FLAGS_overlap);
+  crowding.same_food_touch_probability = absl::GetFlag(FLAGS_same_food_touch);
+  crowding.touch_probability = absl::GetFlag(FLAGS_touch);
+  const bool crowded = crowding.overlap_probability > 0.0 ||
+                       crowding.same_food_touch_probability > 0.0;
+  const double min_visible = absl::GetFlag(FLAGS_min_visible);
+  int lying_on = 0, hidden = 0;  // items on a neighbour; below min_visible
   int items = 0, found = 0, merged = 0, missed = 0, extra = 0;
   int touching_items = 0, repeated_items = 0;
   double iou_sum = 0.0, worst = 1.0;
@@ -75,7 +95,9 @@ int main(int argc, char** argv) {
     std::vector<const bitewise::sim::FoodType*> foods;
     for (int i = 0; i < n; ++i) foods.push_back(unseen[rng() % unseen.size()]);
     const bitewise::sim::PlateScene scene =
-        bitewise::sim::RandomPlate(foods, /*allow_touching=*/true, rng);
+        crowded
+            ? bitewise::sim::CrowdedPlate(foods, crowding, rng)
+            : bitewise::sim::RandomPlate(foods, /*allow_touching=*/true, rng);
     bitewise::sim::RenderedFrame rendered = bitewise::sim::RenderPlate(
         scene, bitewise::sim::D415Intrinsics(), rng());
     const bitewise::perception::DecodedFrame frame =
@@ -93,12 +115,17 @@ int main(int argc, char** argv) {
     }
     std::vector<Box> truth, boxes;
     std::vector<const bitewise::sim::FoodType*> truth_food;  // by truth index
+    std::vector<bool> required;  // by truth index: must be found
     for (const auto& t : rendered.truth) {
       if (t.visible_pixels == 0) continue;
       truth.push_back({t.x, t.y, t.width, t.height});
       for (const auto& item : scene.items) {
-        if (item.id == t.id) truth_food.push_back(item.food);
+        if (item.id != t.id) continue;
+        truth_food.push_back(item.food);
+        lying_on += item.base_m > 0.0;
       }
+      required.push_back(!crowded ||
+                         t.visible_pixels >= min_visible * t.footprint_pixels);
     }
     for (const DetectedFood& d : *detected) {
       boxes.push_back({d.bbox.x, d.bbox.y, d.bbox.width, d.bbox.height});
@@ -165,6 +192,10 @@ int main(int argc, char** argv) {
       }
     }
     for (size_t t = 0; t < truth.size(); ++t) {
+      if (!required[t]) {
+        ++hidden;
+        continue;
+      }
       ++items;
       if (is_merged[t]) {
         ++merged;
@@ -186,6 +217,12 @@ int main(int argc, char** argv) {
       "plates %d, items %d (touching a neighbour %d, same food on the "
       "plate %d)\n",
       plates, items, touching_items, repeated_items);
+  if (crowded) {
+    std::printf(
+        "crowded plates: %d items lying partly on a neighbour; %d items "
+        "showing less than %.0f%% of their footprint (not counted below)\n",
+        lying_on, hidden, 100.0 * min_visible);
+  }
   std::printf("found once (IoU >= 0.5)     %d (%.2f%%)\n", found,
               100.0 * found / items);
   std::printf("merged with a neighbour     %d (%.2f%%)\n", merged,

@@ -95,7 +95,8 @@ double ItemHeight(const ItemShape& s, double x_m, double y_m) {
   const double q = Footprint(s, x_m, y_m);
   if (q >= 1.0) return -1.0;
   const double r = std::sqrt(1.0 - q);
-  return s.item->height_m * (s.exponent == 2.0 ? r : std::sqrt(r));
+  return s.item->base_m +
+         s.item->height_m * (s.exponent == 2.0 ? r : std::sqrt(r));
 }
 
 double PlateHeight(const PlateScene& scene, double x_m, double y_m) {
@@ -137,6 +138,7 @@ RenderedFrame RenderPlate(const PlateScene& scene,
   // Ray cast: the camera ray through pixel (u, v) meets height z at plate
   // coordinates ((u - cx) (cam - z) / fx, (v - cy) (cam - z) / fy).
   std::vector<Hit> hits(static_cast<size_t>(w) * h);
+  std::vector<int> footprint(shapes.size(), 0);
   for (int v = 0; v < h; ++v) {
     const double ry = (v - intrinsics.cy) / intrinsics.fy;
     for (int u = 0; u < w; ++u) {
@@ -155,7 +157,8 @@ RenderedFrame RenderPlate(const PlateScene& scene,
         const ItemShape& s = shapes[i];
         // Cull with the distance from the item's centre to the ray's
         // segment between the item's top and the plate.
-        const double top = cam - s.item->height_m;
+        const double item_top = s.item->base_m + s.item->height_m;
+        const double top = cam - item_top;
         const double ax = rx * top - s.item->x_m, ay = ry * top - s.item->y_m;
         const double bx = rx * cam - s.item->x_m, by = ry * cam - s.item->y_m;
         const double sx = bx - ax, sy = by - ay;
@@ -166,13 +169,15 @@ RenderedFrame RenderPlate(const PlateScene& scene,
         // The first point along the ray (from the camera down) that lies
         // inside the dome: march down in height, then bisect.
         auto inside = [&](double zz) {
-          return ItemHeight(s, rx * (cam - zz), ry * (cam - zz)) >= zz;
+          return zz >= s.item->base_m &&
+                 ItemHeight(s, rx * (cam - zz), ry * (cam - zz)) >= zz;
         };
         constexpr int kSteps = 16;
         double hit_z = -1.0;
-        double above = s.item->height_m;
+        double above = item_top;
         for (int k = 1; k <= kSteps; ++k) {
-          const double zz = s.item->height_m * (kSteps - k) / kSteps;
+          const double zz =
+              s.item->base_m + s.item->height_m * (kSteps - k) / kSteps;
           if (!inside(zz)) {
             above = zz;
             continue;
@@ -185,6 +190,7 @@ RenderedFrame RenderPlate(const PlateScene& scene,
           hit_z = lo;
           break;
         }
+        if (hit_z >= 0.0) ++footprint[i];
         if (hit_z > best.height_m) {
           best.height_m = hit_z;
           best.item = static_cast<int>(i);
@@ -338,6 +344,7 @@ RenderedFrame RenderPlate(const PlateScene& scene,
   for (size_t i = 0; i < scene.items.size(); ++i) {
     ItemTruth& t = frame.truth[i];
     t.id = scene.items[i].id;
+    t.footprint_pixels = footprint[i];
     if (t.visible_pixels > 0) {
       t.x = extent[i][0];
       t.y = extent[i][1];
@@ -353,11 +360,23 @@ namespace {
 // Whether two items' footprints come closer than `gap_m` (negative gap
 // allows nothing; zero means touching is still acceptable). Tested on
 // points around each outline, which is exact enough at millimetre scale.
-bool Overlaps(const SceneItem& a, const SceneItem& b, double gap_m) {
+// Whether a and b, each pushed out by `gap_m`, overlap: an outline point of
+// one inside the other, or (with `containment`) the centre of one inside the
+// other. RandomPlate checks outlines only, which misses two items of about
+// the same size almost on top of each other; it keeps that flaw so that the
+// simulated world's plates (and every experiment on them) stay as they
+// were, until the experiments are rerun. CrowdedPlate checks both.
+bool Overlaps(const SceneItem& a, const SceneItem& b, double gap_m,
+              bool containment = false) {
   const ItemShape sa = ShapeOf(a), sb = ShapeOf(b);
   if (std::hypot(a.x_m - b.x_m, a.y_m - b.y_m) >
       sa.bound_m + sb.bound_m + gap_m) {
     return false;
+  }
+  // One inside the other (the outlines below would not cross).
+  if (containment && (Footprint(sa, b.x_m, b.y_m) < 1.0 ||
+                      Footprint(sb, a.x_m, a.y_m) < 1.0)) {
+    return true;
   }
   for (const auto& [s, other] : {std::pair{&sa, &sb}, std::pair{&sb, &sa}}) {
     for (int k = 0; k < 96; ++k) {
@@ -390,36 +409,91 @@ domain::RgbdFrame ToRgbdFrame(RenderedFrame rendered, uint64_t sequence,
   return frame;
 }
 
+namespace {
+
+// One item of `food`: size, orientation, colour and texture drawn as every
+// plate draws them (`gauss` lives as long as the plate, so the stream of
+// draws is the plate's).
+SceneItem DrawItem(const FoodType* food, uint32_t id, random::Normal& gauss,
+                   std::mt19937_64& rng) {
+  auto between = [&](const std::array<double, 2>& range) {
+    return range[0] + (range[1] - range[0]) * random::Canonical(rng);
+  };
+  SceneItem item;
+  item.id = id;
+  item.food = food;
+  double length = between(food->length_m), width = between(food->width_m);
+  if (width > length) std::swap(width, length);
+  item.length_m = length;
+  item.width_m = width;
+  item.height_m = between(food->height_m);
+  item.yaw_rad = kPi * (2 * random::Canonical(rng) - 1);
+  // Ripeness shifts all channels together; the rest varies per channel.
+  const double ripeness = food->rgb_spread * gauss(rng);
+  for (int c = 0; c < 3; ++c) {
+    item.rgb[c] = std::clamp(
+        food->rgb[c] + ripeness + 0.5 * food->rgb_spread * gauss(rng), 0.02,
+        0.98);
+  }
+  item.texture_seed = rng();
+  return item;
+}
+
+// Items stay inside the well, clear of the rim; separate items keep a gap
+// so that they are distinguishable.
+constexpr double kRimClearanceM = 0.004;
+constexpr double kGapM = 0.004;
+
+// Places `item` at `fraction` of the distance at which it would just touch
+// `anchor`, along `dir`. Returns false if that is outside `reach`.
+bool PlaceAgainst(SceneItem& item, const SceneItem& anchor, double dir,
+                  double fraction, double reach) {
+  double lo = 0.0, hi = anchor.length_m / 2 + item.length_m / 2 + 0.01;
+  for (int it = 0; it < 30; ++it) {
+    const double mid = 0.5 * (lo + hi);
+    item.x_m = anchor.x_m + mid * std::cos(dir);
+    item.y_m = anchor.y_m + mid * std::sin(dir);
+    (Overlaps(item, anchor, 0.0) ? lo : hi) = mid;
+  }
+  item.x_m = anchor.x_m + fraction * hi * std::cos(dir);
+  item.y_m = anchor.y_m + fraction * hi * std::sin(dir);
+  return std::hypot(item.x_m, item.y_m) <= reach;
+}
+
+// Whether `item` keeps the gap to every placed item but `except`.
+bool ClearOfOthers(const SceneItem& item, const std::vector<SceneItem>& placed,
+                   const SceneItem* except, bool containment) {
+  for (const SceneItem& other : placed) {
+    if (&other != except && Overlaps(item, other, kGapM, containment)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// Anywhere in the well, clear of every placed item.
+bool PlaceApart(SceneItem& item, const std::vector<SceneItem>& placed,
+                double reach, bool containment, std::mt19937_64& rng) {
+  for (int attempt = 0; attempt < 2000; ++attempt) {
+    const double r = reach * std::sqrt(random::Canonical(rng));
+    const double t = 2 * kPi * random::Canonical(rng);
+    item.x_m = r * std::cos(t);
+    item.y_m = r * std::sin(t);
+    if (ClearOfOthers(item, placed, nullptr, containment)) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
 PlateScene RandomPlate(const std::vector<const FoodType*>& foods,
                        bool allow_touching, std::mt19937_64& rng) {
   PlateScene scene;
   random::Normal gauss;
-  auto between = [&](const std::array<double, 2>& range) {
-    return range[0] + (range[1] - range[0]) * random::Canonical(rng);
-  };
-  // Items stay inside the well, clear of the rim.
-  const double well = kWellFraction * scene.plate_radius_m - 0.004;
-  // Separate items keep this gap so that they are distinguishable.
-  const double kGapM = 0.004;
+  const double well = kWellFraction * scene.plate_radius_m - kRimClearanceM;
   uint32_t next_id = 1;
   for (const FoodType* food : foods) {
-    SceneItem item;
-    item.id = next_id++;
-    item.food = food;
-    double length = between(food->length_m), width = between(food->width_m);
-    if (width > length) std::swap(width, length);
-    item.length_m = length;
-    item.width_m = width;
-    item.height_m = between(food->height_m);
-    item.yaw_rad = kPi * (2 * random::Canonical(rng) - 1);
-    // Ripeness shifts all channels together; the rest varies per channel.
-    const double ripeness = food->rgb_spread * gauss(rng);
-    for (int c = 0; c < 3; ++c) {
-      item.rgb[c] = std::clamp(
-          food->rgb[c] + ripeness + 0.5 * food->rgb_spread * gauss(rng), 0.02,
-          0.98);
-    }
-    item.texture_seed = rng();
+    SceneItem item = DrawItem(food, next_id++, gauss, rng);
     const double reach = well - item.length_m / 2;
     bool placed = false;
     // Touch a neighbour half of the time when allowed: slide out from a
@@ -430,38 +504,65 @@ PlateScene RandomPlate(const std::vector<const FoodType*>& foods,
         const SceneItem& anchor = scene.items[static_cast<size_t>(
             random::Canonical(rng) * scene.items.size())];
         const double dir = 2 * kPi * random::Canonical(rng);
-        double lo = 0.0, hi = anchor.length_m / 2 + item.length_m / 2 + 0.01;
-        for (int it = 0; it < 30; ++it) {
-          const double mid = 0.5 * (lo + hi);
-          item.x_m = anchor.x_m + mid * std::cos(dir);
-          item.y_m = anchor.y_m + mid * std::sin(dir);
-          (Overlaps(item, anchor, 0.0) ? lo : hi) = mid;
-        }
-        item.x_m = anchor.x_m + hi * std::cos(dir);
-        item.y_m = anchor.y_m + hi * std::sin(dir);
-        if (std::hypot(item.x_m, item.y_m) > reach) continue;
-        bool clear = true;
-        for (const SceneItem& other : scene.items) {
-          if (&other != &anchor && Overlaps(item, other, kGapM)) clear = false;
-        }
-        placed = clear;
+        if (!PlaceAgainst(item, anchor, dir, 1.0, reach)) continue;
+        placed = ClearOfOthers(item, scene.items, &anchor, false);
       }
     }
-    for (int attempt = 0; attempt < 2000 && !placed; ++attempt) {
-      const double r = reach * std::sqrt(random::Canonical(rng));
-      const double t = 2 * kPi * random::Canonical(rng);
-      item.x_m = r * std::cos(t);
-      item.y_m = r * std::sin(t);
-      placed = true;
-      for (const SceneItem& other : scene.items) {
-        if (Overlaps(item, other, kGapM)) {
-          placed = false;
-          break;
-        }
-      }
-    }
+    if (!placed) placed = PlaceApart(item, scene.items, reach, false, rng);
     // A plate too full for this item: it is left off rather than drawn
     // intersecting another one.
+    if (placed) scene.items.push_back(item);
+  }
+  return scene;
+}
+
+PlateScene CrowdedPlate(const std::vector<const FoodType*>& foods,
+                        const PlateCrowding& crowding, std::mt19937_64& rng) {
+  PlateScene scene;
+  random::Normal gauss;
+  const double well = kWellFraction * scene.plate_radius_m - kRimClearanceM;
+  uint32_t next_id = 1;
+  for (const FoodType* food : foods) {
+    SceneItem item = DrawItem(food, next_id++, gauss, rng);
+    const double reach = well - item.length_m / 2;
+    const double draw = random::Canonical(rng);
+    // The anchors this item may lean on or touch, by the rule drawn.
+    std::vector<size_t> anchors;
+    double fraction = 1.0;
+    if (draw < crowding.overlap_probability &&
+        item.height_m <= crowding.max_overlap_height_m) {
+      for (size_t i = 0; i < scene.items.size(); ++i) {
+        if (scene.items[i].base_m == 0.0 &&
+            scene.items[i].height_m <= crowding.max_overlap_height_m) {
+          anchors.push_back(i);
+        }
+      }
+      fraction = 0.4 + 0.4 * random::Canonical(rng);
+    } else if (draw < crowding.overlap_probability +
+                          crowding.same_food_touch_probability) {
+      for (size_t i = 0; i < scene.items.size(); ++i) {
+        if (scene.items[i].food == food) anchors.push_back(i);
+      }
+    } else if (draw < crowding.overlap_probability +
+                          crowding.same_food_touch_probability +
+                          crowding.touch_probability) {
+      for (size_t i = 0; i < scene.items.size(); ++i) anchors.push_back(i);
+    }
+    bool placed = false;
+    for (int attempt = 0; attempt < 40 && !placed && !anchors.empty();
+         ++attempt) {
+      const SceneItem& anchor = scene.items[anchors[static_cast<size_t>(
+          random::Canonical(rng) * anchors.size())]];
+      const double dir = 2 * kPi * random::Canonical(rng);
+      if (!PlaceAgainst(item, anchor, dir, fraction, reach)) continue;
+      placed = ClearOfOthers(item, scene.items, &anchor, true);
+      // Lying on the anchor: its underside rests on the anchor's top.
+      item.base_m = fraction < 1.0 ? anchor.height_m : 0.0;
+    }
+    if (!placed) {
+      item.base_m = 0.0;
+      placed = PlaceApart(item, scene.items, reach, true, rng);
+    }
     if (placed) scene.items.push_back(item);
   }
   return scene;

@@ -31,7 +31,10 @@ struct SceneItem {
   double yaw_rad = 0.0;     // major axis angle from +x, in the image
   double length_m = 0.03;   // major axis
   double width_m = 0.02;    // minor axis
-  double height_m = 0.015;  // top above the plate surface
+  double height_m = 0.015;  // thickness: top above the item's underside
+  // Underside above the plate surface: 0 for an item on the plate; an item
+  // lying partly on a neighbour rests this high (CrowdedPlate).
+  double base_m = 0.0;
   std::array<double, 3> rgb{0.5, 0.5, 0.5};  // this item's colour
   uint64_t texture_seed = 0;                 // per-item texture
 };
@@ -56,6 +59,9 @@ struct ItemTruth {
   uint32_t id = 0;
   int x = 0, y = 0, width = 0, height = 0;  // bounding box of visible pixels
   int visible_pixels = 0;
+  // Pixels the item would cover with nothing else on the plate: the share
+  // visible is visible_pixels / footprint_pixels.
+  int footprint_pixels = 0;
 };
 
 struct RenderedFrame {
@@ -79,6 +85,27 @@ RenderedFrame RenderPlate(const PlateScene& scene,
 // lets neighbours touch.
 PlateScene RandomPlate(const std::vector<const FoodType*>& foods,
                        bool allow_touching, std::mt19937_64& rng);
+
+// How crowded a plate is (CrowdedPlate). Each new item, in turn: with
+// `overlap_probability`, if it is flat (at most max_overlap_height_m) and a
+// flat item is already on the plate, it lies partly on that item (its
+// centre 40-80 % of the touching distance away, its underside resting on
+// the lower item's top: a slice partly under a neighbour);
+// else with `same_food_touch_probability` it touches an item of its own food
+// (same colour, side by side); else with `touch_probability` it touches any
+// item; else it is placed apart.
+struct PlateCrowding {
+  double overlap_probability = 0.0;
+  double max_overlap_height_m = 0.015;
+  double same_food_touch_probability = 0.0;
+  double touch_probability = 0.5;
+};
+
+// A plate as RandomPlate's (same sizes, colours and orientations), placed
+// as `crowding` says. Detector evaluations use it; the simulated world does
+// not.
+PlateScene CrowdedPlate(const std::vector<const FoodType*>& foods,
+                        const PlateCrowding& crowding, std::mt19937_64& rng);
 
 }  // namespace bitewise::sim
 
