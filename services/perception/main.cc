@@ -11,11 +11,11 @@
 #include "services/common/flags_usage.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
+#include "services/perception/context_scale.h"
 #include "services/perception/default_featurizer.h"
 #include "services/perception/food_detector.h"
 #include "services/perception/model_check.h"
 #include "services/perception/perception_service.h"
-#include "services/perception/context_scale.h"
 #include "services/perception/spanet_featurizer.h"
 
 ABSL_FLAG(std::string, featurizer, "default",

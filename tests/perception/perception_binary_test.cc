@@ -182,17 +182,16 @@ TEST(PerceptionBinaryTest, SpanetWithoutStatsSaysWhatRidgeNewUsersGet) {
   ASSERT_EQ(symlink(BITEWISE_SPANET_MODEL, model.c_str()), 0);
   const std::string log = LogPath();
   ChildProcess child;
-  ASSERT_NO_FATAL_FAILURE(Spawn(child,
-                                {"--featurizer=spanet",
-                                 absl::StrCat("--spanet_model=", model),
-                                 "--check_model"},
-                                log));
+  ASSERT_NO_FATAL_FAILURE(
+      Spawn(child,
+            {"--featurizer=spanet", absl::StrCat("--spanet_model=", model),
+             "--check_model"},
+            log));
   const absl::StatusOr<int> status = child.Wait(absl::Seconds(120));
   ASSERT_TRUE(status.ok()) << status.status();
   EXPECT_TRUE(WIFEXITED(*status) && WEXITSTATUS(*status) == 0) << child.log();
-  EXPECT_THAT(child.log(),
-              HasSubstr(absl::StrCat("warning: no ", model,
-                                     ".stats beside the model")));
+  EXPECT_THAT(child.log(), HasSubstr(absl::StrCat("warning: no ", model,
+                                                  ".stats beside the model")));
   EXPECT_THAT(child.log(), HasSubstr("--default_lambda_c"));
   EXPECT_THAT(child.log(), HasSubstr("bitewise-featurizer-stats"));
   unlink(model.c_str());
