@@ -5,6 +5,7 @@
 
 #include "services/bandit/converters.h"
 #include "services/common/rpc_handler.h"
+#include "services/common/rpc_methods.h"
 #include "services/common/status_macros.h"
 
 namespace bitewise::bandit {
@@ -16,30 +17,33 @@ BanditServiceImpl::BanditServiceImpl(BanditEngine* engine,
 grpc::Status BanditServiceImpl::Select(grpc::ServerContext* context,
                                        const v1::SelectRequest* request,
                                        v1::SelectResponse* response) {
-  return RunRpc("BanditService/Select", context, [&]() -> absl::Status {
-    ASSIGN_OR_RETURN(const SelectResult result,
-                     engine_->Select(SelectInputFromProto(*request)));
-    SelectToProto(result, response);
-    return absl::OkStatus();
-  });
+  return RunRpc(
+      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
+        ASSIGN_OR_RETURN(const SelectResult result,
+                         engine_->Select(SelectInputFromProto(*request)));
+        SelectToProto(result, response);
+        return absl::OkStatus();
+      });
 }
 
 grpc::Status BanditServiceImpl::Update(grpc::ServerContext* context,
                                        const v1::UpdateRequest* request,
                                        v1::UpdateResponse* response) {
-  return RunRpc("BanditService/Update", context, [&]() -> absl::Status {
-    ASSIGN_OR_RETURN(const UpdateInput input, UpdateInputFromProto(*request));
-    ASSIGN_OR_RETURN(const UpdateResult result, engine_->Update(input));
-    UpdateToProto(result, response);
-    return absl::OkStatus();
-  });
+  return RunRpc(
+      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
+        ASSIGN_OR_RETURN(const UpdateInput input,
+                         UpdateInputFromProto(*request));
+        ASSIGN_OR_RETURN(const UpdateResult result, engine_->Update(input));
+        UpdateToProto(result, response);
+        return absl::OkStatus();
+      });
 }
 
 grpc::Status BanditServiceImpl::CreateUser(grpc::ServerContext* context,
                                            const v1::CreateUserRequest* request,
                                            v1::User* response) {
   return RunRpc(
-      "BanditService/CreateUser", context,
+      BITEWISE_RPC_METHOD(v1::BanditService), context,
       [&]() -> absl::Status {
         RETURN_IF_ERROR(ValidateUserId(request->user_id()));
         ASSIGN_OR_RETURN(
@@ -57,34 +61,36 @@ grpc::Status BanditServiceImpl::CreateUser(grpc::ServerContext* context,
 grpc::Status BanditServiceImpl::GetUser(grpc::ServerContext* context,
                                         const v1::GetUserRequest* request,
                                         v1::User* response) {
-  return RunRpc("BanditService/GetUser", context, [&]() -> absl::Status {
-    ASSIGN_OR_RETURN(const UserRecord user,
-                     engine_->GetUser(request->user_id()));
-    UserToProto(user, response);
-    return absl::OkStatus();
-  });
+  return RunRpc(BITEWISE_RPC_METHOD(v1::BanditService), context,
+                [&]() -> absl::Status {
+                  ASSIGN_OR_RETURN(const UserRecord user,
+                                   engine_->GetUser(request->user_id()));
+                  UserToProto(user, response);
+                  return absl::OkStatus();
+                });
 }
 
 grpc::Status BanditServiceImpl::ListUsers(grpc::ServerContext* context,
                                           const v1::ListUsersRequest* request,
                                           v1::ListUsersResponse* response) {
-  return RunRpc("BanditService/ListUsers", context, [&]() -> absl::Status {
-    ASSIGN_OR_RETURN(const PageResult<UserRecord> page,
-                     engine_->ListUsers(PageFromProto(request->page_size(),
-                                                      request->page_token())));
-    for (const UserRecord& user : page.items) {
-      UserToProto(user, response->add_users());
-    }
-    response->set_next_page_token(page.next_page_token);
-    return absl::OkStatus();
-  });
+  return RunRpc(
+      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
+        ASSIGN_OR_RETURN(const PageResult<UserRecord> page,
+                         engine_->ListUsers(PageFromProto(
+                             request->page_size(), request->page_token())));
+        for (const UserRecord& user : page.items) {
+          UserToProto(user, response->add_users());
+        }
+        response->set_next_page_token(page.next_page_token);
+        return absl::OkStatus();
+      });
 }
 
 grpc::Status BanditServiceImpl::ResetUser(grpc::ServerContext* context,
                                           const v1::ResetUserRequest* request,
                                           v1::User* response) {
   return RunRpc(
-      "BanditService/ResetUser", context,
+      BITEWISE_RPC_METHOD(v1::BanditService), context,
       [&]() -> absl::Status {
         ASSIGN_OR_RETURN(const UserRecord user,
                          engine_->ResetUser(request->user_id()));
@@ -98,7 +104,7 @@ grpc::Status BanditServiceImpl::DeleteUser(grpc::ServerContext* context,
                                            const v1::DeleteUserRequest* request,
                                            v1::DeleteUserResponse*) {
   return RunRpc(
-      "BanditService/DeleteUser", context,
+      BITEWISE_RPC_METHOD(v1::BanditService), context,
       [&] { return engine_->DeleteUser(request->user_id()); },
       RpcPolicy::kNormal, request->user_id());
 }
@@ -106,29 +112,32 @@ grpc::Status BanditServiceImpl::DeleteUser(grpc::ServerContext* context,
 grpc::Status BanditServiceImpl::GetModel(grpc::ServerContext* context,
                                          const v1::GetModelRequest* request,
                                          v1::Model* response) {
-  return RunRpc("BanditService/GetModel", context, [&]() -> absl::Status {
-    ASSIGN_OR_RETURN(const ModelExport model,
-                     engine_->GetModel(request->user_id()));
-    ModelToProto(model, response);
-    return absl::OkStatus();
-  });
+  return RunRpc(BITEWISE_RPC_METHOD(v1::BanditService), context,
+                [&]() -> absl::Status {
+                  ASSIGN_OR_RETURN(const ModelExport model,
+                                   engine_->GetModel(request->user_id()));
+                  ModelToProto(model, response);
+                  return absl::OkStatus();
+                });
 }
 
 grpc::Status BanditServiceImpl::ListEvents(grpc::ServerContext* context,
                                            const v1::ListEventsRequest* request,
                                            v1::ListEventsResponse* response) {
-  return RunRpc("BanditService/ListEvents", context, [&]() -> absl::Status {
-    ASSIGN_OR_RETURN(const PageResult<EventRecord> page,
-                     engine_->ListEvents(request->user_id(), request->meal_id(),
-                                         PageFromProto(request->page_size(),
-                                                       request->page_token())));
-    for (const EventRecord& event : page.items) {
-      EventToProto(event, response->add_events());
-    }
-    response->set_next_page_token(page.next_page_token);
-    if (!CallerMayReadContexts()) WithholdContexts(response);
-    return absl::OkStatus();
-  });
+  return RunRpc(
+      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
+        ASSIGN_OR_RETURN(
+            const PageResult<EventRecord> page,
+            engine_->ListEvents(
+                request->user_id(), request->meal_id(),
+                PageFromProto(request->page_size(), request->page_token())));
+        for (const EventRecord& event : page.items) {
+          EventToProto(event, response->add_events());
+        }
+        response->set_next_page_token(page.next_page_token);
+        if (!CallerMayReadContexts()) WithholdContexts(response);
+        return absl::OkStatus();
+      });
 }
 
 grpc::Status BanditServiceImpl::BuildPopulationPrior(
@@ -136,7 +145,7 @@ grpc::Status BanditServiceImpl::BuildPopulationPrior(
     const v1::BuildPopulationPriorRequest* request,
     v1::PopulationPool* response) {
   return RunRpc(
-      "BanditService/BuildPopulationPrior", context, [&]() -> absl::Status {
+      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
         ASSIGN_OR_RETURN(
             const BanditConfig like,
             ConfigFromProto(request->like(), defaults_, "population pool"));
@@ -150,27 +159,29 @@ grpc::Status BanditServiceImpl::BuildPopulationPrior(
 grpc::Status BanditServiceImpl::CheckStore(grpc::ServerContext* context,
                                            const v1::CheckStoreRequest*,
                                            v1::CheckStoreResponse* response) {
-  return RunRpc("BanditService/CheckStore", context, [&]() -> absl::Status {
-    const absl::Time start = absl::Now();
-    ASSIGN_OR_RETURN(const StoreCheckReport report, engine_->CheckStore());
-    CheckReportToProto(report, absl::Now() - start, response);
-    return absl::OkStatus();
-  });
+  return RunRpc(
+      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
+        const absl::Time start = absl::Now();
+        ASSIGN_OR_RETURN(const StoreCheckReport report, engine_->CheckStore());
+        CheckReportToProto(report, absl::Now() - start, response);
+        return absl::OkStatus();
+      });
 }
 
 grpc::Status BanditServiceImpl::ListAudit(grpc::ServerContext* context,
                                           const v1::ListAuditRequest* request,
                                           v1::ListAuditResponse* response) {
-  return RunRpc("BanditService/ListAudit", context, [&]() -> absl::Status {
-    ASSIGN_OR_RETURN(const PageResult<AuditEntry> page,
-                     engine_->ListAudit(PageFromProto(request->page_size(),
-                                                      request->page_token())));
-    for (const AuditEntry& entry : page.items) {
-      AuditToProto(entry, response->add_records());
-    }
-    response->set_next_page_token(page.next_page_token);
-    return absl::OkStatus();
-  });
+  return RunRpc(
+      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
+        ASSIGN_OR_RETURN(const PageResult<AuditEntry> page,
+                         engine_->ListAudit(PageFromProto(
+                             request->page_size(), request->page_token())));
+        for (const AuditEntry& entry : page.items) {
+          AuditToProto(entry, response->add_records());
+        }
+        response->set_next_page_token(page.next_page_token);
+        return absl::OkStatus();
+      });
 }
 
 absl::Status StoreAuditSink::Record(const AuditEvent& event) {

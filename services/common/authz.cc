@@ -2,38 +2,16 @@
 
 #include <atomic>
 #include <fstream>
-#include <set>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "absl/strings/str_split.h"
 #include "absl/strings/strip.h"
+#include "services/common/rpc_methods.h"
 
 namespace bitewise {
 namespace {
-
-const std::set<std::string>& RobotMethods() {
-  static const auto* const methods = new std::set<std::string>{
-      "BanditService/Select",        "BanditService/Update",
-      "BanditService/CreateUser",    "BanditService/GetUser",
-      "BanditService/GetModel",      "PerceptionService/DetectFood",
-      "PerceptionService/Featurize", "HapticService/Classify",
-      "RobotService/Acquire",        "RobotService/CaptureFrame",
-      "RobotService/Tare",           "RobotService/GetStatus",
-      "RobotService/ListActions",    "CameraService/GetFrame"};
-  return *methods;
-}
-
-const std::set<std::string>& ResearcherMethods() {
-  static const auto* const methods = new std::set<std::string>{
-      "BanditService/GetUser",        "BanditService/ListUsers",
-      "BanditService/GetModel",       "BanditService/ListEvents",
-      "PerceptionService/DetectFood", "PerceptionService/Featurize",
-      "HapticService/Classify",       "RobotService/GetStatus",
-      "RobotService/ListActions"};
-  return *methods;
-}
 
 std::atomic<Authorizer*> global_authorizer{nullptr};
 
@@ -52,27 +30,26 @@ const char* RoleName(Role role) {
 }
 
 bool RoleAllows(Role role, const std::string& method) {
+  const RpcMethodInfo* info = FindRpcMethod(method);
   switch (role) {
     case Role::kAdmin:
       return true;
     case Role::kRobot:
-      return RobotMethods().count(method) > 0;
+      return info != nullptr && info->robot;
     case Role::kResearcher:
-      return ResearcherMethods().count(method) > 0;
+      return info != nullptr && info->researcher;
   }
   return false;
 }
 
 bool OpenToEveryIdentity(const std::string& method) {
-  return method == "RobotService/Stop";
+  const RpcMethodInfo* info = FindRpcMethod(method);
+  return info != nullptr && info->any_identity;
 }
 
 bool Audited(const std::string& method) {
-  return method == "BanditService/CreateUser" ||
-         method == "BanditService/ResetUser" ||
-         method == "BanditService/DeleteUser" ||
-         method == "BanditService/BuildPopulationPrior" ||
-         method == "BanditService/CheckStore" || method == "RobotService/Tare";
+  const RpcMethodInfo* info = FindRpcMethod(method);
+  return info != nullptr && info->audited;
 }
 
 absl::StatusOr<std::map<std::string, Authorizer::Grant>> Authorizer::Parse(
