@@ -92,6 +92,15 @@ def main():
         cells += [f"{s['nll']:.3f}"]
         print(f"| {h} (T {used[h]:.2f}) | " + " | ".join(cells) + " |")
     print()
+    print("At T = 1 (the trainer's rule: never sharpen), on the report items:")
+    print("| held out | ECE | over-confidence: hard | medium | soft | hard-skin |")
+    print("|---|---:|---:|---:|---:|---:|")
+    for h in stories:
+        y, p = load(f"{directory}/{h}.report.csv")
+        raw = scores(y, p)
+        print(f"| {h} | {raw['ece']:.3f} | "
+              + " | ".join(f"{o:+.3f}" for o in raw["over"]) + " |")
+    print()
     print(f"temperature for a model trained on all but one story: "
           f"{float(np.median(list(tuned.values()))):.2f} (median of "
           + ", ".join(f"{h} {tuned[h]:.2f}" for h in stories) + ")")
