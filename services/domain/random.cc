@@ -2,10 +2,16 @@
 // and product below is rounded on its own, whatever the caller's flags.
 #include "services/domain/random.h"
 
+#include <cmath>
+
 namespace bitewise::random {
 
 double Uniform(Engine& rng, double lo, double hi) {
   return Canonical(rng) * (hi - lo) + lo;
+}
+
+double LogUniform(Engine& rng, double lo, double hi) {
+  return std::exp(Uniform(rng, std::log(lo), std::log(hi)));
 }
 
 double Normal::operator()(Engine& rng) {

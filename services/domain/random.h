@@ -48,6 +48,9 @@ inline double Canonical(Engine& rng) {
 // Uniform in [lo, hi).
 double Uniform(Engine& rng, double lo, double hi);
 
+// Log-uniform in [lo, hi): exp of Uniform(log lo, log hi); one draw.
+double LogUniform(Engine& rng, double lo, double hi);
+
 // Uniform integer in [lo, hi] (inclusive), by Lemire's multiply-and-reject
 // on a 64-bit draw: no modulo bias, usually one draw.
 inline int64_t UniformInt(Engine& rng, int64_t lo, int64_t hi) {

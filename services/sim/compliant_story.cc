@@ -51,13 +51,10 @@
 namespace bitewise::sim {
 namespace {
 
+using random::LogUniform;
 using random::Uniform;
 
 constexpr double kGridS = 1.0 / 20000.0;
-
-double LogUniform(std::mt19937_64& rng, double lo, double hi) {
-  return std::exp(Uniform(rng, std::log(lo), std::log(hi)));
-}
 
 // The food's resistance to the tip: a function of depth and speed, with the
 // failure state it has reached (a crack or burst never heals).

@@ -9,11 +9,8 @@
 namespace bitewise::sim {
 namespace {
 
+using random::LogUniform;
 using random::Uniform;
-
-double LogUniform(std::mt19937_64& rng, double lo, double hi) {
-  return std::exp(Uniform(rng, std::log(lo), std::log(hi)));
-}
 
 // ---------------------------------------------------------------------------
 // Piecewise story.

@@ -5,6 +5,7 @@
 // changed when the library arrived.
 #include "services/domain/random.h"
 
+#include <cmath>
 #include <cstdint>
 #include <random>
 #include <vector>
@@ -27,6 +28,16 @@ TEST(RandomTest, PinnedDraws) {
   EXPECT_EQ(Uniform01(rng), 0x1.27a10f1d8c66cp-2);
   EXPECT_EQ(UniformIndex(rng, 7), 0);
   EXPECT_EQ(StandardNormal(rng), -0x1.156309cdbfbddp+1);
+}
+
+TEST(RandomTest, LogUniformIsTheExpOfAUniformLogAndStaysInRange) {
+  Engine a(17), b(17);
+  for (int i = 0; i < 1000; ++i) {
+    const double x = LogUniform(a, 250.0, 4000.0);
+    EXPECT_EQ(x, std::exp(Uniform(b, std::log(250.0), std::log(4000.0))));
+    EXPECT_GE(x, 250.0 * (1 - 1e-12));
+    EXPECT_LT(x, 4000.0 * (1 + 1e-12));
+  }
 }
 
 TEST(RandomTest, UniformIntCoversItsRangeAndNothingElse) {
