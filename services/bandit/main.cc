@@ -1,5 +1,6 @@
 // bitewise-bandit: the BanditService binary. Flags are parsed here and
 // nowhere else; everything below main takes Options structs.
+#include <csignal>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -107,6 +108,9 @@ absl::StatusOr<bitewise::bandit::BanditConfig> DefaultsFromFlags() {
 
 int main(int argc, char** argv) {
   bitewise::BlockTerminationSignals();
+  // A write past the file-size limit (ulimit -f) fails with EFBIG, which the
+  // store reports like a full disk, instead of killing the process.
+  std::signal(SIGXFSZ, SIG_IGN);
   absl::SetProgramUsageMessage(
       "BanditService: per-user post hoc contextual bandits over gRPC.");
   bitewise::ShowOwnFlagsInHelp();
@@ -261,6 +265,14 @@ int main(int argc, char** argv) {
                                 return {{{}, s->write_stats().commit_seconds}};
                               });
     bitewise::AddScrapeValues(
+        "bitewise_bandit_store_write_faults_total",
+        "Writes the storage refused (a full disk or size limit, a read-only "
+        "file, an I/O error, the database server gone or out of space), and "
+        "writes refused while it did",
+        ScrapeType::kCounter, [s = store->get()]() -> std::vector<ScrapeValue> {
+          return {{{}, static_cast<double>(s->write_stats().write_faults)}};
+        });
+    bitewise::AddScrapeValues(
         "bitewise_bandit_store_healthy",
         "1 while the store can durably accept writes", ScrapeType::kGauge,
         [s = store->get()]() -> std::vector<ScrapeValue> {
@@ -284,6 +296,15 @@ int main(int argc, char** argv) {
       [s = store->get()] { return s->CheckHealth().ok(); },
       [srv = server->get()](bool serving) { srv->SetServing(serving); },
       /*period_s=*/0.5);
+  // A write the storage refused turns health NOT_SERVING at once; the
+  // monitor's next poll probes and turns it back once writes succeed.
+  (*store)->SetFaultObserver([&readiness](const absl::Status& fault) {
+    std::fprintf(stderr,
+                 "bitewise-bandit: the store refuses writes; health is "
+                 "NOT_SERVING until a probe write succeeds: %s\n",
+                 fault.ToString().c_str());
+    readiness.Recheck();
+  });
   std::fprintf(stderr, "bitewise-bandit: serving on %s (db %s)\n",
                (*server)->description().c_str(),
                bitewise::bandit::DescribeStoreSpec(db).c_str());

@@ -15,13 +15,24 @@ ReadinessMonitor::ReadinessMonitor(std::function<bool()> live,
     bool last = false;
     absl::MutexLock lock(&mu_);
     while (!stop_) {
+      recheck_ = false;
       const bool now = live();
       if (first || now != last) set_serving(now);
       first = false;
       last = now;
-      mu_.AwaitWithTimeout(absl::Condition(&stop_), absl::Seconds(period_s));
+      mu_.AwaitWithTimeout(absl::Condition(&WakeUp, this),
+                           absl::Seconds(period_s));
     }
   });
+}
+
+bool ReadinessMonitor::WakeUp(ReadinessMonitor* monitor) {
+  return monitor->stop_ || monitor->recheck_;
+}
+
+void ReadinessMonitor::Recheck() {
+  absl::MutexLock lock(&mu_);
+  recheck_ = true;
 }
 
 ReadinessMonitor::~ReadinessMonitor() {

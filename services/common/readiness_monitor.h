@@ -19,12 +19,20 @@ class ReadinessMonitor {
                    std::function<void(bool)> set_serving,
                    double period_s = 0.05);
   ~ReadinessMonitor();
+
+  // Polls now instead of at the end of the period (e.g. a failure that
+  // `live` will report has just been seen). Returns once asked; the poll
+  // runs on the monitor's thread.
+  void Recheck() ABSL_LOCKS_EXCLUDED(mu_);
   ReadinessMonitor(const ReadinessMonitor&) = delete;
   ReadinessMonitor& operator=(const ReadinessMonitor&) = delete;
 
  private:
   absl::Mutex mu_;
+  static bool WakeUp(ReadinessMonitor* monitor)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(monitor->mu_);
   bool stop_ ABSL_GUARDED_BY(mu_) = false;
+  bool recheck_ ABSL_GUARDED_BY(mu_) = false;
   std::thread thread_;
 };
 

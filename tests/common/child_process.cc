@@ -72,12 +72,28 @@ absl::Status ChildProcess::Start(const std::vector<std::string>& args,
     return absl::InternalError(
         absl::StrCat("open ", log_path_, ": ", std::strerror(errno)));
   }
-  const int null_fd = open("/dev/null", O_RDONLY | O_CLOEXEC);
+  // O_RDWR: a FIFO opens at once, whether or not its writer is there yet.
+  const int null_fd = open(stdin_path_.c_str(), O_RDWR | O_CLOEXEC);
   if (null_fd < 0) {
     close(log_fd);
     return absl::InternalError(
-        absl::StrCat("open /dev/null: ", std::strerror(errno)));
+        absl::StrCat("open ", stdin_path_, ": ", std::strerror(errno)));
   }
+  // The test's environment with the extra variables (later ones win).
+  std::vector<std::string> env_copy;
+  for (char** e = environ; *e != nullptr; ++e) {
+    const std::string entry = *e;
+    const std::string name = entry.substr(0, entry.find('='));
+    bool replaced = false;
+    for (const std::string& extra : extra_env_) {
+      replaced = replaced || extra.substr(0, extra.find('=')) == name;
+    }
+    if (!replaced) env_copy.push_back(entry);
+  }
+  for (const std::string& extra : extra_env_) env_copy.push_back(extra);
+  std::vector<char*> envp;
+  for (std::string& entry : env_copy) envp.push_back(entry.data());
+  envp.push_back(nullptr);
   const pid_t parent = getpid();
   const pid_t pid = fork();
   if (pid == 0) {
@@ -100,7 +116,7 @@ absl::Status ChildProcess::Start(const std::vector<std::string>& args,
     sigset_t none;
     sigemptyset(&none);
     sigprocmask(SIG_SETMASK, &none, nullptr);
-    execv(argv[0], argv.data());
+    execve(argv[0], argv.data(), envp.data());
     static const char kMessage[] = "ChildProcess: execv failed\n";
     (void)!write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
     _exit(127);

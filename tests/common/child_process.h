@@ -9,6 +9,7 @@
 
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/status/status.h"
@@ -41,6 +42,12 @@ class ChildProcess {
     gid_t gid;
   };
 
+  // For the next Start: stdin from this file instead of /dev/null (e.g. a
+  // FIFO the test writes answers to), and these NAME=value variables added
+  // to the test's environment.
+  void set_stdin(std::string path) { stdin_path_ = std::move(path); }
+  void set_env(std::vector<std::string> extra) { extra_env_ = std::move(extra); }
+
   // Starts `argv` (argv[0] is the binary's path) with stdin from /dev/null
   // and stdout+stderr appended to `log_path`, as `run_as` if given.
   absl::Status Start(const std::vector<std::string>& argv,
@@ -69,6 +76,8 @@ class ChildProcess {
   pid_t pid_ = -1;
   int exit_status_ = 0;
   std::string log_path_;
+  std::string stdin_path_ = "/dev/null";
+  std::vector<std::string> extra_env_;
 };
 
 }  // namespace bitewise::testing

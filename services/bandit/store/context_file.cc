@@ -10,6 +10,7 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
+#include "services/bandit/store/write_faults.h"
 #include "services/common/status_macros.h"
 
 namespace bitewise::bandit {
@@ -19,11 +20,7 @@ constexpr char kHeader[ContextFile::kHeaderBytes + 1] = "bitewise ctx v1\n";
 
 absl::Status WriteError(const std::string& path, absl::string_view what,
                         int error) {
-  const std::string message =
-      absl::StrCat("cannot ", what, " ", path, ": ", std::strerror(error));
-  return error == ENOSPC || error == EDQUOT
-             ? absl::ResourceExhaustedError(message)
-             : absl::UnavailableError(message);
+  return FileWriteFault(what, path, error);
 }
 
 absl::Status WriteAll(int fd, absl::string_view bytes, int64_t offset,
@@ -136,6 +133,13 @@ absl::StatusOr<int64_t> ContextFile::Append(absl::string_view bytes) {
     return written;
   }
   return offset;
+}
+
+absl::Status ContextFile::Probe() {
+  const std::string block(kBlockBytes, '\0');
+  ASSIGN_OR_RETURN(const int64_t offset, Append(block));
+  RETURN_IF_ERROR(Sync());
+  return Erase({{offset, kBlockBytes}});
 }
 
 absl::Status ContextFile::Sync() {

@@ -55,6 +55,9 @@ class ContextFile {
   absl::StatusOr<int64_t> Append(absl::string_view bytes);
   // Whether bytes were appended since the last Sync.
   bool dirty() const { return dirty_; }
+  // Appends a block, syncs it and erases it again: whether the file takes
+  // writes (a store's ProbeWrite). The block stays unreferenced.
+  absl::Status Probe();
   // Makes every Append so far durable (fdatasync).
   absl::Status Sync();
   // The `length` bytes at `offset`; fewer when the file is shorter or

@@ -143,6 +143,9 @@ struct StoreWriteStats {
   int64_t commits = 0;
   int64_t committed_writes = 0;
   double commit_seconds = 0.0;
+  // Writes that failed, or were refused, for a storage reason
+  // (write_faults.h): counted by FaultWatchStore.
+  int64_t write_faults = 0;
 };
 
 // Where a user's log stands: what a process sharing the store compares its
@@ -219,6 +222,17 @@ class EventStore {
   // OK while the store can durably accept writes; otherwise the reason
   // (for the service's health). Default: always OK.
   virtual absl::Status CheckHealth() { return absl::OkStatus(); }
+
+  // A small durable write that touches what the hot path writes (SQLite:
+  // the database, its log and the contexts file; PostgreSQL: a commit), so
+  // a store whose writes failed for a storage reason (write_faults.h) can
+  // tell when they succeed again. Default: OK (nothing to probe).
+  virtual absl::Status ProbeWrite() { return absl::OkStatus(); }
+  // Called with the fault when a write first fails for a storage reason
+  // (FaultWatchStore), so health can drop at once instead of at its next
+  // poll. Set once, before the store is used. Default: never called.
+  using FaultObserver = std::function<void(const absl::Status& fault)>;
+  virtual void SetFaultObserver(FaultObserver observer) {}
 
   // Whether several processes may serve the same users from this store at
   // once (PostgreSQL replicas). The engine then writes a user's events only

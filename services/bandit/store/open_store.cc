@@ -7,6 +7,7 @@
 #include "absl/strings/strip.h"
 #include "services/bandit/store/postgres_event_store.h"
 #include "services/bandit/store/sqlite_event_store.h"
+#include "services/bandit/store/write_faults.h"
 
 namespace bitewise::bandit {
 
@@ -27,7 +28,8 @@ absl::StatusOr<std::unique_ptr<EventStore>> OpenEventStore(
     pg.create_if_missing = options.create_if_missing;
     auto store = PostgresEventStore::Open(pg);
     if (!store.ok()) return store.status();
-    return std::unique_ptr<EventStore>(std::move(store).value());
+    return std::unique_ptr<EventStore>(
+        std::make_unique<FaultWatchStore>(std::move(store).value()));
   }
   SqliteStoreOptions sqlite;
   sqlite.path = std::string(absl::StripPrefix(spec, "sqlite:"));
@@ -35,7 +37,8 @@ absl::StatusOr<std::unique_ptr<EventStore>> OpenEventStore(
   sqlite.synchronous_full = options.sqlite_fsync;
   auto store = SqliteEventStore::Open(sqlite);
   if (!store.ok()) return store.status();
-  return std::unique_ptr<EventStore>(std::move(store).value());
+  return std::unique_ptr<EventStore>(
+      std::make_unique<FaultWatchStore>(std::move(store).value()));
 }
 
 std::string DescribeStoreSpec(const std::string& spec) {

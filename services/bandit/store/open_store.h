@@ -27,7 +27,9 @@ struct OpenStoreOptions {
 // Whether `spec` names a PostgreSQL store.
 bool IsPostgresSpec(const std::string& spec);
 
-// The store at `spec`, opened (Open's errors of the store it names).
+// The store at `spec`, opened (Open's errors of the store it names), and
+// watched for write faults (FaultWatchStore: health reports a storage that
+// refuses writes until a probe write succeeds).
 // INVALID_ARGUMENT for an empty spec.
 absl::StatusOr<std::unique_ptr<EventStore>> OpenEventStore(
     const std::string& spec, const OpenStoreOptions& options);

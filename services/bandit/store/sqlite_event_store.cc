@@ -325,6 +325,20 @@ absl::Status SqliteEventStore::CheckHealth() {
   return absl::OkStatus();
 }
 
+absl::Status SqliteEventStore::ProbeWrite() {
+  RETURN_IF_ERROR(CheckHealth());
+  absl::MutexLock lock(&mu_);
+  if (contexts_ != nullptr) RETURN_IF_ERROR(contexts_->Probe());
+  ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(
+                                        db_, Transaction::Kind::kWrite,
+                                        "write probe"));
+  RETURN_IF_ERROR(Exec(
+      db_,
+      absl::StrCat("PRAGMA user_version = ", sqlite::kSchemaVersion).c_str(),
+      "write probe"));
+  return txn.Commit();
+}
+
 SqliteEventStore::~SqliteEventStore() {
   // The cached statements first, so the connection really closes (its last
   // checkpoint done) before the lock file is released.

@@ -118,6 +118,9 @@ class SqliteEventStore final : public EventStore {
   // would then be acknowledged and lost at the next start. Every write
   // checks this first.
   absl::Status CheckHealth() override;
+  // Rewrites the database header's schema version in its own transaction,
+  // and probes the contexts file (ContextFile::Probe).
+  absl::Status ProbeWrite() override;
   absl::StatusOr<PoolRecord> LatestPool(const BanditConfig& config) override;
   absl::StatusOr<int64_t> AppendAudit(const AuditEntry& entry) override;
   absl::StatusOr<PageResult<AuditEntry>> ListAudit(const Page& page) override;

@@ -1,6 +1,10 @@
 #include "services/bandit/store/sqlite_helpers.h"
 
+#include <cerrno>
+#include <cstring>
+
 #include "absl/strings/str_cat.h"
+#include "services/bandit/store/write_faults.h"
 
 namespace bitewise::bandit::sqlite {
 
@@ -31,12 +35,51 @@ absl::StatusCode CodeForSqlite(int rc) {
   }
 }
 
+namespace {
+
+// The errno of the last failed system call on the write-ahead log, else on
+// the database file (sqlite3_system_errno reads errno later, after other
+// calls may have changed it; each file keeps its own).
+int LastWriteErrno(sqlite3* db) {
+  int error = 0;
+  sqlite3_file* log = nullptr;
+  if (sqlite3_file_control(db, "main", SQLITE_FCNTL_JOURNAL_POINTER, &log) ==
+          SQLITE_OK &&
+      log != nullptr && log->pMethods != nullptr) {
+    log->pMethods->xFileControl(log, SQLITE_FCNTL_LAST_ERRNO, &error);
+  }
+  if (error == 0) {
+    sqlite3_file_control(db, "main", SQLITE_FCNTL_LAST_ERRNO, &error);
+  }
+  return error;
+}
+
+}  // namespace
+
 absl::Status SqliteError(sqlite3* db, int rc, absl::string_view op) {
   // The connection's message is more specific than the code's, but only if it
   // belongs to this failure; sqlite3_errcode tells.
-  const char* message = (db != nullptr && sqlite3_extended_errcode(db) == rc)
-                            ? sqlite3_errmsg(db)
-                            : sqlite3_errstr(rc);
+  const bool own = db != nullptr && sqlite3_extended_errcode(db) == rc;
+  const char* message = own ? sqlite3_errmsg(db) : sqlite3_errstr(rc);
+  const int primary = rc & 0xff;
+  if (primary == SQLITE_IOERR || primary == SQLITE_FULL ||
+      primary == SQLITE_READONLY) {
+    // The storage refused a write: named by the errno beneath, with the
+    // file (the database; its -wal log beside it takes the same writes).
+    int error = own ? LastWriteErrno(db) : 0;
+    if (error == 0 && primary == SQLITE_FULL) error = ENOSPC;
+    if (error == 0 && primary == SQLITE_READONLY) error = EROFS;
+    if (error == 0) error = EIO;
+    const WriteErrno described = DescribeWriteErrno(error);
+    const char* file = db != nullptr ? sqlite3_db_filename(db, "main") : "";
+    return StorageFault(
+        described.code,
+        absl::StrCat(op, ": cannot write ",
+                     file != nullptr && *file != '\0' ? file : "the database",
+                     ": ", described.cause, " (",
+                     error != 0 ? std::strerror(error) : message,
+                     "; sqlite code ", rc, ")"));
+  }
   return absl::Status(
       CodeForSqlite(rc),
       absl::StrCat(op, ": ", message, " (sqlite code ", rc, ")"));

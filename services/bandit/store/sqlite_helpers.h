@@ -25,7 +25,10 @@ namespace bitewise::bandit::sqlite {
 absl::StatusCode CodeForSqlite(int rc);
 
 // `op`: SQLite's message for `rc` (the connection's when it is this
-// failure's), with the code.
+// failure's), with the code. The storage refusing a write (IOERR, FULL,
+// READONLY) is a storage fault (write_faults.h) naming the file and the
+// cause: RESOURCE_EXHAUSTED for a full disk or a file-size limit,
+// UNAVAILABLE for a read-only file or an I/O error.
 absl::Status SqliteError(sqlite3* db, int rc, absl::string_view op);
 
 // A prepared statement, finalized on destruction. Bind errors are remembered
