@@ -58,8 +58,12 @@ class BusyGuard {
   absl::Mutex* mu_;
 };
 
+// Worth journaling and sending again later: the service or its store is
+// down or full (a store that refuses writes answers UNAVAILABLE or
+// RESOURCE_EXHAUSTED until it takes them again).
 bool Retryable(const absl::Status& status) {
-  return absl::IsUnavailable(status) || absl::IsDeadlineExceeded(status);
+  return absl::IsUnavailable(status) || absl::IsDeadlineExceeded(status) ||
+         absl::IsResourceExhausted(status);
 }
 
 }  // namespace
@@ -104,7 +108,7 @@ std::optional<v1::Frame> Meal::plate_frame() const {
   return frame_;
 }
 
-absl::StatusOr<int> Meal::DeliverJournal() {
+absl::StatusOr<int> Meal::DeliverJournal(std::string* why_not) {
   return journal_->Drain([&](const JournaledUpdate& update) -> absl::Status {
     v1::UpdateRequest request;
     request.set_event_id(update.event_id);
@@ -113,6 +117,9 @@ absl::StatusOr<int> Meal::DeliverJournal() {
                                    update.posthoc.end());
     const absl::StatusOr<v1::UpdateResponse> sent =
         clients_->bandit.Update(request);
+    if (!sent.ok() && why_not != nullptr) {
+      *why_not = std::string(sent.status().message());
+    }
     if (sent.ok() || Retryable(sent.status())) return sent.status();
     if (listener_ != nullptr) {
       listener_->OnNote(absl::StrCat("journal: dropping the update of event ",
@@ -341,6 +348,13 @@ absl::Status Meal::Bite(std::optional<int> item_index) {
   if (!chosen_index.ok()) return chosen_index.status();
   // The previous bite's answer is final now.
   ConfirmAnswer();
+  // Updates journaled while the BanditService or its store was down go
+  // first, once it takes them again (an empty journal costs one read).
+  if (absl::StatusOr<int> delivered = DeliverJournal();
+      delivered.ok() && *delivered > 0 && listener_ != nullptr) {
+    listener_->OnNote(absl::StrCat("journal: delivered ", *delivered,
+                                   " update(s) saved earlier"));
+  }
 
   v1::FoodItem item;
   {
@@ -808,20 +822,25 @@ void Meal::ConfirmAnswer() {
       return;
     }
   }
-  const absl::StatusOr<int> delivered = DeliverJournal();
+  std::string why_not;
+  const absl::StatusOr<int> delivered = DeliverJournal(&why_not);
   std::string text;
   {
     absl::MutexLock lock(&mu_);
     mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
     const bool learned = delivered.ok() && *delivered > 0;
     bite->set_learned(learned ? "learned" : "journaled");
+    if (!learned) {
+      bite->set_error(delivered.ok() ? why_not
+                                     : std::string(delivered.status().message()));
+    }
     text = absl::StrCat(
         FoodOf(*bite), " with ", bite->action().name(), ": ", bite->outcome(),
         " (operator); ",
         learned ? "learned"
                 : absl::StrCat("saved to be learned later (",
-                               delivered.ok() ? "BanditService unavailable"
-                                              : delivered.status().message(),
+                               bite->error().empty() ? "BanditService unavailable"
+                                                     : bite->error(),
                                ")"));
     bite->set_text(text);
     *state_.mutable_current() = *bite;

@@ -109,9 +109,11 @@ class Meal {
 
   // Delivers updates left in the journal (an earlier run, or an answer not
   // yet learned). Returns how many were delivered; updates the
-  // BanditService refuses for good (not UNAVAILABLE or DEADLINE_EXCEEDED)
+  // BanditService refuses for good (not UNAVAILABLE, DEADLINE_EXCEEDED or
+  // RESOURCE_EXHAUSTED)
   // are dropped with a note.
-  absl::StatusOr<int> DeliverJournal();
+  // `why_not`, if given, gets the last delivery's error.
+  absl::StatusOr<int> DeliverJournal(std::string* why_not = nullptr);
 
   // Captures the plate and detects the food on it. An empty plate ends the
   // meal (phase "ended"). Errors name the service and call.

@@ -258,6 +258,7 @@ int main(int argc, char** argv) {
               options.user_id.c_str());
   int exit_code = 0;
   auto stop = [&](const std::string& why) {
+    std::fflush(stdout);  // the bite's lines first
     std::fprintf(stderr, "stopping the meal: %s\n", why.c_str());
     exit_code = 1;
   };

@@ -292,19 +292,31 @@ int main(int argc, char** argv) {
   }
   // Ready while the store can durably accept writes (SQLite: its file is
   // still the one opened; PostgreSQL: the server answers and is no standby).
+  // Both run on the monitor's thread; each change is logged with its
+  // reason, the first (SERVING at start) by the line below.
+  auto why_not = std::make_shared<std::string>();
   bitewise::ReadinessMonitor readiness(
-      [s = store->get()] { return s->CheckHealth().ok(); },
-      [srv = server->get()](bool serving) { srv->SetServing(serving); },
+      [s = store->get(), why_not] {
+        const absl::Status health = s->CheckHealth();
+        *why_not = std::string(health.message());
+        return health.ok();
+      },
+      [srv = server->get(), why_not, first = true](bool serving) mutable {
+        srv->SetServing(serving);
+        if (!first) {
+          std::fprintf(stderr, "bitewise-bandit: health %s%s%s\n",
+                       serving ? "SERVING: the store takes writes again"
+                               : "NOT_SERVING",
+                       serving ? "" : ": ", serving ? "" : why_not->c_str());
+        }
+        first = false;
+      },
       /*period_s=*/0.5);
-  // A write the storage refused turns health NOT_SERVING at once; the
-  // monitor's next poll probes and turns it back once writes succeed.
-  (*store)->SetFaultObserver([&readiness](const absl::Status& fault) {
-    std::fprintf(stderr,
-                 "bitewise-bandit: the store refuses writes; health is "
-                 "NOT_SERVING until a probe write succeeds: %s\n",
-                 fault.ToString().c_str());
-    readiness.Recheck();
-  });
+  // A write the storage refused turns health NOT_SERVING at once (the
+  // monitor polls now, and logs it); its polls then probe and turn it
+  // back once writes succeed.
+  (*store)->SetFaultObserver(
+      [&readiness](const absl::Status& fault) { readiness.Recheck(); });
   std::fprintf(stderr, "bitewise-bandit: serving on %s (db %s)\n",
                (*server)->description().c_str(),
                bitewise::bandit::DescribeStoreSpec(db).c_str());

@@ -258,8 +258,13 @@ absl::Status RunUntilSignal(ServiceServer& server) {
   std::fprintf(stderr, "bitewise: received %s, draining (up to %s)\n",
                signal_number == SIGTERM ? "SIGTERM" : "SIGINT",
                absl::FormatDuration(server.drain_timeout()).c_str());
+  const absl::Time start = absl::Now();
   server.Shutdown();
   server.Wait();
+  std::fprintf(stderr, "bitewise: drained in %s; exiting\n",
+               absl::FormatDuration(
+                   absl::Trunc(absl::Now() - start, absl::Milliseconds(1)))
+                   .c_str());
   return absl::OkStatus();
 }
 

@@ -14,6 +14,8 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
@@ -35,6 +37,11 @@ class TestPostgres {
   // A fast shutdown (SIGINT), waiting for it to end.
   absl::Status Stop();
   bool running() const { return server_.running(); }
+  // NAME=value variables for the server's environment from its next
+  // Start (e.g. the write-fault injector).
+  void set_server_env(std::vector<std::string> env) {
+    server_.set_env(std::move(env));
+  }
 
   // Creates a new, empty database and returns its connection string
   // (postgresql:///NAME?host=DIR&port=PORT&user=bitewise).

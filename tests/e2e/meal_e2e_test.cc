@@ -1,12 +1,16 @@
 // End-to-end: the four real service binaries on free loopback ports and the
 // real orchestrator running meals through them, as scripts/meal.sh does.
+#include <fcntl.h>
 #include <signal.h>
 #include <stdlib.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <memory>
 #include <regex>
@@ -16,6 +20,7 @@
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
+#include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "bitewise/v1/bandit.grpc.pb.h"
 #include "bitewise/v1/haptic.grpc.pb.h"
@@ -257,6 +262,89 @@ TEST_F(MealEndToEndTest, KilledBanditMidMealLosesNoAcknowledgedUpdate) {
       << "first run:\n"
       << out << "\nsecond run:\n"
       << out2;
+}
+
+// The store's disk fills while the operator judges a bite: the update is
+// refused (RESOURCE_EXHAUSTED naming the cause), kept in the orchestrator's
+// journal, the BanditService's health drops at once and returns once the
+// disk takes writes again, with no restart, and the next run delivers the
+// journal before its first bite. Nothing is lost. The full disk is the
+// write-fault injector's (tests/common) beneath the bandit's real store.
+TEST_F(MealEndToEndTest, AFullDiskMidMealIsJournaledAndDeliveredAfterward) {
+  RunningService& bandit = services_[0];
+  const std::string control = dir_ + "/fault";
+  bandit.process.Kill();
+  bandit.process.set_env(
+      {absl::StrCat("LD_PRELOAD=", BITEWISE_WRITE_FAULT_INJECTOR),
+       absl::StrCat("BITEWISE_WRITE_FAULT_FILE=", control),
+       // As the kernel names the open file (TempDir() may end in '/').
+       absl::StrCat("BITEWISE_WRITE_FAULT_PREFIX=",
+                    std::filesystem::canonical(dir_).string(), "/bandit.db"),
+       "ASAN_OPTIONS=verify_asan_link_order=0"});
+  ASSERT_TRUE(Start(bandit).ok());
+  auto channel = MakeChannel(bandit.address(), ChannelOptions());
+  ASSERT_TRUE(channel.ok());
+
+  // The operator answers at the terminal (a FIFO here).
+  const std::string answers = dir_ + "/answers";
+  ASSERT_EQ(mkfifo(answers.c_str(), 0600), 0);
+  const int answer_fd = open(answers.c_str(), O_RDWR | O_CLOEXEC);
+  ASSERT_GE(answer_fd, 0);
+  auto answer = [&](const char* text) {
+    ASSERT_EQ(write(answer_fd, text, 2), 2);
+  };
+  std::vector<std::string> args = OrchestratorArgs("full", "m1", 2);
+  args.push_back("--confirm=operator");
+  ChildProcess orchestrator;
+  orchestrator.set_stdin(answers);
+  ASSERT_TRUE(orchestrator.Start(args, dir_ + "/full1.log").ok());
+  ASSERT_TRUE(orchestrator.WaitForLog("[y/n]", absl::Seconds(180)).ok())
+      << orchestrator.log();
+  answer("y\n");
+  ASSERT_TRUE(orchestrator.WaitForLog("bite  2", absl::Seconds(180)).ok())
+      << orchestrator.log();
+  // The second question: bite 2's line, then its question.
+  for (int i = 0; i < 600; ++i) {
+    const std::string log = orchestrator.log();
+    if (log.find("[y/n]", log.find("bite  2")) != std::string::npos) break;
+    absl::SleepFor(absl::Milliseconds(100));
+  }
+  std::ofstream(control) << "ENOSPC";
+  answer("n\n");
+  absl::StatusOr<int> ended = orchestrator.Wait(absl::Seconds(120));
+  close(answer_fd);
+  ASSERT_TRUE(ended.ok()) << ended.status();
+  const std::string out = orchestrator.log();
+  EXPECT_TRUE(WIFEXITED(*ended) && WEXITSTATUS(*ended) == 1) << out;
+  EXPECT_TRUE(absl::StrContains(out, "answered no: journaled")) << out;
+  EXPECT_TRUE(absl::StrContains(out, "the disk is full")) << out;
+
+  // Health is NOT_SERVING while the disk is full (how soon it drops:
+  // tests/bandit/crash/store_faults_test.cc).
+  absl::StatusOr<ServingStatus> health =
+      CheckHealth(*channel, bandit.spec.service, absl::Seconds(5));
+  ASSERT_TRUE(health.ok()) << health.status();
+  EXPECT_EQ(*health, ServingStatus::kNotServing) << bandit.process.log();
+
+  // Space again: SERVING within a second, no restart.
+  std::filesystem::remove(control);
+  const absl::Time freed = absl::Now();
+  ASSERT_TRUE(
+      WaitForServing(*channel, bandit.spec.service, absl::Seconds(10)).ok());
+  EXPECT_LT(absl::Now() - freed, absl::Seconds(1));
+  EXPECT_TRUE(bandit.process.running());
+
+  // The next run delivers the journaled answer, then bites.
+  int status = 0;
+  const std::string out2 =
+      RunOrchestrator(OrchestratorArgs("full", "m1", 1), "full2.log", &status);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << out2;
+  EXPECT_TRUE(absl::StrContains(out2, "journal: delivered 1 update(s)"))
+      << out2;
+  const std::vector<v1::Event> events = Events("full");
+  ASSERT_EQ(events.size(), 3u);
+  for (const v1::Event& e : events) EXPECT_TRUE(e.completed());
+  EXPECT_EQ(events[1].loss(), 1.0);  // the operator's "no"
 }
 
 // The lab's retraining path, end to end: meals record their traces, the

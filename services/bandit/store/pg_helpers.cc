@@ -9,11 +9,15 @@
 #include <cstdlib>
 #include <cstring>
 #include <utility>
+#include <vector>
 
 #include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/str_split.h"
 #include "absl/strings/strip.h"
+#include "services/bandit/store/write_faults.h"
 #include "services/common/status_macros.h"
 
 namespace bitewise::bandit::pg {
@@ -53,6 +57,19 @@ uint64_t FromBigEndian(const char* data, int length) {
 std::string Trimmed(const char* message) {
   return std::string(
       absl::StripTrailingAsciiWhitespace(message == nullptr ? "" : message));
+}
+
+// A libpq connection message on one line: its lines joined with "; ", each
+// without its indentation or a "FATAL:  " prefix.
+std::string OneLine(const char* message) {
+  std::vector<std::string> lines;
+  for (absl::string_view line :
+       absl::StrSplit(Trimmed(message), '\n', absl::SkipWhitespace())) {
+    line = absl::StripAsciiWhitespace(line);
+    absl::ConsumePrefix(&line, "FATAL:");
+    lines.emplace_back(absl::StripAsciiWhitespace(line));
+  }
+  return absl::StrJoin(lines, "; ");
 }
 
 absl::StatusCode CodeFor(absl::string_view sqlstate) {
@@ -208,9 +225,10 @@ absl::StatusOr<std::unique_ptr<Connection>> Connection::Open(
   }
   std::unique_ptr<Connection> conn(new Connection(raw, conninfo));
   if (PQstatus(raw) != CONNECTION_OK) {
-    return absl::UnavailableError(
+    return StorageFault(
+        absl::StatusCode::kUnavailable,
         absl::StrCat("PostgreSQL ", conn->description(),
-                     " is unavailable: ", Trimmed(PQerrorMessage(raw))));
+                     " is unavailable: ", OneLine(PQerrorMessage(raw))));
   }
   conn->Describe();
   RETURN_IF_ERROR(conn->ExecScript(kSessionSetup, "connecting"));
@@ -274,28 +292,54 @@ absl::Status Connection::Reconnect() {
   sent_ = false;
   closed_ = false;
   if (PQstatus(conn_) != CONNECTION_OK) {
-    return absl::UnavailableError(
+    return StorageFault(
+        absl::StatusCode::kUnavailable,
         absl::StrCat("PostgreSQL ", description_,
-                     " is unavailable: ", Trimmed(PQerrorMessage(conn_))));
+                     " is unavailable: ", OneLine(PQerrorMessage(conn_))));
   }
   return ExecScript(kSessionSetup, "reconnecting");
 }
 
 absl::Status Connection::Error(pg_result* result, absl::string_view op) const {
   if (result == nullptr || PQstatus(conn_) != CONNECTION_OK) {
-    return absl::UnavailableError(
+    // libpq's message may run over several lines ("server closed the
+    // connection unexpectedly\n\tThis probably means..."): one line here.
+    return StorageFault(
+        absl::StatusCode::kUnavailable,
         absl::StrCat("PostgreSQL ", description_, " is unavailable (", op,
-                     "): ", Trimmed(PQerrorMessage(conn_))));
+                     "): ", OneLine(PQerrorMessage(conn_))));
   }
   const char* state = PQresultErrorField(result, PG_DIAG_SQLSTATE);
   const std::string sqlstate = state == nullptr ? "" : state;
   const absl::StatusCode code = CodeFor(sqlstate);
   const std::string message =
       Trimmed(PQresultErrorField(result, PG_DIAG_MESSAGE_PRIMARY));
-  if (code == absl::StatusCode::kUnavailable) {
-    return absl::UnavailableError(
-        absl::StrCat("PostgreSQL ", description_, " is unavailable (", op,
+  // The server cannot take writes: gone, shutting down, out of space, a
+  // disk error, or read-only (a standby, default_transaction_read_only).
+  if (sqlstate == "53100") {
+    return StorageFault(
+        absl::StatusCode::kResourceExhausted,
+        absl::StrCat("PostgreSQL ", description_, " is out of space (", op,
                      "): ", message, " (SQLSTATE ", sqlstate, ")"));
+  }
+  if (sqlstate == "58030" || sqlstate == "25006") {
+    return StorageFault(
+        absl::StatusCode::kUnavailable,
+        absl::StrCat("PostgreSQL ", description_, " cannot write (", op, "): ",
+                     sqlstate == "58030" ? "an I/O error on the server: "
+                                         : "the server is read-only: ",
+                     message, " (SQLSTATE ", sqlstate, ")"));
+  }
+  if (code == absl::StatusCode::kUnavailable) {
+    const std::string text =
+        absl::StrCat("PostgreSQL ", description_, " is unavailable (", op,
+                     "): ", message, " (SQLSTATE ", sqlstate, ")");
+    // 55P03 (a lock not granted) and 53300 (no connection slot) are
+    // contention, not a server that cannot write.
+    if (sqlstate == "55P03" || sqlstate == "53300") {
+      return absl::UnavailableError(text);
+    }
+    return StorageFault(absl::StatusCode::kUnavailable, text);
   }
   return absl::Status(
       code, absl::StrCat(op, ": PostgreSQL ", description_, ": ", message,
@@ -447,10 +491,13 @@ absl::Status Transaction::Commit() {
   }
   absl::Status committed = conn->ExecScript("COMMIT", op_);
   if (!committed.ok() && conn->broken()) {
-    return absl::UnavailableError(absl::StrCat(
-        committed.message(),
-        "; the connection was lost at COMMIT, so whether it was committed "
-        "is unknown"));
+    return StorageFault(
+        absl::StatusCode::kUnavailable,
+        absl::StrCat(committed.message(),
+                     "; the connection was lost at COMMIT, so the outcome is "
+                     "unknown: it may have been applied. Retrying is safe: "
+                     "a retried Update that was applied answers OK with "
+                     "already_applied"));
   }
   return committed;
 }

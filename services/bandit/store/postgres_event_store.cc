@@ -481,6 +481,24 @@ absl::Status PostgresEventStore::CheckHealth() {
   return absl::OkStatus();
 }
 
+absl::Status PostgresEventStore::ProbeWrite() {
+  absl::MutexLock lock(&health_mu_);
+  if (health_ == nullptr || health_->broken()) {
+    return absl::UnavailableError("PostgreSQL: no health connection yet");
+  }
+  // A row into a session's temporary table: a transaction with a commit
+  // record, and a page of the (emptied at each commit) table written to the
+  // server's disk, so a server out of space fails it. Nothing the service
+  // keeps is touched.
+  RETURN_IF_ERROR(health_->ExecScript(
+      "CREATE TEMP TABLE IF NOT EXISTS bitewise_write_probe (b text) "
+      "ON COMMIT DELETE ROWS",
+      "write probe"));
+  return health_->ExecScript(
+      "INSERT INTO bitewise_write_probe VALUES (repeat('x', 100))",
+      "write probe");
+}
+
 void PostgresEventStore::CountWrite(bool append, absl::Time start,
                                     absl::Time commit_start) {
   const absl::Time now = absl::Now();

@@ -119,6 +119,8 @@ class PostgresEventStore final : public EventStore {
   // A round trip to the server on a connection of its own: UNAVAILABLE
   // naming the database while it cannot be reached.
   absl::Status CheckHealth() override;
+  // A row into a temporary table of the health connection's session.
+  absl::Status ProbeWrite() override;
   absl::StatusOr<int64_t> AddPool(const PoolRecord& pool) override;
   absl::StatusOr<PoolRecord> LatestPool(const BanditConfig& config) override;
   absl::StatusOr<int64_t> AppendAudit(const AuditEntry& entry) override;

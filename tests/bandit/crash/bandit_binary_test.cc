@@ -601,9 +601,11 @@ TEST_P(BanditBinaryTest, SigtermDrainsAndExitsZero) {
       << DescribeWaitStatus(*exited);
   // Nothing is in flight, so draining must not wait out its timeout.
   EXPECT_LT(elapsed, absl::Seconds(4));
+  std::cout << "SIGTERM to exit: " << absl::FormatDuration(elapsed) << "\n";
   const std::string log = ReadFile(log_path);
   EXPECT_THAT(log, HasSubstr("bitewise-bandit: serving on 127.0.0.1:"));
   EXPECT_THAT(log, HasSubstr("bitewise: received SIGTERM, draining"));
+  EXPECT_THAT(log, HasSubstr("bitewise: drained in "));
 
   // A clean stop keeps the data too.
   absl::Status restarted = StartServer();

@@ -22,6 +22,8 @@
 #include <fstream>
 #include <functional>
 #include <iostream>
+#include <memory>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -32,6 +34,7 @@
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "tests/bandit/crash/bandit_process.h"
+#include "tests/common/postgres_server.h"
 
 namespace bitewise {
 namespace {
@@ -45,9 +48,13 @@ constexpr absl::Duration kHealthBound = absl::Seconds(1);
 constexpr int kContextDim = 1024;  // 8 KB: kept in the contexts file
 constexpr int kPosthocDim = 4;
 
+// Random, so PostgreSQL cannot compress it into its row: it goes to new
+// pages of the table's out-of-line storage.
 std::vector<double> Context(int t) {
+  std::mt19937_64 rng(static_cast<uint64_t>(t) + 1);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::vector<double> x(kContextDim);
-  for (int i = 0; i < kContextDim; ++i) x[i] = 0.001 * ((i * 7 + t) % 13);
+  for (double& v : x) v = 0.01 * u(rng);
   return x;
 }
 std::vector<double> Posthoc(int t) { return {0.1 * (t % 3), 0.2, 0.3, 0.4}; }
@@ -142,9 +149,17 @@ class StoreFaultsTest : public ::testing::Test {
 
   // The scenario every fault goes through: `inject` makes the storage
   // refuse writes and `lift` ends it.
+  //
+  // The first write after `inject` is the pending event's Update, or (with
+  // `select_first`) a Select: on PostgreSQL only a write that needs a new
+  // page of a table reaches the server's disk at once, and an Update may
+  // not. `store_name` is how messages name the store.
   void RefusedThenRecovered(const std::function<void()>& inject,
                             const std::function<void()>& lift,
-                            absl::StatusCode code, const std::string& cause) {
+                            absl::StatusCode code, const std::string& cause,
+                            bool select_first = false,
+                            std::string store_name = "") {
+    if (store_name.empty()) store_name = db_;
     constexpr int kRounds = 6;
     ASSERT_NO_FATAL_FAILURE(Feed(kRounds));
     absl::StatusOr<v1::SelectResponse> pending =
@@ -153,12 +168,15 @@ class StoreFaultsTest : public ::testing::Test {
 
     ASSERT_NO_FATAL_FAILURE(inject());
     const absl::Time failed_at = absl::Now();
-    absl::StatusOr<v1::UpdateResponse> refused =
-        Update(stub(), pending->event_id(), 1.0, Posthoc(kRounds));
+    absl::Status refused =
+        select_first
+            ? Select(stub(), "u", Context(kRounds + 1)).status()
+            : Update(stub(), pending->event_id(), 1.0, Posthoc(kRounds))
+                  .status();
     ASSERT_FALSE(refused.ok());
-    EXPECT_EQ(refused.status().code(), code) << refused.status();
-    EXPECT_THAT(refused.status().message(), HasSubstr(cause));
-    EXPECT_THAT(refused.status().message(), HasSubstr(db_));
+    EXPECT_EQ(refused.code(), code) << refused;
+    EXPECT_THAT(refused.message(), HasSubstr(cause));
+    EXPECT_THAT(refused.message(), HasSubstr(store_name));
     absl::StatusOr<absl::Duration> down =
         TimeUntil(ServingStatus::kNotServing, failed_at);
     ASSERT_TRUE(down.ok()) << down.status();
@@ -167,11 +185,14 @@ class StoreFaultsTest : public ::testing::Test {
 
     // Writes are refused with the same cause; reads still answer, and the
     // model did not run ahead of the store.
-    absl::StatusOr<v1::SelectResponse> select =
-        Select(stub(), "u", Context(kRounds + 1));
-    ASSERT_FALSE(select.ok());
-    EXPECT_EQ(select.status().code(), code) << select.status();
-    EXPECT_THAT(select.status().message(), HasSubstr(cause));
+    absl::Status write =
+        select_first
+            ? Update(stub(), pending->event_id(), 1.0, Posthoc(kRounds))
+                  .status()
+            : Select(stub(), "u", Context(kRounds + 1)).status();
+    ASSERT_FALSE(write.ok());
+    EXPECT_EQ(write.code(), code) << write;
+    EXPECT_THAT(write.message(), HasSubstr(cause));
     absl::StatusOr<v1::User> user = GetUser(stub(), "u");
     ASSERT_TRUE(user.ok()) << user.status();
     EXPECT_EQ(user->model_version(), kRounds);
@@ -298,6 +319,34 @@ TEST_F(StoreFaultsTest, AnImmutableFileIsUnavailableAndRecovers) {
   RefusedThenRecovered([&] { ASSERT_TRUE(SetImmutable(true)); },
                        [&] { ASSERT_TRUE(SetImmutable(false)); },
                        absl::StatusCode::kUnavailable, "read-only");
+}
+
+// PostgreSQL's disk fills: its own server, with the injector failing the
+// writes of its table files (not its write-ahead log: a server that cannot
+// write that stops, which is the "server gone" case).
+TEST_F(StoreFaultsTest, APostgresServerOutOfSpaceIsResourceExhaustedAndRecovers) {
+  absl::StatusOr<std::unique_ptr<testing::TestPostgres>> pg =
+      testing::TestPostgres::Create();
+  ASSERT_TRUE(pg.ok()) << pg.status();
+  testing::TestPostgres& server = **pg;
+  // In the server's own directory: its account must read the control file.
+  const std::string control = server.dir() + "/fault";
+  ASSERT_TRUE(server.Stop().ok());
+  server.set_server_env(
+      {absl::StrCat("LD_PRELOAD=", BITEWISE_WRITE_FAULT_INJECTOR),
+       absl::StrCat("BITEWISE_WRITE_FAULT_FILE=", control),
+       absl::StrCat("BITEWISE_WRITE_FAULT_PREFIX=", server.dir(), "/data/base/"),
+       "ASAN_OPTIONS=verify_asan_link_order=0"});
+  ASSERT_TRUE(server.Start().ok());
+  absl::StatusOr<std::string> conninfo = server.CreateDatabase("faults");
+  ASSERT_TRUE(conninfo.ok()) << conninfo.status();
+  db_ = *conninfo;
+  ASSERT_TRUE(StartServer(/*injector=*/false).ok());
+  RefusedThenRecovered([&] { std::ofstream(control) << "ENOSPC"; },
+                       [&] { std::filesystem::remove(control); },
+                       absl::StatusCode::kResourceExhausted, "out of space",
+                       /*select_first=*/true, "database \"faults\"");
+  if (HasFailure()) std::cerr << "---- PostgreSQL log\n" << server.log();
 }
 
 }  // namespace
