@@ -17,6 +17,7 @@
 #ifndef BITEWISE_SERVICES_BANDIT_ENGINE_H_
 #define BITEWISE_SERVICES_BANDIT_ENGINE_H_
 
+#include <atomic>
 #include <cstdint>
 #include <list>
 #include <memory>
@@ -210,7 +211,16 @@ class BanditEngine {
     // the version the newest checkpoint covers, and the last call's time.
     int64_t last_event_id ABSL_GUARDED_BY(mu) = 0;
     int64_t checkpoint_version ABSL_GUARDED_BY(mu) = 0;
+    // The version of the checkpoint being written now (0: none): events
+    // before it count as saved for deciding when the next one is due.
+    int64_t checkpoint_saving ABSL_GUARDED_BY(mu) = 0;
     absl::Time last_used ABSL_GUARDED_BY(mu) = absl::InfinitePast();
+    // Polls in a row at which the checkpoint thread found the user's lock
+    // taken.
+    std::atomic<int> checkpoint_missed_polls{0};
+    // Set by the Update that brings the model to checkpoint_max_events
+    // unsaved events; taken by the checkpoint thread.
+    std::atomic<bool> checkpoint_due{false};
     // Cache bookkeeping, guarded by the engine's cache_mu_.
     size_t bytes = 0;
     bool in_lru = false;
@@ -293,6 +303,9 @@ class BanditEngine {
 
   absl::Mutex stop_mu_;
   bool stop_ ABSL_GUARDED_BY(stop_mu_) = false;
+  // An Update brought a model to checkpoint_max_events unsaved events: the
+  // checkpoint thread looks now, and waits for that user's lock.
+  bool checkpoint_wanted_ ABSL_GUARDED_BY(stop_mu_) = false;
   std::thread checkpointer_;
 };
 

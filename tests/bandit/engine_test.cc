@@ -7,6 +7,7 @@
 #include <random>
 #include <set>
 #include <string>
+#include <atomic>
 #include <thread>
 #include <vector>
 
@@ -509,6 +510,46 @@ TEST_F(EngineTest, IdleModelsAreCheckpointedInTheBackground) {
   absl::StatusOr<ModelCheckpoint> saved = store_->GetCheckpoint("lee");
   ASSERT_TRUE(saved.ok()) << saved.status();
   EXPECT_EQ(saved->model_version, 8);
+}
+
+// "checkpoint_max_events" holds while the user never pauses: two threads
+// bite without a break, and checkpoints are written while the bites go on
+// (the Update that makes one due wakes the background thread, which waits
+// for the user's lock instead of finding it taken at every poll). How many
+// events pass meanwhile at d = 2048 is measured by bandit_restart_bench.
+TEST_F(EngineTest, ContinuousLoadIsStillCheckpointedAtMaxEvents) {
+  EngineOptions options;
+  options.checkpoint_min_events = 5;
+  options.checkpoint_max_events = 40;
+  options.checkpoint_idle = absl::Hours(1);  // never idle
+  options.checkpoint_poll = absl::Milliseconds(5);
+  Reopen(options);
+  ASSERT_TRUE(engine_->CreateUser("ann", SmallConfig()).ok());
+  std::atomic<bool> stop{false};
+  std::atomic<int> bites{0};
+  std::vector<std::thread> eaters;
+  for (int i = 0; i < 2; ++i) {
+    eaters.emplace_back([&, i] {
+      std::mt19937_64 rng(100 + i);
+      while (!stop.load()) {
+        Bite("ann", rng);
+        bites.fetch_add(1);
+      }
+    });
+  }
+  const absl::Time deadline = absl::Now() + absl::Seconds(60);
+  while (engine_->Counters().checkpoints_written < 3 &&
+         absl::Now() < deadline) {
+    absl::SleepFor(absl::Milliseconds(5));
+  }
+  const int64_t written = engine_->Counters().checkpoints_written;
+  const int at = bites.load();
+  stop.store(true);
+  for (std::thread& t : eaters) t.join();
+  EXPECT_GE(written, 3) << "after " << at << " bites";
+  absl::StatusOr<ModelCheckpoint> saved = store_->GetCheckpoint("ann");
+  ASSERT_TRUE(saved.ok()) << saved.status();
+  EXPECT_GE(saved->model_version, 3 * 40);
 }
 
 TEST_F(EngineTest, CacheBudgetEvictsAndReloadsTransparently) {

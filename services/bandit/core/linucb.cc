@@ -44,7 +44,11 @@ absl::Status ValidateVector(const char* field, absl::Span<const double> v,
 // the header tells another layout apart).
 class StateWriter {
  public:
-  explicit StateWriter(size_t reserve) { out_.reserve(reserve); }
+  // Writes into `buffer`'s storage (cleared, its capacity kept).
+  StateWriter(std::string buffer, size_t reserve) : out_(std::move(buffer)) {
+    out_.clear();
+    out_.reserve(reserve);
+  }
   template <typename T>
   void Value(T v) {
     out_.append(reinterpret_cast<const char*>(&v), sizeof(v));
@@ -485,7 +489,13 @@ void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
 }
 
 void LinUcbModel::Replay(const std::vector<Round>& rounds) {
-  for (const Round& round : rounds) Apply(round, nullptr, /*caches=*/false);
+  bool all_primal = true;
+  for (const ActionState& s : actions_) all_primal = all_primal && s.primal;
+  if (all_primal && rounds.size() > 1) {
+    ReplayPrimal(rounds);
+  } else {
+    for (const Round& round : rounds) Apply(round, nullptr, /*caches=*/false);
+  }
   // The caches Apply left behind, once.
   if (posthoc()) RecomputeH();
   for (ActionState& s : actions_) {
@@ -495,6 +505,53 @@ void LinUcbModel::Replay(const std::vector<Round>& rounds) {
       RefreshDualSums(s);
     }
     if (posthoc()) RefreshPostHocCache(s);
+  }
+}
+
+void LinUcbModel::ReplayPrimal(const std::vector<Round>& rounds) {
+  // Each action's rows sqrt(w) c at once, by Woodbury:
+  // (A + X^T X)^-1 = A^-1 - U (I + X U)^-1 U^T with U = A^-1 X^T, i.e.
+  // A^-1 - V V^T with V = U L^-T and L L^T = I + X U. The same sums as
+  // one rank-one update per round (Apply), in matrix products that read
+  // A^-1 a few times instead of twice per round. With every action primal
+  // nothing converts, so the order of the rounds only matters to rounding.
+  std::vector<std::vector<const Round*>> by_action(actions_.size());
+  for (const Round& round : rounds) by_action[round.action].push_back(&round);
+  for (size_t a = 0; a < actions_.size(); ++a) {
+    const std::vector<const Round*>& taken = by_action[a];
+    if (taken.empty()) continue;
+    ActionState& s = actions_[a];
+    const int k = static_cast<int>(taken.size());
+    MatrixXd xt(d_, k);
+    for (int j = 0; j < k; ++j) {
+      xt.col(j) = std::sqrt(taken[j]->weight) * AsVector(taken[j]->context);
+    }
+    const MatrixXd u = s.a_inv.selfadjointView<Eigen::Lower>() * xt;
+    MatrixXd inner = MatrixXd::Identity(k, k);
+    inner.noalias() += xt.transpose() * u;
+    const Eigen::LLT<MatrixXd> factor(inner);
+    const MatrixXd v =
+        factor.matrixL().solve(u.transpose()).transpose();  // U L^-T
+    s.a_inv.selfadjointView<Eigen::Lower>().rankUpdate(v, -1.0);
+  }
+  // The per-round sums, in order, as Apply adds them.
+  for (const Round& round : rounds) {
+    const Eigen::Map<const VectorXd> c = AsVector(round.context);
+    const double w = round.weight;
+    ActionState& taken = actions_[round.action];
+    ++taken.count;
+    ++total_rounds_;
+    AddScale(round);
+    taken.loss_sum += round.loss;
+    taken.b.noalias() += (w * round.loss) * c;
+    if (posthoc()) {
+      const Eigen::Map<const VectorXd> p = AsVector(round.posthoc);
+      const VectorXd wp = w * p;
+      taken.M.noalias() += wp * p.transpose();
+      taken.r.noalias() += round.loss * wp;
+      s_pc_.noalias() += wp * c.transpose();
+      s_pp_.noalias() += wp * p.transpose();
+    }
   }
 }
 
@@ -790,7 +847,15 @@ size_t LinUcbModel::MemoryBytes() const {
 }
 
 std::string LinUcbModel::SaveState() const {
-  StateWriter out(MemoryBytes() + 4096);
+  std::string state;
+  SaveState(&state);
+  return state;
+}
+
+size_t LinUcbModel::StateBytesBound() const { return MemoryBytes() + 4096; }
+
+void LinUcbModel::SaveState(std::string* state) const {
+  StateWriter out(std::move(*state), StateBytesBound());
   for (char c : kStateMagic) out.Value(c);
   out.Value(kStateFormat);
   out.Value(kLayoutMarker);
@@ -840,7 +905,7 @@ std::string LinUcbModel::SaveState() const {
     if (posthoc()) out.Doubles(s.y.data(), s.y.size());
     lower(s.candidate, s.prepared);
   }
-  return out.Take();
+  *state = out.Take();
 }
 
 absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,

@@ -196,7 +196,10 @@ class LinUcbModel {
   // Adds rounds in order, as many Updates would, but refreshes the caches
   // every action keeps only once at the end: a replay of the events after
   // a checkpoint costs one pass over the taken action's form per round
-  // instead of a Select's. Every round must pass ValidateRound.
+  // instead of a Select's. When every action is primal, each action's
+  // rounds are added at once (Woodbury: matrix products instead of a
+  // rank-one update per round; equal to rounding). Every round must pass
+  // ValidateRound.
   void Replay(const std::vector<Round>& rounds);
 
   // theta_a (length d) and phi_a = H theta_a (length q; empty for the
@@ -219,6 +222,11 @@ class LinUcbModel {
   // (later rounds then agree to rounding: the restored rows sit in one
   // block, and passes over them sum block by block).
   std::string SaveState() const;
+  // The same into `*state`'s storage: with capacity for StateBytesBound()
+  // already there (allocated and touched before), saving is only copying,
+  // which is what a caller holding the user's lock wants.
+  void SaveState(std::string* state) const;
+  size_t StateBytesBound() const;
   // FAILED_PRECONDITION if `state` was saved for another configuration or
   // primal threshold; DATA_LOSS naming what is wrong if it is not a whole
   // state of this format.
@@ -277,6 +285,8 @@ class LinUcbModel {
   // S_pc A^-1 [S_pc^T b], H and the post hoc terms) are left for Replay to
   // refresh.
   void Apply(const Round& round, const SelectProducts* products, bool caches);
+  // Replay when every action is primal (nothing converts).
+  void ReplayPrimal(const std::vector<Round>& rounds);
   // W b and W S_pc^T, or S_pc A^-1 [S_pc^T b], from scratch (one pass over
   // A^-1).
   void RefreshDualSums(ActionState& s);
