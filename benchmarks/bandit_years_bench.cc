@@ -66,23 +66,16 @@ ABSL_FLAG(bool, check, false,
 namespace bitewise::bandit {
 namespace {
 
+using bench::Config;
 using bench::kActions;
 using bench::kPostHocDim;
 using bench::RandomRound;
+using bench::WriteEvents;
 
 using Clock = std::chrono::steady_clock;
 
 double Ms(Clock::duration t) {
   return std::chrono::duration<double, std::milli>(t).count();
-}
-
-BanditConfig Config(int d) {
-  BanditConfig config;
-  config.context_dim = d;
-  config.posthoc_dim = kPostHocDim;
-  // The shipped rule: lambda_c = rho_c E||c||^2, E||c||^2 = d / 3 here.
-  config.lambda_c = d / 3.0;
-  return config;
 }
 
 size_t AllocatedBytes() {
@@ -204,25 +197,6 @@ int Sizes(int d) {
     std::fflush(stdout);
   }
   return 0;
-}
-
-// Appends `n` completed random events for `user` straight into the store
-// (what Select and Update would write).
-void WriteEvents(EventStore& store, const std::string& user, int d, int n,
-                 std::mt19937_64& rng) {
-  for (int t = 0; t < n; ++t) {
-    const Round round = RandomRound(d, rng);
-    EventRecord event;
-    event.user_id = user;
-    event.meal_id = "meal";
-    event.item_label = "item";
-    event.context = round.context;
-    event.action = round.action;
-    event.selected_at = absl::Now();
-    const int64_t id = store.AppendPending(event).value();
-    store.CompleteEvent(id, round.loss, round.posthoc, 1.0, absl::Now())
-        .value();
-  }
 }
 
 // Opens the store at `path` and a fresh engine on it, and times the first

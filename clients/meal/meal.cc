@@ -831,17 +831,17 @@ void Meal::ConfirmAnswer() {
     const bool learned = delivered.ok() && *delivered > 0;
     bite->set_learned(learned ? "learned" : "journaled");
     if (!learned) {
-      bite->set_error(delivered.ok() ? why_not
-                                     : std::string(delivered.status().message()));
+      bite->set_error(
+          delivered.ok() ? why_not : std::string(delivered.status().message()));
     }
-    text = absl::StrCat(
-        FoodOf(*bite), " with ", bite->action().name(), ": ", bite->outcome(),
-        " (operator); ",
-        learned ? "learned"
-                : absl::StrCat("saved to be learned later (",
-                               bite->error().empty() ? "BanditService unavailable"
-                                                     : bite->error(),
-                               ")"));
+    text = absl::StrCat(FoodOf(*bite), " with ", bite->action().name(), ": ",
+                        bite->outcome(), " (operator); ",
+                        learned ? "learned"
+                                : absl::StrCat("saved to be learned later (",
+                                               bite->error().empty()
+                                                   ? "BanditService unavailable"
+                                                   : bite->error(),
+                                               ")"));
     bite->set_text(text);
     *state_.mutable_current() = *bite;
   }

@@ -65,11 +65,11 @@ class BanditServiceImpl final : public v1::BanditService::Service {
 // ListAudit reads it. `store` must outlive the sink.
 class StoreAuditSink final : public AuditSink {
  public:
-  explicit StoreAuditSink(EventStore* store) : store_(store) {}
+  explicit StoreAuditSink(AuditLog* store) : store_(store) {}
   absl::Status Record(const AuditEvent& event) override;
 
  private:
-  EventStore* const store_;
+  AuditLog* const store_;
 };
 
 }  // namespace bitewise::bandit

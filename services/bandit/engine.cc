@@ -49,13 +49,15 @@ void BanditEngine::CheckpointLoop() {
         slots.emplace_back(user_id, slot);
     }
     for (const auto& [user_id, slot] : slots) {
-      const absl::Status status =
-          MaybeCheckpoint(user_id, *slot, /*force=*/false,
-                          /*wait_for_lock=*/slot->checkpoint_due.exchange(false));
+      const absl::Status status = MaybeCheckpoint(
+          user_id, *slot, /*force=*/false,
+          /*wait_for_lock=*/slot->checkpoint_due.exchange(false));
       if (!status.ok()) {
         std::fprintf(stderr,
                      "bitewise-bandit: checkpoint of user %s not written: %s\n",
-                     user_id.c_str(), status.ToString().c_str());
+                     user_id.c_str(),
+                     status.ToString(absl::StatusToStringMode::kWithNoExtraData)
+                         .c_str());
       }
     }
   }
@@ -65,6 +67,40 @@ absl::Status BanditEngine::CheckpointUser(const std::string& user_id) {
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
   return MaybeCheckpoint(user_id, *slot, /*force=*/true,
                          /*wait_for_lock=*/true);
+}
+
+int BanditEngine::CheckpointAll(absl::Duration budget) {
+  const absl::Time deadline = absl::Now() + budget;
+  std::vector<std::pair<std::string, std::shared_ptr<UserSlot>>> slots;
+  {
+    absl::MutexLock lock(&slots_mu_);
+    for (const auto& [user_id, slot] : slots_)
+      slots.emplace_back(user_id, slot);
+  }
+  int saved = 0;
+  for (const auto& [user_id, slot] : slots) {
+    if (absl::Now() > deadline || options_.checkpoint_min_events <= 0) break;
+    {
+      absl::MutexLock lock(&slot->mu);
+      if (!slot->model.has_value() ||
+          slot->model->TotalRounds() - slot->checkpoint_version <
+              options_.checkpoint_min_events) {
+        continue;
+      }
+    }
+    const absl::Status status = MaybeCheckpoint(user_id, *slot,
+                                                /*force=*/true,
+                                                /*wait_for_lock=*/true);
+    if (status.ok()) {
+      ++saved;
+    } else {
+      std::fprintf(
+          stderr, "bitewise-bandit: checkpoint of user %s not written: %s\n",
+          user_id.c_str(),
+          status.ToString(absl::StatusToStringMode::kWithNoExtraData).c_str());
+    }
+  }
+  return saved;
 }
 
 absl::Status BanditEngine::MaybeCheckpoint(
@@ -185,10 +221,12 @@ std::optional<LinUcbModel> BanditEngine::LoadFromCheckpoint(
     if (why.ok()) model->Replay(rounds);
   }
   if (!why.ok()) {
-    std::fprintf(stderr,
-                 "bitewise-bandit: the model checkpoint of user %s is not "
-                 "used (%s); rebuilding from the whole log\n",
-                 user_id.c_str(), why.ToString().c_str());
+    std::fprintf(
+        stderr,
+        "bitewise-bandit: the model checkpoint of user %s is not "
+        "used (%s); rebuilding from the whole log\n",
+        user_id.c_str(),
+        why.ToString(absl::StatusToStringMode::kWithNoExtraData).c_str());
     absl::MutexLock lock(&cache_mu_);
     ++counters_.checkpoints_ignored;
     return std::nullopt;

@@ -60,7 +60,7 @@ struct EngineOptions {
   // load then reads the checkpoint and the events after it. A background
   // thread looks every checkpoint_poll. checkpoint_min_events 0: never.
   int64_t checkpoint_min_events = 50;
-  int64_t checkpoint_max_events = 1000;
+  int64_t checkpoint_max_events = 250;
   absl::Duration checkpoint_idle = absl::Seconds(30);
   absl::Duration checkpoint_poll = absl::Seconds(1);
 };
@@ -167,6 +167,11 @@ class BanditEngine {
   // the last one does not cover (OK and nothing written otherwise, or when
   // the model is not loaded). What the background thread does when due.
   absl::Status CheckpointUser(const std::string& user_id);
+  // At a clean stop (after the server drained): saves every loaded model
+  // with at least checkpoint_min_events events its checkpoint does not
+  // cover, so the next start needs no long replay, until `budget` has
+  // passed. Returns how many were saved (errors are logged).
+  int CheckpointAll(absl::Duration budget);
 
   ~BanditEngine();
 

@@ -42,7 +42,7 @@ ABSL_FLAG(int64_t, checkpoint_min_events, 50,
           "Save a loaded model as its checkpoint once it has this many new "
           "events and its user has been idle --checkpoint_idle_s; a cold "
           "load then replays only the events after it. 0: never.");
-ABSL_FLAG(int64_t, checkpoint_max_events, 1000,
+ABSL_FLAG(int64_t, checkpoint_max_events, 250,
           "Save it at this many new events even if its user is not idle.");
 ABSL_FLAG(double, checkpoint_idle_s, 30,
           "Seconds without a call that count as idle (the end of a meal).");
@@ -304,10 +304,10 @@ int main(int argc, char** argv) {
       [srv = server->get(), why_not, first = true](bool serving) mutable {
         srv->SetServing(serving);
         if (!first) {
-          std::fprintf(stderr, "bitewise-bandit: health %s%s%s\n",
-                       serving ? "SERVING: the store takes writes again"
-                               : "NOT_SERVING",
-                       serving ? "" : ": ", serving ? "" : why_not->c_str());
+          std::fprintf(
+              stderr, "bitewise-bandit: health %s%s%s\n",
+              serving ? "SERVING: the store takes writes again" : "NOT_SERVING",
+              serving ? "" : ": ", serving ? "" : why_not->c_str());
         }
         first = false;
       },
@@ -323,5 +323,16 @@ int main(int argc, char** argv) {
   std::fflush(stderr);
   absl::Status status = bitewise::RunUntilSignal(**server);
   if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);
+  // Drained: models with unsaved events are saved, so the next start reads
+  // checkpoints instead of replaying (bounded: systemd's stop timeout).
+  const absl::Time saving = absl::Now();
+  const int saved = engine.CheckpointAll(absl::Seconds(15));
+  std::fprintf(stderr,
+               "bitewise-bandit: saved %d model checkpoint(s) in %s; "
+               "stopped\n",
+               saved,
+               absl::FormatDuration(
+                   absl::Trunc(absl::Now() - saving, absl::Milliseconds(1)))
+                   .c_str());
   return 0;
 }

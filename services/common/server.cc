@@ -270,8 +270,9 @@ absl::Status RunUntilSignal(ServiceServer& server) {
 
 int ReportFatal(const char* program, const std::string& what,
                 const absl::Status& status) {
-  std::fprintf(stderr, "%s: %s: %s\n", program, what.c_str(),
-               status.ToString().c_str());
+  std::fprintf(
+      stderr, "%s: %s: %s\n", program, what.c_str(),
+      status.ToString(absl::StatusToStringMode::kWithNoExtraData).c_str());
   return 1;
 }
 

@@ -2,12 +2,12 @@
 
 #include <stdlib.h>
 
+#include <atomic>
 #include <cmath>
 #include <memory>
 #include <random>
 #include <set>
 #include <string>
-#include <atomic>
 #include <thread>
 #include <vector>
 

@@ -46,7 +46,9 @@ class ChildProcess {
   // FIFO the test writes answers to), and these NAME=value variables added
   // to the test's environment.
   void set_stdin(std::string path) { stdin_path_ = std::move(path); }
-  void set_env(std::vector<std::string> extra) { extra_env_ = std::move(extra); }
+  void set_env(std::vector<std::string> extra) {
+    extra_env_ = std::move(extra);
+  }
 
   // Starts `argv` (argv[0] is the binary's path) with stdin from /dev/null
   // and stdout+stderr appended to `log_path`, as `run_as` if given.

@@ -137,7 +137,7 @@ class PostgresEventStore final : public EventStore {
   const std::string& description() const;
 
   // A checkpoint's bytes go in chunks of at most this many.
-  static constexpr size_t kCheckpointChunkBytes = size_t{4} << 20;
+  static constexpr size_t kCheckpointChunkBytes = size_t{1} << 20;
   // The schema version this build writes and reads.
   static constexpr int kSchemaVersion = 2;
 

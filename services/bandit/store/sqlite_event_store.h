@@ -30,8 +30,11 @@
 //    than an empty list; an empty meal_id lists every meal.
 //  - Event ids are never reused, even after ResetUser or DeleteUser, so a
 //    stale id held by a client can only ever be NOT_FOUND.
-//  - Lock timeouts surface as UNAVAILABLE, a full disk as RESOURCE_EXHAUSTED,
-//    unreadable stored data as DATA_LOSS.
+//  - Lock timeouts surface as UNAVAILABLE, unreadable stored data as
+//    DATA_LOSS, and storage that refuses a write as a storage fault naming
+//    the cause and the file (write_faults.h): RESOURCE_EXHAUSTED for a full
+//    disk or a file-size limit, UNAVAILABLE for a read-only file or an I/O
+//    error.
 #ifndef BITEWISE_SERVICES_BANDIT_STORE_SQLITE_EVENT_STORE_H_
 #define BITEWISE_SERVICES_BANDIT_STORE_SQLITE_EVENT_STORE_H_
 
@@ -48,6 +51,7 @@
 #include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
 #include "services/bandit/store/event_store.h"
+#include "services/bandit/store/sqlite_store_options.h"
 
 struct sqlite3;
 
@@ -58,31 +62,6 @@ class StatementCache;
 namespace bitewise::bandit {
 
 class ContextFile;
-
-struct SqliteStoreOptions {
-  // The database file. Created, with the schema, if it does not exist; an
-  // existing file must be a bitewise store of a schema version this build
-  // knows. ":memory:" gives a private, non-durable store (tests only).
-  std::string path;
-  // true: synchronous=FULL, every commit is fsynced, so an acknowledged write
-  // survives power loss as well as a crash of the process. false:
-  // synchronous=NORMAL, which in WAL mode still survives kill -9 of the
-  // process but may lose the last commits on power loss or an OS crash.
-  bool synchronous_full = true;
-  // How long an operation waits for a lock held by another process on the
-  // same file before failing with UNAVAILABLE.
-  absl::Duration busy_timeout = absl::Seconds(5);
-  // Whether a path that does not exist (or an empty file) becomes a new
-  // store, created with owner-only permissions. The service sets it only
-  // with --create; otherwise Open is FAILED_PRECONDITION naming the path.
-  bool create_if_missing = true;
-  // Contexts of at least this many bytes (d >= 512 with the default) are
-  // kept in the contexts file "<path>.contexts" (context_file.h), written
-  // once, rather than in the database, where the write-ahead log writes
-  // them twice; smaller ones stay in the database, which saves the file's
-  // own sync in their commits. A ":memory:" store keeps every context.
-  int64_t context_file_min_bytes = 4096;
-};
 
 class SqliteEventStore final : public EventStore {
  public:
@@ -141,7 +120,7 @@ class SqliteEventStore final : public EventStore {
   absl::Status DeleteCheckpoint(const std::string& user_id) override;
 
   // A checkpoint's bytes go in chunks of at most this many.
-  static constexpr size_t kCheckpointChunkBytes = size_t{4} << 20;
+  static constexpr size_t kCheckpointChunkBytes = size_t{1} << 20;
 
   // Its commits are the group commits.
   StoreWriteStats write_stats() const override;
@@ -171,6 +150,9 @@ class SqliteEventStore final : public EventStore {
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // The user's checkpoint, checked (NOT_FOUND, DATA_LOSS as GetCheckpoint),
   // inside the caller's transaction.
+  // The checkpoint protocol's rows (checkpoint_protocol.h).
+  class CheckpointRowsImpl;
+  friend class CheckpointRowsImpl;
   absl::StatusOr<ModelCheckpoint> ReadCheckpointLocked(
       const std::string& user_id) ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
 

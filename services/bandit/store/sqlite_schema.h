@@ -19,7 +19,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
-#include "services/bandit/store/sqlite_event_store.h"
+#include "services/bandit/store/sqlite_store_options.h"
 
 namespace bitewise::bandit::sqlite {
 

@@ -50,10 +50,9 @@ WriteErrno DescribeWriteErrno(int error) {
 absl::Status FileWriteFault(absl::string_view what, absl::string_view path,
                             int error) {
   const WriteErrno described = DescribeWriteErrno(error);
-  return StorageFault(described.code,
-                      absl::StrCat("cannot ", what, " ", path, ": ",
-                                   described.cause, " (", std::strerror(error),
-                                   ")"));
+  return StorageFault(described.code, absl::StrCat("cannot ", what, " ", path,
+                                                   ": ", described.cause, " (",
+                                                   std::strerror(error), ")"));
 }
 
 FaultWatchStore::FaultWatchStore(std::unique_ptr<EventStore> store,

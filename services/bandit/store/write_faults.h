@@ -53,9 +53,9 @@ absl::Status FileWriteFault(absl::string_view what, absl::string_view path,
 
 class FaultWatchStore : public EventStore {
  public:
-  explicit FaultWatchStore(std::unique_ptr<EventStore> store,
-                           absl::Duration probe_period = absl::Milliseconds(
-                               200));
+  explicit FaultWatchStore(
+      std::unique_ptr<EventStore> store,
+      absl::Duration probe_period = absl::Milliseconds(200));
 
   EventStore& inner() { return *store_; }
 

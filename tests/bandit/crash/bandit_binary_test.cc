@@ -749,11 +749,11 @@ TEST(BanditBinaryStartTest, AMistypedDbStopsTheStartUnlessCreateIsGiven) {
   const std::string log = ::testing::TempDir() + "/bandit_no_create.log";
   std::remove(log.c_str());
   testing::ChildProcess child;
-  ASSERT_TRUE(
-      child
-          .Start({BITEWISE_BANDIT_BINARY, absl::StrCat("--db=", db), "--listen=127.0.0.1:0"},
-                 log)
-          .ok());
+  ASSERT_TRUE(child
+                  .Start({BITEWISE_BANDIT_BINARY, absl::StrCat("--db=", db),
+                          "--listen=127.0.0.1:0"},
+                         log)
+                  .ok());
   const absl::StatusOr<int> status = child.Wait(absl::Seconds(30));
   ASSERT_TRUE(status.ok()) << status.status();
   ASSERT_TRUE(WIFEXITED(*status));

@@ -130,9 +130,9 @@ absl::StatusOr<Response> Call(
   return response;
 }
 
-inline absl::StatusOr<v1::SelectResponse> Select(v1::BanditService::Stub& stub,
-                                          const std::string& user_id,
-                                          const std::vector<double>& context) {
+inline absl::StatusOr<v1::SelectResponse> Select(
+    v1::BanditService::Stub& stub, const std::string& user_id,
+    const std::vector<double>& context) {
   v1::SelectRequest request;
   request.set_user_id(user_id);
   request.mutable_context()->Add(context.begin(), context.end());
@@ -141,10 +141,9 @@ inline absl::StatusOr<v1::SelectResponse> Select(v1::BanditService::Stub& stub,
   return Call(stub, &v1::BanditService::Stub::Select, request);
 }
 
-inline absl::StatusOr<v1::UpdateResponse> Update(v1::BanditService::Stub& stub,
-                                          const std::string& event_id,
-                                          double loss,
-                                          const std::vector<double>& posthoc) {
+inline absl::StatusOr<v1::UpdateResponse> Update(
+    v1::BanditService::Stub& stub, const std::string& event_id, double loss,
+    const std::vector<double>& posthoc) {
   v1::UpdateRequest request;
   request.set_event_id(event_id);
   request.set_loss(loss);
@@ -153,14 +152,14 @@ inline absl::StatusOr<v1::UpdateResponse> Update(v1::BanditService::Stub& stub,
 }
 
 inline absl::StatusOr<v1::User> GetUser(v1::BanditService::Stub& stub,
-                                 const std::string& user_id) {
+                                        const std::string& user_id) {
   v1::GetUserRequest request;
   request.set_user_id(user_id);
   return Call(stub, &v1::BanditService::Stub::GetUser, request);
 }
 
 inline absl::StatusOr<v1::Model> GetModel(v1::BanditService::Stub& stub,
-                                   const std::string& user_id) {
+                                          const std::string& user_id) {
   v1::GetModelRequest request;
   request.set_user_id(user_id);
   return Call(stub, &v1::BanditService::Stub::GetModel, request);

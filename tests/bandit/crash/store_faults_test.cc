@@ -129,8 +129,7 @@ class StoreFaultsTest : public ::testing::Test {
       absl::StatusOr<v1::SelectResponse> chosen =
           Select(stub(), "u", Context(t));
       ASSERT_TRUE(chosen.ok()) << chosen.status();
-      ASSERT_TRUE(
-          Update(stub(), chosen->event_id(), t % 2, Posthoc(t)).ok());
+      ASSERT_TRUE(Update(stub(), chosen->event_id(), t % 2, Posthoc(t)).ok());
     }
   }
 
@@ -229,9 +228,8 @@ class StoreFaultsTest : public ::testing::Test {
     ASSERT_TRUE(user.ok()) << user.status();
     EXPECT_EQ(user->model_version(), kRounds + 2);
     EXPECT_EQ(user->pending_events(), 0);
-    absl::StatusOr<v1::CheckStoreResponse> check =
-        Call(stub(), &v1::BanditService::Stub::CheckStore,
-             v1::CheckStoreRequest());
+    absl::StatusOr<v1::CheckStoreResponse> check = Call(
+        stub(), &v1::BanditService::Stub::CheckStore, v1::CheckStoreRequest());
     ASSERT_TRUE(check.ok()) << check.status();
     EXPECT_TRUE(check->ok()) << ::testing::PrintToString(check->findings());
   }
@@ -324,7 +322,8 @@ TEST_F(StoreFaultsTest, AnImmutableFileIsUnavailableAndRecovers) {
 // PostgreSQL's disk fills: its own server, with the injector failing the
 // writes of its table files (not its write-ahead log: a server that cannot
 // write that stops, which is the "server gone" case).
-TEST_F(StoreFaultsTest, APostgresServerOutOfSpaceIsResourceExhaustedAndRecovers) {
+TEST_F(StoreFaultsTest,
+       APostgresServerOutOfSpaceIsResourceExhaustedAndRecovers) {
   absl::StatusOr<std::unique_ptr<testing::TestPostgres>> pg =
       testing::TestPostgres::Create();
   ASSERT_TRUE(pg.ok()) << pg.status();
@@ -335,7 +334,8 @@ TEST_F(StoreFaultsTest, APostgresServerOutOfSpaceIsResourceExhaustedAndRecovers)
   server.set_server_env(
       {absl::StrCat("LD_PRELOAD=", BITEWISE_WRITE_FAULT_INJECTOR),
        absl::StrCat("BITEWISE_WRITE_FAULT_FILE=", control),
-       absl::StrCat("BITEWISE_WRITE_FAULT_PREFIX=", server.dir(), "/data/base/"),
+       absl::StrCat("BITEWISE_WRITE_FAULT_PREFIX=", server.dir(),
+                    "/data/base/"),
        "ASAN_OPTIONS=verify_asan_link_order=0"});
   ASSERT_TRUE(server.Start().ok());
   absl::StatusOr<std::string> conninfo = server.CreateDatabase("faults");
