@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/bandit/core/policy.h"
@@ -673,41 +674,63 @@ TEST(LinUcbTest, CheckpointPlusReplayEqualsTheWholeLog) {
   }
 }
 
-// With every action primal, Replay adds each action's rounds in one
-// Woodbury step instead of one rank-one update each: the same model to
-// 1e-10 and to the dense reference, importance weights included.
-TEST(LinUcbTest, PrimalReplayInOneStepEqualsRoundByRound) {
-  for (const Learner learner : {Learner::kPostHoc, Learner::kContextOnly}) {
-    SCOPED_TRACE(static_cast<int>(learner));
-    const BanditConfig config = ThreeActions(learner, 16, 3.0);
-    std::mt19937_64 rng(71);
-    std::uniform_real_distribution<double> weight(0.5, 3.0);
-    std::vector<Round> rounds;
-    for (int t = 0; t < 400; ++t) {
-      rounds.push_back(RandomRound(16, 3, 3, rng));
-      if (t % 3 == 0) rounds.back().weight = weight(rng);
-    }
-    LinUcbModel whole = *LinUcbModel::Create(config);
-    for (const Round& r : rounds) whole.Update(r);
-    constexpr int kCut = 250;
-    LinUcbModel head = *LinUcbModel::Create(config);
-    for (int t = 0; t < kCut; ++t) head.Update(rounds[t]);
-    for (int i = 0; i < 3; ++i) ASSERT_TRUE(head.IsPrimal(i)) << i;
-    LinUcbModel resumed = *LinUcbModel::LoadState(config, head.SaveState());
-    resumed.Replay(std::vector<Round>(rounds.begin() + kCut, rounds.end()));
-    EXPECT_EQ(resumed.TotalRounds(), whole.TotalRounds());
-    for (int probe_index = 0; probe_index < 3; ++probe_index) {
-      const std::vector<double> probe = RandomVector(16, rng);
-      const std::vector<ActionEstimate> a = whole.Estimate(probe);
-      const std::vector<ActionEstimate> b = resumed.Estimate(probe);
-      for (int i = 0; i < 3; ++i) {
-        EXPECT_TRUE(bitewise::testing::RelNear(b[i].predicted_loss,
-                                               a[i].predicted_loss, 1e-10));
-        EXPECT_TRUE(bitewise::testing::RelNear(b[i].width, a[i].width, 1e-10));
-        EXPECT_TRUE(bitewise::testing::RelNear(resumed.Theta(i), whole.Theta(i),
-                                               1e-10));
+// With no conversion under way or beginning, Replay adds each action's
+// rounds in one step (primal: Woodbury; dual: a block of the Cholesky
+// factor) instead of one update each: the same model to 1e-10 and to the
+// dense reference, importance weights included, in both forms.
+TEST(LinUcbTest, ReplayInOneStepEqualsRoundByRound) {
+  struct Case {
+    const char* name;
+    int d, rounds, cut;
+    bool primal;  // the form of every action at the cut
+  };
+  // d 64: actions turn primal past 3d/4 = 48 rows, so 100 rounds over three
+  // actions stay dual; d 16: primal past 12, so 250 rounds are all primal.
+  for (const Case& c :
+       {Case{"dual", 64, 100, 20, false}, Case{"primal", 16, 400, 250, true}}) {
+    for (const Learner learner : {Learner::kPostHoc, Learner::kContextOnly}) {
+      SCOPED_TRACE(absl::StrCat(c.name, " ", static_cast<int>(learner)));
+      const BanditConfig config = ThreeActions(learner, c.d, 3.0);
+      std::mt19937_64 rng(71);
+      std::uniform_real_distribution<double> weight(0.5, 3.0);
+      std::vector<Round> rounds;
+      for (int t = 0; t < c.rounds; ++t) {
+        rounds.push_back(RandomRound(c.d, 3, 3, rng));
+        if (t % 3 == 0) rounds.back().weight = weight(rng);
       }
-      ExpectMatchesReference(resumed, rounds, probe, "replayed in one step");
+      LinUcbModel whole = *LinUcbModel::Create(config);
+      for (const Round& r : rounds) whole.Update(r);
+      LinUcbModel head = *LinUcbModel::Create(config);
+      for (int t = 0; t < c.cut; ++t) head.Update(rounds[t]);
+      for (int i = 0; i < 3; ++i) {
+        ASSERT_EQ(head.IsPrimal(i), c.primal) << i;
+        ASSERT_EQ(whole.IsPrimal(i), c.primal) << i;
+        ASSERT_FALSE(whole.IsConverting(i)) << i;
+      }
+      LinUcbModel resumed = *LinUcbModel::LoadState(config, head.SaveState());
+      resumed.Replay(std::vector<Round>(rounds.begin() + c.cut, rounds.end()));
+      EXPECT_EQ(resumed.TotalRounds(), whole.TotalRounds());
+      for (int probe_index = 0; probe_index < 3; ++probe_index) {
+        const std::vector<double> probe = RandomVector(c.d, rng);
+        const std::vector<ActionEstimate> a = whole.Estimate(probe);
+        const std::vector<ActionEstimate> b = resumed.Estimate(probe);
+        for (int i = 0; i < 3; ++i) {
+          EXPECT_TRUE(bitewise::testing::RelNear(b[i].predicted_loss,
+                                                 a[i].predicted_loss, 1e-10));
+          EXPECT_TRUE(
+              bitewise::testing::RelNear(b[i].width, a[i].width, 1e-10));
+          EXPECT_TRUE(bitewise::testing::RelNear(resumed.Theta(i),
+                                                 whole.Theta(i), 1e-10));
+        }
+        ExpectMatchesReference(resumed, rounds, probe, "replayed in one step");
+      }
+      // And it learns on like the whole one.
+      const Round more = RandomRound(c.d, 3, 3, rng);
+      resumed.Update(more);
+      std::vector<Round> longer = rounds;
+      longer.push_back(more);
+      ExpectMatchesReference(resumed, longer, RandomVector(c.d, rng),
+                             "then updated");
     }
   }
 }

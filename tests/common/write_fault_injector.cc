@@ -7,9 +7,12 @@
 //
 //   BITEWISE_WRITE_FAULT_FILE    the control file (its content: the errno)
 //   BITEWISE_WRITE_FAULT_PREFIX  which files fail (e.g. the database path)
+// or else (the default)
+//   BITEWISE_WRITE_FAULT_SIBLING a file name ("bitewise-write-fault"): a
+//                                file fails while a control file of this
+//                                name is in its directory
 //
-// Without both variables, or without the control file, every call goes
-// straight to the C library.
+// Without a control file, every call goes straight to the C library.
 #include <dlfcn.h>
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -28,37 +31,56 @@ const char* Env(const char* name) {
   return value != nullptr && *value != '\0' ? value : nullptr;
 }
 
+// The errno named in the file `control`, or 0.
+int ErrnoIn(const char* control) {
+  const int cfd = open(control, O_RDONLY | O_CLOEXEC);
+  if (cfd < 0) return 0;
+  char name[32] = {};
+  const ssize_t n = read(cfd, name, sizeof(name) - 1);
+  close(cfd);
+  if (n <= 0) return 0;
+  static const struct {
+    const char* name;
+    int error;
+  } kErrors[] = {{"ENOSPC", ENOSPC}, {"EDQUOT", EDQUOT}, {"EFBIG", EFBIG},
+                 {"EIO", EIO},       {"EROFS", EROFS},   {"EPERM", EPERM}};
+  for (const auto& e : kErrors) {
+    if (std::strncmp(name, e.name, std::strlen(e.name)) == 0) return e.error;
+  }
+  return 0;
+}
+
 // The errno to fail with, or 0 when `fd` is not to fail now.
 int FaultFor(int fd) {
   static const char* const control = Env("BITEWISE_WRITE_FAULT_FILE");
   static const char* const prefix = Env("BITEWISE_WRITE_FAULT_PREFIX");
-  if (control == nullptr || prefix == nullptr) return 0;
+  // Without a control file and prefix, the sibling mode (by default
+  // "bitewise-write-fault"): a test binary needs only LD_PRELOAD.
+  static const char* const sibling =
+      control != nullptr && prefix != nullptr
+          ? nullptr
+          : (Env("BITEWISE_WRITE_FAULT_SIBLING") != nullptr
+                 ? Env("BITEWISE_WRITE_FAULT_SIBLING")
+                 : "bitewise-write-fault");
   const int saved = errno;
   int result = 0;
-  const int cfd = open(control, O_RDONLY | O_CLOEXEC);
-  if (cfd >= 0) {
-    char name[32] = {};
-    const ssize_t n = read(cfd, name, sizeof(name) - 1);
-    close(cfd);
-    char link[64];
-    std::snprintf(link, sizeof(link), "/proc/self/fd/%d", fd);
-    char path[4096];
-    const ssize_t len = readlink(link, path, sizeof(path) - 1);
-    if (n > 0 && len > 0) {
-      path[len] = '\0';
-      if (std::strncmp(path, prefix, std::strlen(prefix)) == 0) {
-        static const struct {
-          const char* name;
-          int error;
-        } kErrors[] = {{"ENOSPC", ENOSPC}, {"EDQUOT", EDQUOT},
-                       {"EFBIG", EFBIG},   {"EIO", EIO},
-                       {"EROFS", EROFS},   {"EPERM", EPERM}};
-        for (const auto& e : kErrors) {
-          if (std::strncmp(name, e.name, std::strlen(e.name)) == 0) {
-            result = e.error;
-          }
-        }
+  char link[64];
+  std::snprintf(link, sizeof(link), "/proc/self/fd/%d", fd);
+  char path[4096];
+  const ssize_t len = readlink(link, path, sizeof(path) - 1);
+  if (len > 0 && path[0] == '/') {
+    path[len] = '\0';
+    if (sibling != nullptr) {
+      // The control file beside the written one: each directory (a test's
+      // store, a database's files) fails on its own.
+      char* slash = std::strrchr(path, '/');
+      if (static_cast<size_t>(slash - path) + 2 + std::strlen(sibling) <
+          sizeof(path)) {
+        std::strcpy(slash + 1, sibling);
+        result = ErrnoIn(path);
       }
+    } else if (std::strncmp(path, prefix, std::strlen(prefix)) == 0) {
+      result = ErrnoIn(control);
     }
   }
   errno = saved;

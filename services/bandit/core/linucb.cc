@@ -489,10 +489,8 @@ void LinUcbModel::Update(const Round& round, const SelectProducts* products) {
 }
 
 void LinUcbModel::Replay(const std::vector<Round>& rounds) {
-  bool all_primal = true;
-  for (const ActionState& s : actions_) all_primal = all_primal && s.primal;
-  if (all_primal && rounds.size() > 1) {
-    ReplayPrimal(rounds);
+  if (rounds.size() > 1 && CanReplayInBatch(rounds)) {
+    ReplayBatch(rounds);
   } else {
     for (const Round& round : rounds) Apply(round, nullptr, /*caches=*/false);
   }
@@ -508,13 +506,27 @@ void LinUcbModel::Replay(const std::vector<Round>& rounds) {
   }
 }
 
-void LinUcbModel::ReplayPrimal(const std::vector<Round>& rounds) {
-  // Each action's rows sqrt(w) c at once, by Woodbury:
-  // (A + X^T X)^-1 = A^-1 - U (I + X U)^-1 U^T with U = A^-1 X^T, i.e.
-  // A^-1 - V V^T with V = U L^-T and L L^T = I + X U. The same sums as
-  // one rank-one update per round (Apply), in matrix products that read
-  // A^-1 a few times instead of twice per round. With every action primal
-  // nothing converts, so the order of the rounds only matters to rounding.
+bool LinUcbModel::CanReplayInBatch(const std::vector<Round>& rounds) const {
+  std::vector<int64_t> added(actions_.size(), 0);
+  for (const Round& round : rounds) ++added[round.action];
+  for (size_t a = 0; a < actions_.size(); ++a) {
+    const ActionState& s = actions_[a];
+    if (s.primal) continue;
+    // No conversion under way, and none would begin within the rounds.
+    if (s.converting || s.prepared > 0 ||
+        s.count + added[a] >= ConversionStart()) {
+      return false;
+    }
+  }
+  return true;
+}
+
+void LinUcbModel::ReplayBatch(const std::vector<Round>& rounds) {
+  // Each action's rows x = sqrt(w) c at once. The same sums as one Apply
+  // per round (equal to rounding), in matrix products that read each
+  // action's form a few times instead of twice per round. Nothing converts
+  // meanwhile (CanReplayInBatch), so only the per-round sums below depend
+  // on the order.
   std::vector<std::vector<const Round*>> by_action(actions_.size());
   for (const Round& round : rounds) by_action[round.action].push_back(&round);
   for (size_t a = 0; a < actions_.size(); ++a) {
@@ -522,17 +534,48 @@ void LinUcbModel::ReplayPrimal(const std::vector<Round>& rounds) {
     if (taken.empty()) continue;
     ActionState& s = actions_[a];
     const int k = static_cast<int>(taken.size());
-    MatrixXd xt(d_, k);
+    MatrixXd x(k, d_);
     for (int j = 0; j < k; ++j) {
-      xt.col(j) = std::sqrt(taken[j]->weight) * AsVector(taken[j]->context);
+      x.row(j) =
+          std::sqrt(taken[j]->weight) * AsVector(taken[j]->context).transpose();
     }
-    const MatrixXd u = s.a_inv.selfadjointView<Eigen::Lower>() * xt;
-    MatrixXd inner = MatrixXd::Identity(k, k);
-    inner.noalias() += xt.transpose() * u;
-    const Eigen::LLT<MatrixXd> factor(inner);
-    const MatrixXd v =
-        factor.matrixL().solve(u.transpose()).transpose();  // U L^-T
-    s.a_inv.selfadjointView<Eigen::Lower>().rankUpdate(v, -1.0);
+    if (s.primal) {
+      // Woodbury: (A + X^T X)^-1 = A^-1 - U (I + X U)^-1 U^T, U = A^-1 X^T,
+      // i.e. A^-1 - V V^T with V = U L^-T and L L^T = I + X U.
+      const MatrixXd u =
+          s.a_inv.selfadjointView<Eigen::Lower>() * x.transpose();
+      MatrixXd inner = MatrixXd::Identity(k, k);
+      inner.noalias() += x * u;
+      const Eigen::LLT<MatrixXd> factor(inner);
+      const MatrixXd v = factor.matrixL().solve(u.transpose()).transpose();
+      s.a_inv.selfadjointView<Eigen::Lower>().rankUpdate(v, -1.0);
+      continue;
+    }
+    // Dual: K = lambda I + X X^T = L L^T and W = L^-1 X gain k rows at
+    // once. With B = X_new W^T, the new block row of L is [B C] with
+    // C C^T = lambda I + X_new X_new^T - B B^T, and the new rows of W are
+    // C^-1 (X_new - B W) (one Apply's l = W x and delta, k rows at a time).
+    const int n = s.w.rows();
+    MatrixXd b(k, n);
+    s.w.ForEachBlock([&](int first, int rows, const double* data) {
+      b.middleCols(first, rows).noalias() =
+          x * ConstRowMap(data, rows, d_).transpose();
+    });
+    MatrixXd gram = lambda_a_ * MatrixXd::Identity(k, k);
+    gram.noalias() += x * x.transpose();
+    gram.noalias() -= b * b.transpose();
+    const Eigen::LLT<MatrixXd> factor(gram);
+    MatrixXd rows_new = x;
+    s.w.ForEachBlock([&](int first, int rows, const double* data) {
+      rows_new.noalias() -=
+          b.middleCols(first, rows) * ConstRowMap(data, rows, d_);
+    });
+    factor.matrixL().solveInPlace(rows_new);
+    double* out = s.w.Append(k);
+    for (int j = 0; j < k; ++j) {
+      Eigen::Map<Eigen::RowVectorXd>(out + static_cast<size_t>(j) * d_, d_) =
+          rows_new.row(j);
+    }
   }
   // The per-round sums, in order, as Apply adds them.
   for (const Round& round : rounds) {
@@ -552,6 +595,10 @@ void LinUcbModel::ReplayPrimal(const std::vector<Round>& rounds) {
       s_pc_.noalias() += wp * c.transpose();
       s_pp_.noalias() += wp * p.transpose();
     }
+  }
+  // What Apply releases per round (blocks of rows retired by conversions).
+  for (ActionState& s : actions_) {
+    s.retired.ReleaseBlocks(2 * static_cast<int>(rounds.size()));
   }
 }
 

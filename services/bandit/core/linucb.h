@@ -196,10 +196,10 @@ class LinUcbModel {
   // Adds rounds in order, as many Updates would, but refreshes the caches
   // every action keeps only once at the end: a replay of the events after
   // a checkpoint costs one pass over the taken action's form per round
-  // instead of a Select's. When every action is primal, each action's
-  // rounds are added at once (Woodbury: matrix products instead of a
-  // rank-one update per round; equal to rounding). Every round must pass
-  // ValidateRound.
+  // instead of a Select's. When no conversion is under way or would begin,
+  // each action's rounds are added at once (primal: Woodbury; dual: a block
+  // of the Cholesky factor): matrix products instead of one pass per round,
+  // equal to rounding. Every round must pass ValidateRound.
   void Replay(const std::vector<Round>& rounds);
 
   // theta_a (length d) and phi_a = H theta_a (length q; empty for the
@@ -285,8 +285,10 @@ class LinUcbModel {
   // S_pc A^-1 [S_pc^T b], H and the post hoc terms) are left for Replay to
   // refresh.
   void Apply(const Round& round, const SelectProducts* products, bool caches);
-  // Replay when every action is primal (nothing converts).
-  void ReplayPrimal(const std::vector<Round>& rounds);
+  // Whether Replay may add each action's rounds at once: no conversion is
+  // under way and none would begin within `rounds`.
+  bool CanReplayInBatch(const std::vector<Round>& rounds) const;
+  void ReplayBatch(const std::vector<Round>& rounds);
   // W b and W S_pc^T, or S_pc A^-1 [S_pc^T b], from scratch (one pass over
   // A^-1).
   void RefreshDualSums(ActionState& s);
