@@ -115,13 +115,11 @@ absl::Status BanditEngine::MaybeCheckpoint(
     if (wait_for_lock) {
       slot.mu.Lock();
     } else if (!slot.mu.TryLock()) {
-      // In use. A user who never pauses would always be: after two polls
-      // in a row, wait for the call in progress (its lock is held for one
-      // call) so "checkpoint_max_events" holds under continuous load.
-      if (++slot.checkpoint_missed_polls < 2) return absl::OkStatus();
-      slot.mu.Lock();
+      // In use: next poll. (A model at checkpoint_max_events does not wait
+      // for a free moment: its Update set checkpoint_due, and this is
+      // called waiting for the lock.)
+      return absl::OkStatus();
     }
-    slot.checkpoint_missed_polls = 0;
     const bool loaded = slot.model.has_value();
     const int64_t version = loaded ? slot.model->TotalRounds() : 0;
     const int64_t fresh =

@@ -220,9 +220,6 @@ class BanditEngine {
     // before it count as saved for deciding when the next one is due.
     int64_t checkpoint_saving ABSL_GUARDED_BY(mu) = 0;
     absl::Time last_used ABSL_GUARDED_BY(mu) = absl::InfinitePast();
-    // Polls in a row at which the checkpoint thread found the user's lock
-    // taken.
-    std::atomic<int> checkpoint_missed_polls{0};
     // Set by the Update that brings the model to checkpoint_max_events
     // unsaved events; taken by the checkpoint thread.
     std::atomic<bool> checkpoint_due{false};

@@ -22,16 +22,6 @@
 
 namespace bitewise::bandit::pg {
 
-using store_rows::ApproxBytes;
-using store_rows::DecodePrior;
-using store_rows::EncodeDoubles;
-using store_rows::EncodePrior;
-using store_rows::EventNotFound;
-using store_rows::FromMicros;
-using store_rows::ParsePageToken;
-using store_rows::ToMicros;
-using store_rows::UserNotFound;
-
 inline constexpr char kApplication[] = "bitewise-bandit";
 
 // Reads that must see one consistent state (a check and its rows).
@@ -183,5 +173,29 @@ absl::StatusOr<ModelCheckpoint> ReadCheckpointOn(Connection& conn,
                                                  const std::string& user_id);
 
 }  // namespace bitewise::bandit::pg
+
+namespace bitewise::bandit {
+
+// The names the PostgreSQL store's role files use unqualified.
+using pg::CheckUserExists;
+using pg::Connection;
+using pg::DeleteCheckpointRows;
+using pg::kApplication;
+using pg::kCompletedEvent;
+using pg::kEventColumns;
+using pg::kSnapshot;
+using pg::kUserColumns;
+using pg::LockUser;
+using pg::LogMoved;
+using pg::NotCompleted;
+using pg::OutcomeParams;
+using pg::Params;
+using pg::ReadActionNames;
+using pg::ReadUser;
+using pg::Rows;
+using pg::Transaction;
+using pg::WriteActionNames;
+
+}  // namespace bitewise::bandit
 
 #endif  // BITEWISE_SERVICES_BANDIT_STORE_PG_ROWS_H_

@@ -12,38 +12,6 @@
 #include "services/common/status_macros.h"
 
 namespace bitewise::bandit {
-namespace {
-
-using pg::CheckUserExists;
-using pg::Connection;
-using pg::DeleteCheckpointRows;
-using pg::kApplication;
-using pg::kCompletedEvent;
-using pg::kEventColumns;
-using pg::kSnapshot;
-using pg::kUserColumns;
-using pg::LockUser;
-using pg::LogMoved;
-using pg::NotCompleted;
-using pg::OutcomeParams;
-using pg::Params;
-using pg::ReadActionNames;
-using pg::ReadUser;
-using pg::Rows;
-using pg::Transaction;
-using pg::WriteActionNames;
-using store_rows::ApproxBytes;
-using store_rows::DecodePrior;
-using store_rows::EncodeDoubles;
-using store_rows::EncodePrior;
-using store_rows::EventNotFound;
-using store_rows::FromMicros;
-using store_rows::ParsePageToken;
-using store_rows::ToMicros;
-using store_rows::UserNotFound;
-
-}  // namespace
-
 absl::StatusOr<int64_t> PostgresEventStore::AddPool(const PoolRecord& pool) {
   constexpr char kOp[] = "AddPool";
   PopulationPrior stored = pool.prior;

@@ -35,30 +35,9 @@ namespace bitewise::bandit {
 namespace {
 
 using sqlite::CheckIntegrity;
-using sqlite::Exec;
 using sqlite::InitializeDatabase;
 using sqlite::LockStoreFile;
-using sqlite::SqliteCloser;
-using sqlite::SqliteError;
-using sqlite::Statement;
-using sqlite::Transaction;
-using store_rows::ApproxBytes;
-using store_rows::DecodePrior;
-using store_rows::EncodeDoubles;
-using store_rows::EncodePrior;
-using store_rows::EventNotFound;
-using store_rows::FromMicros;
-using store_rows::ParsePageToken;
-using store_rows::ToMicros;
-using store_rows::UserNotFound;
 
-using sqlite::DurableCommit;
-using sqlite::kEventColumns;
-using sqlite::kUserColumns;
-using sqlite::ReadActionNames;
-using sqlite::ReadEvent;
-using sqlite::ReadUser;
-using sqlite::WriteActionNames;
 
 // bitewise_context(offset, length): the bytes there in the store's contexts
 // file (sqlite3_user_data); NULL without one. A short read returns what

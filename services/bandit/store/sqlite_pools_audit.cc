@@ -29,36 +29,6 @@
 #include "services/common/status_macros.h"
 
 namespace bitewise::bandit {
-namespace {
-
-using sqlite::CheckIntegrity;
-using sqlite::Exec;
-using sqlite::InitializeDatabase;
-using sqlite::LockStoreFile;
-using sqlite::SqliteCloser;
-using sqlite::SqliteError;
-using sqlite::Statement;
-using sqlite::Transaction;
-using store_rows::ApproxBytes;
-using store_rows::DecodePrior;
-using store_rows::EncodeDoubles;
-using store_rows::EncodePrior;
-using store_rows::EventNotFound;
-using store_rows::FromMicros;
-using store_rows::ParsePageToken;
-using store_rows::ToMicros;
-using store_rows::UserNotFound;
-
-using sqlite::DurableCommit;
-using sqlite::kEventColumns;
-using sqlite::kUserColumns;
-using sqlite::ReadActionNames;
-using sqlite::ReadEvent;
-using sqlite::ReadUser;
-using sqlite::WriteActionNames;
-
-}  // namespace
-
 absl::StatusOr<int64_t> SqliteEventStore::AddPool(const PoolRecord& pool) {
   RETURN_IF_ERROR(CheckHealth());
   absl::MutexLock lock(&mu_);

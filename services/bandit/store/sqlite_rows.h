@@ -138,4 +138,22 @@ class DurableCommit {
 
 }  // namespace bitewise::bandit::sqlite
 
+namespace bitewise::bandit {
+
+// The names the SQLite store's role files use unqualified.
+using sqlite::DurableCommit;
+using sqlite::Exec;
+using sqlite::kEventColumns;
+using sqlite::kUserColumns;
+using sqlite::ReadActionNames;
+using sqlite::ReadEvent;
+using sqlite::ReadUser;
+using sqlite::SqliteCloser;
+using sqlite::SqliteError;
+using sqlite::Statement;
+using sqlite::Transaction;
+using sqlite::WriteActionNames;
+
+}  // namespace bitewise::bandit
+
 #endif  // BITEWISE_SERVICES_BANDIT_STORE_SQLITE_ROWS_H_

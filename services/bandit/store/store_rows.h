@@ -280,4 +280,20 @@ absl::StatusOr<EventRecord> ReadEventRow(Row& row) {
 
 }  // namespace bitewise::bandit::store_rows
 
+namespace bitewise::bandit {
+
+// The names the stores' own files use unqualified (this header is internal
+// to services/bandit/store).
+using store_rows::ApproxBytes;
+using store_rows::DecodePrior;
+using store_rows::EncodeDoubles;
+using store_rows::EncodePrior;
+using store_rows::EventNotFound;
+using store_rows::FromMicros;
+using store_rows::ParsePageToken;
+using store_rows::ToMicros;
+using store_rows::UserNotFound;
+
+}  // namespace bitewise::bandit
+
 #endif  // BITEWISE_SERVICES_BANDIT_STORE_STORE_ROWS_H_
