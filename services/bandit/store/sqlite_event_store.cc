@@ -38,7 +38,6 @@ using sqlite::CheckIntegrity;
 using sqlite::InitializeDatabase;
 using sqlite::LockStoreFile;
 
-
 // bitewise_context(offset, length): the bytes there in the store's contexts
 // file (sqlite3_user_data); NULL without one. A short read returns what
 // there is, and the event's checksum then names it.

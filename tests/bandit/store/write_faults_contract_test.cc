@@ -75,9 +75,9 @@ TEST_P(WriteFaultsContractTest, EachFaultIsNamedVisibleAndRecovered) {
   // CTest preloads the injector (CMakeLists.txt); without it no fault
   // could happen, and the test would prove nothing.
   const char* preload = std::getenv("LD_PRELOAD");
-  ASSERT_TRUE(preload != nullptr && std::string(preload).find(
-                                        "write_fault_injector") !=
-                                        std::string::npos)
+  ASSERT_TRUE(preload != nullptr &&
+              std::string(preload).find("write_fault_injector") !=
+                  std::string::npos)
       << "the write-fault injector is not preloaded: run this test through "
          "ctest, or with LD_PRELOAD=<build>/tests/common/"
          "libbitewise_write_fault_injector.so";
