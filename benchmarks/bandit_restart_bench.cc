@@ -61,6 +61,9 @@ ABSL_FLAG(int, kills, 3, "Stops of each kind per size.");
 ABSL_FLAG(std::string, server_args, "",
           "Extra flags for the server, space separated (e.g. "
           "--checkpoint_max_events=1000).");
+ABSL_FLAG(bool, keep, false,
+          "Keep each size's database directory (its path is printed) to "
+          "time a start by hand.");
 
 namespace bitewise {
 namespace {
@@ -323,6 +326,10 @@ int Run() {
       }
     }
     server.process.Kill();
+    if (absl::GetFlag(FLAGS_keep)) {
+      std::printf("kept %s\n", dir.c_str());
+      continue;
+    }
     std::error_code ignored;
     std::filesystem::remove_all(dir, ignored);
   }

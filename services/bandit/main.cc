@@ -125,6 +125,9 @@ int main(int argc, char** argv) {
   store_options.create_if_missing = absl::GetFlag(FLAGS_create);
   store_options.sqlite_fsync = absl::GetFlag(FLAGS_sqlite_fsync);
   store_options.postgres_connections = absl::GetFlag(FLAGS_db_connections);
+  // SERVING does not wait for SQLite's integrity check (it reads the whole
+  // file); the first write does.
+  store_options.defer_full_check = true;
   const std::string db = absl::GetFlag(FLAGS_db);
   auto store = bitewise::bandit::OpenEventStore(db, store_options);
   if (!store.ok()) {
@@ -303,7 +306,9 @@ int main(int argc, char** argv) {
       },
       [srv = server->get(), why_not, first = true](bool serving) mutable {
         srv->SetServing(serving);
-        if (!first) {
+        // The first state is logged below when SERVING (the serving line),
+        // here when not.
+        if (!first || !serving) {
           std::fprintf(
               stderr, "bitewise-bandit: health %s%s%s\n",
               serving ? "SERVING: the store takes writes again" : "NOT_SERVING",

@@ -12,7 +12,8 @@
 // not commit stay unreferenced (never reused: appends go after them).
 // Deleted events' ranges are zeroed and freed (Erase), so a deleted user's
 // contexts do not stay on disk; what a crash or a write that never
-// committed left unreferenced is erased at the next open (EraseAllBut). A
+// committed left unreferenced is erased at the next open, or by the checks
+// that follow it (SqliteEventStore::RunDeferredChecks; EraseAllBut). A
 // new file is made whole under a temporary name, then renamed.
 //
 // The file starts with a 16-byte header that names it; each context starts
@@ -22,6 +23,7 @@
 #ifndef BITEWISE_SERVICES_BANDIT_STORE_CONTEXT_FILE_H_
 #define BITEWISE_SERVICES_BANDIT_STORE_CONTEXT_FILE_H_
 
+#include <algorithm>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -68,8 +70,15 @@ class ContextFile {
   absl::Status Erase(const std::vector<std::pair<int64_t, int64_t>>& ranges);
   // Erases every whole block that none of the `live` ranges touches: the
   // contexts of writes that never committed, or whose erasure was lost to
-  // a crash between their deletion's commit and the erase (run at open).
+  // a crash between their deletion's commit and the erase (run at open or
+  // just after).
   absl::Status EraseAllBut(std::vector<std::pair<int64_t, int64_t>> live);
+
+  // Appends go after `referenced_end` too (the furthest range the
+  // database points at, when found after Open).
+  void ExtendTo(int64_t referenced_end) {
+    end_ = std::max(end_, referenced_end);
+  }
 
   const std::string& path() const { return path_; }
   // The file's identity when opened, to notice it being replaced.

@@ -46,6 +46,12 @@ class EventStore : public EventLog,
   // a store whose writes failed for a storage reason (write_faults.h) can
   // tell when they succeed again. Default: OK (nothing to probe).
   virtual absl::Status ProbeWrite() { return absl::OkStatus(); }
+  // The checks an open deferred because they read the whole store (SQLite
+  // with check_at_open false: its integrity check, then erasing what no row
+  // of the contexts file points at). Run once, before the first write;
+  // reads may run meanwhile. DATA_LOSS naming the file when it is damaged.
+  // Default: OK (nothing deferred).
+  virtual absl::Status RunDeferredChecks() { return absl::OkStatus(); }
   // Called with the fault when a write first fails for a storage reason
   // (FaultWatchStore), so health can drop at once instead of at its next
   // poll. Set once, before the store is used. Default: never called.

@@ -35,10 +35,12 @@ absl::StatusOr<std::unique_ptr<EventStore>> OpenEventStore(
   sqlite.path = std::string(absl::StripPrefix(spec, "sqlite:"));
   sqlite.create_if_missing = options.create_if_missing;
   sqlite.synchronous_full = options.sqlite_fsync;
+  sqlite.check_at_open = !options.defer_full_check;
   auto store = SqliteEventStore::Open(sqlite);
   if (!store.ok()) return store.status();
-  return std::unique_ptr<EventStore>(
-      std::make_unique<FaultWatchStore>(std::move(store).value()));
+  auto watched = std::make_unique<FaultWatchStore>(std::move(store).value());
+  if (options.defer_full_check) watched->StartDeferredChecks();
+  return std::unique_ptr<EventStore>(std::move(watched));
 }
 
 std::string DescribeStoreSpec(const std::string& spec) {

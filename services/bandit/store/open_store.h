@@ -22,6 +22,12 @@ struct OpenStoreOptions {
   bool sqlite_fsync = true;
   // PostgreSQL: connections kept open.
   int postgres_connections = 8;
+  // SQLite: open without reading the whole file, and run its integrity
+  // check (and the contexts file's clean-up) in the background, writes
+  // waiting for it (FaultWatchStore::StartDeferredChecks), so the time to
+  // open does not grow with the file. The service sets it; tools check at
+  // open.
+  bool defer_full_check = false;
 };
 
 // Whether `spec` names a PostgreSQL store.

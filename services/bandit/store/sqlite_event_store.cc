@@ -54,37 +54,73 @@ void ReadContextFunction(sqlite3_context* call, int argc,
   sqlite3_result_blob64(call, bytes.data(), bytes.size(), SQLITE_TRANSIENT);
 }
 
-// The database's contexts file, opened knowing which ranges its rows point
-// at (so a missing file is told from one never used, and what no row
-// points at is erased).
-absl::StatusOr<std::unique_ptr<ContextFile>> OpenContextFile(
-    sqlite3* db, const std::string& path) {
-  const std::string op = absl::StrCat("opening ", path);
+// Where the rows point in the contexts file: every (offset, length), and
+// the end of the furthest. Reads every event's location (the whole log).
+struct ContextRanges {
   std::vector<std::pair<int64_t, int64_t>> live;
   int64_t referenced_end = 0;
-  {
-    ASSIGN_OR_RETURN(Statement st,
-                     Statement::Prepare(db,
-                                        "SELECT context_offset, context_bytes "
-                                        "FROM events WHERE context_offset IS "
-                                        "NOT NULL",
-                                        op));
-    while (true) {
-      ASSIGN_OR_RETURN(const bool row, st.Step());
-      if (!row) break;
-      live.emplace_back(st.Int64(0), st.Int64(1));
-      referenced_end = std::max(referenced_end, st.Int64(0) + st.Int64(1));
-    }
+};
+
+absl::StatusOr<ContextRanges> ReadContextRanges(sqlite3* db,
+                                                const std::string& op) {
+  ContextRanges ranges;
+  ASSIGN_OR_RETURN(Statement st,
+                   Statement::Prepare(db,
+                                      "SELECT context_offset, context_bytes "
+                                      "FROM events WHERE context_offset IS "
+                                      "NOT NULL",
+                                      op));
+  while (true) {
+    ASSIGN_OR_RETURN(const bool row, st.Step());
+    if (!row) break;
+    ranges.live.emplace_back(st.Int64(0), st.Int64(1));
+    ranges.referenced_end =
+        std::max(ranges.referenced_end, st.Int64(0) + st.Int64(1));
   }
-  ASSIGN_OR_RETURN(std::unique_ptr<ContextFile> contexts,
-                   ContextFile::Open(path + ".contexts", referenced_end));
-  if (const absl::Status erased = contexts->EraseAllBut(std::move(live));
+  return ranges;
+}
+
+// The end of the newest event's context in the contexts file (0 when no
+// row points there): contexts are appended in the order their events are
+// numbered (both under the store's lock), so it is the furthest, found
+// from the end of the log without reading the rest.
+absl::StatusOr<int64_t> NewestContextEnd(sqlite3* db, const std::string& op) {
+  ASSIGN_OR_RETURN(Statement st,
+                   Statement::Prepare(db,
+                                      "SELECT context_offset + context_bytes "
+                                      "FROM events WHERE context_offset IS "
+                                      "NOT NULL ORDER BY event_id DESC LIMIT 1",
+                                      op));
+  ASSIGN_OR_RETURN(const bool row, st.Step());
+  return row ? st.Int64(0) : 0;
+}
+
+void EraseUnreferenced(ContextFile& contexts, ContextRanges ranges) {
+  if (const absl::Status erased = contexts.EraseAllBut(std::move(ranges.live));
       !erased.ok()) {
     std::fprintf(stderr,
                  "bitewise-bandit: unreferenced contexts were not erased from "
                  "the contexts file (they stay until the next start): %s\n",
                  erased.ToString().c_str());
   }
+}
+
+// The database's contexts file, opened knowing how far its rows point (so a
+// missing file is told from one never used). With `check`, what no row
+// points at is erased now (reading every event's location); otherwise by
+// RunDeferredChecks.
+absl::StatusOr<std::unique_ptr<ContextFile>> OpenContextFile(
+    sqlite3* db, const std::string& path, bool check) {
+  const std::string op = absl::StrCat("opening ", path);
+  if (!check) {
+    ASSIGN_OR_RETURN(const int64_t end, NewestContextEnd(db, op));
+    return ContextFile::Open(path + ".contexts", end);
+  }
+  ASSIGN_OR_RETURN(ContextRanges ranges, ReadContextRanges(db, op));
+  ASSIGN_OR_RETURN(
+      std::unique_ptr<ContextFile> contexts,
+      ContextFile::Open(path + ".contexts", ranges.referenced_end));
+  EraseUnreferenced(*contexts, std::move(ranges));
   return contexts;
 }
 
@@ -131,12 +167,14 @@ absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
   // One process per file: a second one would serve models that miss the
   // first one's updates.
   ASSIGN_OR_RETURN(const int lock_fd, LockStoreFile(options.path));
+  // A private store is as small as a test makes it: checked now.
+  const bool check_now = options.check_at_open || options.path == ":memory:";
   absl::Status ready = InitializeDatabase(db.get(), options);
-  if (ready.ok()) ready = CheckIntegrity(db.get(), options.path);
+  if (ready.ok() && check_now) ready = CheckIntegrity(db.get(), options.path);
   std::unique_ptr<ContextFile> contexts;
   if (ready.ok() && options.path != ":memory:") {
     absl::StatusOr<std::unique_ptr<ContextFile>> opened =
-        OpenContextFile(db.get(), options.path);
+        OpenContextFile(db.get(), options.path, check_now);
     ready = opened.status();
     if (ready.ok()) contexts = *std::move(opened);
   }
@@ -161,15 +199,16 @@ absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
   return std::unique_ptr<SqliteEventStore>(new SqliteEventStore(
       db.release(), lock_fd, options.path, static_cast<uint64_t>(file.st_dev),
       static_cast<uint64_t>(file.st_ino), std::move(contexts),
-      options.context_file_min_bytes, options.synchronous_full));
+      options.context_file_min_bytes, options.synchronous_full, !check_now));
 }
 
 SqliteEventStore::SqliteEventStore(sqlite3* db, int lock_fd, std::string path,
                                    uint64_t device, uint64_t inode,
                                    std::unique_ptr<ContextFile> contexts,
                                    int64_t context_file_min_bytes,
-                                   bool synchronous_full)
-    : db_(db),
+                                   bool synchronous_full, bool checks_deferred)
+    : checks_deferred_(checks_deferred),
+      db_(db),
       statements_(std::make_unique<sqlite::StatementCache>(db)),
       contexts_(std::move(contexts)),
       context_file_min_bytes_(context_file_min_bytes),
@@ -216,6 +255,32 @@ absl::Status SqliteEventStore::ProbeWrite() {
       absl::StrCat("PRAGMA user_version = ", sqlite::kSchemaVersion).c_str(),
       "write probe"));
   return txn.Commit();
+}
+
+absl::Status SqliteEventStore::RunDeferredChecks() {
+  if (!checks_deferred_.exchange(false)) return absl::OkStatus();
+  // The integrity check reads one snapshot on a connection of its own, so
+  // the service's calls go on meanwhile (WAL: readers never wait).
+  {
+    sqlite3* raw = nullptr;
+    const int rc =
+        sqlite3_open_v2(path_.c_str(), &raw,
+                        SQLITE_OPEN_READONLY | SQLITE_OPEN_NOMUTEX, nullptr);
+    std::unique_ptr<sqlite3, SqliteCloser> reader(raw);
+    if (rc != SQLITE_OK) {
+      return SqliteError(reader.get(), rc,
+                         absl::StrCat("checking the integrity of ", path_));
+    }
+    RETURN_IF_ERROR(CheckIntegrity(reader.get(), path_));
+  }
+  if (contexts_ == nullptr) return absl::OkStatus();
+  absl::MutexLock lock(&mu_);
+  ASSIGN_OR_RETURN(
+      ContextRanges ranges,
+      ReadContextRanges(db_, absl::StrCat("checking the contexts of ", path_)));
+  contexts_->ExtendTo(ranges.referenced_end);
+  EraseUnreferenced(*contexts_, std::move(ranges));
+  return absl::OkStatus();
 }
 
 SqliteEventStore::~SqliteEventStore() {

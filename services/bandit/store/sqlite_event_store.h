@@ -38,6 +38,7 @@
 #ifndef BITEWISE_SERVICES_BANDIT_STORE_SQLITE_EVENT_STORE_H_
 #define BITEWISE_SERVICES_BANDIT_STORE_SQLITE_EVENT_STORE_H_
 
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -69,7 +70,8 @@ class SqliteEventStore final : public EventStore {
   // file is not a SQLite database, belongs to another application, has a
   // schema version this build does not know, or is already open in another
   // process (an advisory lock on "<path>.lock"); DATA_LOSS if SQLite's
-  // integrity check finds it damaged, or if its contexts file is missing
+  // integrity check finds it damaged (at open unless check_at_open is false;
+  // then RunDeferredChecks does), or if its contexts file is missing
   // while the database refers to it, or is not ours; INVALID_ARGUMENT for
   // an empty path.
   static absl::StatusOr<std::unique_ptr<SqliteEventStore>> Open(
@@ -97,6 +99,10 @@ class SqliteEventStore final : public EventStore {
   // would then be acknowledged and lost at the next start. Every write
   // checks this first.
   absl::Status CheckHealth() override;
+  // With check_at_open false: SQLite's integrity check on a connection of
+  // its own (other calls go on), then, under the store's lock, every
+  // event's context location read and what no row points at erased.
+  absl::Status RunDeferredChecks() override;
   // Rewrites the database header's schema version in its own transaction,
   // and probes the contexts file (ContextFile::Probe).
   absl::Status ProbeWrite() override;
@@ -131,7 +137,8 @@ class SqliteEventStore final : public EventStore {
  private:
   SqliteEventStore(sqlite3* db, int lock_fd, std::string path, uint64_t device,
                    uint64_t inode, std::unique_ptr<ContextFile> contexts,
-                   int64_t context_file_min_bytes, bool synchronous_full);
+                   int64_t context_file_min_bytes, bool synchronous_full,
+                   bool checks_deferred);
   // The contexts of `user_id`'s events kept in the contexts file, as
   // (offset, length): what to erase once their deletion is committed.
   absl::StatusOr<std::vector<std::pair<int64_t, int64_t>>> ContextRangesLocked(
@@ -164,6 +171,9 @@ class SqliteEventStore final : public EventStore {
       ABSL_LOCKS_EXCLUDED(queue_mu_, mu_);
   void CommitGroup(const std::vector<QueuedWrite*>& group)
       ABSL_LOCKS_EXCLUDED(mu_);
+
+  // Open skipped the checks that read the whole store (check_at_open).
+  std::atomic<bool> checks_deferred_;
 
   absl::Mutex queue_mu_ ABSL_ACQUIRED_BEFORE(mu_);
   std::vector<QueuedWrite*> queue_ ABSL_GUARDED_BY(queue_mu_);

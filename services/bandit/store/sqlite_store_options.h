@@ -33,6 +33,13 @@ struct SqliteStoreOptions {
   // them twice; smaller ones stay in the database, which saves the file's
   // own sync in their commits. A ":memory:" store keeps every context.
   int64_t context_file_min_bytes = 4096;
+  // true: Open runs SQLite's integrity check over the whole file and erases
+  // the contexts file's unreferenced blocks before it returns. Both read
+  // the whole store, so their time grows with it. false: Open reads only
+  // the schema and the newest context's location, and RunDeferredChecks
+  // does both later; the service runs them in the background once it is
+  // SERVING, its writes waiting for them (FaultWatchStore).
+  bool check_at_open = true;
 };
 
 }  // namespace bitewise::bandit

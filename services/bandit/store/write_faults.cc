@@ -59,9 +59,45 @@ FaultWatchStore::FaultWatchStore(std::unique_ptr<EventStore> store,
                                  absl::Duration probe_period)
     : store_(std::move(store)), probe_period_(probe_period) {}
 
+FaultWatchStore::~FaultWatchStore() {
+  if (checker_.joinable()) checker_.join();
+}
+
+void FaultWatchStore::StartDeferredChecks() {
+  {
+    absl::MutexLock lock(&mu_);
+    checked_ = false;
+  }
+  checker_ = std::thread([this] {
+    const absl::Status checked = store_->RunDeferredChecks();
+    FaultObserver observer;
+    {
+      absl::MutexLock lock(&mu_);
+      checked_ = true;
+      damage_ = checked;
+      if (!checked.ok()) {
+        ++faults_;
+        observer = observer_;
+      }
+    }
+    if (observer) observer(checked);
+  });
+}
+
+absl::Status FaultWatchStore::RunDeferredChecks() {
+  absl::MutexLock lock(&mu_);
+  mu_.Await(absl::Condition(&checked_));
+  return damage_;
+}
+
 absl::Status FaultWatchStore::Writable() {
   {
     absl::MutexLock lock(&mu_);
+    mu_.Await(absl::Condition(&checked_));
+    if (!damage_.ok()) {
+      ++faults_;
+      return damage_;
+    }
     if (fault_.ok()) return absl::OkStatus();
   }
   absl::MutexLock probing(&probe_mu_);
@@ -107,6 +143,12 @@ absl::Status FaultWatchStore::Note(absl::Status status) {
 
 absl::Status FaultWatchStore::CheckHealth() {
   RETURN_IF_ERROR(store_->CheckHealth());
+  {
+    // Health does not wait for the deferred checks (writes do).
+    absl::MutexLock lock(&mu_);
+    if (!damage_.ok()) return damage_;
+    if (!checked_) return absl::OkStatus();
+  }
   return Writable();
 }
 

@@ -19,6 +19,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "absl/base/thread_annotations.h"
@@ -57,12 +58,24 @@ class FaultWatchStore : public EventStore {
       std::unique_ptr<EventStore> store,
       absl::Duration probe_period = absl::Milliseconds(200));
 
+  // Joins the deferred checks' thread.
+  ~FaultWatchStore() override;
+
   EventStore& inner() { return *store_; }
+
+  // Runs the store's RunDeferredChecks on a thread of its own. Until it
+  // returns, writes wait for it and reads and health go on; when it fails
+  // (a damaged file), its error is a fault no probe clears: health reports
+  // it and every write is refused with it until the store is restored and
+  // the service restarted. Call once, before the store is used.
+  void StartDeferredChecks();
 
   // The store's own health, then the remembered fault (probing first when
   // a probe is due).
   absl::Status CheckHealth() override;
   absl::Status ProbeWrite() override { return store_->ProbeWrite(); }
+  // Already run by StartDeferredChecks, or OK.
+  absl::Status RunDeferredChecks() override;
   // May be set while the store is in use.
   void SetFaultObserver(FaultObserver observer) override {
     absl::MutexLock lock(&mu_);
@@ -148,6 +161,10 @@ class FaultWatchStore : public EventStore {
   const absl::Duration probe_period_;
   mutable absl::Mutex mu_;
   absl::Status fault_ ABSL_GUARDED_BY(mu_);
+  // The deferred checks: done (or never started), and their failure.
+  bool checked_ ABSL_GUARDED_BY(mu_) = true;
+  absl::Status damage_ ABSL_GUARDED_BY(mu_);
+  std::thread checker_;
   absl::Time last_probe_ ABSL_GUARDED_BY(mu_) = absl::InfinitePast();
   int64_t faults_ ABSL_GUARDED_BY(mu_) = 0;
   FaultObserver observer_ ABSL_GUARDED_BY(mu_);

@@ -38,10 +38,11 @@ class ServerProcess {
  public:
   // Starts the binary on `db`, logging to `log_path` (appended), and returns
   // once the BanditService reports SERVING, with `env` (NAME=value) added to
-  // its environment. Retries on a new port if the chosen one was taken in
-  // the meantime.
+  // its environment (without `wait_serving`: once it listens). Retries on a
+  // new port if the chosen one was taken in the meantime.
   absl::Status Start(const std::string& db, const std::string& log_path,
-                     std::vector<std::string> env = {}) {
+                     std::vector<std::string> env = {},
+                     bool wait_serving = true) {
     if (child_.running())
       return absl::FailedPreconditionError("already running");
     std::string last_error;
@@ -70,7 +71,8 @@ class ServerProcess {
       channel_ = *channel;
       address_ = absl::StrCat("127.0.0.1:", *port);
       absl::Status serving =
-          WaitForServing(channel_, kServiceName, kServingTimeout);
+          wait_serving ? WaitForServing(channel_, kServiceName, kServingTimeout)
+                       : absl::OkStatus();
       if (!serving.ok()) {
         Kill();
         return absl::Status(
@@ -99,6 +101,11 @@ class ServerProcess {
     stub_.reset();
     channel_.reset();
     child_.Kill();
+  }
+
+  // Waits until the log has a line containing `text`.
+  absl::Status WaitForLog(const std::string& text, absl::Duration timeout) {
+    return child_.WaitForLog(text, timeout);
   }
 
   bool running() const { return child_.running(); }

@@ -11,6 +11,7 @@
 #include <fcntl.h>
 #include <linux/fs.h>
 #include <signal.h>
+#include <sqlite3.h>
 #include <stdlib.h>
 #include <sys/ioctl.h>
 #include <sys/resource.h>
@@ -95,8 +96,9 @@ class StoreFaultsTest : public ::testing::Test {
     return absl::StrCat(dir_, "/server-", start, ".log");
   }
 
-  // With the write-fault injector loaded when `injector`.
-  absl::Status StartServer(bool injector) {
+  // With the write-fault injector loaded when `injector`; without
+  // `wait_serving`, returns once it listens.
+  absl::Status StartServer(bool injector, bool wait_serving = true) {
     std::vector<std::string> env;
     if (injector) {
       env = {absl::StrCat("LD_PRELOAD=", BITEWISE_WRITE_FAULT_INJECTOR),
@@ -105,7 +107,7 @@ class StoreFaultsTest : public ::testing::Test {
              // A sanitizer build: its runtime need not come first.
              "ASAN_OPTIONS=verify_asan_link_order=0"};
     }
-    return server_.Start(db_, LogPath(starts_++), env);
+    return server_.Start(db_, LogPath(starts_++), env, wait_serving);
   }
 
   v1::BanditService::Stub& stub() { return server_.stub(); }
@@ -266,6 +268,79 @@ class StoreFaultsTest : public ::testing::Test {
   int starts_ = 0;
   ServerProcess server_;
 };
+
+// The start does not read the whole file (its time does not grow with it):
+// SQLite's integrity check runs once the service listens, and the first
+// write waits for it. A damaged file is then reported by health, named in
+// the log, and never written, however long the service runs.
+TEST_F(StoreFaultsTest, ADamagedFileIsNotServingAndTakesNoWrite) {
+  ASSERT_TRUE(StartServer(/*injector=*/false).ok());
+  ASSERT_NO_FATAL_FAILURE(Feed(60));
+  // A clean stop folds the log into the database file.
+  ASSERT_TRUE(server_.SignalAndWait(SIGTERM, kExitTimeout).ok());
+  ASSERT_FALSE(std::filesystem::exists(db_ + "-wal"));
+  // Garbage over the cell pointers of the event table's indexes' root pages
+  // (found with SQLite itself, read-only). (Damage that the open itself
+  // reads, such as the table's last page, stops the start at once.)
+  std::vector<int64_t> roots;
+  int64_t page_size = 0;
+  {
+    sqlite3* raw = nullptr;
+    ASSERT_EQ(sqlite3_open_v2(db_.c_str(), &raw, SQLITE_OPEN_READONLY, nullptr),
+              SQLITE_OK);
+    sqlite3_stmt* st = nullptr;
+    ASSERT_EQ(sqlite3_prepare_v2(raw,
+                                 "SELECT rootpage, (SELECT page_size FROM "
+                                 "pragma_page_size) FROM sqlite_schema WHERE "
+                                 "tbl_name = 'events' AND type = 'index'",
+                                 -1, &st, nullptr),
+              SQLITE_OK);
+    while (sqlite3_step(st) == SQLITE_ROW) {
+      roots.push_back(sqlite3_column_int64(st, 0));
+      page_size = sqlite3_column_int64(st, 1);
+    }
+    sqlite3_finalize(st);
+    sqlite3_close(raw);
+  }
+  ASSERT_GE(roots.size(), 2u);
+  {
+    std::fstream file(db_, std::ios::in | std::ios::out | std::ios::binary);
+    for (const int64_t root : roots) {
+      file.seekp((root - 1) * page_size + 8);
+      const std::string garbage(64, '\x5a');
+      file.write(garbage.data(), garbage.size());
+    }
+  }
+  const absl::Time started = absl::Now();
+  ASSERT_TRUE(StartServer(/*injector=*/false, /*wait_serving=*/false).ok());
+  absl::StatusOr<absl::Duration> down =
+      TimeUntil(ServingStatus::kNotServing, started);
+  ASSERT_TRUE(down.ok()) << down.status();
+  EXPECT_LT(*down, kHealthBound);
+  ASSERT_TRUE(server_
+                  .WaitForLog(absl::StrCat("health NOT_SERVING: ", db_,
+                                           " failed SQLite's integrity check"),
+                              absl::Seconds(5))
+                  .ok());
+  for (int attempt = 0; attempt < 2; ++attempt) {
+    absl::Status select = Select(stub(), "u", Context(0)).status();
+    EXPECT_EQ(select.code(), absl::StatusCode::kDataLoss) << select;
+    EXPECT_THAT(select.message(),
+                HasSubstr(db_ + " failed SQLite's integrity check"));
+    v1::CreateUserRequest create;
+    create.set_user_id("v");
+    create.mutable_config()->set_context_dim(kContextDim);
+    create.mutable_config()->set_posthoc_dim(kPosthocDim);
+    absl::Status created =
+        Call(stub(), &v1::BanditService::Stub::CreateUser, create).status();
+    EXPECT_EQ(created.code(), absl::StatusCode::kDataLoss) << created;
+    absl::SleepFor(absl::Milliseconds(600));  // probes cannot clear it
+    absl::StatusOr<ServingStatus> still =
+        CheckHealth(server_.channel(), kServiceName, absl::Seconds(2));
+    ASSERT_TRUE(still.ok()) << still.status();
+    EXPECT_EQ(*still, ServingStatus::kNotServing);
+  }
+}
 
 TEST_F(StoreFaultsTest, ADiskFullIsResourceExhaustedAndRecovers) {
   ASSERT_TRUE(StartServer(/*injector=*/true).ok());

@@ -100,6 +100,13 @@ TEST_F(SqliteEventStoreTest, WritesAreRefusedOnceTheFileIsRemoved) {
             absl::StatusCode::kFailedPrecondition);
 }
 
+// The first bytes of `event`'s context as the contexts file holds them.
+std::string ContextPrefix(const EventRecord& event) {
+  std::string bytes(64, '\0');
+  std::memcpy(bytes.data(), event.context.data(), bytes.size());
+  return bytes;
+}
+
 // A file whose pages were damaged is not served as if it were whole.
 TEST_F(SqliteEventStoreTest, ADamagedFileIsDataLossNotAnEmptyStore) {
   ASSERT_TRUE(store_->CreateUser(MakeUser("ann")).ok());
@@ -128,6 +135,68 @@ TEST_F(SqliteEventStoreTest, ADamagedFileIsDataLossNotAnEmptyStore) {
   EXPECT_EQ(store.status().code(), absl::StatusCode::kDataLoss)
       << store.status();
   EXPECT_THAT(store.status().message(), HasSubstr(path_));
+
+  // The service's way (the check deferred to a thread once it serves): the
+  // open succeeds without reading the file, the check finds the same
+  // damage, health reports it and no write goes in, now or after a probe.
+  OpenStoreOptions deferred;
+  deferred.defer_full_check = true;
+  auto watched = OpenEventStore(path_, deferred);
+  ASSERT_TRUE(watched.ok()) << watched.status();
+  const absl::Status checked = (*watched)->RunDeferredChecks();  // waits
+  EXPECT_EQ(checked.code(), absl::StatusCode::kDataLoss) << checked;
+  EXPECT_THAT(checked.message(),
+              HasSubstr(path_ + " failed SQLite's integrity check"));
+  const absl::Status health = (*watched)->CheckHealth();
+  EXPECT_EQ(health, checked);
+  const auto refused = (*watched)->AppendPending(MakeEvent("ann", "m2"));
+  EXPECT_EQ(refused.status(), checked);
+  EXPECT_EQ((*watched)->CreateUser(MakeUser("bob")), checked);
+  absl::SleepFor(absl::Milliseconds(250));  // past a probe period
+  EXPECT_EQ((*watched)->CheckHealth(), checked);
+  EXPECT_EQ((*watched)->CreateUser(MakeUser("bob")), checked);
+  EXPECT_GE((*watched)->write_stats().write_faults, 3);
+}
+
+// Deferred or not, the checks keep the same promises: a contexts file
+// missing while rows point into it is refused at open; bytes no row points
+// at are erased (by RunDeferredChecks, not by the open); and writes made
+// after it go after everything the rows point at.
+TEST_F(SqliteEventStoreTest, DeferredChecksKeepTheOpensPromises) {
+  const std::string file = path_ + ".contexts";
+  ASSERT_TRUE(store_->CreateUser(MakeUser("ann")).ok());
+  const int64_t kept = MustAppend(LargeEvent("ann", 0.5));
+  const int64_t small = MustAppend(MakeEvent("ann", "m"));  // after it
+  EXPECT_EQ(store_->AppendPending(LargeEvent("ghost", 3.75)).status().code(),
+            absl::StatusCode::kNotFound);
+  store_ = nullptr;
+  const std::string ghost = ContextPrefix(LargeEvent("ghost", 3.75));
+  SqliteStoreOptions options;
+  options.path = path_;
+  options.check_at_open = false;
+  {
+    const std::string whole = FileBytes(file);
+    std::filesystem::remove(file);
+    auto missing = SqliteEventStore::Open(options);
+    EXPECT_EQ(missing.status().code(), absl::StatusCode::kDataLoss);
+    EXPECT_THAT(missing.status().message(), HasSubstr(file));
+    std::ofstream(file, std::ios::binary) << whole;
+  }
+  auto store = SqliteEventStore::Open(options);
+  ASSERT_TRUE(store.ok()) << store.status();
+  EXPECT_NE(FileBytes(file).find(ghost), std::string::npos);  // not yet
+  EXPECT_EQ((*store)->GetEvent(kept)->context, LargeEvent("ann", 0.5).context);
+  ASSERT_TRUE((*store)->RunDeferredChecks().ok());
+  EXPECT_EQ(FileBytes(file).find(ghost), std::string::npos);
+  ASSERT_TRUE((*store)->RunDeferredChecks().ok());  // once is enough
+  const auto next = (*store)->AppendPending(LargeEvent("ann", 2.0));
+  ASSERT_TRUE(next.ok()) << next.status();
+  EXPECT_EQ((*store)->GetEvent(*next)->context, LargeEvent("ann", 2.0).context);
+  EXPECT_EQ((*store)->GetEvent(kept)->context, LargeEvent("ann", 0.5).context);
+  EXPECT_TRUE((*store)->GetEvent(small).ok());
+  auto check = (*store)->CheckStore();
+  ASSERT_TRUE(check.ok()) << check.status();
+  EXPECT_THAT(check->findings, IsEmpty());
 }
 
 // Turns the current store at `path` back into what a version 5 build wrote:
@@ -444,13 +513,6 @@ TEST_F(SqliteEventStoreTest, ADamagedContextIsDataLossNamingTheEvent) {
       kept));
   EXPECT_EQ(store_->GetEvent(kept).status().code(),
             absl::StatusCode::kDataLoss);
-}
-
-// The first bytes of `event`'s context as the contexts file holds them.
-std::string ContextPrefix(const EventRecord& event) {
-  std::string bytes(64, '\0');
-  std::memcpy(bytes.data(), event.context.data(), bytes.size());
-  return bytes;
 }
 
 TEST_F(SqliteEventStoreTest, UnreferencedContextsAreErasedAtOpen) {
