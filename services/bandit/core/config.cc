@@ -13,6 +13,8 @@ const char* LearnerName(Learner learner) {
       return "posthoc";
     case Learner::kContextOnly:
       return "context_only";
+    case Learner::kPoLinUcb:
+      return "polinucb";
   }
   return "unknown";
 }
@@ -46,7 +48,8 @@ absl::Status ValidateConfig(const BanditConfig& config) {
     return absl::InvalidArgumentError(absl::StrCat(parts...));
   };
   if (config.learner != Learner::kPostHoc &&
-      config.learner != Learner::kContextOnly) {
+      config.learner != Learner::kContextOnly &&
+      config.learner != Learner::kPoLinUcb) {
     return bad("learner: unknown value ", static_cast<int>(config.learner));
   }
   if (static_cast<int>(config.strategy) < 1 ||
@@ -62,6 +65,9 @@ absl::Status ValidateConfig(const BanditConfig& config) {
   if (!std::isfinite(config.lambda_p) || config.lambda_p <= 0) {
     return bad("lambda_p: must be finite and > 0, got ", config.lambda_p);
   }
+  if (!std::isfinite(config.phi_radius) || config.phi_radius < 0) {
+    return bad("phi_radius: must be finite and >= 0, got ", config.phi_radius);
+  }
   if (!std::isfinite(config.epsilon) || config.epsilon < 0 ||
       config.epsilon > 1) {
     return bad("epsilon: must be in [0, 1], got ", config.epsilon);
@@ -74,8 +80,9 @@ absl::Status ValidateConfig(const BanditConfig& config) {
   if (config.posthoc_dim < 0 || config.posthoc_dim > 1024) {
     return bad("posthoc_dim: must be in [0, 1024], got ", config.posthoc_dim);
   }
-  if (config.learner == Learner::kPostHoc && config.posthoc_dim < 1) {
-    return bad("posthoc_dim: the post hoc learner needs posthoc_dim >= 1");
+  if (UsesPosthoc(config.learner) && config.posthoc_dim < 1) {
+    return bad("posthoc_dim: the ", LearnerName(config.learner),
+               " learner needs posthoc_dim >= 1");
   }
   if (config.num_actions() < 1 || config.num_actions() > 256) {
     return bad("action_names: need between 1 and 256 actions, got ",
@@ -102,7 +109,7 @@ absl::Status ValidateConfig(const BanditConfig& config) {
     return bad("prior.rounds: must be finite and >= 0, got ", prior.rounds);
   }
   if (prior.enabled()) {
-    const bool posthoc = config.learner == Learner::kPostHoc;
+    const bool posthoc = UsesPosthoc(config.learner);
     if (!std::isfinite(prior.context_msn) || prior.context_msn <= 0 ||
         (posthoc &&
          (!std::isfinite(prior.posthoc_msn) || prior.posthoc_msn <= 0))) {

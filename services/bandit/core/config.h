@@ -15,7 +15,14 @@ namespace bitewise::bandit {
 enum class Learner {
   kPostHoc = 1,      // post hoc augmented LinUCB (Gordon et al. 2021)
   kContextOnly = 2,  // classic LinUCB on the visual context
+  kPoLinUcb = 3,     // poLinUCB (Wang et al. 2023), post-serving contexts
 };
+
+// Whether the learner learns from the post hoc context (needs
+// posthoc_dim >= 1 and one in every Update).
+inline bool UsesPosthoc(Learner learner) {
+  return learner == Learner::kPostHoc || learner == Learner::kPoLinUcb;
+}
 
 enum class Strategy {
   kLinUcb = 1,  // argmin lcb_a, ties to the lowest index
@@ -63,6 +70,9 @@ struct BanditConfig {
   double lambda_c = 1000.0;
   // Ridge on the post hoc terms (S_pp and M_a = lambda_p I + ...).
   double lambda_p = 1.0;
+  // poLinUCB: the post hoc context a Select predicts, p_hat(c), is trusted
+  // to a ball of radius phi_radius * sqrt(c^T X^-1 c) (docs/algorithms.md).
+  double phi_radius = 1.0;
   // Probability of a uniform random action under epsilon-greedy.
   double epsilon = 0.1;
   // Weight each round by 1/propensity of the action taken.

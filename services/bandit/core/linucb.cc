@@ -7,6 +7,7 @@
 #include <utility>
 
 #include "absl/strings/str_cat.h"
+#include "services/bandit/core/model_state_io.h"
 #include "services/common/status_macros.h"
 
 namespace bitewise::bandit {
@@ -19,77 +20,6 @@ Eigen::Map<const VectorXd> AsVector(absl::Span<const double> v) {
   return Eigen::Map<const VectorXd>(v.data(),
                                     static_cast<Eigen::Index>(v.size()));
 }
-
-absl::Status ValidateVector(const char* field, absl::Span<const double> v,
-                            size_t expected) {
-  if (v.size() != expected) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        field, ": expected ", expected, " values, got ", v.size()));
-  }
-  for (size_t i = 0; i < v.size(); ++i) {
-    if (!std::isfinite(v[i])) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(field, "[", i, "]: must be finite, got ", v[i]));
-    }
-    if (std::abs(v[i]) > kMaxInputMagnitude) {
-      return absl::InvalidArgumentError(
-          absl::StrCat(field, "[", i, "]: magnitude must be at most ",
-                       kMaxInputMagnitude, ", got ", v[i]));
-    }
-  }
-  return absl::OkStatus();
-}
-
-// Appends raw float64 and integer values (the host's layout; a marker in
-// the header tells another layout apart).
-class StateWriter {
- public:
-  // Writes into `buffer`'s storage (cleared, its capacity kept).
-  StateWriter(std::string buffer, size_t reserve) : out_(std::move(buffer)) {
-    out_.clear();
-    out_.reserve(reserve);
-  }
-  template <typename T>
-  void Value(T v) {
-    out_.append(reinterpret_cast<const char*>(&v), sizeof(v));
-  }
-  void Doubles(const double* data, size_t n) {
-    if (n == 0) return;  // data may be null
-    out_.append(reinterpret_cast<const char*>(data), n * sizeof(double));
-  }
-  std::string Take() { return std::move(out_); }
-
- private:
-  std::string out_;
-};
-
-class StateReader {
- public:
-  explicit StateReader(absl::string_view in) : in_(in) {}
-  template <typename T>
-  absl::Status Value(T* v, const char* what) {
-    return Read(v, sizeof(T), what);
-  }
-  absl::Status Doubles(double* data, size_t n, const char* what) {
-    return Read(data, n * sizeof(double), what);
-  }
-  size_t left() const { return in_.size() - pos_; }
-
- private:
-  absl::Status Read(void* out, size_t bytes, const char* what) {
-    if (left() < bytes) {
-      return absl::DataLossError(absl::StrCat("model state: truncated in ",
-                                              what, " at byte ", pos_, " of ",
-                                              in_.size()));
-    }
-    if (bytes == 0) return absl::OkStatus();  // out may be null
-    std::memcpy(out, in_.data() + pos_, bytes);
-    pos_ += bytes;
-    return absl::OkStatus();
-  }
-  absl::string_view in_;
-  size_t pos_ = 0;
-};
 
 // A x for a symmetric A of which only the lower triangle is read, and a
 // thin x (d x k): one pass over the triangle, column by column (Eigen's
@@ -213,7 +143,8 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Create(const BanditConfig& config,
 
 absl::Status LinUcbModel::ValidateContext(
     absl::Span<const double> context) const {
-  return ValidateVector("context", context, static_cast<size_t>(d_));
+  return ValidateVector("context", context, static_cast<size_t>(d_),
+                        kMaxInputMagnitude);
 }
 
 absl::Status LinUcbModel::ValidateOutcome(
@@ -224,7 +155,8 @@ absl::Status LinUcbModel::ValidateOutcome(
   }
   if (!this->posthoc() && posthoc.empty()) return absl::OkStatus();
   return ValidateVector("posthoc", posthoc,
-                        static_cast<size_t>(config_.posthoc_dim));
+                        static_cast<size_t>(config_.posthoc_dim),
+                        kMaxInputMagnitude);
 }
 
 absl::Status LinUcbModel::ValidateRound(const Round& round) const {

@@ -202,6 +202,11 @@ class LinUcbModel {
   // equal to rounding. Every round must pass ValidateRound.
   void Replay(const std::vector<Round>& rounds);
 
+  // A_a^-1 x for a d-vector x (one pass over the action's form).
+  Eigen::VectorXd SolveA(int action, const Eigen::VectorXd& x) const {
+    return ApplyAInverse(actions_[action], x);
+  }
+
   // theta_a (length d) and phi_a = H theta_a (length q; empty for the
   // context-only learner).
   Eigen::VectorXd Theta(int action) const;
