@@ -1,11 +1,12 @@
 #include "experiments/mnist_experiment.h"
 
+#include <memory>
 #include <random>
 
 #include "Eigen/Dense"
 #include "absl/strings/str_cat.h"
 #include "experiments/pca.h"
-#include "services/bandit/core/linucb.h"
+#include "services/bandit/core/learners.h"
 #include "services/bandit/core/policy.h"
 #include "services/common/status_macros.h"
 #include "services/domain/random.h"
@@ -59,7 +60,7 @@ std::vector<double> Row(const Eigen::MatrixXd& m, int i) {
   return v;
 }
 
-double ContextModelTestMse(const bandit::LinUcbModel& model,
+double ContextModelTestMse(const bandit::LearnerModel& model,
                            const MnistProblem& problem) {
   Eigen::MatrixXd theta(problem.test_contexts.cols(), problem.num_actions);
   for (int a = 0; a < problem.num_actions; ++a) theta.col(a) = model.Theta(a);
@@ -139,12 +140,14 @@ absl::StatusOr<LearningCurve> RunLearningSpeedTrial(const MnistProblem& problem,
       DrawPosthocMap(problem.num_actions, config.posthoc_dim, seed);
   // The post hoc context of every test digit, for the post hoc model's MSE.
   const Eigen::MatrixXd test_posthoc = problem.test_losses * b.transpose();
-  ASSIGN_OR_RETURN(auto context_only,
-                   bandit::LinUcbModel::Create(LearnerConfig(
+  ASSIGN_OR_RETURN(std::unique_ptr<bandit::LearnerModel> context_owned,
+                   bandit::CreateModel(LearnerConfig(
                        problem, config, bandit::Learner::kContextOnly)));
-  ASSIGN_OR_RETURN(auto posthoc,
-                   bandit::LinUcbModel::Create(LearnerConfig(
+  ASSIGN_OR_RETURN(std::unique_ptr<bandit::LearnerModel> posthoc_owned,
+                   bandit::CreateModel(LearnerConfig(
                        problem, config, bandit::Learner::kPostHoc)));
+  bandit::LearnerModel& context_only = *context_owned;
+  bandit::LearnerModel& posthoc = *posthoc_owned;
   std::mt19937_64 rng(random::MixSeed(seed, 1));
   LearningCurve curve;
   auto evaluate = [&](int round) {
@@ -181,8 +184,10 @@ absl::StatusOr<std::vector<double>> RunMnistRegretTrial(
     bandit::Learner learner, uint64_t seed) {
   const Eigen::MatrixXd b =
       DrawPosthocMap(problem.num_actions, config.posthoc_dim, seed);
-  ASSIGN_OR_RETURN(auto model, bandit::LinUcbModel::Create(
-                                   LearnerConfig(problem, config, learner)));
+  ASSIGN_OR_RETURN(
+      std::unique_ptr<bandit::LearnerModel> owned,
+      bandit::CreateModel(LearnerConfig(problem, config, learner)));
+  bandit::LearnerModel& model = *owned;
   std::mt19937_64 rng(random::MixSeed(seed, 2));
   const int n = static_cast<int>(problem.test_contexts.rows());
   const int rounds = config.regret_rounds > 0 ? config.regret_rounds : n;
@@ -198,7 +203,7 @@ absl::StatusOr<std::vector<double>> RunMnistRegretTrial(
     round.loss = problem.test_losses(i, round.action);
     total += round.loss - problem.test_losses.row(i).minCoeff();
     cumulative[t] = total;
-    if (learner == bandit::Learner::kPostHoc) {
+    if (bandit::UsesPosthoc(learner)) {
       const Eigen::VectorXd p = b * problem.test_losses.row(i).transpose();
       round.posthoc.assign(p.data(), p.data() + p.size());
     }

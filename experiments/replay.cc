@@ -3,12 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 #include <random>
 #include <string>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
-#include "services/bandit/core/linucb.h"
+#include "services/bandit/core/learners.h"
 #include "services/bandit/core/policy.h"
 #include "services/common/status_macros.h"
 #include "services/domain/random.h"
@@ -96,7 +97,7 @@ absl::StatusOr<ReplayEstimate> ReplaySettingOnLog(const EventLog& log,
   if (n == 0 || replays < 1) {
     return absl::InvalidArgumentError("need events and at least one replay");
   }
-  const bool posthoc = setting.learner == bandit::Learner::kPostHoc;
+  const bool posthoc = bandit::UsesPosthoc(setting.learner);
   if (posthoc && log.events.front().posthoc.empty()) {
     return absl::InvalidArgumentError(
         "the post hoc learner needs post hoc contexts in the log");
@@ -116,7 +117,9 @@ absl::StatusOr<ReplayEstimate> ReplaySettingOnLog(const EventLog& log,
   }
   std::vector<double> dm_totals, dr_totals;
   for (int r = 0; r < replays; ++r) {
-    ASSIGN_OR_RETURN(auto model, bandit::LinUcbModel::Create(config));
+    ASSIGN_OR_RETURN(std::unique_ptr<bandit::LearnerModel> owned,
+                     bandit::CreateModel(config));
+    bandit::LearnerModel& model = *owned;
     std::mt19937_64 rng(random::MixSeed(seed, r));
     double dm = 0.0, dr = 0.0;
     for (int t = 0; t < n; ++t) {

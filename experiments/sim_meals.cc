@@ -7,7 +7,7 @@
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
 #include "opencv2/core.hpp"
-#include "services/bandit/core/linucb.h"
+#include "services/bandit/core/learners.h"
 #include "services/bandit/core/policy.h"
 #include "services/common/status_macros.h"
 #include "services/domain/context_ridge.h"
@@ -357,7 +357,7 @@ bandit::BanditConfig SimUserConfig(const SimMealsConfig& config,
 absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
                                        HapticContext kind, uint64_t seed,
                                        int64_t first_round,
-                                       bandit::LinUcbModel& model) {
+                                       bandit::LearnerModel& model) {
   const bandit::BanditConfig& bandit_config = model.config();
   SimMealRun run;
   double failures = 0.0;
@@ -374,7 +374,7 @@ absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
     round.context = attempt.context;
     round.action = choice.action;
     round.loss = failed ? 1.0 : 0.0;
-    if (bandit_config.learner == bandit::Learner::kPostHoc) {
+    if (bandit::UsesPosthoc(bandit_config.learner)) {
       round.posthoc = PosthocContext(attempt.haptic, kind);
     }
     RETURN_IF_ERROR(model.ValidateRound(round));
@@ -396,11 +396,11 @@ absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
     return absl::InvalidArgumentError("the world has no attempts");
   }
   ASSIGN_OR_RETURN(
-      bandit::LinUcbModel model,
-      bandit::LinUcbModel::Create(SimUserConfig(
+      std::unique_ptr<bandit::LearnerModel> model,
+      bandit::CreateModel(SimUserConfig(
           config, learner, strategy,
           static_cast<int>(world.attempts.front().context.size()), seed)));
-  return PlaySimMeal(world, kind, seed, /*first_round=*/0, model);
+  return PlaySimMeal(world, kind, seed, /*first_round=*/0, *model);
 }
 
 std::vector<double> OracleExpectedFailures(const SimMealWorld& world) {

@@ -27,7 +27,7 @@
 
 #include "absl/status/statusor.h"
 #include "services/bandit/core/config.h"
-#include "services/bandit/core/linucb.h"
+#include "services/bandit/core/learner_model.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/perception/default_featurizer.h"
 #include "services/perception/featurizer.h"
@@ -216,7 +216,7 @@ bandit::BanditConfig SimUserConfig(const SimMealsConfig& config,
 absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
                                        HapticContext kind, uint64_t seed,
                                        int64_t first_round,
-                                       bandit::LinUcbModel& model);
+                                       bandit::LearnerModel& model);
 
 absl::StatusOr<SimMealRun> RunSimMealTrial(
     const SimMealsConfig& config, const SimMealWorld& world,

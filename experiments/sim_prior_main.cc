@@ -20,6 +20,7 @@
 #include "absl/strings/str_split.h"
 #include "experiments/sim_meals.h"
 #include "experiments/trial_stats.h"
+#include "services/bandit/core/learners.h"
 #include "services/bandit/core/population_prior.h"
 #include "services/common/flags_usage.h"
 #include "services/domain/random.h"
@@ -92,10 +93,10 @@ int Run() {
   std::vector<std::vector<double>> with(weights.size()), diff(weights.size());
   for (int f = 0; f < facilities; ++f) {
     const uint64_t facility_seed = random::MixSeed(base, 1000 + f);
-    std::vector<bandit::LinUcbModel> pool;
+    std::vector<std::unique_ptr<bandit::LearnerModel>> pool;
     for (int u = 0; u < pool_users; ++u) {
       const uint64_t user_seed = random::MixSeed(facility_seed, u);
-      std::optional<bandit::LinUcbModel> model;
+      std::unique_ptr<bandit::LearnerModel> model;
       int64_t rounds = 0;
       for (int m = 0; m < pool_meals; ++m) {
         auto world =
@@ -105,22 +106,22 @@ int Run() {
           return 1;
         }
         if (!model) {
-          auto created = bandit::LinUcbModel::Create(SimUserConfig(
+          auto created = bandit::CreateModel(SimUserConfig(
               meal, bandit::Learner::kPostHoc, bandit::Strategy::kLinUcb,
               static_cast<int>(world->attempts.front().context.size()),
               user_seed));
           if (!created.ok()) return 1;
-          model.emplace(std::move(created).value());
+          model = *std::move(created);
         }
         auto run = PlaySimMeal(*world, HapticContext::kLogProbabilities,
                                user_seed, rounds, *model);
         if (!run.ok()) return 1;
         rounds += static_cast<int64_t>(world->attempts.size());
       }
-      pool.push_back(std::move(*model));
+      pool.push_back(std::move(model));
     }
-    std::vector<const bandit::LinUcbModel*> pointers;
-    for (const auto& m : pool) pointers.push_back(&m);
+    std::vector<const bandit::LearnerModel*> pointers;
+    for (const auto& m : pool) pointers.push_back(m.get());
     std::vector<bandit::PopulationPrior> priors;
     for (double n0 : weights) {
       auto prior = bandit::PooledPrior(pointers, n0, /*pool_version=*/1);
@@ -140,13 +141,13 @@ int Run() {
       const double base_failures = plain->cumulative_failures.back();
       without.push_back(base_failures);
       for (size_t w = 0; w < weights.size(); ++w) {
-        auto model = bandit::LinUcbModel::Create(SimUserConfig(
+        auto model = bandit::CreateModel(SimUserConfig(
             meal, bandit::Learner::kPostHoc, bandit::Strategy::kLinUcb,
             static_cast<int>(world->attempts.front().context.size()), seed,
             priors[w]));
         if (!model.ok()) return 1;
         auto run = PlaySimMeal(*world, HapticContext::kLogProbabilities, seed,
-                               0, *model);
+                               0, **model);
         if (!run.ok()) return 1;
         with[w].push_back(run->cumulative_failures.back());
         diff[w].push_back(base_failures - run->cumulative_failures.back());

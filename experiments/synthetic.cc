@@ -1,10 +1,11 @@
 #include "experiments/synthetic.h"
 
+#include <memory>
 #include <random>
 #include <string>
 
 #include "absl/strings/str_cat.h"
-#include "services/bandit/core/linucb.h"
+#include "services/bandit/core/learners.h"
 #include "services/bandit/core/policy.h"
 #include "services/common/status_macros.h"
 #include "services/domain/random.h"
@@ -47,7 +48,9 @@ absl::StatusOr<std::vector<double>> RunSyntheticTrial(
   for (int a = 0; a < config.num_actions; ++a) {
     bc.action_names.push_back(absl::StrCat("a", a));
   }
-  ASSIGN_OR_RETURN(bandit::LinUcbModel model, bandit::LinUcbModel::Create(bc));
+  ASSIGN_OR_RETURN(std::unique_ptr<bandit::LearnerModel> owned,
+                   bandit::CreateModel(bc));
+  bandit::LearnerModel& model = *owned;
 
   std::vector<double> cumulative(config.rounds);
   double total = 0.0;
@@ -70,7 +73,7 @@ absl::StatusOr<std::vector<double>> RunSyntheticTrial(
     round.loss = config.loss == SyntheticLoss::kLinear
                      ? mean_loss(action)
                      : (world.coins(t) < mean_loss(action) ? 1.0 : 0.0);
-    if (learner == bandit::Learner::kPostHoc) {
+    if (bandit::UsesPosthoc(learner)) {
       round.posthoc.assign(p.data(), p.data() + p.size());
     }
     RETURN_IF_ERROR(model.ValidateRound(round));

@@ -5,6 +5,7 @@
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "google/protobuf/timestamp.pb.h"
+#include "services/bandit/core/learners.h"
 
 namespace bitewise::bandit {
 namespace {
@@ -37,18 +38,16 @@ absl::StatusOr<BanditConfig> ConfigFromProto(const v1::UserConfig& proto,
                                              const BanditConfig& defaults,
                                              const std::string& user_id) {
   BanditConfig config = defaults;
-  switch (proto.learner()) {
-    case v1::LEARNER_UNSPECIFIED:
-      break;
-    case v1::LEARNER_POSTHOC:
-      config.learner = Learner::kPostHoc;
-      break;
-    case v1::LEARNER_CONTEXT_ONLY:
-      config.learner = Learner::kContextOnly;
-      break;
-    default:
+  // The API's LEARNER_* numbers are the learners' own (learners.h).
+  if (proto.learner() != v1::LEARNER_UNSPECIFIED) {
+    const LearnerSpec* spec =
+        FindLearner(static_cast<Learner>(proto.learner()));
+    if (spec == nullptr) {
       return absl::InvalidArgumentError(
-          absl::StrCat("config.learner: unknown value ", proto.learner()));
+          absl::StrCat("config.learner: unknown value ", proto.learner(),
+                       " (known: ", LearnerNames(), ")"));
+    }
+    config.learner = spec->learner;
   }
   switch (proto.strategy()) {
     case v1::STRATEGY_UNSPECIFIED:
@@ -99,9 +98,7 @@ absl::StatusOr<BanditConfig> ConfigFromProto(const v1::UserConfig& proto,
 }
 
 void ConfigToProto(const BanditConfig& config, v1::UserConfig* proto) {
-  proto->set_learner(config.learner == Learner::kPostHoc
-                         ? v1::LEARNER_POSTHOC
-                         : v1::LEARNER_CONTEXT_ONLY);
+  proto->set_learner(static_cast<v1::Learner>(config.learner));
   proto->set_strategy(static_cast<v1::Strategy>(config.strategy));
   proto->set_alpha(config.alpha);
   proto->set_lambda_c(config.lambda_c);
@@ -125,9 +122,7 @@ void PoolToProto(const PoolRecord& pool, v1::PopulationPool* proto) {
   proto->set_users(pool.users);
   TimeToProto(pool.created_at, proto->mutable_created_at());
   v1::UserConfig* like = proto->mutable_like();
-  like->set_learner(pool.learner == Learner::kPostHoc
-                        ? v1::LEARNER_POSTHOC
-                        : v1::LEARNER_CONTEXT_ONLY);
+  like->set_learner(static_cast<v1::Learner>(pool.learner));
   like->set_context_dim(static_cast<uint32_t>(pool.context_dim));
   like->set_posthoc_dim(static_cast<uint32_t>(pool.posthoc_dim));
   for (const std::string& name : pool.action_names) {

@@ -9,6 +9,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/time/clock.h"
+#include "services/bandit/core/learners.h"
 #include "services/bandit/core/policy.h"
 #include "services/bandit/core/population_prior.h"
 #include "services/common/status_macros.h"
@@ -82,7 +83,7 @@ int BanditEngine::CheckpointAll(absl::Duration budget) {
     if (absl::Now() > deadline || options_.checkpoint_min_events <= 0) break;
     {
       absl::MutexLock lock(&slot->mu);
-      if (!slot->model.has_value() ||
+      if (slot->model == nullptr ||
           slot->model->TotalRounds() - slot->checkpoint_version <
               options_.checkpoint_min_events) {
         continue;
@@ -120,7 +121,7 @@ absl::Status BanditEngine::MaybeCheckpoint(
       // called waiting for the lock.)
       return absl::OkStatus();
     }
-    const bool loaded = slot.model.has_value();
+    const bool loaded = slot.model != nullptr;
     const int64_t version = loaded ? slot.model->TotalRounds() : 0;
     const int64_t fresh =
         version - std::max(slot.checkpoint_version, slot.checkpoint_saving);
@@ -162,7 +163,7 @@ absl::Status BanditEngine::MaybeCheckpoint(
     // (reset or deleted, by another replica): the model is stale, and is
     // dropped rather than offered again every poll.
     absl::MutexLock lock(&slot.mu);
-    if (slot.model.has_value() &&
+    if (slot.model != nullptr &&
         slot.model->TotalRounds() == checkpoint.model_version &&
         slot.last_event_id == checkpoint.last_event_id) {
       Unload(slot);
@@ -179,16 +180,16 @@ absl::Status BanditEngine::MaybeCheckpoint(
   return absl::OkStatus();
 }
 
-std::optional<LinUcbModel> BanditEngine::LoadFromCheckpoint(
+std::unique_ptr<LearnerModel> BanditEngine::LoadFromCheckpoint(
     const UserRecord& record, int64_t* last_event_id,
     int64_t* checkpoint_version) {
   const std::string& user_id = record.user_id;
   absl::StatusOr<ModelCheckpoint> checkpoint = store_->GetCheckpoint(user_id);
   if (!checkpoint.ok() && absl::IsNotFound(checkpoint.status())) {
-    return std::nullopt;
+    return nullptr;
   }
   absl::Status why = checkpoint.status();
-  std::optional<LinUcbModel> model;
+  std::unique_ptr<LearnerModel> model;
   if (why.ok() && checkpoint->model_version > record.model_version) {
     why = absl::FailedPreconditionError("it is newer than the log");
   }
@@ -204,10 +205,10 @@ std::optional<LinUcbModel> BanditEngine::LoadFromCheckpoint(
                      checkpoint->model_version));
   }
   if (why.ok()) {
-    absl::StatusOr<LinUcbModel> loaded = LinUcbModel::LoadState(
-        record.config, checkpoint->state, options_.primal_threshold);
+    absl::StatusOr<std::unique_ptr<LearnerModel>> loaded =
+        LoadModel(record.config, checkpoint->state, options_.primal_threshold);
     why = loaded.status();
-    if (why.ok()) model.emplace(std::move(loaded).value());
+    if (why.ok()) model = *std::move(loaded);
   }
   if (why.ok()) {
     std::vector<Round> rounds;
@@ -227,7 +228,7 @@ std::optional<LinUcbModel> BanditEngine::LoadFromCheckpoint(
         why.ToString(absl::StatusToStringMode::kWithNoExtraData).c_str());
     absl::MutexLock lock(&cache_mu_);
     ++counters_.checkpoints_ignored;
-    return std::nullopt;
+    return nullptr;
   }
   *last_event_id = tail->back().event_id;
   *checkpoint_version = checkpoint->model_version;
@@ -254,7 +255,7 @@ absl::StatusOr<std::shared_ptr<BanditEngine::UserSlot>> BanditEngine::Slot(
 
 absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
                                         UserSlot& slot) {
-  if (slot.model.has_value()) {
+  if (slot.model != nullptr) {
     {
       absl::MutexLock lock(&cache_mu_);
       ++counters_.hits;
@@ -265,11 +266,11 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
   const absl::Time start = absl::Now();
   ASSIGN_OR_RETURN(UserRecord record, store_->GetUser(user_id));
   int64_t last_event_id = 0, checkpoint_version = 0;
-  std::optional<LinUcbModel> model;
+  std::unique_ptr<LearnerModel> model;
   if (record.model_version > 0) {
     model = LoadFromCheckpoint(record, &last_event_id, &checkpoint_version);
   }
-  if (!model.has_value()) {
+  if (model == nullptr) {
     ASSIGN_OR_RETURN(std::vector<EventRecord> events,
                      store_->CompletedEvents(user_id));
     last_event_id = events.empty() ? 0 : events.back().event_id;
@@ -280,9 +281,7 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
     }
     std::vector<EventRecord>().swap(events);
     ASSIGN_OR_RETURN(
-        LinUcbModel rebuilt,
-        LinUcbModel::Rebuild(record.config, rounds, options_.primal_threshold));
-    model.emplace(std::move(rebuilt));
+        model, RebuildModel(record.config, rounds, options_.primal_threshold));
   }
   // Selects since creation or reset index the user's random stream. With
   // replicas the log may have moved between the reads: the model counts
@@ -291,7 +290,7 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
   record.model_version = model->TotalRounds();
   record.pending_events = slot.select_count - record.model_version;
   slot.record = std::move(record);
-  slot.model.emplace(std::move(*model));
+  slot.model = std::move(model);
   slot.last_event_id = last_event_id;
   slot.checkpoint_version = checkpoint_version;
   {
@@ -306,14 +305,14 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
 absl::Status BanditEngine::Sync(const std::string& user_id, UserSlot& slot) {
   if (!store_->shared()) return EnsureLoaded(user_id, slot);
   ASSIGN_OR_RETURN(UserLogPosition log, store_->LogPosition(user_id));
-  if (slot.model.has_value() &&
+  if (slot.model != nullptr &&
       (log.incarnation != slot.record.incarnation ||
        log.model_version < slot.record.model_version)) {
     Unload(slot);
     absl::MutexLock cache(&cache_mu_);
     ++counters_.dropped_stale;
   }
-  if (slot.model.has_value() && log.model_version > slot.record.model_version) {
+  if (slot.model != nullptr && log.model_version > slot.record.model_version) {
     ASSIGN_OR_RETURN(
         std::vector<EventRecord> events,
         store_->CompletedEventsFrom(user_id, slot.record.model_version + 1));
@@ -336,12 +335,12 @@ absl::Status BanditEngine::Sync(const std::string& user_id, UserSlot& slot) {
       version = event_version;
       slot.last_event_id = event_id;
     }
-    if (slot.model.has_value() && version < log.model_version) {
+    if (slot.model != nullptr && version < log.model_version) {
       // Fewer events than the position said (the log started over
       // meanwhile): start afresh rather than from a shifted random stream.
       Unload(slot);
     }
-    if (slot.model.has_value() && !events.empty()) {
+    if (slot.model != nullptr && !events.empty()) {
       // The events were read after the position: if the log started over
       // in between (a new incarnation, never an old one again), some may
       // be the new log's. The model is then of neither.
@@ -355,7 +354,7 @@ absl::Status BanditEngine::Sync(const std::string& user_id, UserSlot& slot) {
       }
       if (after->incarnation != log.incarnation) Unload(slot);
     }
-    if (slot.model.has_value()) {
+    if (slot.model != nullptr) {
       // The Select products were of the older model.
       slot.products_event = 0;
       slot.products = SelectProducts();
@@ -364,7 +363,7 @@ absl::Status BanditEngine::Sync(const std::string& user_id, UserSlot& slot) {
       counters_.caught_up_events += static_cast<int64_t>(events.size());
     }
   }
-  if (slot.model.has_value()) {
+  if (slot.model != nullptr) {
     // Events completed after the position was read leave the count of
     // selections as it was read: a conditioned write then finds it stale.
     slot.select_count = log.model_version + log.pending_events;
@@ -560,7 +559,7 @@ absl::StatusOr<PoolRecord> BanditEngine::BuildPopulationPool(
       const absl::Status synced = Sync(user.user_id, **slot);
       if (absl::IsNotFound(synced)) continue;
       RETURN_IF_ERROR(synced);
-      const LinUcbModel& model = *(*slot)->model;
+      const LearnerModel& model = *(*slot)->model;
       if (model.TotalRounds() > 0 && pool.Accepts(model)) {
         RETURN_IF_ERROR(pool.Add(model));
       }
@@ -579,7 +578,7 @@ absl::StatusOr<PoolRecord> BanditEngine::BuildPopulationPool(
   record.users = pool.users();
   record.learner = like.learner;
   record.context_dim = like.context_dim;
-  record.posthoc_dim = like.learner == Learner::kPostHoc ? like.posthoc_dim : 0;
+  record.posthoc_dim = UsesPosthoc(like.learner) ? like.posthoc_dim : 0;
   record.action_names = like.action_names;
   // The version is the store's; the vectors do not depend on it.
   ASSIGN_OR_RETURN(record.prior, pool.Finish(/*rounds=*/0.0, 1));
@@ -636,7 +635,7 @@ absl::StatusOr<std::optional<SelectResult>> BanditEngine::TrySelect(
     const SelectInput& input, UserSlot& slot, int attempt) {
   RETURN_IF_ERROR(attempt == 1 ? EnsureLoaded(input.user_id, slot)
                                : Sync(input.user_id, slot));
-  const LinUcbModel& model = *slot.model;
+  const LearnerModel& model = *slot.model;
   RETURN_IF_ERROR(model.ValidateContext(input.context));
 
   SelectResult result;
@@ -735,7 +734,7 @@ absl::StatusOr<std::optional<UpdateResult>> BanditEngine::TryUpdate(
     int attempt) {
   RETURN_IF_ERROR(attempt == 1 ? EnsureLoaded(found.user_id, slot)
                                : Sync(found.user_id, slot));
-  LinUcbModel& model = *slot.model;
+  LearnerModel& model = *slot.model;
   // Bad input is an error even on a retry of a completed event.
   RETURN_IF_ERROR(model.ValidateOutcome(input.loss, input.posthoc));
   UpdateResult result;
@@ -822,7 +821,7 @@ absl::StatusOr<ModelExport> BanditEngine::GetModel(const std::string& user_id) {
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
   absl::MutexLock lock(&slot->mu);
   RETURN_IF_ERROR(Sync(user_id, *slot));
-  const LinUcbModel& model = *slot->model;
+  const LearnerModel& model = *slot->model;
   ModelExport out;
   ASSIGN_OR_RETURN(out.user, store_->GetUser(user_id));
   for (int a = 0; a < model.num_actions(); ++a) {

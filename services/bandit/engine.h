@@ -1,7 +1,7 @@
 // BanditEngine: the BanditService's behaviour without gRPC. It pairs the
-// durable EventStore (the truth) with an LRU cache of per-user LinUcbModels
-// (derived state, rebuilt from the log when loaded), chooses actions, and
-// applies updates exactly once.
+// durable EventStore (the truth) with an LRU cache of per-user learner models
+// (LearnerModel) (derived state, rebuilt from the log when loaded), chooses
+// actions, and applies updates exactly once.
 //
 // Thread-safe. Calls for one user are serialised by that user's mutex;
 // different users run in parallel. When the store is shared by several
@@ -33,7 +33,7 @@
 #include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
 #include "services/bandit/core/config.h"
-#include "services/bandit/core/linucb.h"
+#include "services/bandit/core/learner_model.h"
 #include "services/bandit/store/event_store.h"
 #include "services/domain/user_id.h"
 
@@ -43,7 +43,7 @@ struct EngineOptions {
   // Loaded models are evicted, least recently used first, while their
   // total size exceeds this. A model in use is never evicted.
   size_t cache_budget_bytes = size_t{2} << 30;
-  // Passed to LinUcbModel: its primal threshold (0: 3d/4).
+  // Passed to the learners: LinUcbModel's primal threshold (0: 3d/4).
   int primal_threshold = 0;
   // CreateUser refuses a configuration whose model could grow beyond this
   // (MaxModelBytes), so that no user's model can take the machine's
@@ -202,7 +202,7 @@ class BanditEngine {
   struct UserSlot {
     absl::Mutex mu;
     // Loaded state, valid while `model` has a value.
-    std::optional<LinUcbModel> model ABSL_GUARDED_BY(mu);
+    std::unique_ptr<LearnerModel> model ABSL_GUARDED_BY(mu);
     UserRecord record ABSL_GUARDED_BY(mu);
     int64_t select_count ABSL_GUARDED_BY(mu) = 0;
     // The latest Select's products, for the Update of that event (reused
@@ -279,9 +279,9 @@ class BanditEngine {
 
   // Loads from the user's checkpoint and the events after it; nullopt
   // (after counting it) when there is none or it cannot be used.
-  std::optional<LinUcbModel> LoadFromCheckpoint(const UserRecord& record,
-                                                int64_t* last_event_id,
-                                                int64_t* checkpoint_version);
+  std::unique_ptr<LearnerModel> LoadFromCheckpoint(const UserRecord& record,
+                                                   int64_t* last_event_id,
+                                                   int64_t* checkpoint_version);
   // Saves `slot`'s model if due (or, with `force`, if it has anything new).
   absl::Status MaybeCheckpoint(const std::string& user_id, UserSlot& slot,
                                bool force, bool wait_for_lock);

@@ -10,6 +10,7 @@
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "services/bandit/bandit_service.h"
+#include "services/bandit/core/learners.h"
 #include "services/bandit/engine.h"
 #include "services/bandit/store/open_store.h"
 #include "services/common/flags_usage.h"
@@ -47,7 +48,7 @@ ABSL_FLAG(int64_t, checkpoint_max_events, 250,
 ABSL_FLAG(double, checkpoint_idle_s, 30,
           "Seconds without a call that count as idle (the end of a meal).");
 ABSL_FLAG(std::string, default_learner, "posthoc",
-          "Learner for new users: posthoc or context_only.");
+          "Learner for new users: posthoc, context_only or polinucb.");
 ABSL_FLAG(std::string, default_strategy, "linucb",
           "Strategy for new users: linucb, greedy, epsilon_greedy, thompson, "
           "uniform.");
@@ -71,14 +72,14 @@ absl::StatusOr<bitewise::bandit::BanditConfig> DefaultsFromFlags() {
   using bitewise::bandit::Strategy;
   BanditConfig config;
   const std::string learner = absl::GetFlag(FLAGS_default_learner);
-  if (learner == "posthoc") {
-    config.learner = Learner::kPostHoc;
-  } else if (learner == "context_only") {
-    config.learner = Learner::kContextOnly;
-  } else {
+  const bitewise::bandit::LearnerSpec* spec =
+      bitewise::bandit::FindLearnerByName(learner);
+  if (spec == nullptr) {
     return absl::InvalidArgumentError(
-        absl::StrCat("--default_learner: unknown learner \"", learner, "\""));
+        absl::StrCat("--default_learner: unknown learner \"", learner,
+                     "\" (known: ", bitewise::bandit::LearnerNames(), ")"));
   }
+  config.learner = spec->learner;
   const std::string strategy = absl::GetFlag(FLAGS_default_strategy);
   bool found = false;
   for (Strategy s :

@@ -219,7 +219,7 @@ TEST(PopulationPriorTest, PoolsModelsAndStartsNewUsersFromThem) {
       }
       users.push_back(std::move(model));
     }
-    std::vector<const LinUcbModel*> pool;
+    std::vector<const LearnerModel*> pool;
     for (const LinUcbModel& m : users) pool.push_back(&m);
     absl::StatusOr<PopulationPrior> prior = PooledPrior(pool, 4.0, 1);
     ASSERT_TRUE(prior.ok()) << prior.status();

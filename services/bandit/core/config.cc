@@ -3,20 +3,19 @@
 #include <cmath>
 
 #include "absl/strings/str_cat.h"
+#include "services/bandit/core/learners.h"
 #include "services/domain/skewering_actions.h"
 
 namespace bitewise::bandit {
 
 const char* LearnerName(Learner learner) {
-  switch (learner) {
-    case Learner::kPostHoc:
-      return "posthoc";
-    case Learner::kContextOnly:
-      return "context_only";
-    case Learner::kPoLinUcb:
-      return "polinucb";
-  }
-  return "unknown";
+  const LearnerSpec* spec = FindLearner(learner);
+  return spec != nullptr ? spec->name : "unknown";
+}
+
+bool UsesPosthoc(Learner learner) {
+  const LearnerSpec* spec = FindLearner(learner);
+  return spec != nullptr && spec->uses_posthoc;
 }
 
 const char* StrategyName(Strategy strategy) {
@@ -47,10 +46,9 @@ absl::Status ValidateConfig(const BanditConfig& config) {
   auto bad = [](auto... parts) {
     return absl::InvalidArgumentError(absl::StrCat(parts...));
   };
-  if (config.learner != Learner::kPostHoc &&
-      config.learner != Learner::kContextOnly &&
-      config.learner != Learner::kPoLinUcb) {
-    return bad("learner: unknown value ", static_cast<int>(config.learner));
+  if (FindLearner(config.learner) == nullptr) {
+    return bad("learner: unknown value ", static_cast<int>(config.learner),
+               " (known: ", LearnerNames(), ")");
   }
   if (static_cast<int>(config.strategy) < 1 ||
       static_cast<int>(config.strategy) > 5) {

@@ -19,10 +19,8 @@ enum class Learner {
 };
 
 // Whether the learner learns from the post hoc context (needs
-// posthoc_dim >= 1 and one in every Update).
-inline bool UsesPosthoc(Learner learner) {
-  return learner == Learner::kPostHoc || learner == Learner::kPoLinUcb;
-}
+// posthoc_dim >= 1 and one in every Update); from learners.h's table.
+bool UsesPosthoc(Learner learner);
 
 enum class Strategy {
   kLinUcb = 1,  // argmin lcb_a, ties to the lowest index
@@ -32,6 +30,7 @@ enum class Strategy {
   kUniform = 5,
 };
 
+// The learner's name in learners.h's table ("unknown" for none).
 const char* LearnerName(Learner learner);
 const char* StrategyName(Strategy strategy);
 

@@ -825,12 +825,6 @@ size_t LinUcbModel::MemoryBytes() const {
          actions_.size() * sizeof(ActionState);
 }
 
-std::string LinUcbModel::SaveState() const {
-  std::string state;
-  SaveState(&state);
-  return state;
-}
-
 size_t LinUcbModel::StateBytesBound() const { return MemoryBytes() + 4096; }
 
 void LinUcbModel::SaveState(std::string* state) const {

@@ -52,40 +52,10 @@
 #include "absl/strings/string_view.h"
 #include "absl/types/span.h"
 #include "services/bandit/core/config.h"
+#include "services/bandit/core/learner_model.h"
+#include "services/bandit/core/rounds.h"
 
 namespace bitewise::bandit {
-
-// One completed round: what was seen, done, and felt.
-struct Round {
-  std::vector<double> context;  // c, length d
-  int action = 0;               // a
-  double loss = 0.0;            // l in [0, 1]
-  std::vector<double> posthoc;  // p, length q (may be empty: context-only)
-  double weight = 1.0;          // w: 1, or 1/propensity
-};
-
-// Why an action would be chosen: losses are minimised.
-struct ActionEstimate {
-  double predicted_loss = 0.0;  // theta_a^T c
-  double width = 0.0;           // sqrt(c^T A_a^-1 c) or sqrt(2 c^T N_a^-1 c)
-  double lcb = 0.0;             // predicted_loss - alpha * width
-};
-
-// Sums over a model's rounds that describe the scale of its inputs, for
-// pooling (see population_prior.h).
-struct InputScale {
-  double weight_sum = 0.0;      // sum w
-  double context_sq_sum = 0.0;  // sum w ||c||^2
-  double posthoc_sq_sum = 0.0;  // sum w ||p||^2 (post hoc learner)
-};
-
-// Largest |value| accepted in a context or post hoc context. Features are
-// of order 1 to 100 (SPANet's ReLU activations, standardised features,
-// log-probabilities); a value of 1e160 is finite but squares to infinity in
-// c c^T and would turn every later estimate into NaN for good.
-inline constexpr double kMaxInputMagnitude = 1e6;
-
-class LinUcbModel;
 
 // Rows of a matrix with a fixed number of columns in blocks that never move:
 // appending copies nothing already stored, and spare capacity stays within
@@ -125,22 +95,12 @@ class RowBlocks {
   std::vector<Block> blocks_;
 };
 
-// What one Estimate computed per action (W_a c in dual form, A_a^-1 c in
-// primal form) for one context, tagged with the model state it belongs to.
-// Update reuses it for the same context if the model has not changed since.
-class SelectProducts {
+class LinUcbModel final : public LearnerModel {
  public:
-  size_t Bytes() const;
+  using LearnerModel::Estimate;
+  using LearnerModel::SaveState;
+  using LearnerModel::Update;
 
- private:
-  friend class LinUcbModel;
-  int64_t total_rounds = -1;
-  std::vector<double> context;
-  std::vector<Eigen::VectorXd> per_action;
-};
-
-class LinUcbModel {
- public:
   // Earlier rows folded into the primal form per Update while an action
   // converts (besides its own new row).
   static constexpr int kConversionRowsPerUpdate = 7;
@@ -166,32 +126,31 @@ class LinUcbModel {
   LinUcbModel(LinUcbModel&&) = default;
   LinUcbModel& operator=(LinUcbModel&&) = default;
 
-  const BanditConfig& config() const { return config_; }
-  int num_actions() const { return config_.num_actions(); }
+  const BanditConfig& config() const override { return config_; }
   int context_dim() const { return d_; }
   int posthoc_dim() const { return q_; }
 
   // INVALID_ARGUMENT naming the field if `context` has the wrong length, a
   // non-finite value, or a value beyond kMaxInputMagnitude.
-  absl::Status ValidateContext(absl::Span<const double> context) const;
+  absl::Status ValidateContext(absl::Span<const double> context) const override;
   // INVALID_ARGUMENT naming the field for a loss outside [0, 1], a post hoc
   // context of the wrong length or with a non-finite value. The
   // context-only learner also accepts an empty post hoc context.
   absl::Status ValidateOutcome(double loss,
-                               absl::Span<const double> posthoc) const;
+                               absl::Span<const double> posthoc) const override;
   // Everything Update needs, plus the action index and a positive weight.
-  absl::Status ValidateRound(const Round& round) const;
+  absl::Status ValidateRound(const Round& round) const override;
 
   // Estimates for every action at context `c` (already validated). With
   // `products`, also leaves there what Update can reuse for this context.
-  std::vector<ActionEstimate> Estimate(
-      absl::Span<const double> c, SelectProducts* products = nullptr) const;
+  std::vector<ActionEstimate> Estimate(absl::Span<const double> c,
+                                       SelectProducts* products) const override;
 
   // Adds one round. The round must pass ValidateRound. `products` from an
   // Estimate of the same context are used if the model has not changed
   // since (otherwise they are ignored and recomputed): the result is the
   // same either way.
-  void Update(const Round& round, const SelectProducts* products = nullptr);
+  void Update(const Round& round, const SelectProducts* products) override;
 
   // Adds rounds in order, as many Updates would, but refreshes the caches
   // every action keeps only once at the end: a replay of the events after
@@ -200,7 +159,7 @@ class LinUcbModel {
   // each action's rounds are added at once (primal: Woodbury; dual: a block
   // of the Cholesky factor): matrix products instead of one pass per round,
   // equal to rounding. Every round must pass ValidateRound.
-  void Replay(const std::vector<Round>& rounds);
+  void Replay(const std::vector<Round>& rounds) override;
 
   // A_a^-1 x for a d-vector x (one pass over the action's form).
   Eigen::VectorXd SolveA(int action, const Eigen::VectorXd& x) const {
@@ -209,29 +168,30 @@ class LinUcbModel {
 
   // theta_a (length d) and phi_a = H theta_a (length q; empty for the
   // context-only learner).
-  Eigen::VectorXd Theta(int action) const;
-  Eigen::VectorXd Phi(int action) const;
-  int64_t Count(int action) const { return actions_[action].count; }
-  double LossSum(int action) const { return actions_[action].loss_sum; }
-  int64_t TotalRounds() const { return total_rounds_; }
+  Eigen::VectorXd Theta(int action) const override;
+  Eigen::VectorXd Phi(int action) const override;
+  int64_t Count(int action) const override { return actions_[action].count; }
+  double LossSum(int action) const override {
+    return actions_[action].loss_sum;
+  }
+  int64_t TotalRounds() const override { return total_rounds_; }
   bool IsPrimal(int action) const { return actions_[action].primal; }
   bool IsConverting(int action) const { return actions_[action].converting; }
-  const InputScale& input_scale() const { return scale_; }
+  const InputScale& input_scale() const override { return scale_; }
 
   // Bytes held by the model's matrices and buffers.
-  size_t MemoryBytes() const;
+  size_t MemoryBytes() const override;
 
   // The model's whole state (every sum, form and factor; not the config)
   // as bytes in this host's float64 layout: a checkpoint from which
   // LoadState restores exactly this model, bit for bit, without its log
   // (later rounds then agree to rounding: the restored rows sit in one
   // block, and passes over them sum block by block).
-  std::string SaveState() const;
   // The same into `*state`'s storage: with capacity for StateBytesBound()
   // already there (allocated and touched before), saving is only copying,
   // which is what a caller holding the user's lock wants.
-  void SaveState(std::string* state) const;
-  size_t StateBytesBound() const;
+  void SaveState(std::string* state) const override;
+  size_t StateBytesBound() const override;
   // FAILED_PRECONDITION if `state` was saved for another configuration or
   // primal threshold; DATA_LOSS naming what is wrong if it is not a whole
   // state of this format.

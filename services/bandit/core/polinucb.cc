@@ -276,12 +276,6 @@ size_t PoLinUcbModel::MemoryBytes() const {
          actions_.size() * sizeof(ActionState);
 }
 
-std::string PoLinUcbModel::SaveState() const {
-  std::string state;
-  SaveState(&state);
-  return state;
-}
-
 size_t PoLinUcbModel::StateBytesBound() const {
   return contexts_.StateBytesBound() + pooled_.StateBytesBound() +
          MemoryBytes() + 4096;

@@ -44,8 +44,12 @@
 
 namespace bitewise::bandit {
 
-class PoLinUcbModel {
+class PoLinUcbModel final : public LearnerModel {
  public:
+  using LearnerModel::Estimate;
+  using LearnerModel::SaveState;
+  using LearnerModel::Update;
+
   // `primal_threshold` as for LinUcbModel (its context models use it).
   static absl::StatusOr<PoLinUcbModel> Create(const BanditConfig& config,
                                               int primal_threshold = 0);
@@ -57,47 +61,47 @@ class PoLinUcbModel {
   PoLinUcbModel(PoLinUcbModel&&) = default;
   PoLinUcbModel& operator=(PoLinUcbModel&&) = default;
 
-  const BanditConfig& config() const { return config_; }
-  int num_actions() const { return config_.num_actions(); }
+  const BanditConfig& config() const override { return config_; }
 
-  absl::Status ValidateContext(absl::Span<const double> context) const;
+  absl::Status ValidateContext(absl::Span<const double> context) const override;
   // A post hoc context of posthoc_dim values is required.
   absl::Status ValidateOutcome(double loss,
-                               absl::Span<const double> posthoc) const;
-  absl::Status ValidateRound(const Round& round) const;
+                               absl::Span<const double> posthoc) const override;
+  absl::Status ValidateRound(const Round& round) const override;
 
   // Per action: predicted_loss = [c; p_hat]^T [theta_a; beta_a];
   // width = ||[c; p_hat]||_{A_a^-1} + e sqrt(lambda_max(S_a^-1)), the
   // model's confidence over the ball of post hoc contexts; lcb =
   // predicted_loss - alpha width - e ||beta_a||. `products` as for
   // LinUcbModel::Estimate (the context models' products).
-  std::vector<ActionEstimate> Estimate(
-      absl::Span<const double> c, SelectProducts* products = nullptr) const;
+  std::vector<ActionEstimate> Estimate(absl::Span<const double> c,
+                                       SelectProducts* products) const override;
   // The predicted post hoc context p_hat(c) and the radius e of its ball.
   Eigen::VectorXd PredictPosthoc(absl::Span<const double> c) const;
   double PosthocRadius(absl::Span<const double> c) const;
 
   // One round (it must pass ValidateRound); `products` from an Estimate of
   // the same context are reused when the model has not changed since.
-  void Update(const Round& round, const SelectProducts* products = nullptr);
+  void Update(const Round& round, const SelectProducts* products) override;
   // Rounds in order; the per-action caches are recomputed once at the end.
-  void Replay(const std::vector<Round>& rounds);
+  void Replay(const std::vector<Round>& rounds) override;
 
   // theta_a (length d) and beta_a (length q).
-  Eigen::VectorXd Theta(int action) const;
-  Eigen::VectorXd Phi(int action) const;
-  int64_t Count(int action) const { return contexts_.Count(action); }
-  double LossSum(int action) const { return contexts_.LossSum(action); }
-  int64_t TotalRounds() const { return contexts_.TotalRounds(); }
-  const InputScale& input_scale() const { return scale_; }
-  size_t MemoryBytes() const;
+  Eigen::VectorXd Theta(int action) const override;
+  Eigen::VectorXd Phi(int action) const override;
+  int64_t Count(int action) const override { return contexts_.Count(action); }
+  double LossSum(int action) const override {
+    return contexts_.LossSum(action);
+  }
+  int64_t TotalRounds() const override { return contexts_.TotalRounds(); }
+  const InputScale& input_scale() const override { return scale_; }
+  size_t MemoryBytes() const override;
 
   // The whole state, as LinUcbModel's: LoadState restores this model bit
   // for bit. FAILED_PRECONDITION for a state of another configuration,
   // DATA_LOSS naming what is wrong for one that is not whole.
-  std::string SaveState() const;
-  void SaveState(std::string* state) const;
-  size_t StateBytesBound() const;
+  void SaveState(std::string* state) const override;
+  size_t StateBytesBound() const override;
   static absl::StatusOr<PoLinUcbModel> LoadState(const BanditConfig& config,
                                                  absl::string_view state,
                                                  int primal_threshold = 0);

@@ -8,21 +8,20 @@ namespace bitewise::bandit {
 
 PriorPool::PriorPool(const BanditConfig& config) : config_(config) {
   const int k = config.num_actions();
-  const int q = config.learner == Learner::kPostHoc ? config.posthoc_dim : 0;
+  const int q = UsesPosthoc(config.learner) ? config.posthoc_dim : 0;
   theta_sum_.assign(k, Eigen::VectorXd::Zero(config.context_dim));
   phi_sum_.assign(k, Eigen::VectorXd::Zero(q));
   counts_.assign(k, 0);
 }
 
-bool PriorPool::Accepts(const LinUcbModel& model) const {
+bool PriorPool::Accepts(const LearnerModel& model) const {
   const BanditConfig& c = model.config();
   return c.learner == config_.learner && c.context_dim == config_.context_dim &&
-         (c.learner != Learner::kPostHoc ||
-          c.posthoc_dim == config_.posthoc_dim) &&
+         (!UsesPosthoc(c.learner) || c.posthoc_dim == config_.posthoc_dim) &&
          c.action_names == config_.action_names;
 }
 
-absl::Status PriorPool::Add(const LinUcbModel& model) {
+absl::Status PriorPool::Add(const LearnerModel& model) {
   if (!Accepts(model)) {
     return absl::InvalidArgumentError(
         "the model differs from the pool in learner, dimensions or actions; "
@@ -32,7 +31,7 @@ absl::Status PriorPool::Add(const LinUcbModel& model) {
     const int64_t n = model.Count(a);
     if (n == 0) continue;
     theta_sum_[a] += static_cast<double>(n) * model.Theta(a);
-    if (config_.learner == Learner::kPostHoc) {
+    if (UsesPosthoc(config_.learner)) {
       phi_sum_[a] += static_cast<double>(n) * model.Phi(a);
     }
     counts_[a] += n;
@@ -59,7 +58,7 @@ absl::StatusOr<PopulationPrior> PriorPool::Finish(double rounds,
   prior.pool_version = pool_version;
   prior.rounds = rounds;
   prior.context_msn = scale_.context_sq_sum / scale_.weight_sum;
-  const bool posthoc = config_.learner == Learner::kPostHoc;
+  const bool posthoc = UsesPosthoc(config_.learner);
   prior.posthoc_msn = posthoc ? scale_.posthoc_sq_sum / scale_.weight_sum : 0;
   for (int a = 0; a < config_.num_actions(); ++a) {
     const double n = counts_[a] > 0 ? static_cast<double>(counts_[a]) : 1.0;
@@ -74,7 +73,7 @@ absl::StatusOr<PopulationPrior> PriorPool::Finish(double rounds,
 }
 
 absl::StatusOr<PopulationPrior> PooledPrior(
-    const std::vector<const LinUcbModel*>& models, double rounds,
+    const std::vector<const LearnerModel*>& models, double rounds,
     int64_t pool_version) {
   if (models.empty()) {
     return absl::InvalidArgumentError("pooling needs at least one user");

@@ -16,7 +16,7 @@
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
 #include "services/bandit/core/config.h"
-#include "services/bandit/core/linucb.h"
+#include "services/bandit/core/learner_model.h"
 
 namespace bitewise::bandit {
 
@@ -31,9 +31,9 @@ class PriorPool {
   explicit PriorPool(const BanditConfig& config);
 
   // Whether `model` can join this pool.
-  bool Accepts(const LinUcbModel& model) const;
+  bool Accepts(const LearnerModel& model) const;
   // INVALID_ARGUMENT if !Accepts(model).
-  absl::Status Add(const LinUcbModel& model);
+  absl::Status Add(const LearnerModel& model);
   int64_t users() const { return users_; }
 
   // The prior worth `rounds` observations, recorded as pool
@@ -55,7 +55,7 @@ class PriorPool {
 // empty or the models differ in learner, dimensions or actions (naming the
 // first that differs), and as PriorPool::Finish.
 absl::StatusOr<PopulationPrior> PooledPrior(
-    const std::vector<const LinUcbModel*>& models, double rounds,
+    const std::vector<const LearnerModel*>& models, double rounds,
     int64_t pool_version);
 
 }  // namespace bitewise::bandit

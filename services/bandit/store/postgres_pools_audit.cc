@@ -44,8 +44,7 @@ absl::StatusOr<int64_t> PostgresEventStore::AddPool(const PoolRecord& pool) {
 absl::StatusOr<PoolRecord> PostgresEventStore::LatestPool(
     const BanditConfig& config) {
   constexpr char kOp[] = "LatestPool";
-  const int posthoc_dim =
-      config.learner == Learner::kPostHoc ? config.posthoc_dim : 0;
+  const int posthoc_dim = UsesPosthoc(config.learner) ? config.posthoc_dim : 0;
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
   ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp, kSnapshot));
   // The newest pool of this learner and these dimensions whose actions are

@@ -81,8 +81,7 @@ absl::StatusOr<PoolRecord> SqliteEventStore::LatestPool(
           "FROM population_pools WHERE learner = ?1 AND context_dim = ?2 AND "
           "posthoc_dim = ?3 ORDER BY pool_version DESC",
           "LatestPool"));
-  const int posthoc_dim =
-      config.learner == Learner::kPostHoc ? config.posthoc_dim : 0;
+  const int posthoc_dim = UsesPosthoc(config.learner) ? config.posthoc_dim : 0;
   st.BindInt64(1, static_cast<int64_t>(config.learner));
   st.BindInt64(2, config.context_dim);
   st.BindInt64(3, posthoc_dim);

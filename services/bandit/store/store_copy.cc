@@ -3,12 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <utility>
 
 #include "Eigen/Core"
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
-#include "services/bandit/core/linucb.h"
+#include "services/bandit/core/learners.h"
 #include "services/common/status_macros.h"
 
 namespace bitewise::bandit {
@@ -216,18 +217,23 @@ absl::Status VerifyUser(EventStore& a, EventStore& b,
     }
   }
   // The models themselves, rebuilt from either log.
-  absl::StatusOr<LinUcbModel> ma = LinUcbModel::Rebuild(ua.config, Rounds(ca));
-  absl::StatusOr<LinUcbModel> mb = LinUcbModel::Rebuild(ub->config, Rounds(cb));
+  absl::StatusOr<std::unique_ptr<LearnerModel>> ma =
+      RebuildModel(ua.config, Rounds(ca));
+  absl::StatusOr<std::unique_ptr<LearnerModel>> mb =
+      RebuildModel(ub->config, Rounds(cb));
   if (!ma.ok() || !mb.ok()) {
     differ(absl::StrCat("a model cannot be rebuilt: ",
                         (ma.ok() ? mb.status() : ma.status()).message()));
     return absl::OkStatus();
   }
-  if (ma->num_actions() != mb->num_actions()) return absl::OkStatus();
+  const LearnerModel& model_a = **ma;
+  const LearnerModel& model_b = **mb;
+  if (model_a.num_actions() != model_b.num_actions()) return absl::OkStatus();
   double worst = 0.0;
-  for (int k = 0; k < ma->num_actions(); ++k) {
-    worst = std::max(worst, RelativeDifference(ma->Theta(k), mb->Theta(k)));
-    worst = std::max(worst, RelativeDifference(ma->Phi(k), mb->Phi(k)));
+  for (int k = 0; k < model_a.num_actions(); ++k) {
+    worst =
+        std::max(worst, RelativeDifference(model_a.Theta(k), model_b.Theta(k)));
+    worst = std::max(worst, RelativeDifference(model_a.Phi(k), model_b.Phi(k)));
   }
   report.worst_model_difference =
       std::max(report.worst_model_difference, worst);

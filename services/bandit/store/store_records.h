@@ -87,7 +87,7 @@ struct PoolRecord {
   PopulationPrior prior;
 };
 
-// A saved model (LinUcbModel::SaveState) and the part of the log it covers:
+// A saved model (LearnerModel::SaveState) and the part of the log it covers:
 // a cold load reads it and the events after it instead of the whole log.
 struct ModelCheckpoint {
   int64_t model_version = 0;  // completed events it covers, > 0

@@ -7,6 +7,7 @@
 
 #include "absl/strings/escaping.h"
 #include "absl/strings/numbers.h"
+#include "services/bandit/core/learners.h"
 
 namespace bitewise::bandit::store_rows {
 namespace {
@@ -176,8 +177,7 @@ absl::Status AlreadyCompleted(int64_t event_id) {
 
 absl::Status CheckUserCodes(int64_t learner, int64_t strategy,
                             absl::string_view what) {
-  if (learner != static_cast<int>(Learner::kPostHoc) &&
-      learner != static_cast<int>(Learner::kContextOnly)) {
+  if (FindLearner(static_cast<Learner>(learner)) == nullptr) {
     return absl::DataLossError(
         absl::StrCat(what, ": unknown learner ", learner));
   }
