@@ -58,6 +58,9 @@ ABSL_FLAG(std::string, research_tls_cert, "",
 ABSL_FLAG(std::string, research_tls_key, "", "Key of --research_tls_cert.");
 ABSL_FLAG(std::string, confirm, "robot",
           "Who decides success: robot, or operator (the table view asks).");
+ABSL_FLAG(std::string, learner, "",
+          "Learner for NEW users: posthoc, context_only or polinucb (empty: "
+          "posthoc, or context_only with --posthoc=none; docs/algorithms.md).");
 ABSL_FLAG(std::string, posthoc, "logprob",
           "Post hoc context sent to the bandit: logprob, prob or none.");
 ABSL_FLAG(std::string, journal, "bitewise-console.journal",
@@ -191,6 +194,10 @@ int main(int argc, char** argv) {
                                          : meals::PosthocMode::kNone;
   defaults.confirm = confirm == "operator" ? meals::ConfirmBy::kOperator
                                            : meals::ConfirmBy::kRobot;
+  absl::StatusOr<bitewise::v1::Learner> learner =
+      meals::ParseLearner(absl::GetFlag(FLAGS_learner), defaults.posthoc);
+  if (!learner.ok()) return Fail(std::string(learner.status().message()));
+  defaults.learner = *learner;
   defaults.lambda_c = absl::GetFlag(FLAGS_lambda_c);
   defaults.rho_c = absl::GetFlag(FLAGS_rho_c);
   defaults.alpha = absl::GetFlag(FLAGS_alpha);

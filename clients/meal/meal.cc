@@ -68,6 +68,23 @@ bool Retryable(const absl::Status& status) {
 
 }  // namespace
 
+absl::StatusOr<v1::Learner> ParseLearner(const std::string& name,
+                                         PosthocMode posthoc) {
+  if (name.empty()) return v1::LEARNER_UNSPECIFIED;
+  v1::Learner learner = v1::LEARNER_UNSPECIFIED;
+  if (!v1::Learner_Parse(absl::AsciiStrToUpper("LEARNER_" + name), &learner) ||
+      learner == v1::LEARNER_UNSPECIFIED) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--learner: expected posthoc, context_only or polinucb, got ", name));
+  }
+  if (learner != v1::LEARNER_CONTEXT_ONLY && posthoc == PosthocMode::kNone) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--learner=", name,
+        " learns from the haptic class: use --posthoc=logprob or prob"));
+  }
+  return learner;
+}
+
 std::string Count(int n, const char* singular, const char* plural) {
   return absl::StrCat(n, " ", n == 1 ? singular : plural);
 }
@@ -461,9 +478,10 @@ absl::Status Meal::EnsureUser(int context_dim, double context_msn) {
   create.set_user_id(options_.user_id);
   v1::UserConfig* config = create.mutable_config();
   config->set_context_dim(context_dim);
-  config->set_learner(options_.posthoc == PosthocMode::kNone
-                          ? v1::LEARNER_CONTEXT_ONLY
-                          : v1::LEARNER_POSTHOC);
+  config->set_learner(
+      options_.learner != v1::LEARNER_UNSPECIFIED ? options_.learner
+      : options_.posthoc == PosthocMode::kNone    ? v1::LEARNER_CONTEXT_ONLY
+                                                  : v1::LEARNER_POSTHOC);
   const double lambda_c = domain::NewUserContextRidge(
       options_.lambda_c, options_.rho_c, context_msn);
   if (lambda_c > 0.0) config->set_lambda_c(lambda_c);

@@ -64,6 +64,9 @@ struct MealOptions {
   std::string user_id = "demo-user";
   std::string meal_id = "meal-1";
   PosthocMode posthoc = PosthocMode::kLogProbabilities;
+  // For a NEW user: LEARNER_UNSPECIFIED picks post hoc LinUCB, or the
+  // context-only learner with PosthocMode::kNone (ParseLearner).
+  v1::Learner learner = v1::LEARNER_UNSPECIFIED;
   ConfirmBy confirm = ConfirmBy::kRobot;
   // For a NEW user: lambda_c > 0 is used exactly; otherwise lambda_c =
   // rho_c * the featurizer's E||c||^2 when it reports one
@@ -93,6 +96,12 @@ class MealListener {
 
 // "1 failure", "2 failures".
 std::string Count(int n, const char* singular, const char* plural);
+
+// A --learner flag's value: "" (by the post hoc mode), "posthoc",
+// "context_only" or "polinucb". INVALID_ARGUMENT naming the choices, or
+// when the learner needs a post hoc context and `posthoc` is kNone.
+absl::StatusOr<v1::Learner> ParseLearner(const std::string& name,
+                                         PosthocMode posthoc);
 
 // "3 attempts, 1 failure".
 std::string SummaryText(int attempts, int failures);

@@ -47,6 +47,9 @@ ABSL_FLAG(std::string, tls_for, "all",
 ABSL_FLAG(std::string, confirm, "robot",
           "Who decides success: robot (the RobotService reports it) or "
           "operator (answer y/n at the terminal).");
+ABSL_FLAG(std::string, learner, "",
+          "Learner for NEW users: posthoc, context_only or polinucb (empty: "
+          "posthoc, or context_only with --posthoc=none; docs/algorithms.md).");
 ABSL_FLAG(std::string, posthoc, "logprob",
           "Post hoc context sent to the bandit: logprob (as the original "
           "research code), prob (as the paper's text) or none (vision only; "
@@ -221,6 +224,14 @@ int main(int argc, char** argv) {
                                          : meals::PosthocMode::kNone;
   options.confirm = confirm == "operator" ? meals::ConfirmBy::kOperator
                                           : meals::ConfirmBy::kRobot;
+  absl::StatusOr<bitewise::v1::Learner> learner =
+      meals::ParseLearner(absl::GetFlag(FLAGS_learner), options.posthoc);
+  if (!learner.ok()) {
+    std::fprintf(stderr, "%s\n",
+                 std::string(learner.status().message()).c_str());
+    return 2;
+  }
+  options.learner = *learner;
   options.lambda_c = absl::GetFlag(FLAGS_lambda_c);
   options.rho_c = absl::GetFlag(FLAGS_rho_c);
   options.alpha = absl::GetFlag(FLAGS_alpha);

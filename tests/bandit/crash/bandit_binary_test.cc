@@ -580,6 +580,89 @@ TEST_P(BanditBinaryTest, ServedEstimatesMatchDenseReference) {
   }
 }
 
+// poLinUCB through gRPC: every Select's estimates agree with the dense
+// reference of its formulas, before and after a SIGKILL (the model then
+// comes back from its checkpoint or the log), and an Update without the
+// post hoc context it learns from is refused.
+TEST_P(BanditBinaryTest, ServedPoLinUcbMatchesDenseReference) {
+  constexpr int kDim = 10;
+  constexpr int kPostHocDim = 3;
+  constexpr int kRounds = 90;
+  constexpr double kAlpha = 0.6;
+  absl::Status started = StartServer();
+  ASSERT_TRUE(started.ok()) << started;
+  absl::StatusOr<v1::User> user =
+      CreateUser("ref-polinucb", v1::LEARNER_POLINUCB, kDim, kPostHocDim,
+                 kAlpha, 1.5, 0.7);
+  ASSERT_TRUE(user.ok()) << user.status();
+  EXPECT_EQ(user->config().learner(), v1::LEARNER_POLINUCB);
+  bandit::BanditConfig config;
+  config.learner = bandit::Learner::kPoLinUcb;
+  config.alpha = kAlpha;
+  config.lambda_c = 1.5;
+  config.lambda_p = 0.7;
+  config.context_dim = kDim;
+  config.posthoc_dim = kPostHocDim;
+  config.action_names.assign(user->config().action_names().begin(),
+                             user->config().action_names().end());
+  auto expect_matches = [&](const v1::SelectResponse& got,
+                            const std::vector<bandit::Round>& seen,
+                            const std::vector<double>& context) {
+    const bandit::testing::DensePoLinUcb ref =
+        bandit::testing::DensePoLinUcbReference(config, seen, context);
+    ASSERT_EQ(got.estimates_size(), config.num_actions());
+    for (int a = 0; a < got.estimates_size(); ++a) {
+      EXPECT_TRUE(bitewise::testing::RelNear(got.estimates(a).predicted_loss(),
+                                             ref.predicted[a], 1e-8))
+          << "action " << a;
+      EXPECT_TRUE(bitewise::testing::RelNear(got.estimates(a).width(),
+                                             ref.width[a], 1e-8))
+          << "action " << a;
+      EXPECT_TRUE(
+          bitewise::testing::RelNear(got.estimates(a).lcb(), ref.lcb[a], 1e-8))
+          << "action " << a;
+    }
+  };
+  std::mt19937_64 rng(21);
+  std::bernoulli_distribution coin(0.4);
+  std::vector<bandit::Round> rounds;
+  for (int t = 0; t < kRounds; ++t) {
+    SCOPED_TRACE(absl::StrCat("round ", t));
+    const std::vector<double> context = RandomVector(kDim, rng);
+    absl::StatusOr<v1::SelectResponse> selected =
+        Select(stub(), "ref-polinucb", context);
+    ASSERT_TRUE(selected.ok()) << selected.status();
+    expect_matches(*selected, rounds, context);
+    bandit::Round round;
+    round.context = context;
+    round.action = selected->action();
+    round.loss = coin(rng) ? 1.0 : 0.0;
+    // The post hoc context depends on the context, as the paper's.
+    round.posthoc = {context[0] + 0.1 * context[1], context[2] - context[3],
+                     0.5 * context[4] + 0.2};
+    if (t == 5) {
+      absl::StatusOr<v1::UpdateResponse> refused =
+          Update(stub(), selected->event_id(), round.loss, {});
+      EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);
+      EXPECT_THAT(refused.status().message(), HasSubstr("posthoc"));
+    }
+    ASSERT_TRUE(
+        Update(stub(), selected->event_id(), round.loss, round.posthoc).ok());
+    rounds.push_back(std::move(round));
+  }
+  ASSERT_TRUE(server_.SignalAndWait(SIGKILL, kExitTimeout).ok());
+  started = StartServer();
+  ASSERT_TRUE(started.ok()) << started;
+  for (int probe = 0; probe < 3; ++probe) {
+    const std::vector<double> context = RandomVector(kDim, rng);
+    absl::StatusOr<v1::SelectResponse> selected =
+        Select(stub(), "ref-polinucb", context);
+    ASSERT_TRUE(selected.ok()) << selected.status();
+    EXPECT_EQ(selected->model_version(), kRounds);
+    expect_matches(*selected, rounds, context);
+  }
+}
+
 TEST_P(BanditBinaryTest, SigtermDrainsAndExitsZero) {
   absl::Status started = StartServer();
   ASSERT_TRUE(started.ok()) << started;
