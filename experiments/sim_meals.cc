@@ -347,6 +347,7 @@ bandit::BanditConfig SimUserConfig(const SimMealsConfig& config,
                             : config.alpha;
   bandit_config.lambda_c = ResolvedLambdaC(config);
   bandit_config.lambda_p = config.lambda_p;
+  bandit_config.phi_radius = config.phi_radius;
   bandit_config.context_dim = context_dim;
   bandit_config.posthoc_dim = haptic::kHapticClasses;
   bandit_config.seed = seed;

@@ -95,6 +95,8 @@ struct SimMealsConfig {
   // Thompson sampling's scale v (theta ~ N(theta_a, v^2 Sigma_a)): 0.5, the
   // largest standard deviation a 0/1 loss can have; not tuned.
   double thompson_v = 0.5;
+  // poLinUCB's phi_radius (BanditConfig::phi_radius).
+  double phi_radius = bandit::BanditConfig().phi_radius;
   // The foods of the meal (catalog names), each attempts_per_food times;
   // empty means the eight unseen foods.
   std::vector<std::string> food_names;

@@ -40,6 +40,9 @@ ABSL_FLAG(double, rho_c, 1.0,
 ABSL_FLAG(double, lambda_c, 0.0,
           "Ridge on the context model, used as given; 0: from --rho_c.");
 ABSL_FLAG(double, lambda_p, 1.0, "Ridge on the post hoc terms.");
+ABSL_FLAG(double, phi_radius, bitewise::bandit::BanditConfig().phi_radius,
+          "poLinUCB: radius of the predicted post hoc context's ball, per "
+          "unit of sqrt(c^T X^-1 c) (docs/algorithms.md).");
 ABSL_FLAG(double, thompson_v, 0.5,
           "Thompson sampling's v (theta ~ N(theta_a, v^2 Sigma_a)).");
 ABSL_FLAG(double, haptic_accuracy, 0.0,
@@ -98,6 +101,9 @@ std::vector<LearnerSpec> Learners() {
   specs.push_back({"post hoc (logprob) TS", "posthoc_logprob_ts",
                    bandit::Learner::kPostHoc, HapticContext::kLogProbabilities,
                    bandit::Strategy::kThompson, ts_baseline});
+  specs.push_back({"poLinUCB (logprob)", "polinucb_logprob",
+                   bandit::Learner::kPoLinUcb, HapticContext::kLogProbabilities,
+                   bandit::Strategy::kLinUcb, 0});
   return specs;
 }
 constexpr int kLinUcbLearners = 1 + kHapticContexts.size();
@@ -111,6 +117,7 @@ int Run() {
   config.lambda_c = absl::GetFlag(FLAGS_lambda_c);
   config.rho_c = absl::GetFlag(FLAGS_rho_c);
   config.thompson_v = absl::GetFlag(FLAGS_thompson_v);
+  config.phi_radius = absl::GetFlag(FLAGS_phi_radius);
   config.haptic_accuracy = absl::GetFlag(FLAGS_haptic_accuracy);
   config.trace_story = absl::GetFlag(FLAGS_trace_story);
   config.lambda_p = absl::GetFlag(FLAGS_lambda_p);
@@ -286,11 +293,11 @@ int Run() {
   absl::PrintF(
       "simulated meals: %d trials x %d attempts (%d foods x %d, %s order, %d "
       "plate(s) per trial), alpha=%g lambda_c=%g (rho_c %g) lambda_p=%g, "
-      "Thompson v=%g, seed %d\n",
+      "Thompson v=%g, poLinUCB phi_radius=%g, seed %d\n",
       trials, attempts, num_foods, config.attempts_per_food, order,
       ResolvedPlatesPerTrial(config), config.alpha, ResolvedLambdaC(config),
       ResolvedLambdaC(config) / config.context_msn, config.lambda_p,
-      config.thompson_v, absl::GetFlag(FLAGS_seed));
+      config.thompson_v, config.phi_radius, absl::GetFlag(FLAGS_seed));
   absl::PrintF(
       "plates drawn again because a food did not fit or was not visible: "
       "%d of %d\n",

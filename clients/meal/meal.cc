@@ -7,6 +7,8 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
+#include "absl/strings/strip.h"
 #include "absl/time/clock.h"
 #include "services/domain/context_ridge.h"
 #include "services/domain/haptic_class.h"
@@ -74,8 +76,17 @@ absl::StatusOr<v1::Learner> ParseLearner(const std::string& name,
   v1::Learner learner = v1::LEARNER_UNSPECIFIED;
   if (!v1::Learner_Parse(absl::AsciiStrToUpper("LEARNER_" + name), &learner) ||
       learner == v1::LEARNER_UNSPECIFIED) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "--learner: expected posthoc, context_only or polinucb, got ", name));
+    // The names the API knows, from its enum.
+    std::vector<std::string> known;
+    const google::protobuf::EnumDescriptor* learners = v1::Learner_descriptor();
+    for (int i = 0; i < learners->value_count(); ++i) {
+      if (learners->value(i)->number() == v1::LEARNER_UNSPECIFIED) continue;
+      known.push_back(absl::AsciiStrToLower(
+          absl::StripPrefix(learners->value(i)->name(), "LEARNER_")));
+    }
+    return absl::InvalidArgumentError(
+        absl::StrCat("--learner: expected one of ", absl::StrJoin(known, ", "),
+                     ", got ", name));
   }
   if (learner != v1::LEARNER_CONTEXT_ONLY && posthoc == PosthocMode::kNone) {
     return absl::InvalidArgumentError(absl::StrCat(

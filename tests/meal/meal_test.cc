@@ -247,6 +247,45 @@ TEST_F(MealTest, RobotsChoiceRunsEveryStepInOrderAndLearns) {
               ::testing::Contains(HasSubstr("context ridge lambda_c")));
 }
 
+TEST(ParseLearnerTest, NamesFromTheApiAndThePosthocTheyNeed) {
+  EXPECT_EQ(*ParseLearner("", PosthocMode::kLogProbabilities),
+            v1::LEARNER_UNSPECIFIED);
+  EXPECT_EQ(*ParseLearner("polinucb", PosthocMode::kProbabilities),
+            v1::LEARNER_POLINUCB);
+  EXPECT_EQ(*ParseLearner("context_only", PosthocMode::kNone),
+            v1::LEARNER_CONTEXT_ONLY);
+  absl::StatusOr<v1::Learner> unknown =
+      ParseLearner("thompson", PosthocMode::kLogProbabilities);
+  EXPECT_THAT(unknown.status(),
+              StatusIs(absl::StatusCode::kInvalidArgument,
+                       HasSubstr("expected one of posthoc, context_only, "
+                                 "polinucb, got thompson")));
+  EXPECT_THAT(
+      ParseLearner("unspecified", PosthocMode::kLogProbabilities).status(),
+      StatusIs(absl::StatusCode::kInvalidArgument, HasSubstr("got")));
+  EXPECT_THAT(ParseLearner("polinucb", PosthocMode::kNone).status(),
+              StatusIs(absl::StatusCode::kInvalidArgument,
+                       HasSubstr("--posthoc=logprob or prob")));
+}
+
+// A new user with --learner=polinucb learns from its bites through the
+// real services.
+TEST_F(MealTest, APoLinUcbUserLearnsFromItsBites) {
+  options_.learner = v1::LEARNER_POLINUCB;
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  ASSERT_OK(meal->Bite(std::nullopt));
+  ASSERT_OK(meal->Bite(std::nullopt));
+  absl::StatusOr<v1::User> user = clients_->bandit.GetUser(options_.user_id);
+  ASSERT_TRUE(user.ok()) << user.status();
+  EXPECT_EQ(user->config().learner(), v1::LEARNER_POLINUCB);
+  EXPECT_EQ(user->model_version(), 2);
+  for (const v1::Event& event : Events()) {
+    EXPECT_TRUE(event.completed());
+    EXPECT_EQ(event.posthoc_size(), 4);
+  }
+}
+
 TEST_F(MealTest, ThePersonChoosesTheItem) {
   auto meal = NewMeal();
   ASSERT_OK(meal->LookAtPlate());
