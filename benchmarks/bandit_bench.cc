@@ -3,14 +3,17 @@
 // naive approach of the research code (dense inverses recomputed per round).
 //
 //   build/benchmarks/bandit_bench --benchmark_filter=Incremental
+//   build/benchmarks/bandit_bench --benchmark_filter=Learner   # every learner
 //
 // Results and how to read them: docs/benchmarks.md.
+#include <memory>
 #include <random>
 #include <vector>
 
 #include "Eigen/Dense"
 #include "benchmark/benchmark.h"
 #include "benchmarks/bandit_bench_rounds.h"
+#include "services/bandit/core/learners.h"
 #include "services/bandit/core/linucb.h"
 #include "services/bandit/core/policy.h"
 #include "services/domain/random.h"
@@ -156,6 +159,66 @@ void BM_IncrementalRebuild(benchmark::State& state) {
   }
 }
 
+// Every learner of the table through LearnerModel (range(2): the Learner
+// number), as the service runs it: Select = Estimate + LinUCB's choice,
+// Update with the products of the Select of the same context.
+BanditConfig LearnerConfig(int d, int learner) {
+  BanditConfig config = Config(d);
+  config.learner = static_cast<Learner>(learner);
+  return config;
+}
+
+// The model of the benchmark's learner (range(2)) at d = range(0), rebuilt
+// from range(1) random rounds; `rng` goes on from there.
+std::unique_ptr<LearnerModel> LearnerFromLog(const benchmark::State& state,
+                                             std::mt19937_64& rng) {
+  const int d = static_cast<int>(state.range(0));
+  const int rounds = static_cast<int>(state.range(1));
+  return RebuildModel(LearnerConfig(d, static_cast<int>(state.range(2))),
+                      RandomLog(d, rounds, rng))
+      .value();
+}
+
+void BM_LearnerSelect(benchmark::State& state) {
+  const int d = static_cast<int>(state.range(0));
+  std::mt19937_64 rng(42);
+  std::unique_ptr<LearnerModel> model = LearnerFromLog(state, rng);
+  const Round probe = RandomRound(d, rng);
+  for (auto _ : state) {
+    std::mt19937_64 select_rng = SelectRng(0, 0);
+    benchmark::DoNotOptimize(ChooseAction(
+        model->config(), model->Estimate(probe.context), select_rng));
+  }
+  state.SetLabel(LearnerName(model->config().learner));
+  state.counters["MB"] = static_cast<double>(model->MemoryBytes()) / (1 << 20);
+}
+
+void BM_LearnerUpdate(benchmark::State& state) {
+  const int d = static_cast<int>(state.range(0));
+  std::mt19937_64 rng(42);
+  std::unique_ptr<LearnerModel> model = LearnerFromLog(state, rng);
+  const std::vector<Round> next = RandomLog(d, 64, rng);
+  size_t i = 0;
+  for (auto _ : state) {
+    const Round& round = next[i++ % next.size()];
+    SelectProducts products;
+    state.PauseTiming();
+    model->Estimate(round.context, &products);
+    state.ResumeTiming();
+    model->Update(round, &products);
+  }
+  state.SetLabel(LearnerName(model->config().learner));
+}
+
+void LearnerGrid(benchmark::internal::Benchmark* b) {
+  for (const LearnerSpec& spec : Learners()) {
+    for (int rounds : {1000, 10000}) {
+      b->Args({2048, rounds, static_cast<int>(spec.learner)});
+    }
+  }
+  b->ArgNames({"d", "rounds", "learner"})->Unit(benchmark::kMillisecond);
+}
+
 void BM_NaiveSelect(benchmark::State& state) {
   const int d = static_cast<int>(state.range(0));
   const int rounds = static_cast<int>(state.range(1));
@@ -207,6 +270,8 @@ BENCHMARK(BM_IncrementalSelect)->Apply(Grid);
 BENCHMARK(BM_IncrementalSelectWithPrior)->Apply(Grid);
 BENCHMARK(BM_IncrementalUpdate)->Apply(Grid)->Iterations(40);
 BENCHMARK(BM_IncrementalRebuild)->Apply(Grid)->Iterations(2);
+BENCHMARK(BM_LearnerSelect)->Apply(LearnerGrid);
+BENCHMARK(BM_LearnerUpdate)->Apply(LearnerGrid)->Iterations(40);
 BENCHMARK(BM_NaiveSelect)->Apply(Grid);
 BENCHMARK(BM_NaiveUpdate)->Apply(NaiveGrid);
 BENCHMARK(BM_NaiveRebuild)->Apply(NaiveGrid);

@@ -45,6 +45,7 @@ bandit::BanditConfig LearnerConfig(const MnistProblem& problem,
   bc.alpha = config.alpha;
   bc.lambda_c = config.lambda_c;
   bc.lambda_p = config.lambda_p;
+  bc.phi_radius = config.phi_radius;
   bc.context_dim = static_cast<int>(problem.train_contexts.cols());
   bc.posthoc_dim = config.posthoc_dim;
   bc.action_names.clear();

@@ -37,6 +37,8 @@ struct MnistConfig {
   double alpha = 0.01;
   double lambda_c = 1000.0;
   double lambda_p = 1.0;
+  // poLinUCB's phi_radius (BanditConfig::phi_radius).
+  double phi_radius = bandit::BanditConfig().phi_radius;
   // Ridge of the full-feedback "best linear model" (tiny: it only has to
   // keep the solve well posed).
   double best_ridge = 1e-6;

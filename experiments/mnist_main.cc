@@ -38,6 +38,8 @@ ABSL_FLAG(int, regret_rounds, 0,
 ABSL_FLAG(double, alpha, 0.01, "LinUCB exploration weight.");
 ABSL_FLAG(double, lambda_c, 1000.0, "Ridge on the context model.");
 ABSL_FLAG(double, lambda_p, 1.0, "Ridge on the post hoc terms.");
+ABSL_FLAG(double, phi_radius, bitewise::bandit::BanditConfig().phi_radius,
+          "poLinUCB: radius of the predicted post hoc context's ball.");
 ABSL_FLAG(double, best_ridge, 1e-6, "Ridge of the full-feedback fit.");
 ABSL_FLAG(uint64_t, seed, 1, "Base seed.");
 ABSL_FLAG(std::string, out_dir, ".", "Directory for the CSV files.");
@@ -76,6 +78,7 @@ int Run() {
   config.alpha = absl::GetFlag(FLAGS_alpha);
   config.lambda_c = absl::GetFlag(FLAGS_lambda_c);
   config.lambda_p = absl::GetFlag(FLAGS_lambda_p);
+  config.phi_radius = absl::GetFlag(FLAGS_phi_radius);
   config.best_ridge = absl::GetFlag(FLAGS_best_ridge);
   auto problem = BuildMnistProblem(*train_images, *train_labels, *test_images,
                                    *test_labels, config);
@@ -141,7 +144,7 @@ int Run() {
   }
 
   // Cumulative regret with LinUCB.
-  std::vector<std::vector<double>> rc, rp, rd;
+  std::vector<std::vector<double>> rc, rp, rd, rpo, rdpo;
   const int regret_trials = absl::GetFlag(FLAGS_regret_trials);
   for (int trial = 0; trial < regret_trials; ++trial) {
     const uint64_t trial_seed = random::MixSeed(seed, 1000 + trial);
@@ -151,7 +154,12 @@ int Run() {
     auto p = RunMnistRegretTrial(*problem, config, bandit::Learner::kPostHoc,
                                  trial_seed);
     if (!p.ok()) return Fail(p.status());
+    auto po = RunMnistRegretTrial(*problem, config, bandit::Learner::kPoLinUcb,
+                                  trial_seed);
+    if (!po.ok()) return Fail(po.status());
     rd.push_back(Difference(*c, *p));
+    rdpo.push_back(Difference(*c, *po));
+    rpo.push_back(*std::move(po));
     rc.push_back(*std::move(c));
     rp.push_back(*std::move(p));
     absl::FPrintF(stderr,
@@ -162,24 +170,31 @@ int Run() {
   }
   if (regret_trials > 0) {
     const CurveSummary c = SummarizeCurves(rc), p = SummarizeCurves(rp),
-                       d = SummarizeCurves(rd);
+                       d = SummarizeCurves(rd), po = SummarizeCurves(rpo),
+                       dpo = SummarizeCurves(rdpo);
     std::vector<double> round(c.mean.size());
     for (size_t t = 0; t < round.size(); ++t) round[t] = t + 1;
     const std::string path = absl::StrCat(out_dir, "/mnist_regret.csv");
     const absl::Status written =
         WriteCsvColumns(path,
                         {"round", "context_only_mean", "context_only_se",
-                         "posthoc_mean", "posthoc_se", "diff_mean", "diff_se"},
+                         "posthoc_mean", "posthoc_se", "diff_mean", "diff_se",
+                         "polinucb_mean", "polinucb_se", "diff_polinucb_mean",
+                         "diff_polinucb_se"},
                         {round, c.mean, c.standard_error, p.mean,
-                         p.standard_error, d.mean, d.standard_error});
+                         p.standard_error, d.mean, d.standard_error, po.mean,
+                         po.standard_error, dpo.mean, dpo.standard_error});
     if (!written.ok()) return Fail(written);
     const size_t last = round.size() - 1;
     absl::PrintF(
         "regret (%d trials, %zu rounds): context-only %.1f +- %.1f, post hoc "
-        "%.1f +- %.1f, difference %.1f +- %.1f\n  wrote %s\n",
+        "%.1f +- %.1f, difference %.1f +- %.1f; poLinUCB %.1f +- %.1f, "
+        "difference %.1f +- %.1f (context-only minus the learner)\n  wrote "
+        "%s\n",
         regret_trials, round.size(), c.mean[last], c.standard_error[last],
         p.mean[last], p.standard_error[last], d.mean[last],
-        d.standard_error[last], path);
+        d.standard_error[last], po.mean[last], po.standard_error[last],
+        dpo.mean[last], dpo.standard_error[last], path);
   }
   absl::FPrintF(stderr, "done in %.1f s\n", Seconds(start));
   return 0;

@@ -43,7 +43,7 @@ ABSL_FLAG(double, lambda_p, 1.0, "Ridge on the post hoc terms.");
 ABSL_FLAG(double, phi_radius, bitewise::bandit::BanditConfig().phi_radius,
           "poLinUCB: radius of the predicted post hoc context's ball, per "
           "unit of sqrt(c^T X^-1 c) (docs/algorithms.md).");
-ABSL_FLAG(double, thompson_v, 0.5,
+ABSL_FLAG(double, thompson_v, bitewise::experiments::SimMealsConfig().thompson_v,
           "Thompson sampling's v (theta ~ N(theta_a, v^2 Sigma_a)).");
 ABSL_FLAG(double, haptic_accuracy, 0.0,
           "Sensitivity: make HapticNet right with this probability (confident "
@@ -82,6 +82,8 @@ struct LearnerSpec {
   HapticContext kind;  // ignored by context-only learners
   bandit::Strategy strategy;
   int baseline;  // the context-only spec it is paired with; -1: none
+  // A second spec it is paired with (printed only); -1: none.
+  int versus = -1;
 };
 
 std::vector<LearnerSpec> Learners() {
@@ -173,6 +175,9 @@ int Run() {
   // baseline minus it (post hoc learners only).
   std::vector<std::vector<std::vector<double>>> curves(kLearners);
   std::vector<std::vector<std::vector<double>>> diffs(kLearners);
+  // Per trial, the versus spec's failures minus the learner's (a curve of
+  // one value).
+  std::vector<std::vector<std::vector<double>>> versus_diffs(kLearners);
   std::vector<std::vector<double>> oracle, uniform;
   // failures_by_food[learner][food], summed over trials.
   std::vector<std::vector<double>> failures_by_food(
@@ -224,9 +229,15 @@ int Run() {
     }
     for (int learner = 0; learner < kLearners; ++learner) {
       const int baseline = learners[learner].baseline;
-      if (baseline < 0) continue;
-      diffs[learner].push_back(
-          Difference(curves[baseline].back(), curves[learner].back()));
+      if (baseline >= 0) {
+        diffs[learner].push_back(
+            Difference(curves[baseline].back(), curves[learner].back()));
+      }
+      const int versus = learners[learner].versus;
+      if (versus >= 0) {
+        versus_diffs[learner].push_back(
+            {curves[versus].back().back() - curves[learner].back().back()});
+      }
     }
     const double secs =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start)
@@ -334,6 +345,13 @@ int Run() {
           d.mean[last], d.mean[last] - dh, d.mean[last] + dh,
           100.0 * d.mean[last] /
               summaries[learners[learner].baseline].mean[last]);
+    }
+    if (const int versus = learners[learner].versus; versus >= 0) {
+      const CurveSummary v = SummarizeCurves(versus_diffs[learner]);
+      const double half = 1.96 * v.standard_error[0];
+      absl::PrintF("   paired %s minus this: %+.2f [%+.2f, %+.2f]",
+                   learners[versus].label, v.mean[0], v.mean[0] - half,
+                   v.mean[0] + half);
     }
     absl::PrintF("\n");
   }

@@ -42,6 +42,7 @@ absl::StatusOr<std::vector<double>> RunSyntheticTrial(
   bc.alpha = config.alpha;
   bc.lambda_c = config.lambda_c;
   bc.lambda_p = config.lambda_p;
+  bc.phi_radius = config.phi_radius;
   bc.context_dim = config.context_dim;
   bc.posthoc_dim = config.posthoc_dim;
   bc.action_names.clear();

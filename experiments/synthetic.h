@@ -34,6 +34,8 @@ struct SyntheticConfig {
   double alpha = 0.01;
   double lambda_c = 1000.0;
   double lambda_p = 1.0;
+  // poLinUCB's phi_radius (BanditConfig::phi_radius).
+  double phi_radius = bandit::BanditConfig().phi_radius;
 };
 
 // One trial's world, fixed by its seed: hidden loss map and every round's

@@ -32,6 +32,8 @@ ABSL_FLAG(std::string, loss, "linear",
 ABSL_FLAG(double, alpha, 0.01, "LinUCB exploration weight.");
 ABSL_FLAG(double, lambda_c, 1000.0, "Ridge on the context model.");
 ABSL_FLAG(double, lambda_p, 1.0, "Ridge on the post hoc terms.");
+ABSL_FLAG(double, phi_radius, bitewise::bandit::BanditConfig().phi_radius,
+          "poLinUCB: radius of the predicted post hoc context's ball.");
 ABSL_FLAG(uint64_t, seed, 1,
           "Base seed; trial i of d_c uses a seed mixed "
           "from (seed, d_c, i).");
@@ -48,6 +50,7 @@ int Run() {
   config.alpha = absl::GetFlag(FLAGS_alpha);
   config.lambda_c = absl::GetFlag(FLAGS_lambda_c);
   config.lambda_p = absl::GetFlag(FLAGS_lambda_p);
+  config.phi_radius = absl::GetFlag(FLAGS_phi_radius);
   const std::string loss = absl::GetFlag(FLAGS_loss);
   if (loss == "linear") {
     config.loss = SyntheticLoss::kLinear;
@@ -72,19 +75,25 @@ int Run() {
     }
     config.context_dim = dim;
     const auto start = std::chrono::steady_clock::now();
-    std::vector<std::vector<double>> context_only, posthoc, diff;
+    std::vector<std::vector<double>> context_only, posthoc, diff, polinucb,
+        diff_polinucb;
     for (int trial = 0; trial < trials; ++trial) {
       const uint64_t seed = random::MixSeed(absl::GetFlag(FLAGS_seed),
                                             (uint64_t{1} << 32) * dim + trial);
       const SyntheticWorld world = DrawSyntheticWorld(config, seed);
       auto c = RunSyntheticTrial(config, world, bandit::Learner::kContextOnly);
       auto p = RunSyntheticTrial(config, world, bandit::Learner::kPostHoc);
-      if (!c.ok() || !p.ok()) {
-        absl::FPrintF(stderr, "trial failed: %s\n",
-                      (c.ok() ? p.status() : c.status()).ToString());
-        return 1;
+      auto po = RunSyntheticTrial(config, world, bandit::Learner::kPoLinUcb);
+      for (const auto* run : {&c, &p, &po}) {
+        if (!run->ok()) {
+          absl::FPrintF(stderr, "trial failed: %s\n",
+                        run->status().ToString());
+          return 1;
+        }
       }
       diff.push_back(Difference(*c, *p));
+      diff_polinucb.push_back(Difference(*c, *po));
+      polinucb.push_back(*std::move(po));
       context_only.push_back(*std::move(c));
       posthoc.push_back(*std::move(p));
       const double secs = std::chrono::duration<double>(
@@ -99,6 +108,8 @@ int Run() {
     const CurveSummary c = SummarizeCurves(context_only);
     const CurveSummary p = SummarizeCurves(posthoc);
     const CurveSummary d = SummarizeCurves(diff);
+    const CurveSummary po = SummarizeCurves(polinucb);
+    const CurveSummary dpo = SummarizeCurves(diff_polinucb);
     std::vector<double> round(config.rounds);
     for (int t = 0; t < config.rounds; ++t) round[t] = t + 1;
     const std::string path = absl::StrCat(absl::GetFlag(FLAGS_out_dir),
@@ -106,9 +117,12 @@ int Run() {
     const absl::Status written =
         WriteCsvColumns(path,
                         {"round", "context_only_mean", "context_only_se",
-                         "posthoc_mean", "posthoc_se", "diff_mean", "diff_se"},
+                         "posthoc_mean", "posthoc_se", "diff_mean", "diff_se",
+                         "polinucb_mean", "polinucb_se", "diff_polinucb_mean",
+                         "diff_polinucb_se"},
                         {round, c.mean, c.standard_error, p.mean,
-                         p.standard_error, d.mean, d.standard_error});
+                         p.standard_error, d.mean, d.standard_error, po.mean,
+                         po.standard_error, dpo.mean, dpo.standard_error});
     if (!written.ok()) {
       absl::FPrintF(stderr, "%s\n", written.ToString());
       return 1;
@@ -117,10 +131,13 @@ int Run() {
     absl::PrintF(
         "d_c=%d K=%d d_p=%d trials=%d rounds=%d: cumulative regret "
         "context-only %.3f +- %.3f, post hoc %.3f +- %.3f, difference %.3f "
-        "+- %.3f (mean +- s.e.); wrote %s\n",
+        "+- %.3f; poLinUCB %.3f +- %.3f, difference %.3f +- %.3f (mean +- "
+        "s.e.; differences context-only minus the learner); wrote %s\n",
         dim, config.num_actions, config.posthoc_dim, trials, config.rounds,
         c.mean[last], c.standard_error[last], p.mean[last],
-        p.standard_error[last], d.mean[last], d.standard_error[last], path);
+        p.standard_error[last], d.mean[last], d.standard_error[last],
+        po.mean[last], po.standard_error[last], dpo.mean[last],
+        dpo.standard_error[last], path);
   }
   return 0;
 }

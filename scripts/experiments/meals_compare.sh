@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
 # Whole meals through the real services (scripts/meal.sh: four services +
 # orchestrator), post hoc haptic context against vision only, paired: user
-# pair u has a post hoc user and a vision-only user who eat the same
+# pair u has a post hoc user (and, with --arms posthoc,polinucb, a poLinUCB
+# user) and a vision-only user who eat the same
 # simulated plates (meal m of pair u uses plate seed 1000*(u-1)+m for both),
 # each continuing from its own model across meals. Prints failures per meal
 # with 95% intervals over the pairs and the paired difference.
 #
 #   scripts/experiments/meals_compare.sh [--users N] [--meals M] [--jobs J]
+#                                        [--arms posthoc,polinucb]
 #                                        [orchestrator flags...]
 # e.g. scripts/experiments/meals_compare.sh --users 10 --meals 5
 #      scripts/experiments/meals_compare.sh --users 10 --meals 5 --lambda_c=10
@@ -20,12 +22,14 @@ cd "$(dirname "$0")/../.."
 USERS=10
 MEALS=5
 JOBS=4
+ARMS=posthoc
 EXTRA=()
 while (($#)); do
   case "$1" in
     --users) USERS="$2"; shift 2 ;;
     --meals) MEALS="$2"; shift 2 ;;
     --jobs) JOBS="$2"; shift 2 ;;
+    --arms) ARMS="$2"; shift 2 ;;
     *) EXTRA+=("$1"); shift ;;
   esac
 done
@@ -40,9 +44,10 @@ run_pair() {
   local dir="$ROOT/pair-$u"
   mkdir -p "$dir/out"
   for m in $(seq 1 "$MEALS"); do
-    for learner in posthoc vision; do
+    for learner in ${ARMS//,/ } vision; do
       local flags=("${EXTRA[@]}")
       [ "$learner" = vision ] && flags+=(--posthoc=none)
+      [ "$learner" = polinucb ] && flags+=(--learner=polinucb)
       echo $((1000 * (u - 1) + m - 1)) >"$dir/meals.count"
       local out="$dir/out/$learner-$m.txt"
       BITEWISE_DATA_DIR="$dir" BITEWISE_BASE_PORT=$((50200 + 10 * u)) \
@@ -73,4 +78,4 @@ done
 wait
 
 python3 scripts/experiments/meals_compare_summary.py "$ROOT/meals.tsv" \
-  "$USERS" "$MEALS" | tee "$ROOT/summary.txt"
+  "$USERS" "$MEALS" "$ARMS" | tee "$ROOT/summary.txt"

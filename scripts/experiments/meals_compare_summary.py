@@ -1,10 +1,12 @@
 #!/usr/bin/env python3
 """Summarises scripts/experiments/meals_compare.sh's meals.tsv.
 
-Each line: pair, meal, learner (posthoc or vision), attempts, failures.
-Prints, per meal and over all meals, the mean failures of each arm over
+Each line: pair, meal, learner (posthoc, polinucb or vision), attempts,
+failures. Arguments: the file, users, meals, and the arms compared with
+vision only (comma separated; default posthoc). Prints, per arm, per meal
+and over all meals, the mean failures of the arm and of vision only over
 the pairs with a 95% t interval, and the paired difference (vision minus
-post hoc: positive means post hoc failed less). Pairs missing a meal of
+the arm: positive means the arm failed less). Pairs missing a meal of
 either arm are left out of that meal's row, and said so.
 """
 import math
@@ -32,8 +34,13 @@ def fmt(values):
     return "%6.2f [%6.2f, %6.2f]" % (mean, mean - half, mean + half)
 
 
+LABELS = {"posthoc": "post hoc (logprob)", "polinucb": "poLinUCB (logprob)"}
+
+
 def main():
     path, users, meals = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
+    # The arms compared with vision only, each paired with it.
+    arms = sys.argv[4].split(",") if len(sys.argv) > 4 else ["posthoc"]
     rows = {}
     for line in open(path):
         pair, meal, learner, attempts, failures = line.split()
@@ -41,9 +48,21 @@ def main():
     print("Failures per meal (8 unseen foods, each until picked up), mean "
           "over user pairs and 95%% t interval; %d pairs x %d meals.\n"
           % (users, meals))
+    for arm in arms:
+        summarise(rows, users, meals, arm)
+    missing = [k for k in
+               ((p, m, l) for p in range(1, users + 1)
+                for m in range(1, meals + 1) for l in arms + ["vision"])
+               if k not in rows]
+    if missing:
+        print("\nmissing meals (pair, meal, learner): %s" % missing)
+
+
+def summarise(rows, users, meals, arm):
+    label = LABELS.get(arm, arm)
     print("%-6s %5s  %-26s %-26s %-28s %s" % (
-        "meal", "pairs", "post hoc (logprob)", "vision only",
-        "paired: vision - post hoc", "attempts ph / vision"))
+        "meal", "pairs", label, "vision only",
+        "paired: vision - " + arm, "attempts %s / vision" % arm))
     total_ph, total_vi = {}, {}
     for meal in list(range(1, meals + 1)) + ["all"]:
         ph, vi, att_ph, att_vi = [], [], [], []
@@ -56,7 +75,7 @@ def main():
                 att_ph.append(sum(a for a, _ in total_ph[pair]))
                 att_vi.append(sum(a for a, _ in total_vi[pair]))
                 continue
-            a = rows.get((pair, meal, "posthoc"))
+            a = rows.get((pair, meal, arm))
             b = rows.get((pair, meal, "vision"))
             if a is None or b is None:
                 continue
@@ -73,12 +92,7 @@ def main():
             meal, len(ph), fmt(ph), fmt(vi),
             fmt([v - p for p, v in zip(ph, vi)]),
             sum(att_ph) / len(att_ph), sum(att_vi) / len(att_vi)))
-    missing = [k for k in
-               ((p, m, l) for p in range(1, users + 1)
-                for m in range(1, meals + 1) for l in ("posthoc", "vision"))
-               if k not in rows]
-    if missing:
-        print("\nmissing meals (pair, meal, learner): %s" % missing)
+    print()
 
 
 if __name__ == "__main__":
