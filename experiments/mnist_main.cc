@@ -175,15 +175,14 @@ int Run() {
     std::vector<double> round(c.mean.size());
     for (size_t t = 0; t < round.size(); ++t) round[t] = t + 1;
     const std::string path = absl::StrCat(out_dir, "/mnist_regret.csv");
-    const absl::Status written =
-        WriteCsvColumns(path,
-                        {"round", "context_only_mean", "context_only_se",
-                         "posthoc_mean", "posthoc_se", "diff_mean", "diff_se",
-                         "polinucb_mean", "polinucb_se", "diff_polinucb_mean",
-                         "diff_polinucb_se"},
-                        {round, c.mean, c.standard_error, p.mean,
-                         p.standard_error, d.mean, d.standard_error, po.mean,
-                         po.standard_error, dpo.mean, dpo.standard_error});
+    const absl::Status written = WriteCsvColumns(
+        path,
+        {"round", "context_only_mean", "context_only_se", "posthoc_mean",
+         "posthoc_se", "diff_mean", "diff_se", "polinucb_mean", "polinucb_se",
+         "diff_polinucb_mean", "diff_polinucb_se"},
+        {round, c.mean, c.standard_error, p.mean, p.standard_error, d.mean,
+         d.standard_error, po.mean, po.standard_error, dpo.mean,
+         dpo.standard_error});
     if (!written.ok()) return Fail(written);
     const size_t last = round.size() - 1;
     absl::PrintF(

@@ -43,7 +43,8 @@ ABSL_FLAG(double, lambda_p, 1.0, "Ridge on the post hoc terms.");
 ABSL_FLAG(double, phi_radius, bitewise::bandit::BanditConfig().phi_radius,
           "poLinUCB: radius of the predicted post hoc context's ball, per "
           "unit of sqrt(c^T X^-1 c) (docs/algorithms.md).");
-ABSL_FLAG(double, thompson_v, bitewise::experiments::SimMealsConfig().thompson_v,
+ABSL_FLAG(double, thompson_v,
+          bitewise::experiments::SimMealsConfig().thompson_v,
           "Thompson sampling's v (theta ~ N(theta_a, v^2 Sigma_a)).");
 ABSL_FLAG(double, haptic_accuracy, 0.0,
           "Sensitivity: make HapticNet right with this probability (confident "

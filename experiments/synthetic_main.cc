@@ -86,8 +86,7 @@ int Run() {
       auto po = RunSyntheticTrial(config, world, bandit::Learner::kPoLinUcb);
       for (const auto* run : {&c, &p, &po}) {
         if (!run->ok()) {
-          absl::FPrintF(stderr, "trial failed: %s\n",
-                        run->status().ToString());
+          absl::FPrintF(stderr, "trial failed: %s\n", run->status().ToString());
           return 1;
         }
       }
@@ -114,15 +113,14 @@ int Run() {
     for (int t = 0; t < config.rounds; ++t) round[t] = t + 1;
     const std::string path = absl::StrCat(absl::GetFlag(FLAGS_out_dir),
                                           "/synthetic_dc", dim, ".csv");
-    const absl::Status written =
-        WriteCsvColumns(path,
-                        {"round", "context_only_mean", "context_only_se",
-                         "posthoc_mean", "posthoc_se", "diff_mean", "diff_se",
-                         "polinucb_mean", "polinucb_se", "diff_polinucb_mean",
-                         "diff_polinucb_se"},
-                        {round, c.mean, c.standard_error, p.mean,
-                         p.standard_error, d.mean, d.standard_error, po.mean,
-                         po.standard_error, dpo.mean, dpo.standard_error});
+    const absl::Status written = WriteCsvColumns(
+        path,
+        {"round", "context_only_mean", "context_only_se", "posthoc_mean",
+         "posthoc_se", "diff_mean", "diff_se", "polinucb_mean", "polinucb_se",
+         "diff_polinucb_mean", "diff_polinucb_se"},
+        {round, c.mean, c.standard_error, p.mean, p.standard_error, d.mean,
+         d.standard_error, po.mean, po.standard_error, dpo.mean,
+         dpo.standard_error});
     if (!written.ok()) {
       absl::FPrintF(stderr, "%s\n", written.ToString());
       return 1;
