@@ -104,9 +104,10 @@ std::vector<LearnerSpec> Learners() {
   specs.push_back({"post hoc (logprob) TS", "posthoc_logprob_ts",
                    bandit::Learner::kPostHoc, HapticContext::kLogProbabilities,
                    bandit::Strategy::kThompson, ts_baseline});
+  // Paired with context-only (the CSV) and with post hoc LinUCB (logprob).
   specs.push_back({"poLinUCB (logprob)", "polinucb_logprob",
                    bandit::Learner::kPoLinUcb, HapticContext::kLogProbabilities,
-                   bandit::Strategy::kLinUcb, 0});
+                   bandit::Strategy::kLinUcb, 0, 1});
   return specs;
 }
 constexpr int kLinUcbLearners = 1 + kHapticContexts.size();

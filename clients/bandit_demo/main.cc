@@ -20,6 +20,7 @@
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
+#include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/time/time.h"
@@ -41,7 +42,7 @@ ABSL_FLAG(int, context_dim, 2048, "Visual context dimension for new users.");
 ABSL_FLAG(std::string, posthoc, "logprob",
           "Post hoc context sent with each update: logprob or prob.");
 ABSL_FLAG(std::string, learner, "posthoc",
-          "Learner for a new user: posthoc or context_only.");
+          "Learner for a new user: posthoc, context_only or polinucb.");
 ABSL_FLAG(std::string, tls_ca, "", "CA bundle of the server (turns on TLS).");
 ABSL_FLAG(std::string, tls_cert, "", "Client certificate (mutual TLS).");
 ABSL_FLAG(std::string, tls_key, "", "Client key (mutual TLS).");
@@ -154,10 +155,15 @@ int main(int argc, char** argv) {
       create.mutable_config()->set_context_dim(
           absl::GetFlag(FLAGS_context_dim));
       create.mutable_config()->set_posthoc_dim(4);
-      create.mutable_config()->set_learner(absl::GetFlag(FLAGS_learner) ==
-                                                   "context_only"
-                                               ? v1::LEARNER_CONTEXT_ONLY
-                                               : v1::LEARNER_POSTHOC);
+      v1::Learner learner = v1::LEARNER_UNSPECIFIED;
+      if (!v1::Learner_Parse(
+              absl::AsciiStrToUpper("LEARNER_" + absl::GetFlag(FLAGS_learner)),
+              &learner)) {
+        std::fprintf(stderr, "--learner: unknown learner %s\n",
+                     absl::GetFlag(FLAGS_learner).c_str());
+        return 2;
+      }
+      create.mutable_config()->set_learner(learner);
       status = stub->CreateUser(Context().get(), create, &user);
       if (!status.ok()) return Fail("CreateUser", status);
       std::printf("new user %s (%s learner, d=%u)\n", user_id.c_str(),

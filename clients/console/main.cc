@@ -60,7 +60,8 @@ ABSL_FLAG(std::string, confirm, "robot",
           "Who decides success: robot, or operator (the table view asks).");
 ABSL_FLAG(std::string, learner, "",
           "Learner for NEW users: posthoc, context_only or polinucb (empty: "
-          "posthoc, or context_only with --posthoc=none; docs/algorithms.md).");
+          "polinucb, or context_only with --posthoc=none; "
+          "docs/experiments.md, \"Learners compared\").");
 ABSL_FLAG(std::string, posthoc, "logprob",
           "Post hoc context sent to the bandit: logprob, prob or none.");
 ABSL_FLAG(std::string, journal, "bitewise-console.journal",

@@ -489,10 +489,12 @@ absl::Status Meal::EnsureUser(int context_dim, double context_msn) {
   create.set_user_id(options_.user_id);
   v1::UserConfig* config = create.mutable_config();
   config->set_context_dim(context_dim);
+  // poLinUCB by default: it failed less than post hoc LinUCB in the
+  // simulated meals, paired (docs/experiments.md, "Learners compared").
   config->set_learner(
       options_.learner != v1::LEARNER_UNSPECIFIED ? options_.learner
       : options_.posthoc == PosthocMode::kNone    ? v1::LEARNER_CONTEXT_ONLY
-                                                  : v1::LEARNER_POSTHOC);
+                                                  : v1::LEARNER_POLINUCB);
   const double lambda_c = domain::NewUserContextRidge(
       options_.lambda_c, options_.rho_c, context_msn);
   if (lambda_c > 0.0) config->set_lambda_c(lambda_c);

@@ -64,7 +64,7 @@ struct MealOptions {
   std::string user_id = "demo-user";
   std::string meal_id = "meal-1";
   PosthocMode posthoc = PosthocMode::kLogProbabilities;
-  // For a NEW user: LEARNER_UNSPECIFIED picks post hoc LinUCB, or the
+  // For a NEW user: LEARNER_UNSPECIFIED picks poLinUCB, or the
   // context-only learner with PosthocMode::kNone (ParseLearner).
   v1::Learner learner = v1::LEARNER_UNSPECIFIED;
   ConfirmBy confirm = ConfirmBy::kRobot;
@@ -97,7 +97,8 @@ class MealListener {
 // "1 failure", "2 failures".
 std::string Count(int n, const char* singular, const char* plural);
 
-// A --learner flag's value: "" (by the post hoc mode), "posthoc",
+// A --learner flag's value: "" (by the post hoc mode: polinucb, or
+// context_only with kNone), "posthoc",
 // "context_only" or "polinucb". INVALID_ARGUMENT naming the choices, or
 // when the learner needs a post hoc context and `posthoc` is kNone.
 absl::StatusOr<v1::Learner> ParseLearner(const std::string& name,

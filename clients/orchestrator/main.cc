@@ -49,7 +49,8 @@ ABSL_FLAG(std::string, confirm, "robot",
           "operator (answer y/n at the terminal).");
 ABSL_FLAG(std::string, learner, "",
           "Learner for NEW users: posthoc, context_only or polinucb (empty: "
-          "posthoc, or context_only with --posthoc=none; docs/algorithms.md).");
+          "polinucb, or context_only with --posthoc=none; "
+          "docs/experiments.md, \"Learners compared\").");
 ABSL_FLAG(std::string, posthoc, "logprob",
           "Post hoc context sent to the bandit: logprob (as the original "
           "research code), prob (as the paper's text) or none (vision only; "

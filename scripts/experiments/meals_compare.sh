@@ -47,6 +47,7 @@ run_pair() {
     for learner in ${ARMS//,/ } vision; do
       local flags=("${EXTRA[@]}")
       [ "$learner" = vision ] && flags+=(--posthoc=none)
+      [ "$learner" = posthoc ] && flags+=(--learner=posthoc)
       [ "$learner" = polinucb ] && flags+=(--learner=polinucb)
       echo $((1000 * (u - 1) + m - 1)) >"$dir/meals.count"
       local out="$dir/out/$learner-$m.txt"

@@ -238,10 +238,11 @@ TEST_F(MealTest, RobotsChoiceRunsEveryStepInOrderAndLearns) {
   EXPECT_EQ(events[0].loss(), bite.outcome() == "success" ? 0.0 : 1.0);
   EXPECT_EQ(events[0].posthoc_size(), 4);
 
-  // A new user's context ridge is rho_c x the featurizer's E||c||^2.
+  // A new user's context ridge is rho_c x the featurizer's E||c||^2, and
+  // its learner poLinUCB (the default).
   absl::StatusOr<v1::User> user = clients_->bandit.GetUser(options_.user_id);
   ASSERT_OK(user.status());
-  EXPECT_EQ(user->config().learner(), v1::LEARNER_POSTHOC);
+  EXPECT_EQ(user->config().learner(), v1::LEARNER_POLINUCB);
   EXPECT_GT(user->config().lambda_c(), 0.0);
   EXPECT_THAT(listener_.notes(),
               ::testing::Contains(HasSubstr("context ridge lambda_c")));
@@ -268,17 +269,17 @@ TEST(ParseLearnerTest, NamesFromTheApiAndThePosthocTheyNeed) {
                        HasSubstr("--posthoc=logprob or prob")));
 }
 
-// A new user with --learner=polinucb learns from its bites through the
-// real services.
-TEST_F(MealTest, APoLinUcbUserLearnsFromItsBites) {
-  options_.learner = v1::LEARNER_POLINUCB;
+// A new user with --learner=posthoc gets post hoc LinUCB and learns from
+// its bites through the real services.
+TEST_F(MealTest, AChosenLearnerIsTheNewUsers) {
+  options_.learner = v1::LEARNER_POSTHOC;
   auto meal = NewMeal();
   ASSERT_OK(meal->LookAtPlate());
   ASSERT_OK(meal->Bite(std::nullopt));
   ASSERT_OK(meal->Bite(std::nullopt));
   absl::StatusOr<v1::User> user = clients_->bandit.GetUser(options_.user_id);
   ASSERT_TRUE(user.ok()) << user.status();
-  EXPECT_EQ(user->config().learner(), v1::LEARNER_POLINUCB);
+  EXPECT_EQ(user->config().learner(), v1::LEARNER_POSTHOC);
   EXPECT_EQ(user->model_version(), 2);
   for (const v1::Event& event : Events()) {
     EXPECT_TRUE(event.completed());
