@@ -696,3 +696,55 @@ TEST_F(EngineTest, PopulationPriorPoolsLikeUsersAndPrimesNewOnes) {
 
 }  // namespace
 }  // namespace bitewise::bandit
+
+namespace bitewise::bandit {
+namespace {
+
+// poLinUCB in the engine as the other learners: a cold load starts from its
+// checkpoint and equals the live model, and a population prior pooled from
+// poLinUCB users starts a new one where the dense reference says.
+TEST_F(EngineTest, PoLinUcbCheckpointsAndPoolsAsTheOtherLearners) {
+  EngineOptions options;
+  options.primal_threshold = 20;
+  options.checkpoint_min_events = 0;
+  Reopen(options);
+  BanditConfig config = SmallConfig();
+  config.learner = Learner::kPoLinUcb;
+  std::mt19937_64 rng(31);
+  for (const char* user : {"po1", "po2"}) {
+    ASSERT_TRUE(engine_->CreateUser(user, config).ok());
+    for (int t = 0; t < 60; ++t) Bite(user, rng);
+  }
+  ASSERT_TRUE(engine_->CheckpointUser("po1").ok());
+  for (int t = 0; t < 9; ++t) Bite("po1", rng);
+  const auto live = Thetas(*engine_, "po1");
+  Reopen(options);
+  ExpectNear(Thetas(*engine_, "po1"), live);
+  EXPECT_EQ(engine_->Counters().checkpoint_loads, 1);
+  EXPECT_EQ(engine_->Counters().checkpoints_ignored, 0);
+
+  absl::StatusOr<PoolRecord> pool = engine_->BuildPopulationPool(config);
+  ASSERT_TRUE(pool.ok()) << pool.status();
+  EXPECT_EQ(pool->users, 2);
+  absl::StatusOr<UserRecord> primed =
+      engine_->CreateUser("po-primed", config, /*prior_rounds=*/3.0);
+  ASSERT_TRUE(primed.ok()) << primed.status();
+  ASSERT_TRUE(primed->config.prior.enabled());
+  EXPECT_EQ(primed->config.learner, Learner::kPoLinUcb);
+  absl::StatusOr<ModelExport> model = engine_->GetModel("po-primed");
+  ASSERT_TRUE(model.ok()) << model.status();
+  const std::vector<double> at = RandomVector(8, rng);
+  const testing::DensePoLinUcb ref =
+      testing::DensePoLinUcbReference(model->user.config, {}, at);
+  for (int a = 0; a < 6; ++a) {
+    const Eigen::Map<const Eigen::VectorXd> theta(
+        model->actions[a].theta.data(), model->actions[a].theta.size());
+    const Eigen::Map<const Eigen::VectorXd> phi(model->actions[a].phi.data(),
+                                                model->actions[a].phi.size());
+    EXPECT_TRUE(bitewise::testing::RelNear(theta, ref.theta[a], 1e-10));
+    EXPECT_TRUE(bitewise::testing::RelNear(phi, ref.beta[a], 1e-10));
+  }
+}
+
+}  // namespace
+}  // namespace bitewise::bandit
