@@ -39,6 +39,8 @@ MatrixXd LowerSymmetricTimes(const MatrixXd& a, const MatrixXd& x) {
 constexpr char kStateMagic[4] = {'B', 'W', 'L', 'U'};
 constexpr int32_t kStateFormat = 2;
 constexpr double kLayoutMarker = 1.0 + 1.0 / 1024;  // bytes tell the layout
+constexpr StateHeader kStateHeader = {kStateMagic, kStateFormat, kLayoutMarker,
+                                      "model"};
 
 }  // namespace
 
@@ -829,9 +831,7 @@ size_t LinUcbModel::StateBytesBound() const { return MemoryBytes() + 4096; }
 
 void LinUcbModel::SaveState(std::string* state) const {
   StateWriter out(std::move(*state), StateBytesBound());
-  for (char c : kStateMagic) out.Value(c);
-  out.Value(kStateFormat);
-  out.Value(kLayoutMarker);
+  WriteStateHeader(out, kStateHeader);
   out.Value(static_cast<int32_t>(d_));
   out.Value(static_cast<int32_t>(q_));
   out.Value(static_cast<int32_t>(actions_.size()));
@@ -886,18 +886,7 @@ absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,
                                                    int primal_threshold) {
   ASSIGN_OR_RETURN(LinUcbModel model, Create(config, primal_threshold));
   StateReader in(state);
-  char magic[4];
-  for (char& c : magic) RETURN_IF_ERROR(in.Value(&c, "the header"));
-  int32_t format = 0;
-  double marker = 0;
-  RETURN_IF_ERROR(in.Value(&format, "the header"));
-  RETURN_IF_ERROR(in.Value(&marker, "the header"));
-  if (std::memcmp(magic, kStateMagic, 4) != 0 || format != kStateFormat ||
-      marker != kLayoutMarker) {
-    return absl::DataLossError(
-        absl::StrCat("model state: not a bitewise model state of format ",
-                     kStateFormat, " in this host's layout"));
-  }
+  RETURN_IF_ERROR(ReadStateHeader(in, kStateHeader));
   int32_t d = 0, q = 0, k = 0, threshold = 0;
   double lambda = 0;
   RETURN_IF_ERROR(in.Value(&d, "the header"));

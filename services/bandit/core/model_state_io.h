@@ -5,6 +5,7 @@
 #define BITEWISE_SERVICES_BANDIT_CORE_MODEL_STATE_IO_H_
 
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <string>
 #include <utility>
@@ -86,6 +87,41 @@ inline absl::Status ValidateVector(const char* field,
           absl::StrCat(field, "[", i, "]: magnitude must be at most ",
                        max_magnitude, ", got ", v[i]));
     }
+  }
+  return absl::OkStatus();
+}
+
+// A saved state starts with 4 magic bytes, its format number and a float64
+// marker that tells this host's layout from another.
+struct StateHeader {
+  const char* magic;  // 4 bytes
+  int32_t format;
+  double marker;
+  const char* name;  // for messages: "model", "poLinUCB"
+};
+
+inline void WriteStateHeader(StateWriter& out, const StateHeader& header) {
+  for (int i = 0; i < 4; ++i) out.Value(header.magic[i]);
+  out.Value(header.format);
+  out.Value(header.marker);
+}
+
+// DATA_LOSS unless `in` starts with `header`.
+inline absl::Status ReadStateHeader(StateReader& in,
+                                    const StateHeader& header) {
+  char magic[4];
+  int32_t format = 0;
+  double marker = 0;
+  for (char& c : magic) {
+    if (absl::Status s = in.Value(&c, "the header"); !s.ok()) return s;
+  }
+  if (absl::Status s = in.Value(&format, "the header"); !s.ok()) return s;
+  if (absl::Status s = in.Value(&marker, "the header"); !s.ok()) return s;
+  if (std::memcmp(magic, header.magic, 4) != 0 || format != header.format ||
+      marker != header.marker) {
+    return absl::DataLossError(absl::StrCat(
+        "model state: not a bitewise ", header.name, " state of format ",
+        header.format, " in this host's layout"));
   }
   return absl::OkStatus();
 }

@@ -22,6 +22,8 @@ Eigen::Map<const VectorXd> AsVector(absl::Span<const double> v) {
 constexpr char kStateMagic[4] = {'B', 'W', 'P', 'O'};
 constexpr int32_t kStateFormat = 1;
 constexpr double kLayoutMarker = 1.0 + 1.0 / 1024;
+constexpr StateHeader kStateHeader = {kStateMagic, kStateFormat, kLayoutMarker,
+                                      "poLinUCB"};
 
 // The context models see the round without its post hoc context.
 Round ContextRound(const Round& round, int action, double weight) {
@@ -30,6 +32,24 @@ Round ContextRound(const Round& round, int action, double weight) {
   out.action = action;
   out.loss = round.loss;
   out.weight = weight;
+  return out;
+}
+
+// The rounds as the context models see them: per action with its weight,
+// and pooled into one action with weight 1.
+struct ContextRounds {
+  std::vector<Round> per_action;
+  std::vector<Round> pooled;
+};
+
+ContextRounds SplitRounds(const std::vector<Round>& rounds) {
+  ContextRounds out;
+  out.per_action.reserve(rounds.size());
+  out.pooled.reserve(rounds.size());
+  for (const Round& round : rounds) {
+    out.per_action.push_back(ContextRound(round, round.action, round.weight));
+    out.pooled.push_back(ContextRound(round, 0, 1.0));
+  }
   return out;
 }
 
@@ -217,35 +237,23 @@ void PoLinUcbModel::Recompute() {
 
 void PoLinUcbModel::Replay(const std::vector<Round>& rounds) {
   if (rounds.empty()) return;
-  std::vector<Round> contexts, pooled;
-  contexts.reserve(rounds.size());
-  pooled.reserve(rounds.size());
-  for (const Round& round : rounds) {
-    contexts.push_back(ContextRound(round, round.action, round.weight));
-    pooled.push_back(ContextRound(round, 0, 1.0));
-    AddSums(round);
-  }
-  contexts_.Replay(contexts);
-  pooled_.Replay(pooled);
+  const ContextRounds split = SplitRounds(rounds);
+  for (const Round& round : rounds) AddSums(round);
+  contexts_.Replay(split.per_action);
+  pooled_.Replay(split.pooled);
   Recompute();
 }
 
 absl::StatusOr<PoLinUcbModel> PoLinUcbModel::Rebuild(
     const BanditConfig& config, const std::vector<Round>& rounds,
     int primal_threshold) {
-  std::vector<Round> contexts, pooled;
-  contexts.reserve(rounds.size());
-  pooled.reserve(rounds.size());
-  for (const Round& round : rounds) {
-    contexts.push_back(ContextRound(round, round.action, round.weight));
-    pooled.push_back(ContextRound(round, 0, 1.0));
-  }
-  ASSIGN_OR_RETURN(
-      LinUcbModel context_model,
-      LinUcbModel::Rebuild(ContextsConfig(config), contexts, primal_threshold));
-  ASSIGN_OR_RETURN(
-      LinUcbModel pooled_model,
-      LinUcbModel::Rebuild(PooledConfig(config), pooled, primal_threshold));
+  const ContextRounds split = SplitRounds(rounds);
+  ASSIGN_OR_RETURN(LinUcbModel context_model,
+                   LinUcbModel::Rebuild(ContextsConfig(config),
+                                        split.per_action, primal_threshold));
+  ASSIGN_OR_RETURN(LinUcbModel pooled_model,
+                   LinUcbModel::Rebuild(PooledConfig(config), split.pooled,
+                                        primal_threshold));
   ASSIGN_OR_RETURN(PoLinUcbModel model, Create(config, primal_threshold));
   for (const Round& round : rounds) {
     RETURN_IF_ERROR(model.ValidateRound(round));
@@ -287,9 +295,7 @@ void PoLinUcbModel::SaveState(std::string* state) const {
   const std::string contexts = contexts_.SaveState();
   const std::string pooled = pooled_.SaveState();
   StateWriter out(std::move(*state), StateBytesBound());
-  for (char ch : kStateMagic) out.Value(ch);
-  out.Value(kStateFormat);
-  out.Value(kLayoutMarker);
+  WriteStateHeader(out, kStateHeader);
   out.Value(static_cast<int32_t>(d_));
   out.Value(static_cast<int32_t>(q_));
   out.Value(static_cast<int32_t>(actions_.size()));
@@ -318,18 +324,7 @@ absl::StatusOr<PoLinUcbModel> PoLinUcbModel::LoadState(
     const BanditConfig& config, absl::string_view state, int primal_threshold) {
   ASSIGN_OR_RETURN(PoLinUcbModel model, Create(config, primal_threshold));
   StateReader in(state);
-  char magic[4];
-  for (char& ch : magic) RETURN_IF_ERROR(in.Value(&ch, "the header"));
-  int32_t format = 0;
-  double marker = 0;
-  RETURN_IF_ERROR(in.Value(&format, "the header"));
-  RETURN_IF_ERROR(in.Value(&marker, "the header"));
-  if (std::memcmp(magic, kStateMagic, 4) != 0 || format != kStateFormat ||
-      marker != kLayoutMarker) {
-    return absl::DataLossError(
-        absl::StrCat("model state: not a bitewise poLinUCB state of format ",
-                     kStateFormat, " in this host's layout"));
-  }
+  RETURN_IF_ERROR(ReadStateHeader(in, kStateHeader));
   int32_t d = 0, q = 0, k = 0;
   double ridge = 0;
   RETURN_IF_ERROR(in.Value(&d, "the header"));
