@@ -90,7 +90,25 @@ void RowBlocks::Clear() {
 size_t SelectProducts::Bytes() const {
   size_t doubles = context.size();
   for (const VectorXd& v : per_action) doubles += v.size();
-  return doubles * sizeof(double);
+  return doubles * sizeof(double) + (nested != nullptr ? nested->Bytes() : 0);
+}
+
+VectorXd LinUcbModel::SolveA(int action, const VectorXd& x,
+                             const SelectProducts* products) const {
+  const ActionState& s = actions_[action];
+  const bool reuse =
+      products != nullptr && products->total_rounds == total_rounds_ &&
+      products->per_action.size() == actions_.size() &&
+      products->context.size() == static_cast<size_t>(x.size()) &&
+      std::equal(products->context.begin(), products->context.end(),
+                 x.data()) &&
+      products->per_action[action].size() == (s.primal ? d_ : s.w.rows());
+  if (!reuse) return ApplyAInverse(s, x);
+  // The Select's product is A^-1 x (primal) or W x (dual).
+  const VectorXd& v = products->per_action[action];
+  if (s.primal) return v;
+  if (s.w.rows() == 0) return x / lambda_a_;
+  return (x - WTranspose(s, v)) / lambda_a_;
 }
 
 LinUcbModel::LinUcbModel(const BanditConfig& config, int primal_threshold)

@@ -161,10 +161,11 @@ class LinUcbModel final : public LearnerModel {
   // equal to rounding. Every round must pass ValidateRound.
   void Replay(const std::vector<Round>& rounds) override;
 
-  // A_a^-1 x for a d-vector x (one pass over the action's form).
-  Eigen::VectorXd SolveA(int action, const Eigen::VectorXd& x) const {
-    return ApplyAInverse(actions_[action], x);
-  }
+  // A_a^-1 x for a d-vector x (one pass over the action's form), or, with
+  // `products` of an Estimate at x of this model state, from them (one
+  // pass less). The same result either way.
+  Eigen::VectorXd SolveA(int action, const Eigen::VectorXd& x,
+                         const SelectProducts* products = nullptr) const;
 
   // theta_a (length d) and phi_a = H theta_a (length q; empty for the
   // context-only learner).

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <utility>
 
 #include "absl/strings/str_cat.h"
@@ -142,23 +143,25 @@ void PoLinUcbModel::Refresh(ActionState& s) {
 }
 
 VectorXd PoLinUcbModel::PredictPosthoc(const Eigen::Ref<const VectorXd>& c,
-                                       double* radius) const {
+                                       double* radius,
+                                       SelectProducts* products) const {
   if (radius != nullptr) {
     // sqrt(c^T X^-1 c): the pooled model's width.
     const std::vector<ActionEstimate> pooled = pooled_.Estimate(
-        absl::Span<const double>(c.data(), static_cast<size_t>(c.size())));
+        absl::Span<const double>(c.data(), static_cast<size_t>(c.size())),
+        products);
     *radius = config_.phi_radius * pooled[0].width;
   }
   return q_map_.transpose() * c;
 }
 
 VectorXd PoLinUcbModel::PredictPosthoc(absl::Span<const double> c) const {
-  return PredictPosthoc(AsVector(c), nullptr);
+  return PredictPosthoc(AsVector(c), nullptr, nullptr);
 }
 
 double PoLinUcbModel::PosthocRadius(absl::Span<const double> c) const {
   double radius = 0.0;
-  PredictPosthoc(AsVector(c), &radius);
+  PredictPosthoc(AsVector(c), &radius, nullptr);
   return radius;
 }
 
@@ -166,8 +169,13 @@ std::vector<ActionEstimate> PoLinUcbModel::Estimate(
     absl::Span<const double> context, SelectProducts* products) const {
   const Eigen::Map<const VectorXd> c = AsVector(context);
   std::vector<ActionEstimate> out = contexts_.Estimate(context, products);
+  SelectProducts* pooled_products = nullptr;
+  if (products != nullptr) {
+    products->nested = std::make_shared<SelectProducts>();
+    pooled_products = products->nested.get();
+  }
   double radius = 0.0;
-  const VectorXd p_hat = PredictPosthoc(c, &radius);
+  const VectorXd p_hat = PredictPosthoc(c, &radius, pooled_products);
   for (size_t a = 0; a < actions_.size(); ++a) {
     const ActionState& s = actions_[a];
     // With k = C^-1 c: [c; z]^T A^-1 [c; z] = c^T k + (z - G^T c)^T S^-1
@@ -208,18 +216,22 @@ void PoLinUcbModel::Update(const Round& round, const SelectProducts* products) {
   // Sherman-Morrison with k = C^-1 c before the round: C'^-1 c = k / den,
   // so G' = C'^-1 (E + w c p^T) = G + (w / den) k (p - G^T c)^T, and the
   // same for C^-1 b_c with l for p.
-  const VectorXd k = contexts_.SolveA(round.action, c);
+  // The Select's products, when they are of this state and context, save a
+  // pass over each form.
+  const SelectProducts* pooled_products =
+      products != nullptr ? products->nested.get() : nullptr;
+  const VectorXd k = contexts_.SolveA(round.action, c, products);
   const double den = 1.0 + w * c.dot(k);
   s.g.noalias() += (w / den) * k * (p - s.g.transpose() * c).transpose();
   s.theta_c.noalias() += (w / den) * (round.loss - c.dot(s.theta_c)) * k;
   // X gains c c^T (weight 1): Q' = X'^-1 (s_cp + c p^T).
-  const VectorXd kx = pooled_.SolveA(0, c);
+  const VectorXd kx = pooled_.SolveA(0, c, pooled_products);
   const double den_x = 1.0 + c.dot(kx);
   q_map_.noalias() +=
       (1.0 / den_x) * kx * (p - q_map_.transpose() * c).transpose();
   AddSums(round);
   contexts_.Update(ContextRound(round, round.action, w), products);
-  pooled_.Update(ContextRound(round, 0, 1.0));
+  pooled_.Update(ContextRound(round, 0, 1.0), pooled_products);
   Refresh(s);
 }
 

@@ -130,8 +130,10 @@ class PoLinUcbModel final : public LearnerModel {
   void Recompute();
   // Adds a round's sums (E, P, bp, the pooled sums and the scale).
   void AddSums(const Round& round);
+  // With `products`, the pooled model's Select products go there.
   Eigen::VectorXd PredictPosthoc(const Eigen::Ref<const Eigen::VectorXd>& c,
-                                 double* radius) const;
+                                 double* radius,
+                                 SelectProducts* products) const;
 
   BanditConfig config_;
   int d_ = 0;

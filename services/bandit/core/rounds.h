@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "Eigen/Core"
@@ -43,6 +44,7 @@ struct InputScale {
 inline constexpr double kMaxInputMagnitude = 1e6;
 
 class LinUcbModel;
+class PoLinUcbModel;
 
 // What one Estimate computed per action (W_a c in dual form, A_a^-1 c in
 // primal form) for one context, tagged with the model state it belongs to.
@@ -53,9 +55,12 @@ class SelectProducts {
 
  private:
   friend class LinUcbModel;
+  friend class PoLinUcbModel;
   int64_t total_rounds = -1;
   std::vector<double> context;
   std::vector<Eigen::VectorXd> per_action;
+  // The products of a model inside the learner (poLinUCB's pooled model).
+  std::shared_ptr<SelectProducts> nested;
 };
 
 }  // namespace bitewise::bandit
