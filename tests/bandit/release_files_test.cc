@@ -40,7 +40,9 @@ std::vector<double> Random(int n, std::mt19937_64& rng) {
   return v;
 }
 
-// Run by hand to write the fixture again (it is committed):
+// Not a check but the fixture's generator, so disabled: it must run on the
+// build whose files are to be kept loading (a checkout of that release), and
+// it writes outside the test's directory. Run by hand to write it again:
 //   BITEWISE_FIXTURE_OUT=/tmp/f.db bandit_release_files_test
 //     --gtest_also_run_disabled_tests --gtest_filter='*WriteTheFixture'
 TEST(ReleaseFilesTest, DISABLED_WriteTheFixture) {

@@ -16,11 +16,6 @@ namespace {
 using Eigen::MatrixXd;
 using Eigen::VectorXd;
 
-Eigen::Map<const VectorXd> AsVector(absl::Span<const double> v) {
-  return Eigen::Map<const VectorXd>(v.data(),
-                                    static_cast<Eigen::Index>(v.size()));
-}
-
 // A x for a symmetric A of which only the lower triangle is read, and a
 // thin x (d x k): one pass over the triangle, column by column (Eigen's
 // selfadjoint product takes twice as long for a few columns).

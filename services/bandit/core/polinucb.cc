@@ -15,11 +15,6 @@ namespace {
 using Eigen::MatrixXd;
 using Eigen::VectorXd;
 
-Eigen::Map<const VectorXd> AsVector(absl::Span<const double> v) {
-  return Eigen::Map<const VectorXd>(v.data(),
-                                    static_cast<Eigen::Index>(v.size()));
-}
-
 constexpr char kStateMagic[4] = {'B', 'W', 'P', 'O'};
 constexpr int32_t kStateFormat = 1;
 constexpr double kLayoutMarker = 1.0 + 1.0 / 1024;

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "Eigen/Core"
+#include "absl/types/span.h"
 
 namespace bitewise::bandit {
 
@@ -42,6 +43,13 @@ struct InputScale {
 // log-probabilities); a value of 1e160 is finite but squares to infinity in
 // c c^T and would turn every later estimate into NaN for good.
 inline constexpr double kMaxInputMagnitude = 1e6;
+
+// A vector of doubles (a context, a post hoc context) seen as an Eigen
+// vector, without a copy.
+inline Eigen::Map<const Eigen::VectorXd> AsVector(absl::Span<const double> v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(),
+                                           static_cast<Eigen::Index>(v.size()));
+}
 
 class LinUcbModel;
 class PoLinUcbModel;
