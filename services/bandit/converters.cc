@@ -75,6 +75,7 @@ absl::StatusOr<BanditConfig> ConfigFromProto(const v1::UserConfig& proto,
   if (proto.has_lambda_c()) config.lambda_c = proto.lambda_c();
   if (proto.has_lambda_p()) config.lambda_p = proto.lambda_p();
   if (proto.has_epsilon()) config.epsilon = proto.epsilon();
+  if (proto.has_phi_radius()) config.phi_radius = proto.phi_radius();
   if (proto.context_dim() > 0) {
     config.context_dim =
         static_cast<int>(std::min<uint32_t>(proto.context_dim(), 1u << 30));
@@ -104,6 +105,7 @@ void ConfigToProto(const BanditConfig& config, v1::UserConfig* proto) {
   proto->set_lambda_c(config.lambda_c);
   proto->set_lambda_p(config.lambda_p);
   proto->set_epsilon(config.epsilon);
+  proto->set_phi_radius(config.phi_radius);
   proto->set_context_dim(static_cast<uint32_t>(config.context_dim));
   proto->set_posthoc_dim(static_cast<uint32_t>(config.posthoc_dim));
   for (const std::string& name : config.action_names) {

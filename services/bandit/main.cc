@@ -56,6 +56,10 @@ ABSL_FLAG(double, default_alpha, 0.01, "Exploration weight for new users.");
 ABSL_FLAG(double, default_lambda_c, 1000.0, "Context ridge for new users.");
 ABSL_FLAG(double, default_lambda_p, 1.0, "Post hoc ridge for new users.");
 ABSL_FLAG(double, default_epsilon, 0.1, "Epsilon for epsilon-greedy users.");
+ABSL_FLAG(double, default_phi_radius,
+          bitewise::bandit::BanditConfig().phi_radius,
+          "poLinUCB's radius of the predicted post hoc context's ball for new "
+          "users (docs/algorithms.md); stored with each user.");
 ABSL_FLAG(int, default_context_dim, 2048,
           "Context dimension for new users (SPANet: 2048).");
 ABSL_FLAG(int, default_posthoc_dim, 4,
@@ -98,6 +102,7 @@ absl::StatusOr<bitewise::bandit::BanditConfig> DefaultsFromFlags() {
   config.lambda_c = absl::GetFlag(FLAGS_default_lambda_c);
   config.lambda_p = absl::GetFlag(FLAGS_default_lambda_p);
   config.epsilon = absl::GetFlag(FLAGS_default_epsilon);
+  config.phi_radius = absl::GetFlag(FLAGS_default_phi_radius);
   config.context_dim = absl::GetFlag(FLAGS_default_context_dim);
   config.posthoc_dim = absl::GetFlag(FLAGS_default_posthoc_dim);
   absl::Status status = bitewise::bandit::ValidateConfig(config);

@@ -96,6 +96,8 @@ TEST(ReleaseFilesTest, StoresAndCheckpointsOfTheEarlierBuildLoad) {
     absl::StatusOr<ModelExport> model = engine.GetModel(user);
     ASSERT_TRUE(model.ok()) << model.status();
     EXPECT_EQ(model->user.config.learner, learner);
+    // Schema 7 gave every earlier user the radius it had: the default.
+    EXPECT_EQ(model->user.config.phi_radius, BanditConfig().phi_radius);
     EXPECT_EQ(model->user.model_version, 140);
     auto events = store->CompletedEvents(user);
     ASSERT_TRUE(events.ok()) << events.status();

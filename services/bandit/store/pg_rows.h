@@ -33,7 +33,7 @@ SELECT u.user_id, u.learner, u.strategy, u.alpha, u.lambda_c, u.lambda_p,
        u.seed, u.created_at_us, u.model_version,
        (SELECT COUNT(*) FROM events e
         WHERE e.user_id = u.user_id AND NOT e.completed),
-       u.prior, u.incarnation
+       u.prior, u.phi_radius, u.incarnation
 FROM users u
 )sql";
 
@@ -131,7 +131,7 @@ inline absl::StatusOr<UserRecord> ReadUser(Connection& conn, Rows& rows) {
                                    Params().Text(user_id), what,
                                    "reading action names");
           }));
-  user.incarnation = rows.Int64(15);
+  user.incarnation = rows.Int64(16);
   return user;
 }
 

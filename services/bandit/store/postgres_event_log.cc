@@ -40,6 +40,7 @@ absl::Status PostgresEventStore::CreateUser(const UserRecord& user) {
   } else {
     params.NullBytes();
   }
+  params.Double(c.phi_radius);
   // model_version and pending_events describe stored events, of which a new
   // user has none; the caller's values are ignored.
   ASSIGN_OR_RETURN(
@@ -47,9 +48,9 @@ absl::Status PostgresEventStore::CreateUser(const UserRecord& user) {
       conn->Exec("INSERT INTO users (user_id, learner, strategy, alpha, "
                  "lambda_c, lambda_p, epsilon, importance_weighting, "
                  "context_dim, posthoc_dim, seed, created_at_us, "
-                 "model_version, prior) VALUES ($1, $2, $3, $4, $5, $6, $7, "
-                 "$8, $9, $10, $11, $12, 0, $13) ON CONFLICT (user_id) DO "
-                 "NOTHING RETURNING user_id",
+                 "model_version, prior, phi_radius) VALUES ($1, $2, $3, $4, "
+                 "$5, $6, $7, $8, $9, $10, $11, $12, 0, $13, $14) ON CONFLICT "
+                 "(user_id) DO NOTHING RETURNING user_id",
                  params, kOp));
   if (inserted.size() == 0) {
     return absl::AlreadyExistsError(

@@ -44,6 +44,7 @@ CREATE TABLE users (
   created_at_us bigint NOT NULL,
   model_version bigint NOT NULL DEFAULT 0,
   prior bytea,  -- the user's population prior (EncodePrior), NULL: none
+  phi_radius float8 NOT NULL DEFAULT 0.1,  -- poLinUCB's (schema 3)
   -- New at CreateUser and ResetUser: cached models of an older log are
   -- dropped by every process.
   incarnation bigint NOT NULL DEFAULT nextval('user_incarnations'),
@@ -148,6 +149,13 @@ DROP FUNCTION IF EXISTS bitewise_enter_user(bigint, text);
 UPDATE bitewise_store SET schema_version = 2;
 )sql";
 
+// Schema 2 to 3: poLinUCB's phi_radius stored with each user (every user
+// before had the default).
+constexpr char kSchema3Sql[] = R"sql(
+ALTER TABLE users ADD COLUMN phi_radius float8 NOT NULL DEFAULT 0.1;
+UPDATE bitewise_store SET schema_version = 3;
+)sql";
+
 // Creates the schema in an empty database, or checks the one there.
 absl::Status PrepareSchema(Connection& conn, bool create) {
   constexpr char kOp[] = "opening the store";
@@ -203,11 +211,15 @@ absl::Status PrepareSchema(Connection& conn, bool create) {
           absl::StrCat("PostgreSQL ", conn.description(),
                        ": bitewise_store does not mark a bitewise store"));
     }
-    if (marker.Int64(1) == 1) {
+    const int64_t found = marker.Int64(1);
+    if (found == 1) {
       // Every process on the database must be of this build: one of schema
       // 1 would lock users that the others no longer lock.
       RETURN_IF_ERROR(conn.ExecScript(kSchema2Sql, kOp));
-    } else if (marker.Int64(1) != PostgresEventStore::kSchemaVersion) {
+    }
+    if (found == 1 || found == 2) {
+      RETURN_IF_ERROR(conn.ExecScript(kSchema3Sql, kOp));
+    } else if (found != PostgresEventStore::kSchemaVersion) {
       return absl::FailedPreconditionError(absl::StrCat(
           "PostgreSQL ", conn.description(), " has store schema version ",
           marker.Int64(1), "; this build reads version ",

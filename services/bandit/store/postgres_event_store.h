@@ -139,7 +139,7 @@ class PostgresEventStore final : public EventStore {
   // A checkpoint's bytes go in chunks of at most this many.
   static constexpr size_t kCheckpointChunkBytes = size_t{1} << 20;
   // The schema version this build writes and reads.
-  static constexpr int kSchemaVersion = 2;
+  static constexpr int kSchemaVersion = 3;
 
  private:
   PostgresEventStore(std::unique_ptr<pg::Pool> pool, std::string conninfo);

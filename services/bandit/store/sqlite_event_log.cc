@@ -48,9 +48,9 @@ absl::Status SqliteEventStore::CreateUser(const UserRecord& user) {
           db_,
           "INSERT INTO users (user_id, learner, strategy, alpha, lambda_c, "
           "lambda_p, epsilon, importance_weighting, context_dim, posthoc_dim, "
-          "seed, created_at_us, model_version, prior) "
+          "seed, created_at_us, model_version, prior, phi_radius) "
           "VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, 0, "
-          "?13) ON CONFLICT (user_id) DO NOTHING RETURNING user_id",
+          "?13, ?14) ON CONFLICT (user_id) DO NOTHING RETURNING user_id",
           "CreateUser"));
   st.BindText(1, user.user_id);
   st.BindInt64(2, static_cast<int64_t>(c.learner));
@@ -67,6 +67,7 @@ absl::Status SqliteEventStore::CreateUser(const UserRecord& user) {
   const std::string prior =
       c.prior.enabled() ? EncodePrior(c.prior) : std::string();
   if (c.prior.enabled()) st.BindBlob(13, prior);  // else NULL
+  st.BindDouble(14, c.phi_radius);
   ASSIGN_OR_RETURN(const bool inserted, st.Step());
   RETURN_IF_ERROR(st.Run());
   if (!inserted) {

@@ -30,7 +30,7 @@ SELECT u.user_id, u.learner, u.strategy, u.alpha, u.lambda_c, u.lambda_p,
        u.seed, u.created_at_us, u.model_version,
        (SELECT COUNT(*) FROM events e
         WHERE e.user_id = u.user_id AND e.completed = 0),
-       u.prior
+       u.prior, u.phi_radius
 FROM users u
 )sql";
 

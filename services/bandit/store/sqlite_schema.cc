@@ -41,6 +41,7 @@ CREATE TABLE users (
   seed INTEGER NOT NULL,  -- the uint64 seed bit-cast to int64
   created_at_us INTEGER NOT NULL,
   model_version INTEGER NOT NULL DEFAULT 0,
+  phi_radius ANY NOT NULL DEFAULT 0.1 CHECK (typeof(phi_radius) = 'real'),
   prior BLOB  -- the user's population prior (EncodePrior), NULL: none
 ) STRICT;
 
@@ -172,6 +173,12 @@ CREATE TABLE model_checkpoint_chunks (
   data BLOB NOT NULL,
   PRIMARY KEY (user_id, model_version, seq)
 ) STRICT;
+)sql";
+
+// Version 6 -> 7 stores poLinUCB's phi_radius with each user.
+constexpr char kMigrateTo7Sql[] = R"sql(
+ALTER TABLE users ADD COLUMN phi_radius ANY NOT NULL DEFAULT 0.1
+  CHECK (typeof(phi_radius) = 'real');
 )sql";
 
 // Version 1 -> 2 added the users' priors and the pools, whose action names
@@ -505,6 +512,10 @@ absl::Status InitializeDatabase(sqlite3* db,
     }
     if (version <= 5) {
       RETURN_IF_ERROR(Exec(db, kContextFileSql, op));
+    }
+    if (version <= 6) {
+      // Every user before version 7 had poLinUCB's default radius.
+      RETURN_IF_ERROR(Exec(db, kMigrateTo7Sql, op));
     }
     RETURN_IF_ERROR(
         Exec(db, absl::StrCat("PRAGMA user_version = ", kSchemaVersion).c_str(),

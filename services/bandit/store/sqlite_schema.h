@@ -23,7 +23,7 @@
 
 namespace bitewise::bandit::sqlite {
 
-inline constexpr int kSchemaVersion = 6;
+inline constexpr int kSchemaVersion = 7;
 
 // Checks that the file is a bitewise store (or empty), switches to WAL with
 // foreign keys and the options' synchronous mode, then creates the schema or

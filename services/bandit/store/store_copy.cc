@@ -104,6 +104,7 @@ std::string ConfigDifference(const BanditConfig& a, const BanditConfig& b) {
   if (!SameBits(a.lambda_c, b.lambda_c)) return "lambda_c";
   if (!SameBits(a.lambda_p, b.lambda_p)) return "lambda_p";
   if (!SameBits(a.epsilon, b.epsilon)) return "epsilon";
+  if (!SameBits(a.phi_radius, b.phi_radius)) return "phi_radius";
   if (a.importance_weighting != b.importance_weighting) {
     return "importance_weighting";
   }

@@ -7,7 +7,7 @@
 //
 // ReadUserRow and ReadEventRow take any row type with the accessors
 // IsNull(col), Int64(col), Double(col), Text(col) and Blob(col), over the
-// columns of kUserColumnList and kEventColumnList in that order.
+// columns of the stores' kUserColumns and kEventColumns in that order.
 #ifndef BITEWISE_SERVICES_BANDIT_STORE_STORE_ROWS_H_
 #define BITEWISE_SERVICES_BANDIT_STORE_STORE_ROWS_H_
 
@@ -185,7 +185,8 @@ absl::Status CheckUserCodes(int64_t learner, int64_t strategy,
 
 // A row of the user columns, in this order: user_id, learner, strategy,
 // alpha, lambda_c, lambda_p, epsilon, importance_weighting, context_dim,
-// posthoc_dim, seed, created_at_us, model_version, pending events, prior.
+// posthoc_dim, seed, created_at_us, model_version, pending events, prior,
+// phi_radius.
 // `read_names(user_id, what)` reads the user's action names.
 template <typename Row>
 absl::StatusOr<UserRecord> ReadUserRow(
@@ -215,6 +216,7 @@ absl::StatusOr<UserRecord> ReadUserRow(
   user.created_at = FromMicros(row.Int64(11));
   user.model_version = row.Int64(12);
   user.pending_events = row.Int64(13);
+  config.phi_radius = row.Double(15);
   if (!row.IsNull(14)) {
     ASSIGN_OR_RETURN(config.prior,
                      DecodePrior(row.Blob(14), absl::StrCat(what, " prior")));

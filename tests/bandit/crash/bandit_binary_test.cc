@@ -21,6 +21,7 @@
 #include <limits>
 #include <map>
 #include <memory>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <string>
@@ -212,7 +213,8 @@ class BanditBinaryTest : public ::testing::TestWithParam<std::string> {
   absl::StatusOr<v1::User> CreateUser(const std::string& user_id,
                                       v1::Learner learner, int context_dim,
                                       int posthoc_dim, double alpha,
-                                      double lambda_c, double lambda_p) {
+                                      double lambda_c, double lambda_p,
+                                      std::optional<double> phi_radius = {}) {
     v1::CreateUserRequest request;
     request.set_user_id(user_id);
     v1::UserConfig* config = request.mutable_config();
@@ -223,6 +225,7 @@ class BanditBinaryTest : public ::testing::TestWithParam<std::string> {
     config->set_alpha(alpha);
     config->set_lambda_c(lambda_c);
     config->set_lambda_p(lambda_p);
+    if (phi_radius.has_value()) config->set_phi_radius(*phi_radius);
     config->set_seed(7);
     return Call(stub(), &v1::BanditService::Stub::CreateUser, request);
   }
@@ -589,18 +592,23 @@ TEST_P(BanditBinaryTest, ServedPoLinUcbMatchesDenseReference) {
   constexpr int kPostHocDim = 3;
   constexpr int kRounds = 90;
   constexpr double kAlpha = 0.6;
+  // Not the default: the user's own radius is stored and served, before
+  // and after the restart below.
+  constexpr double kPhiRadius = 0.45;
   absl::Status started = StartServer();
   ASSERT_TRUE(started.ok()) << started;
   absl::StatusOr<v1::User> user =
       CreateUser("ref-polinucb", v1::LEARNER_POLINUCB, kDim, kPostHocDim,
-                 kAlpha, 1.5, 0.7);
+                 kAlpha, 1.5, 0.7, kPhiRadius);
   ASSERT_TRUE(user.ok()) << user.status();
   EXPECT_EQ(user->config().learner(), v1::LEARNER_POLINUCB);
+  EXPECT_EQ(user->config().phi_radius(), kPhiRadius);
   bandit::BanditConfig config;
   config.learner = bandit::Learner::kPoLinUcb;
   config.alpha = kAlpha;
   config.lambda_c = 1.5;
   config.lambda_p = 0.7;
+  config.phi_radius = kPhiRadius;
   config.context_dim = kDim;
   config.posthoc_dim = kPostHocDim;
   config.action_names.assign(user->config().action_names().begin(),

@@ -18,6 +18,7 @@ TEST_P(EventLogContractTest, CreateAndGetUserRoundTripsConfig) {
   c.lambda_c = std::numeric_limits<double>::denorm_min();
   c.lambda_p = 1e300;
   c.epsilon = -0.0;
+  c.phi_radius = 1.0 / 3;
   c.importance_weighting = true;
   c.context_dim = 7;
   c.posthoc_dim = 0;
@@ -37,6 +38,7 @@ TEST_P(EventLogContractTest, CreateAndGetUserRoundTripsConfig) {
   EXPECT_EQ(Bits(got.config.lambda_c), Bits(c.lambda_c));
   EXPECT_EQ(Bits(got.config.lambda_p), Bits(c.lambda_p));
   EXPECT_EQ(Bits(got.config.epsilon), Bits(-0.0));
+  EXPECT_EQ(Bits(got.config.phi_radius), Bits(1.0 / 3));
   EXPECT_TRUE(got.config.importance_weighting);
   EXPECT_EQ(got.config.context_dim, 7);
   EXPECT_EQ(got.config.posthoc_dim, 0);

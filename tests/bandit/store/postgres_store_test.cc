@@ -161,8 +161,9 @@ TEST_F(PostgresEventStoreTest, WritesAtAPositionAreRefusedOnceTheLogMoved) {
 }
 
 TEST_F(PostgresEventStoreTest, SchemaOneIsUpgradedAndCountsAreChecked) {
-  // A store of schema 1 (before the selections count): opening it adds the
-  // count from each user's log and drops the lock function.
+  // A store of schema 1 (before the selections count and poLinUCB's radius
+  // per user): opening it adds the count from each user's log, drops the
+  // lock function and gives every user the radius it had, the default.
   ASSERT_TRUE(store_->CreateUser(MakeUser("alice")).ok());
   ASSERT_TRUE(store_->CreateUser(MakeUser("bob")).ok());
   for (int i = 0; i < 3; ++i) {
@@ -177,7 +178,8 @@ TEST_F(PostgresEventStoreTest, SchemaOneIsUpgradedAndCountsAreChecked) {
   }
   store_.reset();
   Raw().Exec(
-      "ALTER TABLE users DROP COLUMN selections; CREATE FUNCTION "
+      "ALTER TABLE users DROP COLUMN selections, DROP COLUMN phi_radius; "
+      "CREATE FUNCTION "
       "bitewise_enter_user(lock_key bigint, id text) RETURNS void LANGUAGE "
       "sql AS 'SELECT 1'; UPDATE bitewise_store SET schema_version = 1");
   store_ = OpenStore();
@@ -190,7 +192,12 @@ TEST_F(PostgresEventStoreTest, SchemaOneIsUpgradedAndCountsAreChecked) {
                             "SELECT schema_version || ' ' || "
                             "(to_regproc('bitewise_enter_user') IS NULL) FROM "
                             "bitewise_store"),
-            "2 true");
+            "3 true");
+  EXPECT_EQ(*server_->Query(database_,
+                            "SELECT string_agg(user_id || '=' || phi_radius, "
+                            "',' ORDER BY user_id) FROM users"),
+            "alice=0.1,bob=0.1");
+  EXPECT_EQ(MustGetUser("alice").config.phi_radius, 0.1);
   auto clean = store_->CheckStore();
   ASSERT_TRUE(clean.ok()) << clean.status();
   EXPECT_THAT(clean->findings, IsEmpty());

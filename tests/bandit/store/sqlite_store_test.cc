@@ -8,7 +8,7 @@ namespace {
 TEST_F(SqliteEventStoreTest, FileIsWalWithSchemaVersion) {
   RawDb raw(path_);
   EXPECT_EQ(raw.Text("PRAGMA journal_mode"), "wal");
-  EXPECT_EQ(raw.Text("PRAGMA user_version"), "6");
+  EXPECT_EQ(raw.Text("PRAGMA user_version"), "7");
   EXPECT_NE(raw.Text("PRAGMA application_id"), "0");
 }
 
@@ -57,14 +57,14 @@ TEST_F(SqliteEventStoreTest, NotADatabaseIsFailedPrecondition) {
 
 TEST_F(SqliteEventStoreTest, NewerSchemaVersionIsFailedPrecondition) {
   store_.reset();
-  RawDb(path_).Exec("PRAGMA user_version = 7");
+  RawDb(path_).Exec("PRAGMA user_version = 8");
   SqliteStoreOptions options;
   options.path = path_;
   auto store = SqliteEventStore::Open(options);
   EXPECT_EQ(store.status().code(), absl::StatusCode::kFailedPrecondition)
       << store.status();
   EXPECT_THAT(store.status().message(), HasSubstr(path_));
-  EXPECT_THAT(store.status().message(), HasSubstr("version 7"));
+  EXPECT_THAT(store.status().message(), HasSubstr("version 8"));
 }
 
 // A second process on the same file would serve models that miss the first
@@ -199,9 +199,19 @@ TEST_F(SqliteEventStoreTest, DeferredChecksKeepTheOpensPromises) {
   EXPECT_THAT(check->findings, IsEmpty());
 }
 
+// Turns the current store at `path` back into what a version 6 build wrote:
+// no phi_radius per user (the release file of release_files_test is another
+// version 6 store, written by that build).
+void RewriteAsVersion6(const std::string& path) {
+  RawDb raw(path);
+  raw.Exec("ALTER TABLE users DROP COLUMN phi_radius");
+  raw.Exec("PRAGMA user_version = 6");
+}
+
 // Turns the current store at `path` back into what a version 5 build wrote:
 // no contexts file (every context, all small here, in event_contexts).
 void RewriteAsVersion5(const std::string& path) {
+  RewriteAsVersion6(path);
   RawDb raw(path);
   EXPECT_EQ(raw.Text("SELECT COUNT(*) FROM events WHERE context_offset IS "
                      "NOT NULL"),
@@ -265,7 +275,7 @@ TEST_F(SqliteEventStoreTest, VersionFourContextsMoveToTheirOwnTable) {
             "2");
   store_ = OpenStore();
   ASSERT_NE(store_, nullptr);
-  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "6");
+  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "7");
   EXPECT_EQ(RawDb(path_).Text("SELECT COUNT(*) FROM event_contexts"), "2");
   const EventRecord after_done = MustGetEvent(done);
   const EventRecord after_pending = MustGetEvent(pending);
@@ -307,7 +317,7 @@ TEST_F(SqliteEventStoreTest, VersionOneFilesAreMigratedKeepingEverything) {
   options.path = path_;
   auto store = SqliteEventStore::Open(options);
   ASSERT_TRUE(store.ok()) << store.status();
-  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "6");
+  EXPECT_EQ(RawDb(path_).Text("PRAGMA user_version"), "7");
   auto user = (*store)->GetUser("old");
   ASSERT_TRUE(user.ok()) << user.status();
   EXPECT_EQ(user->pending_events, 1);
