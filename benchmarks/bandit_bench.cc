@@ -212,7 +212,7 @@ void BM_LearnerUpdate(benchmark::State& state) {
 
 void LearnerGrid(benchmark::internal::Benchmark* b) {
   for (const LearnerSpec& spec : Learners()) {
-    for (int rounds : {1000, 10000}) {
+    for (int rounds : {1000, 10000, 50000}) {
       b->Args({2048, rounds, static_cast<int>(spec.learner)});
     }
   }

@@ -419,13 +419,16 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
     rounds.push_back(round);
     converting_updates += model.IsConverting(0);
     // The default threshold is 3/4 of d = 48 rounds. At 42 = ceil(48 * 7/8)
-    // rounds the candidate is prepared (one slice at d = 64), at 43 the
-    // folding begins over 43 rows, 7 per update, with each new row as it
-    // comes: every row is in at 49, and the action turns primal at the next
-    // update.
-    EXPECT_EQ(model.IsConverting(0), t + 1 >= 43 && t + 1 < 50) << t;
-    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 50) << t;
-    if (t + 1 >= 40 && t + 1 <= 51) {
+    // rounds the candidate is prepared (one step at d = 64), at 43 the
+    // folding begins: 7 rows per update into one of the two column slices in
+    // turn, each slice 7 rows on every second update while the count grows
+    // by 2. At 59 both slices are within 7 rows of the count, and as every
+    // update brings this one action a row, neither slice can hold them all
+    // when the other does: after 8 such updates of chasing, at 67, the last
+    // rows go into the whole matrix and the action turns primal.
+    EXPECT_EQ(model.IsConverting(0), t + 1 >= 43 && t + 1 < 67) << t;
+    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 67) << t;
+    if (t + 1 >= 40) {
       ExpectMatchesReference(model, rounds, RandomVector(64, rng),
                              "round " + std::to_string(t + 1));
       LinUcbModel rebuilt = *LinUcbModel::Rebuild(config, rounds);
@@ -440,7 +443,7 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
                              "rebuilt then updated at " + std::to_string(t));
     }
   }
-  EXPECT_EQ(converting_updates, 7);
+  EXPECT_EQ(converting_updates, 24);
 }
 
 // Actions that reach the conversion together convert one after another:
@@ -531,8 +534,10 @@ TEST(LinUcbTest, SavedStateWithImpossibleConversionIsRefused) {
   const std::string state = model.SaveState();
   ASSERT_TRUE(LinUcbModel::LoadState(config, state).ok());
   // Actions 1 and 2 have no rounds: each is count, loss sum, five int32
-  // fields, b (d doubles) and its row count (0), at the end of the state.
-  const size_t action_bytes = 8 + 8 + 5 * 4 + 8 * 8 + 4;
+  // fields and one per fold slice, b (d doubles) and its row count (0), at
+  // the end of the state.
+  const size_t action_bytes =
+      8 + 8 + (5 + LinUcbModel::kFoldSlices) * 4 + 8 * 8 + 4;
   const size_t action1 = state.size() - 2 * action_bytes;
   auto patched = [&](size_t at, int32_t value, size_t at2 = 0,
                      int32_t value2 = 0) {

@@ -32,7 +32,9 @@ MatrixXd LowerSymmetricTimes(const MatrixXd& a, const MatrixXd& x) {
 }
 
 constexpr char kStateMagic[4] = {'B', 'W', 'L', 'U'};
-constexpr int32_t kStateFormat = 2;
+// 3: each fold slice's count of rows (format 2, one count, still loads).
+constexpr int32_t kStateFormat = 3;
+constexpr int32_t kOldestStateFormat = 2;
 constexpr double kLayoutMarker = 1.0 + 1.0 / 1024;  // bytes tell the layout
 constexpr StateHeader kStateHeader = {kStateMagic, kStateFormat, kLayoutMarker,
                                       "model"};
@@ -226,16 +228,29 @@ int LinUcbModel::PrepareSteps() const {
   return std::clamp(d_ / 64, 1, kPrepareUpdates);
 }
 
-int LinUcbModel::PreparedEnd(int step) const {
-  // Columns [0, j) of the lower triangle hold j d - j (j - 1) / 2 entries;
-  // step k ends where that reaches (k + 1) / steps of the whole.
-  const int steps = PrepareSteps();
-  if (step + 1 >= steps) return d_;
-  const double n = d_;
-  const double target = n * (n + 1) / 2 * (step + 1) / steps;
+namespace {
+
+// The first j with columns [0, j) of a d x d lower triangle holding at least
+// `parts` / `of` of its entries (j d - j (j - 1) / 2 of d (d + 1) / 2).
+int LowerColumnsHolding(int d, int parts, int of) {
+  if (parts <= 0) return 0;
+  if (parts >= of) return d;
+  const double n = d;
+  const double target = n * (n + 1) / 2 * parts / of;
   const double b = 2 * n + 1;
   const double j = (b - std::sqrt(std::max(0.0, b * b - 8 * target))) / 2;
-  return std::clamp(static_cast<int>(std::ceil(j)), 0, d_);
+  return std::clamp(static_cast<int>(std::ceil(j)), 0, d);
+}
+
+}  // namespace
+
+int LinUcbModel::PreparedEnd(int step) const {
+  // Step k ends where the columns hold (k + 1) / steps of the whole.
+  return LowerColumnsHolding(d_, step + 1, PrepareSteps());
+}
+
+int LinUcbModel::SliceBegin(int slice) const {
+  return LowerColumnsHolding(d_, slice, kFoldSlices);
 }
 
 void LinUcbModel::PrepareColumns(ActionState& s, int from, int to) {
@@ -249,7 +264,7 @@ void LinUcbModel::PrepareColumns(ActionState& s, int from, int to) {
 }
 
 LinUcbModel::ConversionWork LinUcbModel::PlanConversion(
-    std::vector<ActionState>& actions, int taken) const {
+    std::vector<ActionState>& actions) const {
   ConversionWork work;
   int next = -1;
   for (size_t i = 0; i < actions.size(); ++i) {
@@ -270,24 +285,48 @@ LinUcbModel::ConversionWork LinUcbModel::PlanConversion(
   }
   ActionState& s = actions[next];
   work.action = next;
-  const bool own = next == taken;
-  if (s.converting && s.converted == s.conversion_rows) {
-    // Every row folded at an earlier Update (and its new row, if this
-    // Update brought one, below): primal from now on.
-    work.kind = ConversionWork::kSwitch;
-    work.extra = own;
+  auto turn_primal = [&s] {
     s.primal = true;
     s.converting = false;
     s.prepared = 0;
-    return work;
+    s.folded = {};
+    s.next_slice = 0;
+    s.chase = 0;
+  };
+  if (!s.converting && s.prepared == d_) {
+    // Prepared: the folding begins.
+    s.converting = true;
+    s.folded = {};
+    s.next_slice = 0;
+    s.chase = 0;
   }
   if (s.converting) {
+    const int count = static_cast<int>(s.count);
+    bool close = true;
+    for (int f : s.folded)
+      close = close && count - f <= kConversionRowsPerUpdate;
+    if (close && s.chase >= kMaxChaseUpdates) {
+      // Every Update brings this action a row: the last few go into the
+      // whole matrix at once.
+      work.kind = ConversionWork::kSwitch;
+      work.from = s.folded;
+      turn_primal();
+      return work;
+    }
+    if (close) ++s.chase;
     work.kind = ConversionWork::kFold;
-    work.first = s.converted;
-    work.count =
-        std::min(kConversionRowsPerUpdate, s.conversion_rows - s.converted);
-    work.extra = own;
-    s.converted += work.count;
+    work.slice = s.next_slice;
+    s.next_slice = (s.next_slice + 1) % kFoldSlices;
+    work.first = s.folded[work.slice];
+    work.count = std::min(kConversionRowsPerUpdate, count - work.first);
+    s.folded[work.slice] += work.count;
+    bool current = true;
+    for (int f : s.folded) current = current && f == count;
+    if (current) {
+      // Every slice holds every row: primal at the end of this Update.
+      work.then_switch = true;
+      turn_primal();
+    }
     return work;
   }
   if (s.prepared < d_) {
@@ -299,29 +338,28 @@ LinUcbModel::ConversionWork LinUcbModel::PlanConversion(
     s.prepared = work.prepare_to;
     return work;
   }
-  // Prepared: the folding begins, over every row so far.
-  s.converting = true;
-  s.conversion_rows = static_cast<int>(s.count);
-  s.converted = std::min(kConversionRowsPerUpdate, s.conversion_rows);
-  work.kind = ConversionWork::kFold;
-  work.first = 0;
-  work.count = s.converted;
-  return work;
+  return work;  // not reached: a prepared action is converting above
 }
 
-void LinUcbModel::FoldRows(ActionState& s, int first, int count,
-                           const double* extra) {
-  const int k = count + (extra != nullptr ? 1 : 0);
-  if (k == 0) return;
-  RowMatrix rows(k, d_);
+void LinUcbModel::FoldRows(ActionState& s, int first, int count, int col_begin,
+                           int col_end) {
+  if (count <= 0 || col_begin >= col_end) return;
+  RowMatrix rows(count, d_);
   for (int i = 0; i < count; ++i) {
     rows.row(i) = Eigen::Map<const Eigen::RowVectorXd>(s.w.Row(first + i), d_);
   }
-  if (extra != nullptr) {
-    rows.row(count) = Eigen::Map<const Eigen::RowVectorXd>(extra, d_);
+  const double scale = -1.0 / lambda_a_;
+  const int width = col_end - col_begin;
+  // The slice's block on the diagonal, then the rectangle below it.
+  s.candidate.block(col_begin, col_begin, width, width)
+      .selfadjointView<Eigen::Lower>()
+      .rankUpdate(rows.middleCols(col_begin, width).transpose(), scale);
+  const int below = d_ - col_end;
+  if (below > 0) {
+    s.candidate.block(col_end, col_begin, below, width).noalias() +=
+        scale * rows.rightCols(below).transpose() *
+        rows.middleCols(col_begin, width);
   }
-  s.candidate.selfadjointView<Eigen::Lower>().rankUpdate(rows.transpose(),
-                                                         -1.0 / lambda_a_);
 }
 
 void LinUcbModel::TakePrimal(ActionState& s) {
@@ -677,28 +715,37 @@ void LinUcbModel::Apply(const Round& round, const SelectProducts* products,
     }
   }
 
-  // This Update's share of the conversion (at most one action's).
-  const ConversionWork work = PlanConversion(actions_, a);
+  // This Update's share of the conversion (at most one action's). The
+  // converting action's new row, if this Update brought one, is in W
+  // already (it is dual until the switch).
+  const ConversionWork work = PlanConversion(actions_);
   if (work.kind != ConversionWork::kNone) {
     ActionState& s = actions_[work.action];
-    // The action's new row, appended above (it is dual until the switch).
-    const double* extra = work.extra ? s.w.Row(m) : nullptr;
+    bool switch_now = false;
     switch (work.kind) {
       case ConversionWork::kPrepare:
         PrepareColumns(s, work.prepare_from, work.prepare_to);
         break;
       case ConversionWork::kFold:
-        FoldRows(s, work.first, work.count, extra);
+        FoldRows(s, work.first, work.count, SliceBegin(work.slice),
+                 SliceBegin(work.slice + 1));
+        switch_now = work.then_switch;
         break;
       case ConversionWork::kSwitch:
-        FoldRows(s, 0, 0, extra);
-        // The primal caches from the dual ones, which hold every row
-        // (Replay refreshes them at its end instead).
-        if (caches) PrimalSumsFromDual(s);
-        TakePrimal(s);
+        for (int i = 0; i < kFoldSlices; ++i) {
+          FoldRows(s, work.from[i], static_cast<int>(s.count) - work.from[i],
+                   SliceBegin(i), SliceBegin(i + 1));
+        }
+        switch_now = true;
         break;
       case ConversionWork::kNone:
         break;
+    }
+    if (switch_now) {
+      // The primal caches from the dual ones, which hold every row
+      // (Replay refreshes them at its end instead).
+      if (caches) PrimalSumsFromDual(s);
+      TakePrimal(s);
     }
   }
   for (ActionState& s : actions_) s.retired.ReleaseBlocks(2);
@@ -727,7 +774,7 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
   std::vector<ActionState> plan(model.actions_.size());
   for (const Round& round : rounds) {
     ++plan[round.action].count;
-    model.PlanConversion(plan, round.action);
+    model.PlanConversion(plan);
   }
   std::vector<double*> next(model.actions_.size(), nullptr);
   for (size_t a = 0; a < plan.size(); ++a) {
@@ -787,15 +834,18 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Rebuild(
       s.prepared = progress.prepared;
       if (progress.converting) {
         s.converting = true;
-        s.conversion_rows = progress.conversion_rows;
-        s.converted = progress.converted;
-        // In slices, so the rows copied for a fold stay small.
-        constexpr int kSlice = 64;
-        for (int i = 0; i < s.converted; i += kSlice) {
-          model.FoldRows(s, i, std::min(kSlice, s.converted - i), nullptr);
-        }
-        for (int i = s.conversion_rows; i < m; i += kSlice) {
-          model.FoldRows(s, i, std::min(kSlice, m - i), nullptr);
+        s.folded = progress.folded;
+        s.next_slice = progress.next_slice;
+        s.chase = progress.chase;
+        // 64 rows at a time, so the rows copied for a fold stay small.
+        constexpr int kRowsAtOnce = 64;
+        for (int slice = 0; slice < kFoldSlices; ++slice) {
+          const int end = s.folded[slice];
+          for (int i = 0; i < end; i += kRowsAtOnce) {
+            model.FoldRows(s, i, std::min(kRowsAtOnce, end - i),
+                           model.SliceBegin(slice),
+                           model.SliceBegin(slice + 1));
+          }
         }
       }
     }
@@ -864,8 +914,9 @@ void LinUcbModel::SaveState(std::string* state) const {
     out.Value(static_cast<int32_t>(s.primal));
     out.Value(static_cast<int32_t>(s.converting));
     out.Value(static_cast<int32_t>(s.prepared));
-    out.Value(static_cast<int32_t>(s.conversion_rows));
-    out.Value(static_cast<int32_t>(s.converted));
+    out.Value(static_cast<int32_t>(s.next_slice));
+    out.Value(static_cast<int32_t>(s.chase));
+    for (int f : s.folded) out.Value(static_cast<int32_t>(f));
     out.Doubles(s.b.data(), d_);
     if (posthoc()) {
       out.Doubles(s.M.data(), s.M.size());
@@ -899,7 +950,9 @@ absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,
                                                    int primal_threshold) {
   ASSIGN_OR_RETURN(LinUcbModel model, Create(config, primal_threshold));
   StateReader in(state);
-  RETURN_IF_ERROR(ReadStateHeader(in, kStateHeader));
+  int32_t format = 0;
+  RETURN_IF_ERROR(
+      ReadStateHeader(in, kStateHeader, kOldestStateFormat, &format));
   int32_t d = 0, q = 0, k = 0, threshold = 0;
   double lambda = 0;
   RETURN_IF_ERROR(in.Value(&d, "the header"));
@@ -928,16 +981,34 @@ absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,
   const int dd = model.d_;
   int in_conversion = 0;
   for (ActionState& s : model.actions_) {
-    int32_t primal = 0, converting = 0, prepared = 0, rows = 0, converted = 0;
+    int32_t primal = 0, converting = 0, prepared = 0, next_slice = 0, chase = 0;
+    std::array<int32_t, kFoldSlices> folded{};
     RETURN_IF_ERROR(in.Value(&s.count, "an action"));
     RETURN_IF_ERROR(in.Value(&s.loss_sum, "an action"));
     RETURN_IF_ERROR(in.Value(&primal, "an action"));
     RETURN_IF_ERROR(in.Value(&converting, "an action"));
     RETURN_IF_ERROR(in.Value(&prepared, "an action"));
-    RETURN_IF_ERROR(in.Value(&rows, "an action"));
-    RETURN_IF_ERROR(in.Value(&converted, "an action"));
-    if (s.count < 0 || prepared < 0 || prepared > dd || rows < 0 ||
-        converted < 0 || converted > rows || rows > s.count) {
+    bool counts_agree = s.count >= 0 && prepared >= 0 && prepared <= dd;
+    if (format == 2) {
+      // Rows folded then, and where the folding began; their candidate is
+      // read below and dropped: the conversion starts again (the dual form,
+      // which answers until the switch, is whole).
+      int32_t rows = 0, converted = 0;
+      RETURN_IF_ERROR(in.Value(&rows, "an action"));
+      RETURN_IF_ERROR(in.Value(&converted, "an action"));
+      counts_agree = counts_agree && rows >= 0 && converted >= 0 &&
+                     converted <= rows && rows <= s.count;
+    } else {
+      RETURN_IF_ERROR(in.Value(&next_slice, "an action"));
+      RETURN_IF_ERROR(in.Value(&chase, "an action"));
+      for (int32_t& f : folded) {
+        RETURN_IF_ERROR(in.Value(&f, "an action"));
+        counts_agree = counts_agree && f >= 0 && f <= s.count;
+      }
+      counts_agree = counts_agree && next_slice >= 0 &&
+                     next_slice < kFoldSlices && chase >= 0;
+    }
+    if (!counts_agree) {
       return absl::DataLossError("model state: an action's counts disagree");
     }
     // What the conversion schedule can leave: a primal action with nothing
@@ -957,8 +1028,9 @@ absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,
     s.primal = primal != 0;
     s.converting = converting != 0;
     s.prepared = prepared;
-    s.conversion_rows = rows;
-    s.converted = converted;
+    std::copy(folded.begin(), folded.end(), s.folded.begin());
+    s.next_slice = next_slice;
+    s.chase = chase;
     RETURN_IF_ERROR(in.Doubles(s.b.data(), dd, "b"));
     if (model.posthoc()) {
       RETURN_IF_ERROR(in.Doubles(s.M.data(), s.M.size(), "M"));
@@ -1003,6 +1075,11 @@ absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,
         RETURN_IF_ERROR(in.Doubles(s.y.data(), s.y.size(), "W S_pc^T"));
       }
       RETURN_IF_ERROR(lower(s.candidate, s.prepared));
+      if (format == 2 && s.converting) {
+        s.candidate = MatrixXd();
+        s.converting = false;
+        s.prepared = 0;
+      }
     }
     if (model.posthoc()) model.RefreshPostHocCache(s);
   }

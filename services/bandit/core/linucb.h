@@ -17,12 +17,17 @@
 // The switch is amortised, and one action converts at a time: the action
 // that has passed about 7/8 of the threshold with the most rounds first has
 // its d x d matrix written a slice per Update (kPrepareUpdates Updates), then
-// every Update, of any action, folds kConversionRowsPerUpdate of its rows
-// (and its own new rows as they come) into A_a^-1 = (I - sum_i w_i w_i^T) /
-// lambda while the dual form keeps answering; once every row is in, the
-// next Update turns it primal. So no Update carries more than one of these
-// steps, whatever the actions' counts, and at most one action holds both
-// forms.
+// every Update, of any action, folds up to kConversionRowsPerUpdate of its
+// rows into one of kFoldSlices column slices of A_a^-1 = (I - sum_i w_i
+// w_i^T) / lambda (slices of equal area, taken in turn, each with its own
+// count of rows folded in), while the dual form keeps answering; the Update
+// after which every slice holds every row turns it primal. So no Update
+// carries more than one of these steps, and none a pass over the whole d x d
+// matrix, whatever the actions' counts, and at most one action holds both
+// forms. (An action whose every Update brings it a row, as a model of one
+// action, can never have every slice current: after kMaxChaseUpdates
+// Updates of chasing its last rows, they are folded into the whole matrix
+// at once and it turns primal.)
 // The post hoc term H^T M_a H is folded in by Woodbury with R_a^T R_a = M_a,
 // so N_a^-1 = A_a^-1 - A_a^-1 G^T (I + G A_a^-1 G^T)^-1 G A_a^-1 with
 // G = R_a H, and only products with S_pc^T (n x q dual, d x q primal) and
@@ -40,6 +45,7 @@
 #ifndef BITEWISE_SERVICES_BANDIT_CORE_LINUCB_H_
 #define BITEWISE_SERVICES_BANDIT_CORE_LINUCB_H_
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -101,9 +107,14 @@ class LinUcbModel final : public LearnerModel {
   using LearnerModel::SaveState;
   using LearnerModel::Update;
 
-  // Earlier rows folded into the primal form per Update while an action
-  // converts (besides its own new row).
+  // Rows folded into one column slice of the primal form per Update while
+  // an action converts, and the slices (of equal area) taken in turn.
   static constexpr int kConversionRowsPerUpdate = 7;
+  static constexpr int kFoldSlices = 2;
+  // Updates an action may chase its newest rows (every slice within
+  // kConversionRowsPerUpdate rows of its count, none yet holding all)
+  // before they go into the whole matrix at once.
+  static constexpr int kMaxChaseUpdates = 8;
   // Updates over which the conversion's d x d matrix is first written (at
   // large d; a d x d matrix under 256 KB is written at once).
   static constexpr int kPrepareUpdates = 32;
@@ -219,13 +230,16 @@ class LinUcbModel final : public LearnerModel {
     Eigen::MatrixXd y;
 
     // Conversion to primal. First the lower triangle of `candidate` is set
-    // to I / lambda, `prepared` columns at a time; then (`converting`) it
-    // holds (I - sum w_i w_i^T) / lambda over rows [0, converted) and every
-    // row appended since the folding began at `conversion_rows` rows.
+    // to I / lambda, `prepared` columns at a time; then (`converting`) its
+    // column slice i holds (I - sum w_j w_j^T) / lambda over the rows
+    // [0, folded[i]); `next_slice` is the slice the next fold goes into, and
+    // `chase` counts the Updates since every slice came within
+    // kConversionRowsPerUpdate rows of the count.
     int prepared = 0;
     bool converting = false;
-    int conversion_rows = 0;
-    int converted = 0;
+    std::array<int, kFoldSlices> folded{};
+    int next_slice = 0;
+    int chase = 0;
     Eigen::MatrixXd candidate;
     // W's blocks after the switch, released a few per Update so that no
     // single call pays for unmapping them all.
@@ -281,23 +295,33 @@ class LinUcbModel final : public LearnerModel {
     int prepare_to = 0;
     int first = 0;  // kFold: rows [first, first + count)
     int count = 0;
-    bool extra = false;  // kFold, kSwitch: and the action's new row
+    int slice = 0;  // kFold: into this column slice
+    // kFold: and then the switch, every slice now holding every row.
+    bool then_switch = false;
+    // kSwitch: slice i lacks rows [from[i], count), folded in first.
+    std::array<int, kFoldSlices> from{};
   };
   // Advances the conversion bookkeeping of `actions` (counts already include
-  // this Update's round, of action `taken`) by one Update and says what
-  // work goes with it. Reads and writes only count, primal, prepared,
-  // converting, conversion_rows and converted, so Rebuild can run it on
-  // bookkeeping alone.
-  ConversionWork PlanConversion(std::vector<ActionState>& actions,
-                                int taken) const;
+  // this Update's round) by one Update and says what work goes with it.
+  // Reads and writes only count, primal, prepared, converting, folded,
+  // next_slice and chase, so Rebuild can run it on bookkeeping alone.
+  ConversionWork PlanConversion(std::vector<ActionState>& actions) const;
   // Slices in which the candidate is prepared, and the column where
   // preparation step k ends (about as many pages per step).
   int PrepareSteps() const;
   int PreparedEnd(int step) const;
   void PrepareColumns(ActionState& s, int from, int to);
-  // Rows [first, first + count) of W (plus `extra`) folded into the
-  // candidate.
-  void FoldRows(ActionState& s, int first, int count, const double* extra);
+  // The first column of fold slice i (i = kFoldSlices: d): the slices of
+  // the lower triangle hold equal numbers of entries.
+  int SliceBegin(int slice) const;
+  // Rows [first, first + count) of W folded into the candidate's columns
+  // [col_begin, col_end) (of its lower triangle).
+  void FoldRows(ActionState& s, int first, int count, int col_begin,
+                int col_end);
+  // Rows [first, first + count) of W folded into every slice.
+  void FoldRowsEverywhere(ActionState& s, int first, int count) {
+    FoldRows(s, first, count, 0, d_);
+  }
   void SwitchToPrimal(ActionState& s);
   // The candidate becomes A^-1; W and its caches go.
   void TakePrimal(ActionState& s);

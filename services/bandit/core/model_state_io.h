@@ -107,8 +107,10 @@ inline void WriteStateHeader(StateWriter& out, const StateHeader& header) {
 }
 
 // DATA_LOSS unless `in` starts with `header`.
-inline absl::Status ReadStateHeader(StateReader& in,
-                                    const StateHeader& header) {
+// As ReadStateHeader below, accepting any format from `oldest` to
+// header.format; `*format` is the one found.
+inline absl::Status ReadStateHeader(StateReader& in, const StateHeader& header,
+                                    int32_t oldest, int32_t* found) {
   char magic[4];
   int32_t format = 0;
   double marker = 0;
@@ -117,13 +119,21 @@ inline absl::Status ReadStateHeader(StateReader& in,
   }
   if (absl::Status s = in.Value(&format, "the header"); !s.ok()) return s;
   if (absl::Status s = in.Value(&marker, "the header"); !s.ok()) return s;
-  if (std::memcmp(magic, header.magic, 4) != 0 || format != header.format ||
-      marker != header.marker) {
+  if (std::memcmp(magic, header.magic, 4) != 0 || format < oldest ||
+      format > header.format || marker != header.marker) {
     return absl::DataLossError(absl::StrCat(
         "model state: not a bitewise ", header.name, " state of format ",
+        oldest == header.format ? "" : absl::StrCat(oldest, " to "),
         header.format, " in this host's layout"));
   }
+  *found = format;
   return absl::OkStatus();
+}
+
+inline absl::Status ReadStateHeader(StateReader& in,
+                                    const StateHeader& header) {
+  int32_t found = 0;
+  return ReadStateHeader(in, header, header.format, &found);
 }
 
 }  // namespace bitewise::bandit
