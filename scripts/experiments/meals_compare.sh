@@ -36,7 +36,7 @@ done
 ROOT="${BITEWISE_DATA_DIR:-$PWD/data/meals-compare}"
 rm -rf "$ROOT"
 mkdir -p "$ROOT"
-scripts/setup.sh >/dev/null
+scripts/setup.sh --meal >/dev/null  # the meal.sh programs only
 
 # One pair's meals, in order: both users eat meal m before meal m+1.
 run_pair() {
