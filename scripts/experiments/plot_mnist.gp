@@ -24,4 +24,6 @@ f = sprintf('%s/mnist_regret.csv', dir)
 plot f every ::1 using 1:($2-$3):($2+$3) with filledcurves fs transparent solid 0.25 lc rgb '#d62728' notitle, \
      f every ::1 using 1:2 with lines lw 2 lc rgb '#d62728' title 'context-only LinUCB', \
      f every ::1 using 1:($4-$5):($4+$5) with filledcurves fs transparent solid 0.25 lc rgb '#1f77b4' notitle, \
-     f every ::1 using 1:4 with lines lw 2 lc rgb '#1f77b4' title 'post hoc LinUCB'
+     f every ::1 using 1:4 with lines lw 2 lc rgb '#1f77b4' title 'post hoc LinUCB', \
+     f every ::1 using 1:($8-$9):($8+$9) with filledcurves fs transparent solid 0.25 lc rgb '#ff7f0e' notitle, \
+     f every ::1 using 1:8 with lines lw 2 lc rgb '#ff7f0e' title 'poLinUCB'

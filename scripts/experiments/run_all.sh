@@ -36,11 +36,13 @@ run "$build/experiments/bitewise-featurizer-stats" --appearance_report \
   --plates=200 >"$out/appearance.txt"
 "$root/scripts/experiments/sim_meals_all.sh" "$build" "$out"
 "$root/scripts/experiments/sim_prior.sh" "$build" "$out"
-# Across meals through the real services (about 40 min, mostly the simulated
-# arm's real time): docs/meals.md.
+# Across meals through the real services, post hoc LinUCB and poLinUCB each
+# against vision only (about 35 min, mostly the simulated arm's real time):
+# docs/meals.md.
 mkdir -p "$out/meals_compare"
 BITEWISE_DATA_DIR="$root/data/meals-compare" \
-  "$root/scripts/experiments/meals_compare.sh" --users 10 --meals 5 --jobs 3
+  "$root/scripts/experiments/meals_compare.sh" --users 10 --meals 5 --jobs 5 \
+  --arms posthoc,polinucb
 cp "$root/data/meals-compare/meals.tsv" "$root/data/meals-compare/summary.txt" \
   "$out/meals_compare/"
 echo "CSV and PNG files in $out"
