@@ -6,7 +6,7 @@
 // the library. Written out here, a seed gives the same numbers with any
 // compiler and standard library, which is what "a restarted service draws
 // exactly what it would have drawn", "bit-identical weights" and
-// "regenerate the published plots" rest on. tests/common/random_test.cc
+// "regenerate the published plots" rest on. tests/domain/random_test.cc
 // pins draws of every function, so a change here is noticed.
 //
 // Two families, kept so that nothing drawn before this library existed
