@@ -4,6 +4,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_join.h"
 #include "services/domain/skewering_actions.h"
 
 namespace bitewise::robot {
@@ -23,9 +24,13 @@ const std::vector<ActionSpec>& SkeweringActions() {
 absl::StatusOr<ActionSpec> FindAction(int index) {
   const auto& actions = SkeweringActions();
   if (index < 0 || index >= static_cast<int>(actions.size())) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("action ", index, " is out of range: actions are 0..",
-                     actions.size() - 1, " (VS0, VS90, TV0, TV90, TA0, TA90)"));
+    return absl::InvalidArgumentError(absl::StrCat(
+        "action ", index, " is out of range: actions are 0..",
+        actions.size() - 1, " (",
+        absl::StrJoin(
+            actions, ", ",
+            [](std::string* out, const ActionSpec& a) { out->append(a.name); }),
+        ")"));
   }
   return actions[index];
 }
