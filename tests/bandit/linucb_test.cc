@@ -12,6 +12,7 @@
 #include "services/bandit/core/policy.h"
 #include "services/bandit/core/population_prior.h"
 #include "tests/bandit/dense_reference.h"
+#include "tests/bandit/reference_checks.h"
 #include "tests/common/near.h"
 
 namespace bitewise::bandit {
@@ -19,6 +20,8 @@ namespace {
 
 using testing::DenseActionModel;
 using testing::DenseReference;
+using testing::ExpectMatchesReference;
+using testing::RandomVector;
 
 struct Problem {
   int d;
@@ -69,36 +72,6 @@ BanditConfig MakeConfig(const Problem& p, std::mt19937_64& rng) {
     }
   }
   return config;
-}
-
-std::vector<double> RandomVector(int n, std::mt19937_64& rng) {
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  std::vector<double> v(n);
-  for (double& x : v) x = u(rng);
-  return v;
-}
-
-void ExpectMatchesReference(const LinUcbModel& model,
-                            const std::vector<Round>& rounds,
-                            const std::vector<double>& probe,
-                            const std::string& where) {
-  const BanditConfig& config = model.config();
-  const std::vector<DenseActionModel> ref = DenseReference(config, rounds);
-  const std::vector<ActionEstimate> est = model.Estimate(probe);
-  const Eigen::Map<const Eigen::VectorXd> c(probe.data(), probe.size());
-  for (int a = 0; a < config.num_actions(); ++a) {
-    SCOPED_TRACE(where + " action " + std::to_string(a));
-    const double pred = ref[a].theta.dot(c);
-    const double width = std::sqrt(c.dot(ref[a].sigma * c));
-    const double lcb = pred - config.alpha * width;
-    EXPECT_TRUE(bitewise::testing::RelNear(model.Theta(a), ref[a].theta, 1e-8));
-    EXPECT_TRUE(bitewise::testing::RelNear(est[a].predicted_loss, pred, 1e-8));
-    EXPECT_TRUE(bitewise::testing::RelNear(est[a].width, width, 1e-8));
-    EXPECT_TRUE(bitewise::testing::RelNear(est[a].lcb, lcb, 1e-8));
-    if (config.learner == Learner::kPostHoc) {
-      EXPECT_TRUE(bitewise::testing::RelNear(model.Phi(a), ref[a].phi, 1e-8));
-    }
-  }
 }
 
 class LinUcbReferenceTest : public ::testing::TestWithParam<Problem> {};
@@ -192,102 +165,6 @@ INSTANTIATE_TEST_SUITE_P(
         Problem{16, 4, 6, 200, Learner::kPostHoc, true, 5, true},
         Problem{64, 4, 6, 300, Learner::kPostHoc, false, 100000, true}),
     Name);
-
-// The pool is the count-weighted mean of the users' models, and its scale
-// the pooled mean squared input norms; a new user with the prior and no
-// rounds predicts what the pooled users' models predict, shrunk by
-// kappa / (lambda + kappa) (context-only, where theta = A^-1 b exactly).
-TEST(PopulationPriorTest, PoolsModelsAndStartsNewUsersFromThem) {
-  std::mt19937_64 rng(77);
-  std::uniform_real_distribution<double> u(0.0, 1.0);
-  for (Learner learner : {Learner::kContextOnly, Learner::kPostHoc}) {
-    BanditConfig config;
-    config.learner = learner;
-    config.context_dim = 5;
-    config.posthoc_dim = 3;
-    config.lambda_c = 2.0;
-    std::vector<LinUcbModel> users;
-    for (int user = 0; user < 3; ++user) {
-      LinUcbModel model = *LinUcbModel::Create(config);
-      for (int t = 0; t < 20 + 10 * user; ++t) {
-        Round round;
-        round.context = RandomVector(5, rng);
-        round.posthoc = RandomVector(3, rng);
-        round.action = t % (user + 2);  // some actions untried by some
-        round.loss = u(rng) < 0.4 ? 1.0 : 0.0;
-        model.Update(round);
-      }
-      users.push_back(std::move(model));
-    }
-    std::vector<const LearnerModel*> pool;
-    for (const LinUcbModel& m : users) pool.push_back(&m);
-    absl::StatusOr<PopulationPrior> prior = PooledPrior(pool, 4.0, 1);
-    ASSERT_TRUE(prior.ok()) << prior.status();
-    double w = 0, cc = 0;
-    for (const LinUcbModel& m : users) {
-      w += m.input_scale().weight_sum;
-      cc += m.input_scale().context_sq_sum;
-    }
-    EXPECT_NEAR(prior->context_msn, cc / w, 1e-12);
-    for (int a = 0; a < config.num_actions(); ++a) {
-      Eigen::VectorXd expected = Eigen::VectorXd::Zero(5);
-      int64_t n = 0;
-      for (const LinUcbModel& m : users) {
-        expected += m.Count(a) * m.Theta(a);
-        n += m.Count(a);
-      }
-      if (n > 0) expected /= n;
-      const Eigen::Map<const Eigen::VectorXd> got(prior->theta0[a].data(), 5);
-      EXPECT_TRUE(bitewise::testing::RelNear(got, expected, 1e-12)) << a;
-    }
-    BanditConfig newcomer = config;
-    newcomer.prior = *prior;
-    ASSERT_TRUE(ValidateConfig(newcomer).ok());
-    LinUcbModel fresh = *LinUcbModel::Create(newcomer);
-    ExpectMatchesReference(fresh, {}, RandomVector(5, rng), "fresh with prior");
-    if (learner == Learner::kContextOnly) {
-      const double kappa = prior->rounds * prior->context_msn;
-      const Eigen::Map<const Eigen::VectorXd> theta0(prior->theta0[1].data(),
-                                                     5);
-      EXPECT_TRUE(bitewise::testing::RelNear(
-          fresh.Theta(1), kappa / (2.0 + kappa) * theta0, 1e-12));
-    }
-  }
-}
-
-TEST(PopulationPriorTest, RejectsUnlikeModelsAndBadPriorsNamingTheField) {
-  BanditConfig a;
-  a.context_dim = 4;
-  BanditConfig b = a;
-  b.context_dim = 5;
-  LinUcbModel ma = *LinUcbModel::Create(a);
-  LinUcbModel mb = *LinUcbModel::Create(b);
-  EXPECT_THAT(PooledPrior({&ma, &mb}, 1.0, 1).status().message(),
-              ::testing::HasSubstr("model 1 differs"));
-  EXPECT_THAT(PooledPrior({&ma}, 1.0, 1).status().message(),
-              ::testing::HasSubstr("no completed rounds"));
-  EXPECT_FALSE(PooledPrior({}, 1.0, 1).ok());
-  EXPECT_FALSE(PooledPrior({&ma}, -1.0, 1).ok());
-  BanditConfig bad = a;
-  bad.prior.pool_version = 1;
-  bad.prior.rounds = 2.0;
-  bad.prior.context_msn = 1.0;
-  bad.prior.posthoc_msn = 1.0;
-  bad.prior.theta0.assign(6, std::vector<double>(3, 0.0));
-  bad.prior.phi0.assign(6, std::vector<double>(4, 0.0));
-  EXPECT_THAT(ValidateConfig(bad).message(),
-              ::testing::HasSubstr("prior.theta0[0]: expected 4 values"));
-  bad.prior.theta0.assign(6, std::vector<double>(4, 0.0));
-  bad.prior.theta0[2][1] = std::nan("");
-  EXPECT_THAT(ValidateConfig(bad).message(),
-              ::testing::HasSubstr("prior.theta0[2]: must be finite"));
-  bad.prior.theta0[2][1] = 0.0;
-  bad.prior.posthoc_msn = 0.0;
-  EXPECT_THAT(ValidateConfig(bad).message(),
-              ::testing::HasSubstr("posthoc_msn"));
-  bad.prior.posthoc_msn = 1.0;
-  EXPECT_TRUE(ValidateConfig(bad).ok());
-}
 
 // With the default hyperparameters a model rebuilt from its log (what a
 // restart does) equals the live model within 1e-12, in both regimes.
