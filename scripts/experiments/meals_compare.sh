@@ -55,14 +55,14 @@ run_pair() {
         scripts/meal.sh --user "$learner-$u" --meal "meal-$m" \
         "${flags[@]}" >"$out" 2>&1 || true
       local line
-      line=$(grep -o 'meal meal-[0-9]*: [0-9]* attempts, [0-9]* failures' \
+      line=$(grep -oE 'meal meal-[0-9]+: [0-9]+ attempts, [0-9]+ failures?' \
         "$out" || true)
       if [ -z "$line" ]; then
         echo "pair $u meal $m $learner FAILED, see $out" >&2
         continue
       fi
       read -r attempts failures < <(echo "$line" |
-        sed -E 's/.*: ([0-9]+) attempts, ([0-9]+) failures/\1 \2/')
+        sed -E 's/.*: ([0-9]+) attempts, ([0-9]+) failures?/\1 \2/')
       printf '%d\t%d\t%s\t%d\t%d\n' "$u" "$m" "$learner" "$attempts" \
         "$failures" >>"$ROOT/meals.tsv"
       printf 'pair %2d meal %d %-8s %3d attempts %3d failures\n' "$u" "$m" \
