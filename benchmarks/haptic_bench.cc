@@ -79,9 +79,10 @@ BENCHMARK(BM_HapticNetForward)->Unit(benchmark::kMicrosecond);
 // HTTP/2 round trip and the handler.
 void BM_ClassifyOverGrpc(benchmark::State& state) {
   const auto classifier = DefaultClassifier();
-  HapticServiceImpl service(classifier.get());
-  auto server =
-      ServiceServer::Start(ServerOptions(), {&service}, {kHapticServiceName});
+  RpcEnvironment env;
+  HapticServiceImpl service(&env, classifier.get());
+  auto server = ServiceServer::Start(ServerOptions(), &env, {&service},
+                                     {kHapticServiceName});
   if (!server.ok()) std::abort();
   auto channel = MakeChannel((*server)->address(), ChannelOptions());
   auto stub = v1::HapticService::NewStub(*channel);

@@ -10,40 +10,43 @@
 
 namespace bitewise::bandit {
 
-BanditServiceImpl::BanditServiceImpl(BanditEngine* engine,
+BanditServiceImpl::BanditServiceImpl(const RpcEnvironment* env,
+                                     BanditEngine* engine,
                                      const BanditConfig& defaults)
-    : engine_(engine), defaults_(defaults) {}
+    : env_(env), engine_(engine), defaults_(defaults) {}
 
 grpc::Status BanditServiceImpl::Select(grpc::ServerContext* context,
                                        const v1::SelectRequest* request,
                                        v1::SelectResponse* response) {
-  return RunRpc(
-      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
-        ASSIGN_OR_RETURN(const SelectResult result,
-                         engine_->Select(SelectInputFromProto(*request)));
-        SelectToProto(result, response);
-        return absl::OkStatus();
-      });
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
+                [&]() -> absl::Status {
+                  ASSIGN_OR_RETURN(
+                      const SelectResult result,
+                      engine_->Select(SelectInputFromProto(*request)));
+                  SelectToProto(result, response);
+                  return absl::OkStatus();
+                });
 }
 
 grpc::Status BanditServiceImpl::Update(grpc::ServerContext* context,
                                        const v1::UpdateRequest* request,
                                        v1::UpdateResponse* response) {
-  return RunRpc(
-      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
-        ASSIGN_OR_RETURN(const UpdateInput input,
-                         UpdateInputFromProto(*request));
-        ASSIGN_OR_RETURN(const UpdateResult result, engine_->Update(input));
-        UpdateToProto(result, response);
-        return absl::OkStatus();
-      });
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
+                [&]() -> absl::Status {
+                  ASSIGN_OR_RETURN(const UpdateInput input,
+                                   UpdateInputFromProto(*request));
+                  ASSIGN_OR_RETURN(const UpdateResult result,
+                                   engine_->Update(input));
+                  UpdateToProto(result, response);
+                  return absl::OkStatus();
+                });
 }
 
 grpc::Status BanditServiceImpl::CreateUser(grpc::ServerContext* context,
                                            const v1::CreateUserRequest* request,
                                            v1::User* response) {
   return RunRpc(
-      BITEWISE_RPC_METHOD(v1::BanditService), context,
+      *env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
       [&]() -> absl::Status {
         RETURN_IF_ERROR(ValidateUserId(request->user_id()));
         ASSIGN_OR_RETURN(
@@ -61,7 +64,7 @@ grpc::Status BanditServiceImpl::CreateUser(grpc::ServerContext* context,
 grpc::Status BanditServiceImpl::GetUser(grpc::ServerContext* context,
                                         const v1::GetUserRequest* request,
                                         v1::User* response) {
-  return RunRpc(BITEWISE_RPC_METHOD(v1::BanditService), context,
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
                 [&]() -> absl::Status {
                   ASSIGN_OR_RETURN(const UserRecord user,
                                    engine_->GetUser(request->user_id()));
@@ -73,24 +76,25 @@ grpc::Status BanditServiceImpl::GetUser(grpc::ServerContext* context,
 grpc::Status BanditServiceImpl::ListUsers(grpc::ServerContext* context,
                                           const v1::ListUsersRequest* request,
                                           v1::ListUsersResponse* response) {
-  return RunRpc(
-      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
-        ASSIGN_OR_RETURN(const PageResult<UserRecord> page,
-                         engine_->ListUsers(PageFromProto(
-                             request->page_size(), request->page_token())));
-        for (const UserRecord& user : page.items) {
-          UserToProto(user, response->add_users());
-        }
-        response->set_next_page_token(page.next_page_token);
-        return absl::OkStatus();
-      });
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
+                [&]() -> absl::Status {
+                  ASSIGN_OR_RETURN(
+                      const PageResult<UserRecord> page,
+                      engine_->ListUsers(PageFromProto(request->page_size(),
+                                                       request->page_token())));
+                  for (const UserRecord& user : page.items) {
+                    UserToProto(user, response->add_users());
+                  }
+                  response->set_next_page_token(page.next_page_token);
+                  return absl::OkStatus();
+                });
 }
 
 grpc::Status BanditServiceImpl::ResetUser(grpc::ServerContext* context,
                                           const v1::ResetUserRequest* request,
                                           v1::User* response) {
   return RunRpc(
-      BITEWISE_RPC_METHOD(v1::BanditService), context,
+      *env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
       [&]() -> absl::Status {
         ASSIGN_OR_RETURN(const UserRecord user,
                          engine_->ResetUser(request->user_id()));
@@ -104,7 +108,7 @@ grpc::Status BanditServiceImpl::DeleteUser(grpc::ServerContext* context,
                                            const v1::DeleteUserRequest* request,
                                            v1::DeleteUserResponse*) {
   return RunRpc(
-      BITEWISE_RPC_METHOD(v1::BanditService), context,
+      *env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
       [&] { return engine_->DeleteUser(request->user_id()); },
       RpcPolicy::kNormal, request->user_id());
 }
@@ -112,7 +116,7 @@ grpc::Status BanditServiceImpl::DeleteUser(grpc::ServerContext* context,
 grpc::Status BanditServiceImpl::GetModel(grpc::ServerContext* context,
                                          const v1::GetModelRequest* request,
                                          v1::Model* response) {
-  return RunRpc(BITEWISE_RPC_METHOD(v1::BanditService), context,
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
                 [&]() -> absl::Status {
                   ASSIGN_OR_RETURN(const ModelExport model,
                                    engine_->GetModel(request->user_id()));
@@ -124,64 +128,66 @@ grpc::Status BanditServiceImpl::GetModel(grpc::ServerContext* context,
 grpc::Status BanditServiceImpl::ListEvents(grpc::ServerContext* context,
                                            const v1::ListEventsRequest* request,
                                            v1::ListEventsResponse* response) {
-  return RunRpc(
-      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
-        ASSIGN_OR_RETURN(
-            const PageResult<EventRecord> page,
-            engine_->ListEvents(
-                request->user_id(), request->meal_id(),
-                PageFromProto(request->page_size(), request->page_token())));
-        for (const EventRecord& event : page.items) {
-          EventToProto(event, response->add_events());
-        }
-        response->set_next_page_token(page.next_page_token);
-        if (!CallerMayReadContexts()) WithholdContexts(response);
-        return absl::OkStatus();
-      });
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
+                [&]() -> absl::Status {
+                  ASSIGN_OR_RETURN(const PageResult<EventRecord> page,
+                                   engine_->ListEvents(
+                                       request->user_id(), request->meal_id(),
+                                       PageFromProto(request->page_size(),
+                                                     request->page_token())));
+                  for (const EventRecord& event : page.items) {
+                    EventToProto(event, response->add_events());
+                  }
+                  response->set_next_page_token(page.next_page_token);
+                  if (!CallerMayReadContexts()) WithholdContexts(response);
+                  return absl::OkStatus();
+                });
 }
 
 grpc::Status BanditServiceImpl::BuildPopulationPrior(
     grpc::ServerContext* context,
     const v1::BuildPopulationPriorRequest* request,
     v1::PopulationPool* response) {
-  return RunRpc(
-      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
-        ASSIGN_OR_RETURN(
-            const BanditConfig like,
-            ConfigFromProto(request->like(), defaults_, "population pool"));
-        ASSIGN_OR_RETURN(const PoolRecord pool,
-                         engine_->BuildPopulationPool(like));
-        PoolToProto(pool, response);
-        return absl::OkStatus();
-      });
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
+                [&]() -> absl::Status {
+                  ASSIGN_OR_RETURN(const BanditConfig like,
+                                   ConfigFromProto(request->like(), defaults_,
+                                                   "population pool"));
+                  ASSIGN_OR_RETURN(const PoolRecord pool,
+                                   engine_->BuildPopulationPool(like));
+                  PoolToProto(pool, response);
+                  return absl::OkStatus();
+                });
 }
 
 grpc::Status BanditServiceImpl::CheckStore(grpc::ServerContext* context,
                                            const v1::CheckStoreRequest*,
                                            v1::CheckStoreResponse* response) {
-  return RunRpc(
-      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
-        const absl::Time start = absl::Now();
-        ASSIGN_OR_RETURN(const StoreCheckReport report, engine_->CheckStore());
-        CheckReportToProto(report, absl::Now() - start, response);
-        return absl::OkStatus();
-      });
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
+                [&]() -> absl::Status {
+                  const absl::Time start = absl::Now();
+                  ASSIGN_OR_RETURN(const StoreCheckReport report,
+                                   engine_->CheckStore());
+                  CheckReportToProto(report, absl::Now() - start, response);
+                  return absl::OkStatus();
+                });
 }
 
 grpc::Status BanditServiceImpl::ListAudit(grpc::ServerContext* context,
                                           const v1::ListAuditRequest* request,
                                           v1::ListAuditResponse* response) {
-  return RunRpc(
-      BITEWISE_RPC_METHOD(v1::BanditService), context, [&]() -> absl::Status {
-        ASSIGN_OR_RETURN(const PageResult<AuditEntry> page,
-                         engine_->ListAudit(PageFromProto(
-                             request->page_size(), request->page_token())));
-        for (const AuditEntry& entry : page.items) {
-          AuditToProto(entry, response->add_records());
-        }
-        response->set_next_page_token(page.next_page_token);
-        return absl::OkStatus();
-      });
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
+                [&]() -> absl::Status {
+                  ASSIGN_OR_RETURN(
+                      const PageResult<AuditEntry> page,
+                      engine_->ListAudit(PageFromProto(request->page_size(),
+                                                       request->page_token())));
+                  for (const AuditEntry& entry : page.items) {
+                    AuditToProto(entry, response->add_records());
+                  }
+                  response->set_next_page_token(page.next_page_token);
+                  return absl::OkStatus();
+                });
 }
 
 absl::Status StoreAuditSink::Record(const AuditEvent& event) {

@@ -9,14 +9,17 @@
 #include "services/bandit/core/config.h"
 #include "services/bandit/engine.h"
 #include "services/common/audit.h"
+#include "services/common/rpc_environment.h"
 
 namespace bitewise::bandit {
 
 class BanditServiceImpl final : public v1::BanditService::Service {
  public:
-  // `engine` must outlive the service. `defaults` fill the fields that a
-  // CreateUser request leaves unset.
-  BanditServiceImpl(BanditEngine* engine, const BanditConfig& defaults);
+  // `env` (what every call runs with: rpc_environment.h) and `engine` must
+  // outlive the service. `defaults` fill the fields that a CreateUser
+  // request leaves unset.
+  BanditServiceImpl(const RpcEnvironment* env, BanditEngine* engine,
+                    const BanditConfig& defaults);
 
   grpc::Status Select(grpc::ServerContext* context,
                       const v1::SelectRequest* request,
@@ -57,6 +60,7 @@ class BanditServiceImpl final : public v1::BanditService::Service {
                          v1::ListAuditResponse* response) override;
 
  private:
+  const RpcEnvironment* const env_;
   BanditEngine* const engine_;
   const BanditConfig defaults_;
 };

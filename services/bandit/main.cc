@@ -16,6 +16,7 @@
 #include "services/common/flags_usage.h"
 #include "services/common/metrics.h"
 #include "services/common/readiness_monitor.h"
+#include "services/common/rpc_environment.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
 
@@ -127,6 +128,10 @@ int main(int argc, char** argv) {
     return bitewise::ReportFatal(kProgram, "bad flags", defaults.status());
   }
 
+  // What every call runs with (metrics, authorizer, audit sink). Made
+  // before the store, whose commit observer records into its metrics.
+  bitewise::RpcEnvironment env;
+
   bitewise::bandit::OpenStoreOptions store_options;
   store_options.create_if_missing = absl::GetFlag(FLAGS_create);
   store_options.sqlite_fsync = absl::GetFlag(FLAGS_sqlite_fsync);
@@ -163,35 +168,37 @@ int main(int argc, char** argv) {
             ">= it, --checkpoint_idle_s >= 0"));
   }
   // Commit latency and group size, as histograms (docs/operations.md).
-  (*store)->SetCommitObserver([](double seconds, int64_t writes) {
-    bitewise::ObserveHistogram(
+  (*store)->SetCommitObserver([metrics = &env.metrics()](double seconds,
+                                                         int64_t writes) {
+    metrics->ObserveHistogram(
         "bitewise_bandit_store_commit_latency_seconds",
         "Time of each commit of the hot path's writes (its fsync included)",
         {0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.25, 1}, seconds);
-    bitewise::ObserveHistogram(
+    metrics->ObserveHistogram(
         "bitewise_bandit_store_commit_writes",
         "Writes carried by each commit (SQLite's group commit; 1 on "
         "PostgreSQL, whose server shares WAL flushes itself)",
         {1, 2, 4, 8, 16, 32, 64}, static_cast<double>(writes));
   });
   bitewise::bandit::BanditEngine engine(store->get(), engine_options);
-  bitewise::bandit::BanditServiceImpl service(&engine, *defaults);
+  bitewise::bandit::BanditServiceImpl service(&env, &engine, *defaults);
   // Metrics read at scrape time (docs/operations.md).
   {
     using bitewise::ScrapeType;
     using bitewise::ScrapeValue;
+    bitewise::Metrics& metrics = env.metrics();
     bitewise::bandit::BanditEngine* e = &engine;
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues(
         "bitewise_bandit_cached_models", "User models loaded in memory",
         ScrapeType::kGauge, [e]() -> std::vector<ScrapeValue> {
           return {{{}, static_cast<double>(e->CachedModels())}};
         });
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues(
         "bitewise_bandit_cached_bytes", "Bytes of the loaded user models",
         ScrapeType::kGauge, [e]() -> std::vector<ScrapeValue> {
           return {{{}, static_cast<double>(e->CachedBytes())}};
         });
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues(
         "bitewise_bandit_model_cache_total",
         "Model cache events: hit (already loaded), rebuild (loaded: from a "
         "checkpoint or the whole log), eviction (for the cache budget)",
@@ -201,7 +208,7 @@ int main(int argc, char** argv) {
                   {{{"event", "rebuild"}}, static_cast<double>(c.rebuilds)},
                   {{{"event", "eviction"}}, static_cast<double>(c.evictions)}};
         });
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues(
         "bitewise_bandit_checkpoints_total",
         "Model checkpoints: written, loaded (a cold load started from one), "
         "ignored (damaged or stale; the log was replayed instead)",
@@ -214,7 +221,7 @@ int main(int argc, char** argv) {
               {{{"event", "ignored"}},
                static_cast<double>(c.checkpoints_ignored)}};
         });
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues(
         "bitewise_bandit_replica_sync_total",
         "PostgreSQL replicas: writes refused because another process had "
         "written to the user's log first (write_conflict, each retried), "
@@ -230,13 +237,13 @@ int main(int argc, char** argv) {
                   {{{"event", "dropped_stale"}},
                    static_cast<double>(c.dropped_stale)}};
         });
-    bitewise::AddScrapeValues("bitewise_bandit_rebuild_seconds_total",
-                              "Time spent rebuilding models from the event log",
-                              ScrapeType::kCounter,
-                              [e]() -> std::vector<ScrapeValue> {
-                                return {{{}, e->Counters().rebuild_seconds}};
-                              });
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues("bitewise_bandit_rebuild_seconds_total",
+                            "Time spent rebuilding models from the event log",
+                            ScrapeType::kCounter,
+                            [e]() -> std::vector<ScrapeValue> {
+                              return {{{}, e->Counters().rebuild_seconds}};
+                            });
+    metrics.AddScrapeValues(
         "bitewise_bandit_store_writes_total",
         "Durable writes of the hot path: append (Select) and complete "
         "(Update)",
@@ -245,7 +252,7 @@ int main(int argc, char** argv) {
           return {{{{"op", "append"}}, static_cast<double>(w.appends)},
                   {{{"op", "complete"}}, static_cast<double>(w.completions)}};
         });
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues(
         "bitewise_bandit_store_write_seconds_total",
         "Time until those writes were committed, waiting for their group "
         "and fsync included",
@@ -254,26 +261,26 @@ int main(int argc, char** argv) {
           return {{{{"op", "append"}}, w.append_seconds},
                   {{{"op", "complete"}}, w.completion_seconds}};
         });
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues(
         "bitewise_bandit_store_commits_total",
         "Group commits of those writes (one transaction and one fsync each)",
         ScrapeType::kCounter, [s = store->get()]() -> std::vector<ScrapeValue> {
           return {{{}, static_cast<double>(s->write_stats().commits)}};
         });
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues(
         "bitewise_bandit_store_committed_writes_total",
         "Writes the group commits carried (over commits: the mean group "
         "size), refused ones included",
         ScrapeType::kCounter, [s = store->get()]() -> std::vector<ScrapeValue> {
           return {{{}, static_cast<double>(s->write_stats().committed_writes)}};
         });
-    bitewise::AddScrapeValues("bitewise_bandit_store_commit_seconds_total",
-                              "Time the group commits took, fsync included",
-                              ScrapeType::kCounter,
-                              [s = store->get()]() -> std::vector<ScrapeValue> {
-                                return {{{}, s->write_stats().commit_seconds}};
-                              });
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues("bitewise_bandit_store_commit_seconds_total",
+                            "Time the group commits took, fsync included",
+                            ScrapeType::kCounter,
+                            [s = store->get()]() -> std::vector<ScrapeValue> {
+                              return {{{}, s->write_stats().commit_seconds}};
+                            });
+    metrics.AddScrapeValues(
         "bitewise_bandit_store_write_faults_total",
         "Writes the storage refused (a full disk or size limit, a read-only "
         "file, an I/O error, the database server gone or out of space), and "
@@ -281,19 +288,19 @@ int main(int argc, char** argv) {
         ScrapeType::kCounter, [s = store->get()]() -> std::vector<ScrapeValue> {
           return {{{}, static_cast<double>(s->write_stats().write_faults)}};
         });
-    bitewise::AddScrapeValues(
-        "bitewise_bandit_store_healthy",
-        "1 while the store can durably accept writes", ScrapeType::kGauge,
-        [s = store->get()]() -> std::vector<ScrapeValue> {
-          return {{{}, s->CheckHealth().ok() ? 1.0 : 0.0}};
-        });
+    metrics.AddScrapeValues("bitewise_bandit_store_healthy",
+                            "1 while the store can durably accept writes",
+                            ScrapeType::kGauge,
+                            [s = store->get()]() -> std::vector<ScrapeValue> {
+                              return {{{}, s->CheckHealth().ok() ? 1.0 : 0.0}};
+                            });
   }
   // Administrative calls are kept in the store (ListAudit) as well as logged.
   bitewise::bandit::StoreAuditSink audit(store->get());
-  bitewise::SetAuditSink(&audit);
+  env.set_audit_sink(&audit);
 
   auto server = bitewise::ServiceServer::Start(
-      bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
+      bitewise::ServerOptionsFromFlags(kDefaultPort), &env, {&service},
       {"bitewise.v1.BanditService"});
   if (!server.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot start the server",

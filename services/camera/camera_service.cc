@@ -14,7 +14,8 @@ grpc::Status CameraServiceImpl::GetFrame(grpc::ServerContext* context,
                                          const v1::GetFrameRequest* request,
                                          v1::CameraFrame* response) {
   return RunRpc(
-      BITEWISE_RPC_METHOD(v1::CameraService), context, [&]() -> absl::Status {
+      *env_, BITEWISE_RPC_METHOD(v1::CameraService), context,
+      [&]() -> absl::Status {
         const double max_age_s = request->max_age_s();
         if (!std::isfinite(max_age_s) || max_age_s < 0.0) {
           return absl::InvalidArgumentError(absl::StrCat(

@@ -8,20 +8,23 @@
 
 #include "bitewise/v1/camera.grpc.pb.h"
 #include "services/camera/frame_publisher.h"
+#include "services/common/rpc_environment.h"
 
 namespace bitewise::camera {
 
 class CameraServiceImpl final : public v1::CameraService::Service {
  public:
-  // `publisher` must outlive the service.
-  explicit CameraServiceImpl(const FramePublisher* publisher)
-      : publisher_(publisher) {}
+  // `env` (what every call runs with: rpc_environment.h) and `publisher`
+  // must outlive the service.
+  CameraServiceImpl(const RpcEnvironment* env, const FramePublisher* publisher)
+      : env_(env), publisher_(publisher) {}
 
   grpc::Status GetFrame(grpc::ServerContext* context,
                         const v1::GetFrameRequest* request,
                         v1::CameraFrame* response) override;
 
  private:
+  const RpcEnvironment* const env_;
   const FramePublisher* const publisher_;
 };
 

@@ -18,6 +18,7 @@
 #include "services/camera/sim_source.h"
 #include "services/common/flags_usage.h"
 #include "services/common/readiness_monitor.h"
+#include "services/common/rpc_environment.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
 
@@ -97,9 +98,10 @@ int main(int argc, char** argv) {
         *std::move(source), dir, absl::GetFlag(FLAGS_fps));
   }
   bitewise::camera::FramePublisher publisher(*std::move(source));
-  bitewise::camera::CameraServiceImpl service(&publisher);
+  bitewise::RpcEnvironment env;  // what every call runs with
+  bitewise::camera::CameraServiceImpl service(&env, &publisher);
   auto server = bitewise::ServiceServer::Start(
-      bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
+      bitewise::ServerOptionsFromFlags(kDefaultPort), &env, {&service},
       {"bitewise.v1.CameraService"});
   if (!server.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot start the server",

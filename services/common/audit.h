@@ -1,7 +1,8 @@
 // The audit trail of administrative calls. RunRpc writes one line per
 // audited call (Audited() in authz.h) to stderr, and hands the same record
-// to the process's AuditSink if one is installed: the BanditService installs
-// one that keeps the records in its store, readable through ListAudit.
+// to its environment's AuditSink (rpc_environment.h) if one is installed:
+// the BanditService's main installs one that keeps the records in its
+// store, readable through ListAudit.
 // Thread-safe.
 #ifndef BITEWISE_SERVICES_COMMON_AUDIT_H_
 #define BITEWISE_SERVICES_COMMON_AUDIT_H_
@@ -30,11 +31,6 @@ class AuditSink {
   // (the call's own result stands).
   virtual absl::Status Record(const AuditEvent& event) = 0;
 };
-
-// Installs `sink` for the process (nullptr: stderr only). The sink must
-// outlive every RPC that may use it.
-void SetAuditSink(AuditSink* sink);
-AuditSink* GetAuditSink();
 
 }  // namespace bitewise
 

@@ -1,6 +1,5 @@
 #include "services/common/authz.h"
 
-#include <atomic>
 #include <fstream>
 #include <utility>
 
@@ -11,12 +10,6 @@
 #include "services/common/rpc_methods.h"
 
 namespace bitewise {
-namespace {
-
-std::atomic<Authorizer*> global_authorizer{nullptr};
-
-}  // namespace
-
 const char* RoleName(Role role) {
   switch (role) {
     case Role::kRobot:
@@ -158,12 +151,6 @@ absl::Status Authorizer::Check(const std::string& method,
   return absl::PermissionDeniedError(
       absl::StrCat("client ", who, " from ", peer, " has role ",
                    RoleName(*found), ", which may not call ", method));
-}
-
-Authorizer* Authorizer::Global() { return global_authorizer.load(); }
-
-void Authorizer::SetGlobal(Authorizer* authorizer) {
-  global_authorizer.store(authorizer);
 }
 
 }  // namespace bitewise

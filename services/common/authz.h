@@ -20,11 +20,13 @@
 // RobotService/Stop stays callable by every client with a valid lab
 // certificate, role or not: anyone must be able to stop the arm.
 //
-// RunRpc (rpc_handler.h) consults the process's Authorizer before every
-// handler; a refused call is PERMISSION_DENIED naming the identity, the
-// role and the method, and nothing runs. Administrative and destructive
-// calls (CreateUser, ResetUser, DeleteUser, BuildPopulationPrior, Tare) are
-// written to the audit trail (audit.h: stderr, and the BanditService's store).
+// Before every handler RunRpc (rpc_handler.h) consults the Authorizer that
+// ServiceServer loads from its options and installs in the services'
+// RpcEnvironment (rpc_environment.h); a refused call is PERMISSION_DENIED
+// naming the identity, the role and the method, and nothing runs.
+// Administrative and destructive calls (CreateUser, ResetUser, DeleteUser,
+// BuildPopulationPrior, Tare) are written to the audit trail (audit.h: stderr,
+// and the BanditService's store).
 //
 // Thread-safe.
 #ifndef BITEWISE_SERVICES_COMMON_AUTHZ_H_
@@ -76,11 +78,6 @@ class Authorizer {
                      bool* withhold_contexts = nullptr) const;
 
   const std::string& path() const { return path_; }
-
-  // The process's authorizer (null: authorization off). Set once by
-  // ServiceServer::Start; owned by the caller.
-  static Authorizer* Global();
-  static void SetGlobal(Authorizer* authorizer);
 
  private:
   struct Grant {

@@ -9,8 +9,13 @@
 #include <prometheus/registry.h>
 
 #include <exception>
+#include <map>
+#include <memory>
+#include <string>
 #include <utility>
+#include <vector>
 
+#include "absl/base/thread_annotations.h"
 #include "absl/strings/str_cat.h"
 #include "absl/synchronization/mutex.h"
 
@@ -65,7 +70,9 @@ class ScrapeCollectable final : public prometheus::Collectable {
   std::vector<Family> families_ ABSL_GUARDED_BY(mu_);
 };
 
-struct Metrics {
+}  // namespace
+
+struct Metrics::Families {
   std::shared_ptr<prometheus::Registry> registry =
       std::make_shared<prometheus::Registry>();
   std::shared_ptr<ScrapeCollectable> scraped =
@@ -82,53 +89,42 @@ struct Metrics {
               "RPC handling time (deadline checks to reply), by method "
               "and status code")
           .Register(*registry);
+  const prometheus::Histogram::BucketBoundaries latency_buckets = {
+      0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1,
+      0.25,   0.5,   1,      2.5,   5,    10,    30,   60};
+  // The histograms made by ObserveHistogram, by name.
+  absl::Mutex histograms_mu;
+  std::map<std::string, prometheus::Histogram*> histograms
+      ABSL_GUARDED_BY(histograms_mu);
 };
 
-// The histograms made by ObserveHistogram, by name.
-struct NamedHistograms {
-  absl::Mutex mu;
-  std::map<std::string, prometheus::Histogram*> by_name ABSL_GUARDED_BY(mu);
-};
+Metrics::Metrics() : families_(std::make_unique<Families>()) {}
 
-Metrics& Global() {
-  static Metrics* const metrics = new Metrics();
-  return *metrics;
-}
+Metrics::~Metrics() = default;
 
-const prometheus::Histogram::BucketBoundaries& LatencyBuckets() {
-  static const auto* const buckets =
-      new prometheus::Histogram::BucketBoundaries{
-          0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1,
-          0.25,   0.5,   1,      2.5,   5,    10,    30,   60};
-  return *buckets;
-}
-
-}  // namespace
-
-void RecordRpcMetric(const std::string& method, absl::StatusCode code,
-                     double seconds) {
-  Metrics& metrics = Global();
-  metrics.requests
-      .Add({{"method", method}, {"code", absl::StatusCodeToString(code)}})
+void Metrics::RecordRpc(const std::string& method, absl::StatusCode code,
+                        double seconds) {
+  const std::string code_name = absl::StatusCodeToString(code);
+  families_->requests.Add({{"method", method}, {"code", code_name}})
       .Increment();
-  metrics.latency
-      .Add({{"method", method}, {"code", absl::StatusCodeToString(code)}},
-           LatencyBuckets())
+  families_->latency
+      .Add({{"method", method}, {"code", code_name}},
+           families_->latency_buckets)
       .Observe(seconds);
 }
 
-void ObserveHistogram(const std::string& name, const std::string& help,
-                      const std::vector<double>& bounds, double value) {
-  static NamedHistograms* const histograms = new NamedHistograms();
+void Metrics::ObserveHistogram(const std::string& name, const std::string& help,
+                               const std::vector<double>& bounds,
+                               double value) {
   prometheus::Histogram* histogram = nullptr;
   {
-    absl::MutexLock lock(&histograms->mu);
-    prometheus::Histogram*& found = histograms->by_name[name];
+    absl::MutexLock lock(&families_->histograms_mu);
+    prometheus::Histogram*& found = families_->histograms[name];
     if (found == nullptr) {
       found = &prometheus::BuildHistogram()
                    .Name(name)
                    .Help(help)
-                   .Register(*Global().registry)
+                   .Register(*families_->registry)
                    .Add({}, prometheus::Histogram::BucketBoundaries(
                                 bounds.begin(), bounds.end()));
     }
@@ -137,14 +133,14 @@ void ObserveHistogram(const std::string& name, const std::string& help,
   histogram->Observe(value);
 }
 
-void AddScrapeValues(const std::string& name, const std::string& help,
-                     ScrapeType type,
-                     std::function<std::vector<ScrapeValue>()> read) {
-  Global().scraped->Add(name, help, type, std::move(read));
+void Metrics::AddScrapeValues(const std::string& name, const std::string& help,
+                              ScrapeType type,
+                              std::function<std::vector<ScrapeValue>()> read) {
+  families_->scraped->Add(name, help, type, std::move(read));
 }
 
 absl::StatusOr<std::unique_ptr<MetricsServer>> MetricsServer::Start(
-    const std::string& address) {
+    const std::string& address, const Metrics& metrics) {
   std::unique_ptr<prometheus::Exposer> exposer;
   try {
     exposer = std::make_unique<prometheus::Exposer>(address);
@@ -152,8 +148,8 @@ absl::StatusOr<std::unique_ptr<MetricsServer>> MetricsServer::Start(
     return absl::UnavailableError(
         absl::StrCat("cannot serve metrics on ", address, ": ", e.what()));
   }
-  exposer->RegisterCollectable(Global().registry);
-  exposer->RegisterCollectable(Global().scraped);
+  exposer->RegisterCollectable(metrics.families_->registry);
+  exposer->RegisterCollectable(metrics.families_->scraped);
   const std::vector<int> ports = exposer->GetListeningPorts();
   if (ports.empty()) {
     return absl::UnavailableError(

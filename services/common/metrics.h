@@ -1,6 +1,8 @@
-// Prometheus metrics an operator can watch (Debian's prometheus-cpp),
-// served on a port of their own by ServiceServer when --metrics_listen is
-// set (off by default; on in deploy/). Every service exports, from RunRpc:
+// Prometheus metrics an operator can watch (Debian's prometheus-cpp). A
+// Metrics object holds one process's metrics: each main makes one (inside
+// its RpcEnvironment, rpc_environment.h) and ServiceServer serves it on a
+// port of its own when --metrics_listen is set (off by default; on in
+// deploy/). Every service exports, from RunRpc (RecordRpc):
 //   bitewise_rpc_requests_total{method, code}     counter
 //   bitewise_rpc_latency_seconds{method, code}    histogram
 // and each main adds its own values read at scrape time (AddScrapeValues):
@@ -26,17 +28,6 @@ class Exposer;
 
 namespace bitewise {
 
-// Counts one call of `method` ("Service/Method") ending with `code` after
-// `seconds`.
-void RecordRpcMetric(const std::string& method, absl::StatusCode code,
-                     double seconds);
-
-// Observes `value` in the unlabelled histogram `name`, made at its first
-// observation with `help` and the bucket upper bounds `bounds` (later
-// calls' help and bounds are not looked at).
-void ObserveHistogram(const std::string& name, const std::string& help,
-                      const std::vector<double>& bounds, double value);
-
 // One sample read at scrape time: labels and value.
 struct ScrapeValue {
   std::map<std::string, std::string> labels;
@@ -44,19 +35,47 @@ struct ScrapeValue {
 };
 enum class ScrapeType { kGauge, kCounter };
 
-// Adds a metric family whose samples `read` returns at every scrape (it
-// must stay callable for the process's lifetime and be thread-safe).
-void AddScrapeValues(const std::string& name, const std::string& help,
-                     ScrapeType type,
-                     std::function<std::vector<ScrapeValue>()> read);
+// The metric families of one process (or of one test), nothing shared
+// with any other Metrics object.
+class Metrics {
+ public:
+  Metrics();
+  ~Metrics();
+  Metrics(const Metrics&) = delete;
+  Metrics& operator=(const Metrics&) = delete;
 
-// The HTTP endpoint (/metrics) over the process's metrics.
+  // Counts one call of `method` ("Service/Method") ending with `code` after
+  // `seconds`.
+  void RecordRpc(const std::string& method, absl::StatusCode code,
+                 double seconds);
+
+  // Observes `value` in the unlabelled histogram `name`, made at its first
+  // observation with `help` and the bucket upper bounds `bounds` (later
+  // calls' help and bounds are not looked at).
+  void ObserveHistogram(const std::string& name, const std::string& help,
+                        const std::vector<double>& bounds, double value);
+
+  // Adds a metric family whose samples `read` returns at every scrape (it
+  // must stay callable while this object is served, and be thread-safe).
+  void AddScrapeValues(const std::string& name, const std::string& help,
+                       ScrapeType type,
+                       std::function<std::vector<ScrapeValue>()> read);
+
+ private:
+  friend class MetricsServer;
+  struct Families;
+  const std::unique_ptr<Families> families_;
+};
+
+// The HTTP endpoint (/metrics) over one Metrics object.
 class MetricsServer {
  public:
-  // Listens on `address` ("host:port"; port 0 picks one). UNAVAILABLE naming
-  // the address if it cannot listen.
+  // Serves `metrics` on `address` ("host:port"; port 0 picks one).
+  // `metrics` should outlive the server (once it is gone, scrapes answer
+  // without its families). UNAVAILABLE naming the address if it cannot
+  // listen.
   static absl::StatusOr<std::unique_ptr<MetricsServer>> Start(
-      const std::string& address);
+      const std::string& address, const Metrics& metrics);
   ~MetricsServer();
   int port() const { return port_; }
 

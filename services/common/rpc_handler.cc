@@ -1,7 +1,5 @@
 #include "services/common/rpc_handler.h"
 
-#include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -19,10 +17,9 @@
 namespace bitewise {
 namespace {
 
-std::atomic<AuditSink*> audit_sink{nullptr};
-
 // Whether the call running on this thread withholds raw contexts (set by
-// RunRpc around its handler).
+// RunRpc around its handler). Not state shared between calls: a handler
+// runs on one thread from start to end, and each thread has its own.
 thread_local bool call_withholds_contexts = false;
 
 // Longest message written to the log for one failure.
@@ -59,41 +56,17 @@ std::vector<std::string> PeerIdentities(const grpc::ServerContext& context) {
 
 }  // namespace
 
-RpcStats& RpcStats::Global() {
-  static RpcStats* const stats = new RpcStats();
-  return *stats;
-}
-
-void RpcStats::Record(const std::string& method, absl::StatusCode code,
-                      double seconds) {
-  absl::MutexLock lock(&mu_);
-  RpcMethodStats& m = methods_[method];
-  ++m.calls;
-  if (code != absl::StatusCode::kOk) ++m.failures;
-  ++m.by_code[static_cast<int>(code)];
-  m.total_seconds += seconds;
-  m.max_seconds = std::max(m.max_seconds, seconds);
-}
-
-std::map<std::string, RpcMethodStats> RpcStats::Snapshot() const {
-  absl::MutexLock lock(&mu_);
-  return methods_;
-}
-
-void SetAuditSink(AuditSink* sink) { audit_sink.store(sink); }
-
 bool CallerMayReadContexts() { return !call_withholds_contexts; }
 
-AuditSink* GetAuditSink() { return audit_sink.load(); }
-
-grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
+grpc::Status RunRpc(const RpcEnvironment& env, const char* method,
+                    grpc::ServerContext* context,
                     const std::function<absl::Status()>& handler,
                     RpcPolicy policy, absl::string_view target) {
   const absl::Time start = absl::Now();
   absl::Status status = Precheck(method, context);
   // Authorization comes before everything, Stop included: a refused call
   // runs nothing.
-  const Authorizer* authorizer = Authorizer::Global();
+  const Authorizer* authorizer = env.authorizer();
   std::vector<std::string> identities;
   std::string role;
   bool withhold = false;
@@ -127,7 +100,7 @@ grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
         event.identity.empty() ? "(no certificate)" : event.identity.c_str(),
         role.empty() ? "none" : role.c_str(), event.peer.c_str(),
         event.result.c_str());
-    if (AuditSink* sink = GetAuditSink(); sink != nullptr) {
+    if (AuditSink* sink = env.audit_sink(); sink != nullptr) {
       absl::Status kept = sink->Record(event);
       if (!kept.ok()) {
         std::fprintf(stderr, "audit record of %s not kept: %s\n", method,
@@ -136,8 +109,7 @@ grpc::Status RunRpc(const char* method, grpc::ServerContext* context,
     }
   }
   const double seconds = absl::ToDoubleSeconds(absl::Now() - start);
-  RpcStats::Global().Record(method, status.code(), seconds);
-  RecordRpcMetric(method, status.code(), seconds);
+  env.metrics().RecordRpc(method, status.code(), seconds);
   if (!status.ok()) {
     std::string message(status.message().substr(0, kMaxLoggedMessage));
     if (status.message().size() > kMaxLoggedMessage) {

@@ -72,7 +72,8 @@ std::string DialableAddress(const std::string& listen_address, int port) {
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
-    const ServerOptions& options, std::vector<grpc::Service*> services,
+    const ServerOptions& options, RpcEnvironment* env,
+    std::vector<grpc::Service*> services,
     std::vector<std::string> health_names) {
   if (options.max_message_bytes <= 0) {
     return absl::InvalidArgumentError(absl::StrCat(
@@ -130,8 +131,23 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
   builder.SetSyncServerOption(
       grpc::ServerBuilder::SyncServerOption::MAX_POLLERS, 8);
 
+  if (env->served_.exchange(true)) {
+    return absl::FailedPreconditionError(
+        "this RpcEnvironment already serves another ServiceServer; give each "
+        "server an environment of its own");
+  }
+  // Installed before the server takes its first call, so that none runs
+  // unchecked; removed (below, or by the destructor) only once no call can
+  // be running.
+  env->authorizer_.store(authorizer.get(), std::memory_order_release);
+  const auto release = [env] {
+    env->authorizer_.store(nullptr, std::memory_order_release);
+    env->served_.store(false);
+  };
   std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
   if (server == nullptr || port == 0) {
+    server.reset();
+    release();
     return absl::UnavailableError(
         absl::StrCat("cannot listen on \"", options.listen_address,
                      "\" (invalid address, or port already in use)"));
@@ -143,7 +159,16 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
   // list, and argument evaluation order is unspecified.
   std::unique_ptr<MetricsServer> metrics;
   if (!options.metrics_listen.empty()) {
-    ASSIGN_OR_RETURN(metrics, MetricsServer::Start(options.metrics_listen));
+    absl::StatusOr<std::unique_ptr<MetricsServer>> started =
+        MetricsServer::Start(options.metrics_listen, env->metrics());
+    if (!started.ok()) {
+      server->Shutdown();
+      server->Wait();
+      server.reset();
+      release();
+      return started.status();
+    }
+    metrics = *std::move(started);
   }
   std::string description =
       absl::StrCat(host, ":", port, " (", mode, ", ",
@@ -155,7 +180,7 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
   auto result = std::unique_ptr<ServiceServer>(new ServiceServer(
       std::move(server), std::move(health_names), port,
       DialableAddress(options.listen_address, port), std::move(description),
-      options.drain_timeout, std::move(authorizer), std::move(metrics)));
+      options.drain_timeout, env, std::move(authorizer), std::move(metrics)));
   result->SetServing(false);
   return result;
 }
@@ -163,7 +188,7 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
 ServiceServer::ServiceServer(std::unique_ptr<grpc::Server> server,
                              std::vector<std::string> health_names, int port,
                              std::string address, std::string description,
-                             absl::Duration drain_timeout,
+                             absl::Duration drain_timeout, RpcEnvironment* env,
                              std::unique_ptr<Authorizer> authorizer,
                              std::unique_ptr<MetricsServer> metrics)
     : server_(std::move(server)),
@@ -171,18 +196,18 @@ ServiceServer::ServiceServer(std::unique_ptr<grpc::Server> server,
       port_(port),
       address_(std::move(address)),
       description_(std::move(description)),
+      env_(env),
       authorizer_(std::move(authorizer)),
       metrics_(std::move(metrics)),
-      drain_timeout_(drain_timeout) {
-  if (authorizer_) Authorizer::SetGlobal(authorizer_.get());
-}
+      drain_timeout_(drain_timeout) {}
 
 ServiceServer::~ServiceServer() {
   Shutdown();
   Wait();
-  if (authorizer_ && Authorizer::Global() == authorizer_.get()) {
-    Authorizer::SetGlobal(nullptr);
-  }
+  // No call is running any more: the authorizer can leave the environment
+  // (and be freed with this server), and another server may take it.
+  env_->authorizer_.store(nullptr, std::memory_order_release);
+  env_->served_.store(false);
 }
 
 absl::Status ServiceServer::ReloadAuthorization() {

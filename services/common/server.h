@@ -1,8 +1,10 @@
 // Server bootstrap shared by every bitewise service binary: binds the
-// listening address (plaintext, TLS or mutual TLS), switches on the standard
-// grpc.health.v1 health service and server reflection, and drains in-flight
-// calls on shutdown. Services only supply their grpc::Service objects and
-// drive readiness with SetServing().
+// listening address (plaintext, TLS or mutual TLS), loads the roles file
+// into the services' RpcEnvironment, serves its metrics, switches on the
+// standard grpc.health.v1 health service and server reflection, and drains
+// in-flight calls on shutdown. Services only supply their grpc::Service
+// objects and the environment they were made with, and drive readiness
+// with SetServing().
 #ifndef BITEWISE_SERVICES_COMMON_SERVER_H_
 #define BITEWISE_SERVICES_COMMON_SERVER_H_
 
@@ -19,6 +21,7 @@
 #include "absl/time/time.h"
 #include "services/common/authz.h"
 #include "services/common/metrics.h"
+#include "services/common/rpc_environment.h"
 
 namespace bitewise {
 
@@ -58,21 +61,31 @@ struct ServerOptions {
 // checked its dependencies (model loaded, database open, ...) and called
 // SetServing(true).
 //
-// Thread-safe. The grpc::Service objects must outlive the ServiceServer.
+// Thread-safe. The grpc::Service objects and the RpcEnvironment must
+// outlive the ServiceServer.
 class ServiceServer {
  public:
   // Binds and starts serving `services`. `health_names` are the full service
   // names reported through grpc.health.v1 (for example
   // "bitewise.v1.BanditService"); gRPC offers no public way to read them
-  // from a grpc::Service, so the caller lists them.
+  // from a grpc::Service, so the caller lists them. `env` is the
+  // environment the services were made with: before the first call Start
+  // installs in it the roles file's authorizer (none with authorization
+  // off), and with options.metrics_listen set it serves env's metrics. An
+  // environment serves one ServiceServer at a time, so that no server's
+  // calls are checked against another's roles; the destructor, once the
+  // last call has finished, removes the authorizer and leaves `env` free
+  // for another server.
   //
   // Errors: INVALID_ARGUMENT for inconsistent options (TLS key without
   // certificate, client CA without server certificate, non-positive message
   // size); FAILED_PRECONDITION naming the file when a TLS file cannot be
   // read; UNAVAILABLE when the address cannot be bound (bad address or port
-  // in use).
+  // in use); FAILED_PRECONDITION when `env` already serves another
+  // ServiceServer.
   static absl::StatusOr<std::unique_ptr<ServiceServer>> Start(
-      const ServerOptions& options, std::vector<grpc::Service*> services,
+      const ServerOptions& options, RpcEnvironment* env,
+      std::vector<grpc::Service*> services,
       std::vector<std::string> health_names);
 
   // Shuts down (draining) if the caller has not already.
@@ -112,7 +125,7 @@ class ServiceServer {
   ServiceServer(std::unique_ptr<grpc::Server> server,
                 std::vector<std::string> health_names, int port,
                 std::string address, std::string description,
-                absl::Duration drain_timeout,
+                absl::Duration drain_timeout, RpcEnvironment* env,
                 std::unique_ptr<Authorizer> authorizer,
                 std::unique_ptr<MetricsServer> metrics);
 
@@ -121,6 +134,7 @@ class ServiceServer {
   const int port_;
   const std::string address_;
   const std::string description_;
+  RpcEnvironment* const env_;
   const std::unique_ptr<Authorizer> authorizer_;
   const std::unique_ptr<MetricsServer> metrics_;
   const absl::Duration drain_timeout_;

@@ -12,14 +12,15 @@ namespace bitewise::haptic {
 grpc::Status HapticServiceImpl::Classify(grpc::ServerContext* context,
                                          const v1::ClassifyRequest* request,
                                          v1::ClassifyResponse* response) {
-  return RunRpc(
-      BITEWISE_RPC_METHOD(v1::HapticService), context, [&]() -> absl::Status {
-        ASSIGN_OR_RETURN(const HapticClassification result,
-                         classifier_->Classify(TraceFromProto(*request)));
-        ClassificationToProto(result, classifier_->net().fingerprint(),
-                              response);
-        return absl::OkStatus();
-      });
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::HapticService), context,
+                [&]() -> absl::Status {
+                  ASSIGN_OR_RETURN(
+                      const HapticClassification result,
+                      classifier_->Classify(TraceFromProto(*request)));
+                  ClassificationToProto(
+                      result, classifier_->net().fingerprint(), response);
+                  return absl::OkStatus();
+                });
 }
 
 }  // namespace bitewise::haptic

@@ -6,6 +6,7 @@
 #define BITEWISE_SERVICES_HAPTIC_HAPTIC_SERVICE_H_
 
 #include "bitewise/v1/haptic.grpc.pb.h"
+#include "services/common/rpc_environment.h"
 #include "services/haptic/core/haptic_classifier.h"
 
 namespace bitewise::haptic {
@@ -14,15 +15,18 @@ constexpr char kHapticServiceName[] = "bitewise.v1.HapticService";
 
 class HapticServiceImpl final : public v1::HapticService::Service {
  public:
-  // `classifier` must outlive the service.
-  explicit HapticServiceImpl(const HapticClassifier* classifier)
-      : classifier_(classifier) {}
+  // `env` (what every call runs with: rpc_environment.h) and `classifier`
+  // must outlive the service.
+  HapticServiceImpl(const RpcEnvironment* env,
+                    const HapticClassifier* classifier)
+      : env_(env), classifier_(classifier) {}
 
   grpc::Status Classify(grpc::ServerContext* context,
                         const v1::ClassifyRequest* request,
                         v1::ClassifyResponse* response) override;
 
  private:
+  const RpcEnvironment* const env_;
   const HapticClassifier* const classifier_;
 };
 

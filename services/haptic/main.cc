@@ -9,6 +9,7 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "services/common/flags_usage.h"
+#include "services/common/rpc_environment.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
 #include "services/haptic/core/haptic_classifier.h"
@@ -72,10 +73,11 @@ int main(int argc, char** argv) {
   const std::string fingerprint = (*net)->fingerprint();
   const bitewise::haptic::HapticClassifier classifier(std::move(net).value(),
                                                       options);
-  bitewise::haptic::HapticServiceImpl service(&classifier);
+  bitewise::RpcEnvironment env;  // what every call runs with
+  bitewise::haptic::HapticServiceImpl service(&env, &classifier);
 
   auto server = bitewise::ServiceServer::Start(
-      bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
+      bitewise::ServerOptionsFromFlags(kDefaultPort), &env, {&service},
       {bitewise::haptic::kHapticServiceName});
   if (!server.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot start the server",

@@ -9,6 +9,7 @@
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "services/common/flags_usage.h"
+#include "services/common/rpc_environment.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
 #include "services/perception/context_scale.h"
@@ -124,11 +125,12 @@ int main(int argc, char** argv) {
   bitewise::perception::FoodDetectorOptions detector_options;
   detector_options.min_height_mm = absl::GetFlag(FLAGS_min_food_height_mm);
   const bitewise::perception::FoodDetector detector(detector_options);
-  bitewise::perception::PerceptionServiceImpl service(&detector,
+  bitewise::RpcEnvironment env;  // what every call runs with
+  bitewise::perception::PerceptionServiceImpl service(&env, &detector,
                                                       featurizer.get());
 
   auto server = bitewise::ServiceServer::Start(
-      bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
+      bitewise::ServerOptionsFromFlags(kDefaultPort), &env, {&service},
       {"bitewise.v1.PerceptionService"});
   if (!server.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot start the server",

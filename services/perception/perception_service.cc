@@ -18,14 +18,15 @@ absl::StatusOr<DecodedFrame> DecodeRequestFrame(bool has_frame,
 
 }  // namespace
 
-PerceptionServiceImpl::PerceptionServiceImpl(const FoodDetector* detector,
+PerceptionServiceImpl::PerceptionServiceImpl(const RpcEnvironment* env,
+                                             const FoodDetector* detector,
                                              const Featurizer* featurizer)
-    : detector_(detector), featurizer_(featurizer) {}
+    : env_(env), detector_(detector), featurizer_(featurizer) {}
 
 grpc::Status PerceptionServiceImpl::DetectFood(
     grpc::ServerContext* context, const v1::DetectFoodRequest* request,
     v1::DetectFoodResponse* response) {
-  return RunRpc(BITEWISE_RPC_METHOD(v1::PerceptionService), context,
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::PerceptionService), context,
                 [&]() -> absl::Status {
                   ASSIGN_OR_RETURN(const DecodedFrame frame,
                                    DecodeRequestFrame(request->has_frame(),
@@ -43,7 +44,7 @@ grpc::Status PerceptionServiceImpl::Featurize(
     grpc::ServerContext* context, const v1::FeaturizeRequest* request,
     v1::FeaturizeResponse* response) {
   return RunRpc(
-      BITEWISE_RPC_METHOD(v1::PerceptionService), context,
+      *env_, BITEWISE_RPC_METHOD(v1::PerceptionService), context,
       [&]() -> absl::Status {
         if (!request->has_bbox()) {
           return absl::InvalidArgumentError("bbox is required");

@@ -7,6 +7,7 @@
 #define BITEWISE_SERVICES_PERCEPTION_PERCEPTION_SERVICE_H_
 
 #include "bitewise/v1/perception.grpc.pb.h"
+#include "services/common/rpc_environment.h"
 #include "services/perception/featurizer.h"
 #include "services/perception/food_detector.h"
 
@@ -14,8 +15,9 @@ namespace bitewise::perception {
 
 class PerceptionServiceImpl final : public v1::PerceptionService::Service {
  public:
-  // Both must outlive the service.
-  PerceptionServiceImpl(const FoodDetector* detector,
+  // All three must outlive the service; `env` is what every call runs
+  // with (rpc_environment.h).
+  PerceptionServiceImpl(const RpcEnvironment* env, const FoodDetector* detector,
                         const Featurizer* featurizer);
 
   // INVALID_ARGUMENT for a missing or malformed frame (see DecodeFrame) or
@@ -30,6 +32,7 @@ class PerceptionServiceImpl final : public v1::PerceptionService::Service {
                          v1::FeaturizeResponse* response) override;
 
  private:
+  const RpcEnvironment* const env_;
   const FoodDetector* const detector_;
   const Featurizer* const featurizer_;
 };

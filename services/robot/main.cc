@@ -19,6 +19,7 @@
 #include "services/common/flags_usage.h"
 #include "services/common/metrics.h"
 #include "services/common/readiness_monitor.h"
+#include "services/common/rpc_environment.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
 #include "services/domain/steady_time.h"
@@ -276,10 +277,11 @@ int main(int argc, char** argv) {
     return bitewise::ReportFatal(kProgram, "cannot start the robot",
                                  backend.status());
   }
-  bitewise::robot::RobotServiceImpl service(backend->get());
+  bitewise::RpcEnvironment env;  // what every call runs with
+  bitewise::robot::RobotServiceImpl service(&env, backend->get());
 
   auto server = bitewise::ServiceServer::Start(
-      bitewise::ServerOptionsFromFlags(kDefaultPort), {&service},
+      bitewise::ServerOptionsFromFlags(kDefaultPort), &env, {&service},
       {"bitewise.v1.RobotService"});
   if (!server.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot start the server",
@@ -289,6 +291,7 @@ int main(int argc, char** argv) {
   {
     using bitewise::ScrapeType;
     using bitewise::ScrapeValue;
+    bitewise::Metrics& metrics = env.metrics();
     bitewise::robot::RobotBackend* b = backend->get();
     auto status_value = [b](auto field) {
       return [b, field]() -> std::vector<ScrapeValue> {
@@ -296,47 +299,47 @@ int main(int argc, char** argv) {
       };
     };
     using Info = bitewise::robot::RobotStatusInfo;
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues(
         "bitewise_robot_ft_rate_hz", "F/T samples accepted per second",
         ScrapeType::kGauge,
         status_value([](const Info& i) { return i.ft_health.rate_hz; }));
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues(
         "bitewise_robot_ft_silent_seconds",
         "Seconds since the last accepted F/T sample", ScrapeType::kGauge,
         status_value([](const Info& i) { return i.ft_health.silent_for_s; }));
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues(
         "bitewise_robot_ft_live", "1 while the F/T stream is live",
         ScrapeType::kGauge, [b]() -> std::vector<ScrapeValue> {
           return {{{}, b->FtLive() ? 1.0 : 0.0}};
         });
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues(
         "bitewise_robot_ft_packets_lost_total", "RDT packets lost",
         ScrapeType::kCounter, status_value([](const Info& i) {
           return static_cast<double>(i.ft_stats.packets_lost);
         }));
-    bitewise::AddScrapeValues("bitewise_robot_acquisitions_total",
-                              "Acquisitions run", ScrapeType::kCounter,
-                              status_value([](const Info& i) {
-                                return static_cast<double>(i.acquisitions);
-                              }));
-    bitewise::AddScrapeValues(
-        "bitewise_robot_acquisitions_failed_total",
-        "Acquisitions that ended in an error", ScrapeType::kCounter,
-        status_value([](const Info& i) {
-          return static_cast<double>(i.acquisitions_failed);
-        }));
-    bitewise::AddScrapeValues(
+    metrics.AddScrapeValues("bitewise_robot_acquisitions_total",
+                            "Acquisitions run", ScrapeType::kCounter,
+                            status_value([](const Info& i) {
+                              return static_cast<double>(i.acquisitions);
+                            }));
+    metrics.AddScrapeValues("bitewise_robot_acquisitions_failed_total",
+                            "Acquisitions that ended in an error",
+                            ScrapeType::kCounter,
+                            status_value([](const Info& i) {
+                              return static_cast<double>(i.acquisitions_failed);
+                            }));
+    metrics.AddScrapeValues(
         "bitewise_robot_control_overruns_total",
         "Control periods that began after their tick had passed (the loop "
         "or the machine was too slow for the control rate)",
         ScrapeType::kCounter, status_value([](const Info& i) {
           return static_cast<double>(i.control_overruns);
         }));
-    bitewise::AddScrapeValues("bitewise_robot_force_limit_trips_total",
-                              "Force-limit trips", ScrapeType::kCounter,
-                              status_value([](const Info& i) {
-                                return static_cast<double>(i.force_limit_trips);
-                              }));
+    metrics.AddScrapeValues("bitewise_robot_force_limit_trips_total",
+                            "Force-limit trips", ScrapeType::kCounter,
+                            status_value([](const Info& i) {
+                              return static_cast<double>(i.force_limit_trips);
+                            }));
   }
   // Ready exactly while the F/T stream is live.
   bitewise::ReadinessMonitor readiness(

@@ -10,12 +10,14 @@
 
 namespace bitewise::robot {
 
-RobotServiceImpl::RobotServiceImpl(RobotBackend* backend) : backend_(backend) {}
+RobotServiceImpl::RobotServiceImpl(const RpcEnvironment* env,
+                                   RobotBackend* backend)
+    : env_(env), backend_(backend) {}
 
 grpc::Status RobotServiceImpl::GetStatus(grpc::ServerContext* context,
                                          const v1::GetStatusRequest*,
                                          v1::RobotStatus* response) {
-  return RunRpc(BITEWISE_RPC_METHOD(v1::RobotService), context, [&] {
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::RobotService), context, [&] {
     StatusToProto(backend_->robot().Status(), backend_->simulated(),
                   backend_->items_left(), response);
     return absl::OkStatus();
@@ -25,7 +27,7 @@ grpc::Status RobotServiceImpl::GetStatus(grpc::ServerContext* context,
 grpc::Status RobotServiceImpl::CaptureFrame(grpc::ServerContext* context,
                                             const v1::CaptureFrameRequest*,
                                             v1::Frame* response) {
-  return RunRpc(BITEWISE_RPC_METHOD(v1::RobotService), context,
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::RobotService), context,
                 [&]() -> absl::Status {
                   ASSIGN_OR_RETURN(const domain::RgbdFrame frame,
                                    backend_->CaptureFrame());
@@ -41,7 +43,7 @@ grpc::Status RobotServiceImpl::CaptureFrame(grpc::ServerContext* context,
 grpc::Status RobotServiceImpl::ListActions(grpc::ServerContext* context,
                                            const v1::ListActionsRequest*,
                                            v1::ListActionsResponse* response) {
-  return RunRpc(BITEWISE_RPC_METHOD(v1::RobotService), context, [&] {
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::RobotService), context, [&] {
     for (const ActionSpec& action : SkeweringActions()) {
       ActionToProto(action, response->add_actions());
     }
@@ -53,7 +55,8 @@ grpc::Status RobotServiceImpl::Acquire(
     grpc::ServerContext* context, const v1::AcquireRequest* request,
     grpc::ServerWriter<v1::AcquireProgress>* writer) {
   return RunRpc(
-      BITEWISE_RPC_METHOD(v1::RobotService), context, [&]() -> absl::Status {
+      *env_, BITEWISE_RPC_METHOD(v1::RobotService), context,
+      [&]() -> absl::Status {
         ASSIGN_OR_RETURN(const AcquireTarget target, TargetFromProto(*request));
         ASSIGN_OR_RETURN(const ActionSpec action,
                          FindAction(request->action()));
@@ -90,7 +93,7 @@ grpc::Status RobotServiceImpl::Stop(grpc::ServerContext* context,
                                     const v1::StopRequest*,
                                     v1::StopResponse* response) {
   return RunRpc(
-      BITEWISE_RPC_METHOD(v1::RobotService), context,
+      *env_, BITEWISE_RPC_METHOD(v1::RobotService), context,
       [&]() -> absl::Status {
         ASSIGN_OR_RETURN(const bool was_moving, backend_->robot().Stop());
         response->set_was_moving(was_moving);
@@ -101,7 +104,7 @@ grpc::Status RobotServiceImpl::Stop(grpc::ServerContext* context,
 
 grpc::Status RobotServiceImpl::Tare(grpc::ServerContext* context,
                                     const v1::TareRequest*, v1::TareResponse*) {
-  return RunRpc(BITEWISE_RPC_METHOD(v1::RobotService), context,
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::RobotService), context,
                 [&] { return backend_->robot().Tare(); });
 }
 

@@ -12,14 +12,16 @@
 #include <cstdint>
 
 #include "bitewise/v1/robot.grpc.pb.h"
+#include "services/common/rpc_environment.h"
 #include "services/robot/backend.h"
 
 namespace bitewise::robot {
 
 class RobotServiceImpl final : public v1::RobotService::Service {
  public:
-  // `backend` must outlive the service.
-  explicit RobotServiceImpl(RobotBackend* backend);
+  // `env` (what every call runs with: rpc_environment.h) and `backend` must
+  // outlive the service.
+  RobotServiceImpl(const RpcEnvironment* env, RobotBackend* backend);
 
   grpc::Status GetStatus(grpc::ServerContext* context,
                          const v1::GetStatusRequest* request,
@@ -41,6 +43,7 @@ class RobotServiceImpl final : public v1::RobotService::Service {
                     v1::TareResponse* response) override;
 
  private:
+  const RpcEnvironment* const env_;
   RobotBackend* const backend_;
 };
 

@@ -34,8 +34,9 @@ class BanditServiceTest : public ::testing::Test {
     engine_ = std::make_unique<BanditEngine>(store_.get(), EngineOptions());
     BanditConfig defaults;
     defaults.context_dim = 6;
-    service_ = std::make_unique<BanditServiceImpl>(engine_.get(), defaults);
-    auto server = ServiceServer::Start(ServerOptions(), {service_.get()},
+    service_ =
+        std::make_unique<BanditServiceImpl>(&env_, engine_.get(), defaults);
+    auto server = ServiceServer::Start(ServerOptions(), &env_, {service_.get()},
                                        {"bitewise.v1.BanditService"});
     ASSERT_TRUE(server.ok()) << server.status();
     server_ = std::move(server).value();
@@ -88,6 +89,7 @@ class BanditServiceTest : public ::testing::Test {
     return stub_->Update(Ctx().get(), request, response);
   }
 
+  RpcEnvironment env_;
   std::unique_ptr<SqliteEventStore> store_;
   std::unique_ptr<BanditEngine> engine_;
   std::unique_ptr<BanditServiceImpl> service_;
@@ -99,7 +101,7 @@ class BanditServiceTest : public ::testing::Test {
 // concerned; ListAudit reads them; CheckStore reports on the whole store.
 TEST_F(BanditServiceTest, AdministrativeCallsAreAuditedAndTheStoreCheckable) {
   StoreAuditSink sink(store_.get());
-  SetAuditSink(&sink);
+  env_.set_audit_sink(&sink);
   CreateUser("alice");
   v1::SelectResponse chosen;
   ASSERT_TRUE(Select("alice", {1, 0, 0, 0, 0, 0}, &chosen).ok());
@@ -111,7 +113,7 @@ TEST_F(BanditServiceTest, AdministrativeCallsAreAuditedAndTheStoreCheckable) {
   v1::CheckStoreResponse check;
   ASSERT_TRUE(
       stub_->CheckStore(Ctx().get(), v1::CheckStoreRequest(), &check).ok());
-  SetAuditSink(nullptr);
+  env_.set_audit_sink(nullptr);
   EXPECT_TRUE(check.ok());
   EXPECT_EQ(check.findings_size(), 0);
   EXPECT_EQ(check.users_checked(), 1);

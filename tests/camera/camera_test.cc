@@ -220,8 +220,8 @@ class CameraLinkTest : public ::testing::Test {
  protected:
   void Start(std::unique_ptr<FrameSource> source, double max_age_s = 0.5) {
     publisher_ = std::make_unique<FramePublisher>(std::move(source));
-    service_ = std::make_unique<CameraServiceImpl>(publisher_.get());
-    auto server = ServiceServer::Start(ServerOptions(), {service_.get()},
+    service_ = std::make_unique<CameraServiceImpl>(&env_, publisher_.get());
+    auto server = ServiceServer::Start(ServerOptions(), &env_, {service_.get()},
                                        {"bitewise.v1.CameraService"});
     ASSERT_TRUE(server.ok()) << server.status();
     server_ = *std::move(server);
@@ -236,6 +236,7 @@ class CameraLinkTest : public ::testing::Test {
   void TearDown() override {
     if (server_) server_->Shutdown();
   }
+  RpcEnvironment env_;
   std::unique_ptr<FramePublisher> publisher_;
   std::unique_ptr<CameraServiceImpl> service_;
   std::unique_ptr<ServiceServer> server_;

@@ -46,6 +46,7 @@
 #include "services/common/channel.h"
 #include "services/common/grpc_status.h"
 #include "services/common/metrics.h"
+#include "services/common/rpc_environment.h"
 #include "services/common/rpc_handler.h"
 
 namespace bitewise {
@@ -58,7 +59,8 @@ constexpr absl::Duration kTimeout = absl::Seconds(5);
 
 // A real HapticService whose Classify rejects an empty trace the way service
 // adapters will: through ToGrpcStatus. With `hold` set, calls block until it
-// is notified, so tests can keep a call in flight across Shutdown().
+// is notified, so tests can keep a call in flight across Shutdown(). It does
+// not use RunRpc, but its server needs an environment: it brings its own.
 class FakeHapticService final : public v1::HapticService::Service {
  public:
   grpc::Status Classify(grpc::ServerContext* context,
@@ -85,6 +87,7 @@ class FakeHapticService final : public v1::HapticService::Service {
   absl::Notification entered;
   std::atomic<int> calls{0};
   std::atomic<int> unavailable_left{0};  // answer UNAVAILABLE this often first
+  RpcEnvironment env;
 };
 
 std::shared_ptr<grpc::Channel> Connect(const std::string& address,
@@ -97,7 +100,7 @@ std::shared_ptr<grpc::Channel> Connect(const std::string& address,
 
 absl::StatusOr<std::unique_ptr<ServiceServer>> StartHaptic(
     FakeHapticService& service, ServerOptions options = {}) {
-  return ServiceServer::Start(options, {&service}, {kHapticName});
+  return ServiceServer::Start(options, &service.env, {&service}, {kHapticName});
 }
 
 absl::Status CallClassify(const std::shared_ptr<grpc::Channel>& channel,
@@ -111,28 +114,59 @@ absl::Status CallClassify(const std::shared_ptr<grpc::Channel>& channel,
   return FromGrpcStatus(stub->Classify(&context, request, &response));
 }
 
-// The handler adapter: one conversion, stats for every call.
-TEST(RunRpcTest, ConvertsTheStatusOnceAndRecordsTheCall) {
+// GET /metrics over a plain TCP socket; the body, or "" on failure.
+std::string ScrapeMetrics(int port) {
+  const int fd = socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0) {
+    close(fd);
+    return "";
+  }
+  const std::string request =
+      "GET /metrics HTTP/1.0\r\nHost: localhost\r\n\r\n";
+  if (write(fd, request.data(), request.size()) < 0) {
+    close(fd);
+    return "";
+  }
+  std::string response;
+  char buffer[4096];
+  ssize_t n;
+  while ((n = read(fd, buffer, sizeof(buffer))) > 0) response.append(buffer, n);
+  close(fd);
+  return response;
+}
+
+// The handler adapter: one conversion, every call counted (exactly: the
+// environment is this test's alone) in the metrics of its environment.
+TEST(RunRpcTest, ConvertsTheStatusOnceAndCountsTheCall) {
+  RpcEnvironment env;
   const std::string method = "Test/ConvertsOnce";
   const std::string long_message(1000, 'x');
   int runs = 0;
-  grpc::Status status = RunRpc(method.c_str(), nullptr, [&] {
+  grpc::Status status = RunRpc(env, method.c_str(), nullptr, [&] {
     ++runs;
     return absl::InvalidArgumentError(long_message);
   });
   EXPECT_EQ(runs, 1);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
   EXPECT_EQ(status.error_message(), long_message);  // the client gets it all
-  EXPECT_TRUE(
-      RunRpc(method.c_str(), nullptr, [] { return absl::OkStatus(); }).ok());
-  const RpcMethodStats stats = RpcStats::Global().Snapshot().at(method);
-  EXPECT_EQ(stats.calls, 2);
-  EXPECT_EQ(stats.failures, 1);
-  EXPECT_EQ(stats.by_code.at(static_cast<int>(absl::StatusCode::kOk)), 1);
-  EXPECT_EQ(
-      stats.by_code.at(static_cast<int>(absl::StatusCode::kInvalidArgument)),
-      1);
-  EXPECT_GE(stats.max_seconds, 0.0);
+  EXPECT_TRUE(RunRpc(env, method.c_str(), nullptr, [] {
+                return absl::OkStatus();
+              }).ok());
+
+  auto served = MetricsServer::Start("127.0.0.1:0", env.metrics());
+  ASSERT_TRUE(served.ok()) << served.status();
+  const std::string body = ScrapeMetrics((*served)->port());
+  EXPECT_THAT(body, HasSubstr("200 OK"));
+  for (const char* code : {"OK", "INVALID_ARGUMENT"}) {
+    const std::string labels =
+        absl::StrCat("{code=\"", code, "\",method=\"", method, "\"} 1\n");
+    EXPECT_THAT(body, HasSubstr("bitewise_rpc_requests_total" + labels));
+    EXPECT_THAT(body, HasSubstr("bitewise_rpc_latency_seconds_count" + labels));
+  }
 }
 
 // A service whose handler only starts once `hold` is notified, after the
@@ -140,13 +174,14 @@ TEST(RunRpcTest, ConvertsTheStatusOnceAndRecordsTheCall) {
 // says the work matters more than the reply.
 class LateHapticService final : public v1::HapticService::Service {
  public:
-  explicit LateHapticService(RpcPolicy policy) : policy_(policy) {}
+  LateHapticService(const RpcEnvironment* env, RpcPolicy policy)
+      : env_(env), policy_(policy) {}
   grpc::Status Classify(grpc::ServerContext* context,
                         const v1::ClassifyRequest*,
                         v1::ClassifyResponse*) override {
     hold.WaitForNotification();
     grpc::Status status = RunRpc(
-        "Test/Late", context,
+        *env_, "Test/Late", context,
         [&] {
           ++runs;
           return absl::OkStatus();
@@ -159,13 +194,15 @@ class LateHapticService final : public v1::HapticService::Service {
   std::atomic<int> runs{0};
 
  private:
+  const RpcEnvironment* const env_;
   const RpcPolicy policy_;
 };
 
 TEST(RunRpcTest, WorkWhoseDeadlinePassedIsSkippedUnlessItMustRun) {
   for (RpcPolicy policy : {RpcPolicy::kNormal, RpcPolicy::kAlwaysRun}) {
-    LateHapticService service(policy);
-    auto server = ServiceServer::Start({}, {&service}, {kHapticName});
+    RpcEnvironment env;
+    LateHapticService service(&env, policy);
+    auto server = ServiceServer::Start({}, &env, {&service}, {kHapticName});
     ASSERT_TRUE(server.ok()) << server.status();
     auto stub = v1::HapticService::NewStub(Connect((*server)->address()));
     grpc::ClientContext context;
@@ -423,6 +460,23 @@ TEST(ServiceServerTest, PortInUseFailsCleanly) {
   auto second = StartHaptic(second_service, options);
   ASSERT_FALSE(second.ok());
   EXPECT_EQ(second.status().code(), absl::StatusCode::kUnavailable);
+}
+
+// Each server has an environment of its own, so that none runs its calls
+// under another's roles; a stopped server frees its environment.
+TEST(ServiceServerTest, AnEnvironmentServesOneServerAtATime) {
+  FakeHapticService first_service;
+  auto first = StartHaptic(first_service);
+  ASSERT_TRUE(first.ok()) << first.status();
+  FakeHapticService second_service;
+  auto second = ServiceServer::Start({}, &first_service.env, {&second_service},
+                                     {kHapticName});
+  EXPECT_EQ(second.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(second.status().message(), HasSubstr("another ServiceServer"));
+  first->reset();
+  EXPECT_TRUE(ServiceServer::Start({}, &first_service.env, {&second_service},
+                                   {kHapticName})
+                  .ok());
 }
 
 TEST(ServiceServerTest, RejectsNonPositiveMessageSize) {
@@ -704,10 +758,11 @@ namespace {
 // method name, so one server can stand for any method in the role table.
 class AuthzProbeService final : public v1::HapticService::Service {
  public:
+  explicit AuthzProbeService(const RpcEnvironment* env) : env_(env) {}
   grpc::Status Classify(grpc::ServerContext* context,
                         const v1::ClassifyRequest*,
                         v1::ClassifyResponse*) override {
-    return RunRpc(method.c_str(), context, [this] {
+    return RunRpc(*env_, method.c_str(), context, [this] {
       ++ran;
       may_read_contexts = CallerMayReadContexts();
       return absl::OkStatus();
@@ -716,6 +771,9 @@ class AuthzProbeService final : public v1::HapticService::Service {
   std::string method = "HapticService/Classify";
   std::atomic<int> ran{0};
   std::atomic<bool> may_read_contexts{false};
+
+ private:
+  const RpcEnvironment* const env_;
 };
 
 std::string WriteRoles(const std::string& text) {
@@ -726,13 +784,15 @@ std::string WriteRoles(const std::string& text) {
 
 TEST(AuthorizationTest, RolesDecideWhatAClientCertificateMayCall) {
   ASSERT_TRUE(Certs().error.empty()) << Certs().error;
-  AuthzProbeService service;
+  RpcEnvironment env;
+  AuthzProbeService service(&env);
   ServerOptions options = TlsServerOptions(/*mutual=*/true);
   options.authz_file =
       WriteRoles("# identity role\nbitewise-client researcher\n");
-  auto server =
-      ServiceServer::Start(options, {&service}, {"bitewise.v1.HapticService"});
+  auto server = ServiceServer::Start(options, &env, {&service},
+                                     {"bitewise.v1.HapticService"});
   ASSERT_TRUE(server.ok()) << server.status();
+  EXPECT_NE(env.authorizer(), nullptr);
   EXPECT_THAT((*server)->description(),
               HasSubstr("(mutual TLS, roles from " + options.authz_file));
   ChannelOptions channel = TlsChannelOptions(/*with_client_cert=*/true);
@@ -781,61 +841,44 @@ TEST(AuthorizationTest, RolesDecideWhatAClientCertificateMayCall) {
   EXPECT_EQ(bad.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(bad.message(), HasSubstr("line 1: unknown role \"superuser\""));
   (*server)->Shutdown();
+  // Gone with its server: the environment's calls are no longer checked.
+  server->reset();
+  EXPECT_EQ(env.authorizer(), nullptr);
 }
 
 TEST(AuthorizationTest, RolesNeedMutualTls) {
-  AuthzProbeService service;
+  RpcEnvironment env;
+  AuthzProbeService service(&env);
   ServerOptions options;  // plaintext on loopback
   options.authz_file = WriteRoles("bitewise-client admin\n");
-  auto server =
-      ServiceServer::Start(options, {&service}, {"bitewise.v1.HapticService"});
+  auto server = ServiceServer::Start(options, &env, {&service},
+                                     {"bitewise.v1.HapticService"});
   EXPECT_EQ(server.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(server.status().message(), HasSubstr("needs mutual TLS"));
 }
 
-// GET /metrics over a plain TCP socket; the body, or "" on failure.
-std::string ScrapeMetrics(int port) {
-  const int fd = socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in addr{};
-  addr.sin_family = AF_INET;
-  addr.sin_port = htons(static_cast<uint16_t>(port));
-  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0) {
-    close(fd);
-    return "";
-  }
-  const std::string request =
-      "GET /metrics HTTP/1.0\r\nHost: localhost\r\n\r\n";
-  if (write(fd, request.data(), request.size()) < 0) {
-    close(fd);
-    return "";
-  }
-  std::string response;
-  char buffer[4096];
-  ssize_t n;
-  while ((n = read(fd, buffer, sizeof(buffer))) > 0) response.append(buffer, n);
-  close(fd);
-  return response;
-}
-
 TEST(MetricsTest, RpcCountsLatencyAndScrapeValuesAreServed) {
-  AuthzProbeService probe;
+  RpcEnvironment env;
+  AuthzProbeService probe(&env);
   ServerOptions options;
   options.metrics_listen = "127.0.0.1:0";
-  auto server =
-      ServiceServer::Start(options, {&probe}, {"bitewise.v1.HapticService"});
+  auto server = ServiceServer::Start(options, &env, {&probe},
+                                     {"bitewise.v1.HapticService"});
   ASSERT_TRUE(server.ok()) << server.status();
   ASSERT_GT((*server)->metrics_port(), 0);
   EXPECT_THAT(
       (*server)->description(),
       HasSubstr(absl::StrCat("metrics on port ", (*server)->metrics_port())));
   int scrapes = 0;
-  AddScrapeValues("bitewise_test_value", "A value read at scrape time",
-                  ScrapeType::kGauge, [&scrapes]() -> std::vector<ScrapeValue> {
-                    return {{{{"kind", "probe"}}, 42.0 + scrapes++}};
-                  });
-  ObserveHistogram("bitewise_test_histogram", "A histogram", {1, 2}, 1.5);
-  ObserveHistogram("bitewise_test_histogram", "ignored", {5}, 0.5);
+  env.metrics().AddScrapeValues(
+      "bitewise_test_value", "A value read at scrape time", ScrapeType::kGauge,
+      [&scrapes]() -> std::vector<ScrapeValue> {
+        return {{{{"kind", "probe"}}, 42.0 + scrapes++}};
+      });
+  env.metrics().ObserveHistogram("bitewise_test_histogram", "A histogram",
+                                 {1, 2}, 1.5);
+  env.metrics().ObserveHistogram("bitewise_test_histogram", "ignored", {5},
+                                 0.5);
   auto connected = Connect((*server)->address());
   probe.method = "HapticService/MetricsProbe";
   EXPECT_TRUE(CallClassify(connected, 1).ok());
@@ -852,13 +895,19 @@ TEST(MetricsTest, RpcCountsLatencyAndScrapeValuesAreServed) {
   EXPECT_THAT(body, HasSubstr("bitewise_test_histogram_bucket{le=\"2\"} 2"));
   EXPECT_THAT(body, HasSubstr("bitewise_test_histogram_count 2"));
   (*server)->Shutdown();
+  server->reset();  // frees the environment for the next server
 
   ServerOptions taken;
   taken.metrics_listen = "256.0.0.1:1";
-  EXPECT_EQ(ServiceServer::Start(taken, {&probe}, {"bitewise.v1.HapticService"})
-                .status()
-                .code(),
-            absl::StatusCode::kUnavailable);
+  EXPECT_EQ(
+      ServiceServer::Start(taken, &env, {&probe}, {"bitewise.v1.HapticService"})
+          .status()
+          .code(),
+      absl::StatusCode::kUnavailable);
+  // That failed start left the environment free.
+  EXPECT_TRUE(
+      ServiceServer::Start({}, &env, {&probe}, {"bitewise.v1.HapticService"})
+          .ok());
 }
 
 // Every method of every service, for each role, over real mutual TLS: the
@@ -905,11 +954,12 @@ TEST(AuthorizationTest, EveryRoleTimesEveryMethodOverMutualTls) {
   // A new method must be placed in the table above: this count says so.
   ASSERT_EQ(methods.size(), 22u);
 
-  AuthzProbeService probe;
+  RpcEnvironment env;
+  AuthzProbeService probe(&env);
   ServerOptions options = TlsServerOptions(/*mutual=*/true);
   options.authz_file = WriteRoles("bitewise-client robot\n");
-  auto server =
-      ServiceServer::Start(options, {&probe}, {"bitewise.v1.HapticService"});
+  auto server = ServiceServer::Start(options, &env, {&probe},
+                                     {"bitewise.v1.HapticService"});
   ASSERT_TRUE(server.ok()) << server.status();
   ChannelOptions channel = TlsChannelOptions(/*with_client_cert=*/true);
   channel.tls_server_name_override = "localhost";

@@ -28,8 +28,8 @@ class HapticServiceTest : public ::testing::Test {
     ASSERT_TRUE(net.ok()) << net.status();
     classifier_ = std::make_unique<HapticClassifier>(std::move(net).value(),
                                                      HapticPipelineOptions());
-    service_ = std::make_unique<HapticServiceImpl>(classifier_.get());
-    auto server = ServiceServer::Start(ServerOptions(), {service_.get()},
+    service_ = std::make_unique<HapticServiceImpl>(&env_, classifier_.get());
+    auto server = ServiceServer::Start(ServerOptions(), &env_, {service_.get()},
                                        {kHapticServiceName});
     ASSERT_TRUE(server.ok()) << server.status();
     server_ = std::move(server).value();
@@ -53,6 +53,7 @@ class HapticServiceTest : public ::testing::Test {
     return stub_->Classify(&context, request, response);
   }
 
+  RpcEnvironment env_;
   std::unique_ptr<HapticClassifier> classifier_;
   std::unique_ptr<HapticServiceImpl> service_;
   std::unique_ptr<ServiceServer> server_;

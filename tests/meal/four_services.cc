@@ -14,6 +14,7 @@
 #include "services/bandit/store/sqlite_event_store.h"
 #include "services/common/channel.h"
 #include "services/common/grpc_status.h"
+#include "services/common/rpc_environment.h"
 #include "services/common/server.h"
 #include "services/common/status_macros.h"
 #include "services/haptic/core/haptic_classifier.h"
@@ -90,13 +91,14 @@ std::shared_ptr<grpc::Channel> FaultyChannel(const std::string& address,
 }
 
 // One service on its own server, reported SERVING.
-absl::StatusOr<std::unique_ptr<ServiceServer>> Serve(grpc::Service* service,
+absl::StatusOr<std::unique_ptr<ServiceServer>> Serve(RpcEnvironment* env,
+                                                     grpc::Service* service,
                                                      const char* name) {
   ServerOptions options;
   options.max_message_bytes = 64 << 20;
   options.drain_timeout = absl::Seconds(2);
   ASSIGN_OR_RETURN(std::unique_ptr<ServiceServer> server,
-                   ServiceServer::Start(options, {service}, {name}));
+                   ServiceServer::Start(options, env, {service}, {name}));
   server->SetServing(true);
   return server;
 }
@@ -122,6 +124,11 @@ absl::Status FaultInjector::For(const std::string& method) const {
 }
 
 struct FourServices::Impl {
+  // One environment per service, as each runs in a binary of its own.
+  RpcEnvironment bandit_env;
+  RpcEnvironment perception_env;
+  RpcEnvironment haptic_env;
+  RpcEnvironment robot_env;
   std::unique_ptr<bandit::SqliteEventStore> store;
   std::unique_ptr<bandit::BanditEngine> engine;
   std::unique_ptr<bandit::BanditServiceImpl> bandit_service;
@@ -164,16 +171,17 @@ absl::StatusOr<std::unique_ptr<FourServices>> FourServices::Start(
   impl->engine = std::make_unique<bandit::BanditEngine>(
       impl->store.get(), bandit::EngineOptions());
   impl->bandit_service = std::make_unique<bandit::BanditServiceImpl>(
-      impl->engine.get(), bandit::BanditConfig());
-  ASSIGN_OR_RETURN(impl->bandit_server, Serve(impl->bandit_service.get(),
-                                              "bitewise.v1.BanditService"));
+      &impl->bandit_env, impl->engine.get(), bandit::BanditConfig());
+  ASSIGN_OR_RETURN(impl->bandit_server,
+                   Serve(&impl->bandit_env, impl->bandit_service.get(),
+                         "bitewise.v1.BanditService"));
 
   impl->perception_service =
-      std::make_unique<perception::PerceptionServiceImpl>(&impl->detector,
-                                                          &impl->featurizer);
-  ASSIGN_OR_RETURN(
-      impl->perception_server,
-      Serve(impl->perception_service.get(), "bitewise.v1.PerceptionService"));
+      std::make_unique<perception::PerceptionServiceImpl>(
+          &impl->perception_env, &impl->detector, &impl->featurizer);
+  ASSIGN_OR_RETURN(impl->perception_server,
+                   Serve(&impl->perception_env, impl->perception_service.get(),
+                         "bitewise.v1.PerceptionService"));
 
   ASSIGN_OR_RETURN(
       std::unique_ptr<haptic::HapticNet> net,
@@ -181,10 +189,11 @@ absl::StatusOr<std::unique_ptr<FourServices>> FourServices::Start(
                                        haptic::kDefaultHapticNetSource));
   impl->classifier = std::make_unique<haptic::HapticClassifier>(
       std::move(net), haptic::HapticPipelineOptions());
-  impl->haptic_service =
-      std::make_unique<haptic::HapticServiceImpl>(impl->classifier.get());
-  ASSIGN_OR_RETURN(impl->haptic_server, Serve(impl->haptic_service.get(),
-                                              haptic::kHapticServiceName));
+  impl->haptic_service = std::make_unique<haptic::HapticServiceImpl>(
+      &impl->haptic_env, impl->classifier.get());
+  ASSIGN_OR_RETURN(impl->haptic_server,
+                   Serve(&impl->haptic_env, impl->haptic_service.get(),
+                         haptic::kHapticServiceName));
 
   robot::RobotBackendOptions robot_options;
   robot_options.sim.seed = options.seed;
@@ -194,10 +203,11 @@ absl::StatusOr<std::unique_ptr<FourServices>> FourServices::Start(
   acquisition.orient_rate_radps *= options.transit_speedup;
   acquisition.extract_speed_mps *= options.transit_speedup;
   ASSIGN_OR_RETURN(impl->backend, robot::RobotBackend::Create(robot_options));
-  impl->robot_service =
-      std::make_unique<robot::RobotServiceImpl>(impl->backend.get());
-  ASSIGN_OR_RETURN(impl->robot_server, Serve(impl->robot_service.get(),
-                                             "bitewise.v1.RobotService"));
+  impl->robot_service = std::make_unique<robot::RobotServiceImpl>(
+      &impl->robot_env, impl->backend.get());
+  ASSIGN_OR_RETURN(impl->robot_server,
+                   Serve(&impl->robot_env, impl->robot_service.get(),
+                         "bitewise.v1.RobotService"));
 
   std::unique_ptr<FourServices> services(new FourServices(std::move(impl)));
   services->dir_ = dir;

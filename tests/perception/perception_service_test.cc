@@ -37,9 +37,10 @@ class PerceptionServiceTest : public ::testing::Test {
   }
 
   void StartWith(const Featurizer* featurizer) {
-    service_ = std::make_unique<PerceptionServiceImpl>(&detector_, featurizer);
-    auto server =
-        ServiceServer::Start(ServerOptions(), {service_.get()}, {kService});
+    service_ =
+        std::make_unique<PerceptionServiceImpl>(&env_, &detector_, featurizer);
+    auto server = ServiceServer::Start(ServerOptions(), &env_, {service_.get()},
+                                       {kService});
     ASSERT_TRUE(server.ok()) << server.status();
     server_ = *std::move(server);
     server_->SetServing(true);
@@ -66,6 +67,7 @@ class PerceptionServiceTest : public ::testing::Test {
 
   static SpanetFeaturizer* spanet_;
   static testing::TestScene* scene_;
+  RpcEnvironment env_;
   const FoodDetector detector_;
   const DefaultFeaturizer default_featurizer_;
   std::unique_ptr<PerceptionServiceImpl> service_;

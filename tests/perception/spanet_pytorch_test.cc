@@ -93,8 +93,10 @@ TEST(SpanetFromPytorchTest, ServiceFeaturizeEqualsPytorchOnRenderedCrops) {
                            << " (made by the ctest fixture spanet_export)";
   const std::unique_ptr<SpanetFeaturizer> spanet = *std::move(loaded);
   const FoodDetector detector;
-  PerceptionServiceImpl service(&detector, spanet.get());
-  auto server = ServiceServer::Start(ServerOptions(), {&service}, {kService});
+  RpcEnvironment env;
+  PerceptionServiceImpl service(&env, &detector, spanet.get());
+  auto server =
+      ServiceServer::Start(ServerOptions(), &env, {&service}, {kService});
   ASSERT_TRUE(server.ok()) << server.status();
   (*server)->SetServing(true);
   auto channel = MakeChannel((*server)->address(), ChannelOptions());

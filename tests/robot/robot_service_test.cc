@@ -36,9 +36,9 @@ class RobotServiceTest : public ::testing::Test {
     auto backend = RobotBackend::Create(options);
     ASSERT_TRUE(backend.ok()) << backend.status();
     backend_ = std::move(backend).value();
-    service_ = std::make_unique<RobotServiceImpl>(backend_.get());
-    auto server =
-        ServiceServer::Start(ServerOptions(), {service_.get()}, {kService});
+    service_ = std::make_unique<RobotServiceImpl>(&env_, backend_.get());
+    auto server = ServiceServer::Start(ServerOptions(), &env_, {service_.get()},
+                                       {kService});
     ASSERT_TRUE(server.ok()) << server.status();
     server_ = std::move(server).value();
     readiness_ = std::make_unique<::bitewise::ReadinessMonitor>(
@@ -92,6 +92,7 @@ class RobotServiceTest : public ::testing::Test {
     return reader->Finish();
   }
 
+  RpcEnvironment env_;
   std::unique_ptr<RobotBackend> backend_;
   std::unique_ptr<RobotServiceImpl> service_;
   std::unique_ptr<ServiceServer> server_;
