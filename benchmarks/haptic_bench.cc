@@ -21,7 +21,7 @@ namespace {
 
 // One second at `rate_hz` of a hard-skin item (the shape with the most
 // structure), contact at 0.4 s.
-std::vector<WrenchSample> OneSecondTrace(double rate_hz) {
+std::vector<TimedWrench> OneSecondTrace(double rate_hz) {
   SimulationConditions conditions;
   conditions.min_rate_hz = conditions.max_rate_hz = rate_hz;
   conditions.min_contact_s = conditions.max_contact_s = 0.4;

@@ -290,17 +290,16 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
     attempt.context = contexts[attempt.plate][food];
     absl::StatusOr<haptic::HapticClassification> classified;
     if (config.trace_story == "world") {
-      classified =
-          classifier_->Classify(haptic::ToWrenchSamples(sim::SimulateTrace(
-              profiles[attempt.plate][food], trace_options, trace_rng)));
+      classified = classifier_->Classify(sim::SimulateTrace(
+          profiles[attempt.plate][food], trace_options, trace_rng));
     } else {
       const auto story =
           config.trace_story == "piecewise"   ? sim::PiecewiseStoryTrace
           : config.trace_story == "mechanics" ? sim::MechanicsStoryTrace
                                               : sim::CompliantStoryTrace;
       for (int draw = 0; draw < kMaxStoryDraws; ++draw) {
-        classified = classifier_->Classify(
-            haptic::ToWrenchSamples(story(foods[food]->category, trace_rng)));
+        classified =
+            classifier_->Classify(story(foods[food]->category, trace_rng));
         if (classified.ok() ||
             !absl::IsFailedPrecondition(classified.status())) {
           break;

@@ -63,7 +63,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     case 4: {
       v1::ClassifyRequest request;
       if (!Parse(data, size, &request)) return 0;
-      const std::vector<haptic::WrenchSample> trace =
+      const std::vector<domain::TimedWrench> trace =
           haptic::TraceFromProto(request);
       haptic::ValidateTrace(trace, 8).IgnoreError();
       break;

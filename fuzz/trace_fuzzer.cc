@@ -14,12 +14,14 @@
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   using namespace bitewise::haptic;  // NOLINT: one namespace
   constexpr size_t kSampleBytes = 7 * sizeof(double);
-  std::vector<WrenchSample> trace(size / kSampleBytes);
+  std::vector<TimedWrench> trace(size / kSampleBytes);
   for (size_t i = 0; i < trace.size(); ++i) {
     double v[7];
     std::memcpy(v, data + i * kSampleBytes, kSampleBytes);
     trace[i].t_s = v[0];
-    for (int c = 0; c < 6; ++c) trace[i].values[c] = v[1 + c];
+    for (int c = 0; c < kWrenchChannels; ++c) {
+      Channel(trace[i].wrench, c) = v[1 + c];
+    }
   }
   absl::StatusOr<HapticFeatures> features =
       ExtractHapticFeatures(trace, HapticPipelineOptions());

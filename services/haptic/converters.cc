@@ -2,28 +2,28 @@
 
 namespace bitewise::haptic {
 
-std::vector<WrenchSample> TraceFromProto(const v1::ClassifyRequest& request) {
-  std::vector<WrenchSample> trace;
+std::vector<TimedWrench> TraceFromProto(const v1::ClassifyRequest& request) {
+  std::vector<TimedWrench> trace;
   trace.reserve(request.samples_size());
   for (const v1::WrenchSample& s : request.samples()) {
     trace.push_back(
         {s.t_s(),
-         {s.fx_n(), s.fy_n(), s.fz_n(), s.tx_nm(), s.ty_nm(), s.tz_nm()}});
+         {{s.fx_n(), s.fy_n(), s.fz_n()}, {s.tx_nm(), s.ty_nm(), s.tz_nm()}}});
   }
   return trace;
 }
 
-void TraceToProto(const std::vector<WrenchSample>& trace,
+void TraceToProto(const std::vector<TimedWrench>& trace,
                   v1::ClassifyRequest* request) {
-  for (const WrenchSample& s : trace) {
+  for (const TimedWrench& s : trace) {
     v1::WrenchSample* out = request->add_samples();
     out->set_t_s(s.t_s);
-    out->set_fx_n(s.values[0]);
-    out->set_fy_n(s.values[1]);
-    out->set_fz_n(s.values[2]);
-    out->set_tx_nm(s.values[3]);
-    out->set_ty_nm(s.values[4]);
-    out->set_tz_nm(s.values[5]);
+    out->set_fx_n(s.wrench.force_n[0]);
+    out->set_fy_n(s.wrench.force_n[1]);
+    out->set_fz_n(s.wrench.force_n[2]);
+    out->set_tx_nm(s.wrench.torque_nm[0]);
+    out->set_ty_nm(s.wrench.torque_nm[1]);
+    out->set_tz_nm(s.wrench.torque_nm[2]);
   }
 }
 

@@ -13,11 +13,11 @@
 
 namespace bitewise::haptic {
 
-std::vector<WrenchSample> TraceFromProto(const v1::ClassifyRequest& request);
+std::vector<TimedWrench> TraceFromProto(const v1::ClassifyRequest& request);
 
 // The inverse of TraceFromProto, for callers that hold a trace in the core's
 // types (tests, benchmarks): appends `trace` to `request`'s samples.
-void TraceToProto(const std::vector<WrenchSample>& trace,
+void TraceToProto(const std::vector<TimedWrench>& trace,
                   v1::ClassifyRequest* request);
 
 v1::HapticCategory CategoryToProto(HapticClass haptic_class);

@@ -64,7 +64,7 @@ void OutcomeToProto(const AcquireOutcome& outcome, const ActionSpec& action,
   proto->set_dry_run(outcome.dry_run);
   ActionToProto(action, proto->mutable_action());
   proto->mutable_trace()->Reserve(static_cast<int>(outcome.trace.size()));
-  for (const TraceSample& s : outcome.trace) {
+  for (const domain::TimedWrench& s : outcome.trace) {
     v1::WrenchSample* w = proto->add_trace();
     w->set_t_s(s.t_s);
     w->set_fx_n(s.wrench.force_n[0]);

@@ -72,7 +72,7 @@ double FtRecorder::TakeMaxForceSinceLastCall() {
 double FtRecorder::StaticLoad(double from_s) const {
   double sum = 0.0;
   int n = 0;
-  for (const TraceSample& s : trace_) {
+  for (const domain::TimedWrench& s : trace_) {
     if (s.t_s < from_s) continue;
     sum += s.wrench.force_n[2];
     ++n;

@@ -15,14 +15,10 @@
 
 #include <vector>
 
+#include "services/domain/wrench.h"
 #include "services/robot/netft/netft_rdt_client.h"
 
 namespace bitewise::robot {
-
-struct TraceSample {
-  double t_s = 0.0;  // since the acquisition started
-  netft::Wrench wrench;
-};
 
 class FtRecorder {
  public:
@@ -48,8 +44,8 @@ class FtRecorder {
   // Trace time of the first sample above the contact threshold; -1: none.
   double contact_time_s() const { return contact_time_s_; }
   const netft::Wrench& baseline() const { return baseline_; }
-  const std::vector<TraceSample>& trace() const { return trace_; }
-  std::vector<TraceSample> TakeTrace() { return std::move(trace_); }
+  const std::vector<domain::TimedWrench>& trace() const { return trace_; }
+  std::vector<domain::TimedWrench> TakeTrace() { return std::move(trace_); }
 
   // Weight on the fork: the drop of Fz below the baseline, averaged over
   // the trace from `from_s` on (0 without samples there).
@@ -68,7 +64,7 @@ class FtRecorder {
   double max_force_since_call_ = 0.0;
   double peak_force_n_ = 0.0;
   double contact_time_s_ = -1.0;
-  std::vector<TraceSample> trace_;
+  std::vector<domain::TimedWrench> trace_;
 };
 
 }  // namespace bitewise::robot

@@ -22,6 +22,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "services/domain/wrench.h"
 #include "services/robot/actions.h"
 #include "services/robot/arm.h"
 #include "services/robot/ft_recorder.h"
@@ -100,8 +101,9 @@ using AcquireProgressCallback =
 
 struct AcquireOutcome {
   AttemptOutcome attempt;
-  std::vector<TraceSample> trace;  // every sample, raw (not baseline-removed)
-  double peak_force_n = 0.0;       // max |F - baseline|
+  // Every sample, raw (not baseline-removed).
+  std::vector<domain::TimedWrench> trace;
+  double peak_force_n = 0.0;  // max |F - baseline|
   bool force_limit_reached = false;
   double contact_time_s = -1.0;  // -1: never touched anything
   double static_load_n = 0.0;

@@ -46,6 +46,7 @@
 #include <cmath>
 
 #include "services/domain/random.h"
+#include "services/domain/wrench.h"
 #include "services/sim/trace_stories.h"
 
 namespace bitewise::sim {
@@ -261,11 +262,7 @@ std::vector<TimedWrench> CompliantStoryTrace(HapticCategory category,
       const double value = (c < 3 ? force[c] : torque[c - 3]) + offset[c] +
                            drift[c] * t + coloured[c] +
                            white_sd * scale * normal(rng);
-      if (c < 3) {
-        sample.wrench.force_n[c] = value;
-      } else {
-        sample.wrench.torque_nm[c - 3] = value;
-      }
+      domain::Channel(sample.wrench, c) = value;
     }
     trace.push_back(sample);
   }

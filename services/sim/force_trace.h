@@ -25,11 +25,8 @@
 namespace bitewise::sim {
 
 using Wrench = domain::Wrench;
-
-struct TimedWrench {
-  double t_s = 0.0;
-  Wrench wrench;
-};
+// A trace's sample: t_s seconds from the start of the trace.
+using TimedWrench = domain::TimedWrench;
 
 // One item's noise-free response to the fork, as a function of the time
 // since first contact. Cheap to copy; deterministic once sampled.

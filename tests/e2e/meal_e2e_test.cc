@@ -424,15 +424,15 @@ TEST_F(MealEndToEndTest, RecordedMealsRetrainHapticNetAndTheServiceServesIt) {
   ASSERT_TRUE(channel.ok());
   auto stub = v1::HapticService::NewStub(*channel);
   v1::ClassifyRequest request;
-  for (const haptic::WrenchSample& s : (*traces)[0].samples) {
+  for (const domain::TimedWrench& s : (*traces)[0].samples) {
     v1::WrenchSample* sample = request.add_samples();
     sample->set_t_s(s.t_s);
-    sample->set_fx_n(s.values[0]);
-    sample->set_fy_n(s.values[1]);
-    sample->set_fz_n(s.values[2]);
-    sample->set_tx_nm(s.values[3]);
-    sample->set_ty_nm(s.values[4]);
-    sample->set_tz_nm(s.values[5]);
+    sample->set_fx_n(s.wrench.force_n[0]);
+    sample->set_fy_n(s.wrench.force_n[1]);
+    sample->set_fz_n(s.wrench.force_n[2]);
+    sample->set_tx_nm(s.wrench.torque_nm[0]);
+    sample->set_ty_nm(s.wrench.torque_nm[1]);
+    sample->set_tz_nm(s.wrench.torque_nm[2]);
   }
   v1::ClassifyResponse response;
   grpc::ClientContext context;

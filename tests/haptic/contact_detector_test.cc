@@ -20,16 +20,16 @@ using ::testing::HasSubstr;
 
 // fz rises at `slope_n_per_s` from `contact_s`; every channel carries
 // `offset`. Sampled at `rate_hz` for `duration_s`.
-std::vector<WrenchSample> Ramp(double contact_s, double slope_n_per_s,
-                               double rate_hz, double duration_s,
-                               const std::array<double, 6>& offset) {
-  std::vector<WrenchSample> trace;
+std::vector<TimedWrench> Ramp(double contact_s, double slope_n_per_s,
+                              double rate_hz, double duration_s,
+                              const std::array<double, 6>& offset) {
+  std::vector<TimedWrench> trace;
   const int n = static_cast<int>(std::round(duration_s * rate_hz));
   for (int i = 0; i < n; ++i) {
-    WrenchSample s;
+    TimedWrench s;
     s.t_s = i / rate_hz;
-    s.values = offset;
-    s.values[2] += slope_n_per_s * std::max(0.0, s.t_s - contact_s);
+    s.wrench = WrenchFromChannels(offset);
+    Channel(s.wrench, 2) += slope_n_per_s * std::max(0.0, s.t_s - contact_s);
     trace.push_back(s);
   }
   return trace;
@@ -53,7 +53,7 @@ TEST(ContactDetectorTest, FindsRampStartAndOffsetExactly) {
 TEST(ContactDetectorTest, SingleSampleSpikeIsNotContact) {
   auto trace = Ramp(0.3, 500.0, 1000.0, 0.5, {});
   // A 5 N spike in free motion, one sample long.
-  trace[150].values[2] = 5.0;
+  Channel(trace[150].wrench, 2) = 5.0;
   absl::StatusOr<ContactResult> contact =
       ContactDetector(ContactDetectorOptions()).Detect(trace);
   ASSERT_TRUE(contact.ok()) << contact.status();
@@ -63,8 +63,8 @@ TEST(ContactDetectorTest, SingleSampleSpikeIsNotContact) {
 TEST(ContactDetectorTest, ExcursionShorterThanMinContactIsNotContact) {
   auto trace = Ramp(0.3, 500.0, 1000.0, 0.5, {});
   // Two samples at 2 N: above the threshold, but only 1 ms long.
-  trace[120].values[2] = 2.0;
-  trace[121].values[2] = 2.0;
+  Channel(trace[120].wrench, 2) = 2.0;
+  Channel(trace[121].wrench, 2) = 2.0;
   ContactDetectorOptions options;
   absl::StatusOr<ContactResult> contact =
       ContactDetector(options).Detect(trace);
@@ -80,7 +80,7 @@ TEST(ContactDetectorTest, ExcursionShorterThanMinContactIsNotContact) {
 
 TEST(ContactDetectorTest, SpikeDuringTareDoesNotShiftOffset) {
   auto trace = Ramp(0.3, 500.0, 1000.0, 0.5, {0.0, 0.0, 2.0, 0, 0, 0});
-  trace[10].values[2] = 40.0;
+  Channel(trace[10].wrench, 2) = 40.0;
   absl::StatusOr<ContactResult> contact =
       ContactDetector(ContactDetectorOptions()).Detect(trace);
   ASSERT_TRUE(contact.ok()) << contact.status();
@@ -90,7 +90,7 @@ TEST(ContactDetectorTest, SpikeDuringTareDoesNotShiftOffset) {
 TEST(ContactDetectorTest, ThresholdIsConfigurable) {
   // 0.8 N of force: contact at a 0.5 N threshold, none at the default 1 N.
   auto trace = Ramp(0.2, 0.0, 1000.0, 0.4, {});
-  for (int i = 200; i < 400; ++i) trace[i].values[2] = 0.8;
+  for (int i = 200; i < 400; ++i) Channel(trace[i].wrench, 2) = 0.8;
   EXPECT_EQ(
       ContactDetector(ContactDetectorOptions()).Detect(trace).status().code(),
       absl::StatusCode::kFailedPrecondition);
@@ -104,7 +104,7 @@ TEST(ContactDetectorTest, ThresholdIsConfigurable) {
 
 TEST(ContactDetectorTest, NoContactReportsPeakForce) {
   auto trace = Ramp(0.2, 0.0, 1000.0, 0.4, {0.0, 0.0, 3.0, 0, 0, 0});
-  trace[300].values[2] = 3.42;  // 0.42 N above the offset, one sample
+  Channel(trace[300].wrench, 2) = 3.42;  // 0.42 N above the offset, one sample
   absl::StatusOr<ContactResult> contact =
       ContactDetector(ContactDetectorOptions()).Detect(trace);
   ASSERT_EQ(contact.status().code(), absl::StatusCode::kFailedPrecondition);
@@ -142,8 +142,8 @@ TEST(ContactDetectorTest, SimulatedTracesOfEveryCategory) {
         options.contact_s = 0.2 + 0.0013 * item;  // off the sample grid
         options.duration_s = 0.5;
         options.noise.random_bias_n = 2.0;
-        const std::vector<WrenchSample> trace =
-            ToWrenchSamples(sim::SimulateTrace(profile, options, rng));
+        const std::vector<TimedWrench> trace =
+            sim::SimulateTrace(profile, options, rng);
         absl::StatusOr<ContactResult> contact =
             ContactDetector(ContactDetectorOptions()).Detect(trace);
         ASSERT_TRUE(contact.ok()) << contact.status();

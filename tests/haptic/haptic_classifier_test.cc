@@ -94,7 +94,7 @@ TEST_F(HapticClassifierTest, ClassifiesSimulatedItemsOfEveryCategory) {
 }
 
 TEST_F(HapticClassifierTest, TooFewSamplesIsInvalid) {
-  std::vector<WrenchSample> trace(7);
+  std::vector<TimedWrench> trace(7);
   for (int i = 0; i < 7; ++i) trace[i].t_s = i * 0.001;
   absl::StatusOr<HapticClassification> result = classifier_->Classify(trace);
   ASSERT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
@@ -117,11 +117,11 @@ TEST_F(HapticClassifierTest, NonIncreasingTimestampsAreInvalid) {
 TEST_F(HapticClassifierTest, NanAndInfAreInvalidAndNamed) {
   std::mt19937_64 rng(2);
   auto trace = SimulatedTrace(HapticClass::kSoft, rng);
-  trace[42].values[4] = std::numeric_limits<double>::quiet_NaN();
+  Channel(trace[42].wrench, 4) = std::numeric_limits<double>::quiet_NaN();
   absl::StatusOr<HapticClassification> result = classifier_->Classify(trace);
   ASSERT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(result.status().message(), HasSubstr("samples[42].ty_nm"));
-  trace[42].values[4] = 0.0;
+  Channel(trace[42].wrench, 4) = 0.0;
   trace[7].t_s = std::numeric_limits<double>::infinity();
   result = classifier_->Classify(trace);
   ASSERT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
@@ -132,7 +132,7 @@ TEST_F(HapticClassifierTest,
        HugeValuesAndRatesOutsideTheTrainedRangeAreInvalid) {
   std::mt19937_64 rng(3);
   auto trace = SimulatedTrace(HapticClass::kMedium, rng);
-  trace[30].values[2] = 1e300;  // finite, but no sensor's
+  Channel(trace[30].wrench, 2) = 1e300;  // finite, but no sensor's
   absl::StatusOr<HapticClassification> result = classifier_->Classify(trace);
   ASSERT_EQ(result.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(result.status().message(),
@@ -150,10 +150,11 @@ TEST_F(HapticClassifierTest, NoContactIsFailedPreconditionWithPeakForce) {
   // Free motion only: sensor noise around a 1.5 N offset.
   std::mt19937_64 rng(3);
   std::normal_distribution<double> noise(0.0, 0.08);
-  std::vector<WrenchSample> trace;
+  std::vector<TimedWrench> trace;
   for (int i = 0; i < 500; ++i) {
     trace.push_back(
-        {i * 0.001, {noise(rng), noise(rng), 1.5 + noise(rng), 0.0, 0.0, 0.0}});
+        {i * 0.001,
+         {{noise(rng), noise(rng), 1.5 + noise(rng)}, {0.0, 0.0, 0.0}}});
   }
   absl::StatusOr<HapticClassification> result = classifier_->Classify(trace);
   ASSERT_EQ(result.status().code(), absl::StatusCode::kFailedPrecondition);
@@ -164,10 +165,10 @@ TEST_F(HapticClassifierTest, NoContactIsFailedPreconditionWithPeakForce) {
 TEST(ExtractHapticFeaturesTest, TraceEndingAtContactIsInvalid) {
   // A clean 5000 N/s ramp from t = 0.1 s at 1 kHz that stops at 0.104 s:
   // contact is found, but only 4 samples follow it.
-  std::vector<WrenchSample> trace;
+  std::vector<TimedWrench> trace;
   for (int i = 0; i <= 104; ++i) {
     const double t = i * 0.001;
-    trace.push_back({t, {0.0, 0.0, 5000.0 * std::max(0.0, t - 0.1), 0, 0, 0}});
+    trace.push_back({t, {{0.0, 0.0, 5000.0 * std::max(0.0, t - 0.1)}, {}}});
   }
   HapticPipelineOptions options;
   options.contact.min_contact_s = 0.001;

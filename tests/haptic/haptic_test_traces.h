@@ -1,5 +1,4 @@
-// Traces for the haptic tests: one simulated item of a category, as the
-// haptic core's samples.
+// Traces for the haptic tests: one simulated item of a category.
 #ifndef BITEWISE_TESTS_HAPTIC_HAPTIC_TEST_TRACES_H_
 #define BITEWISE_TESTS_HAPTIC_HAPTIC_TEST_TRACES_H_
 
@@ -12,17 +11,17 @@
 
 namespace bitewise::haptic {
 
-inline std::vector<WrenchSample> SimulatedTrace(HapticClass haptic_class,
-                                                std::mt19937_64& rng,
-                                                double rate_hz = 1000.0,
-                                                double contact_s = 0.3) {
+inline std::vector<TimedWrench> SimulatedTrace(HapticClass haptic_class,
+                                               std::mt19937_64& rng,
+                                               double rate_hz = 1000.0,
+                                               double contact_s = 0.3) {
   const auto profile = sim::ForceProfile::Sample(
       static_cast<sim::HapticCategory>(haptic_class), rng);
   sim::TraceOptions options;
   options.rate_hz = rate_hz;
   options.contact_s = contact_s;
   options.duration_s = contact_s + 0.3;
-  return ToWrenchSamples(sim::SimulateTrace(profile, options, rng));
+  return sim::SimulateTrace(profile, options, rng);
 }
 
 }  // namespace bitewise::haptic

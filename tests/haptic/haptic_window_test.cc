@@ -12,17 +12,17 @@ namespace {
 
 using ::testing::HasSubstr;
 
-WrenchSample Sample(double t_s, double fx) {
-  WrenchSample s;
+TimedWrench Sample(double t_s, double fx) {
+  TimedWrench s;
   s.t_s = t_s;
-  s.values = {fx, 2.0 * fx, 0.0, 0.0, 0.0, -fx};
+  s.wrench = WrenchFromChannels({fx, 2.0 * fx, 0.0, 0.0, 0.0, -fx});
   return s;
 }
 
 TEST(ResampleLinearTest, MatchesHandComputedValuesOnIrregularTimes) {
   // fx: 0 at t=0, 1 at t=0.1, 5 at t=0.3 (uneven spacing).
-  const std::vector<WrenchSample> trace = {Sample(0.0, 0.0), Sample(0.1, 1.0),
-                                           Sample(0.3, 5.0)};
+  const std::vector<TimedWrench> trace = {Sample(0.0, 0.0), Sample(0.1, 1.0),
+                                          Sample(0.3, 5.0)};
   const std::vector<double> times = {-1.0, 0.0, 0.05, 0.1, 0.2, 0.25, 0.3, 0.4};
   // 0.05: halfway 0..1 -> 0.5; 0.2: halfway 1..5 -> 3; 0.25: 3/4 -> 4;
   // outside the trace the end values hold.
@@ -39,11 +39,12 @@ TEST(ResampleLinearTest, MatchesHandComputedValuesOnIrregularTimes) {
 TEST(ExtractWindowTest, SixtyFourPointsPerChannelChannelMajorMinusOffset) {
   // 1 kHz, fz = 100 N/s * t + 3 (offset 3), tx = 0.5 everywhere (offset
   // 0.5), so tared fz is exactly linear and tared tx is zero.
-  std::vector<WrenchSample> trace;
+  std::vector<TimedWrench> trace;
   for (int i = 0; i < 200; ++i) {
-    WrenchSample s;
+    TimedWrench s;
     s.t_s = i * 0.001;
-    s.values = {0.0, 0.0, 100.0 * s.t_s + 3.0, 0.5, 0.0, 0.0};
+    s.wrench =
+        WrenchFromChannels({0.0, 0.0, 100.0 * s.t_s + 3.0, 0.5, 0.0, 0.0});
     trace.push_back(s);
   }
   const std::array<double, kWrenchChannels> offset = {0, 0, 3.0, 0.5, 0, 0};
@@ -67,7 +68,7 @@ TEST(ExtractWindowTest, SixtyFourPointsPerChannelChannelMajorMinusOffset) {
 TEST(ExtractWindowTest, LowRatesStretchTheWindowToTheMinimumSampleCount) {
   // 40 Hz: a 50 ms window would hold 2 samples; it stretches to the 5th
   // sample after contact at 0.1 s: 0.125, 0.15, 0.175, 0.2, 0.225.
-  std::vector<WrenchSample> trace;
+  std::vector<TimedWrench> trace;
   for (int i = 0; i < 20; ++i) trace.push_back(Sample(i * 0.025, i));
   absl::StatusOr<HapticWindow> window =
       ExtractWindow(trace, 0.1, {}, WindowOptions());
@@ -84,7 +85,7 @@ TEST(ExtractWindowTest, LowRatesStretchTheWindowToTheMinimumSampleCount) {
 }
 
 TEST(ExtractWindowTest, TraceEndingRightAfterContactIsInvalid) {
-  std::vector<WrenchSample> trace;
+  std::vector<TimedWrench> trace;
   for (int i = 0; i < 10; ++i) trace.push_back(Sample(i * 0.01, 0.0));
   absl::StatusOr<HapticWindow> window =
       ExtractWindow(trace, 0.065, {}, WindowOptions());

@@ -24,25 +24,26 @@ TraceAugmentation Nothing() {
   return a;
 }
 
-std::vector<WrenchSample> Trace() {
+std::vector<TimedWrench> Trace() {
   return StoryTraces(TraceStory::kMechanics, 1, 3)[0].samples;
 }
 
-double Norm(const WrenchSample& s, int first) {
-  return std::sqrt(s.values[first] * s.values[first] +
-                   s.values[first + 1] * s.values[first + 1] +
-                   s.values[first + 2] * s.values[first + 2]);
+// The norm of the force (`first` 0) or the torque (`first` 3).
+double Norm(const TimedWrench& s, int first) {
+  const auto& v = first == 0 ? s.wrench.force_n : s.wrench.torque_nm;
+  return std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
 }
 
 TEST(TraceAugmentationTest, WithNothingOnItIsTheIdentity) {
-  const std::vector<WrenchSample> trace = Trace();
+  const std::vector<TimedWrench> trace = Trace();
   std::mt19937_64 rng(1);
-  const std::vector<WrenchSample> out = AugmentTrace(trace, Nothing(), rng);
+  const std::vector<TimedWrench> out = AugmentTrace(trace, Nothing(), rng);
   ASSERT_EQ(out.size(), trace.size());
   for (size_t i = 0; i < trace.size(); ++i) {
     EXPECT_DOUBLE_EQ(out[i].t_s, trace[i].t_s);
     for (int k = 0; k < kWrenchChannels; ++k) {
-      EXPECT_NEAR(out[i].values[k], trace[i].values[k], 1e-12);
+      EXPECT_NEAR(Channel(out[i].wrench, k), Channel(trace[i].wrench, k),
+                  1e-12);
     }
   }
 }
@@ -51,16 +52,16 @@ TEST(TraceAugmentationTest,
      AForkAngleMixesFzIntoTheOtherChannelsAndKeepsTheNorm) {
   TraceAugmentation tilt = Nothing();
   tilt.max_tilt_deg = 30.0;
-  const std::vector<WrenchSample> trace = Trace();
+  const std::vector<TimedWrench> trace = Trace();
   std::mt19937_64 rng(5);
-  const std::vector<WrenchSample> out = AugmentTrace(trace, tilt, rng);
+  const std::vector<TimedWrench> out = AugmentTrace(trace, tilt, rng);
   ASSERT_EQ(out.size(), trace.size());
   double changed = 0.0;
   for (size_t i = 0; i < trace.size(); ++i) {
     EXPECT_NEAR(Norm(out[i], 0), Norm(trace[i], 0), 1e-9);
     EXPECT_NEAR(Norm(out[i], 3), Norm(trace[i], 3), 1e-9);
-    changed =
-        std::max(changed, std::abs(out[i].values[0] - trace[i].values[0]));
+    changed = std::max(changed, std::abs(Channel(out[i].wrench, 0) -
+                                         Channel(trace[i].wrench, 0)));
   }
   EXPECT_GT(changed, 0.1);  // Fz leaked into Fx
 }
@@ -72,11 +73,11 @@ TEST(TraceAugmentationTest, TheFullAugmentationKeepsATraceTheServiceAccepts) {
       StoryTraces(TraceStory::kPiecewise, 25, 4);
   int accepted = 0;
   for (const LabelledTrace& trace : traces) {
-    const std::vector<WrenchSample> out = AugmentTrace(trace.samples, all, rng);
+    const std::vector<TimedWrench> out = AugmentTrace(trace.samples, all, rng);
     ASSERT_GE(out.size(), 8u);
     for (size_t i = 1; i < out.size(); ++i) {
       ASSERT_GT(out[i].t_s, out[i - 1].t_s);
-      for (double v : out[i].values) ASSERT_TRUE(std::isfinite(v));
+      for (double v : Channels(out[i].wrench)) ASSERT_TRUE(std::isfinite(v));
     }
     accepted += ExtractHapticFeatures(out, HapticPipelineOptions()).ok();
   }

@@ -27,8 +27,8 @@ struct Shape {
 
 Shape ShapeOf(const LabelledTrace& trace) {
   std::vector<double> first;
-  for (const WrenchSample& s : trace.samples) {
-    if (s.t_s < 0.05) first.push_back(s.values[2]);
+  for (const TimedWrench& s : trace.samples) {
+    if (s.t_s < 0.05) first.push_back(s.wrench.force_n[2]);
   }
   std::nth_element(first.begin(), first.begin() + first.size() / 2,
                    first.end());
@@ -37,7 +37,9 @@ Shape ShapeOf(const LabelledTrace& trace) {
   for (size_t i = 0, begin = 0; i < trace.samples.size(); ++i) {
     while (trace.samples[i].t_s - trace.samples[begin].t_s > 0.003) ++begin;
     double sum = 0.0;
-    for (size_t j = begin; j <= i; ++j) sum += trace.samples[j].values[2];
+    for (size_t j = begin; j <= i; ++j) {
+      sum += trace.samples[j].wrench.force_n[2];
+    }
     smooth.push_back(sum / (i - begin + 1) - tare);
   }
   size_t begin = 0;
@@ -71,7 +73,8 @@ TEST_P(TraceStoryTest, IsSeededAndKeepsTheClassSignatures) {
   for (size_t i = 0; i < again.size(); ++i) {
     EXPECT_EQ(again[i].label, traces[i].label);
     ASSERT_EQ(again[i].samples.size(), traces[i].samples.size());
-    EXPECT_EQ(again[i].samples.back().values, traces[i].samples.back().values);
+    EXPECT_EQ(Channels(again[i].samples.back().wrench),
+              Channels(traces[i].samples.back().wrench));
   }
   std::array<std::vector<double>, kHapticClasses> peaks, drops;
   for (const LabelledTrace& trace : traces) {
@@ -113,7 +116,8 @@ INSTANTIATE_TEST_SUITE_P(Stories, TraceStoryTest,
 TEST(TraceStoriesTest, StoriesDrawDifferentTraces) {
   const auto piecewise = StoryTraces(TraceStory::kPiecewise, 1, 5);
   const auto mechanics = StoryTraces(TraceStory::kMechanics, 1, 5);
-  EXPECT_NE(piecewise[0].samples[0].values, mechanics[0].samples[0].values);
+  EXPECT_NE(Channels(piecewise[0].samples[0].wrench),
+            Channels(mechanics[0].samples[0].wrench));
 }
 
 TEST(TraceStoriesTest, ParsesListsAndNamesBadOnes) {

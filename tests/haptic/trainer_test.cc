@@ -134,7 +134,8 @@ TEST(LabelledTracesTest, AugmentationIsSeededAndOffByDefault) {
     ASSERT_EQ(a[i].samples.size(), b[i].samples.size());
     for (size_t j = 0; j < a[i].samples.size(); ++j) {
       EXPECT_EQ(a[i].samples[j].t_s, b[i].samples[j].t_s);
-      EXPECT_EQ(a[i].samples[j].values, b[i].samples[j].values);
+      EXPECT_EQ(Channels(a[i].samples[j].wrench),
+                Channels(b[i].samples[j].wrench));
     }
   }
 }
@@ -153,8 +154,8 @@ TEST(LabelledTracesTest, AugmentedClassesKeepTheirSignatures) {
   for (const LabelledTrace& trace :
        SimulateLabelledTraces(200, conditions, 11)) {
     double peak = 0.0;
-    for (const WrenchSample& s : trace.samples) {
-      if (s.t_s <= 0.15) peak = std::max(peak, s.values[2]);
+    for (const TimedWrench& s : trace.samples) {
+      if (s.t_s <= 0.15) peak = std::max(peak, Channel(s.wrench, 2));
     }
     const int k = static_cast<int>(trace.label);
     lowest[k] = std::min(lowest[k], peak);
@@ -221,7 +222,8 @@ TEST_F(TraceCsvTest, RoundTripIsExact) {
     ASSERT_EQ((*read)[i].samples.size(), traces[i].samples.size());
     for (size_t j = 0; j < traces[i].samples.size(); ++j) {
       EXPECT_EQ((*read)[i].samples[j].t_s, traces[i].samples[j].t_s);
-      EXPECT_EQ((*read)[i].samples[j].values, traces[i].samples[j].values);
+      EXPECT_EQ(Channels((*read)[i].samples[j].wrench),
+                Channels(traces[i].samples[j].wrench));
     }
   }
 }

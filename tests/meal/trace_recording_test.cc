@@ -90,10 +90,10 @@ TEST(TraceRecordingTest, WritesWhatTheTrainerReadsBackExactly) {
   EXPECT_FALSE((*traces)[1].label.has_value());  // "unknown"
   ASSERT_EQ((*traces)[0].samples.size(), 50u);
   for (int i = 0; i < 50; ++i) {  // bit for bit
-    const haptic::WrenchSample& s = (*traces)[0].samples[i];
+    const domain::TimedWrench& s = (*traces)[0].samples[i];
     EXPECT_EQ(s.t_s, first[i].t_s());
-    EXPECT_EQ(s.values[2], first[i].fz_n());
-    EXPECT_EQ(s.values[5], first[i].tz_nm());
+    EXPECT_EQ(s.wrench.force_n[2], first[i].fz_n());
+    EXPECT_EQ(s.wrench.torque_nm[2], first[i].tz_nm());
   }
   // The strict reader of story files refuses "unknown", naming the line.
   EXPECT_THAT(haptic::ReadTraceCsv(dir + "/traces.csv").status(),

@@ -54,7 +54,7 @@ TEST(FtRecorderTest, TheLimitSeesEverySampleWhateverItsTimeStamp) {
   recorder.Add({Sample(4, 10.004, 50.1, 5.0)});
   EXPECT_DOUBLE_EQ(recorder.TakeMaxForceSinceLastCall(), 5.0);
   // The trace keeps only strictly increasing times.
-  const std::vector<TraceSample>& trace = recorder.trace();
+  const std::vector<domain::TimedWrench>& trace = recorder.trace();
   ASSERT_EQ(trace.size(), 2u);
   EXPECT_LT(trace[0].t_s, trace[1].t_s);
 }

@@ -13,11 +13,11 @@ namespace {
 // Half-width of the smoothing used to find where the rising edge starts.
 constexpr double kSmoothingS = 0.002;
 
-double ForceMagnitude(const WrenchSample& sample,
+double ForceMagnitude(const TimedWrench& sample,
                       const std::array<double, kWrenchChannels>& offset) {
   double sum = 0.0;
   for (int c = 0; c < 3; ++c) {
-    const double f = sample.values[c] - offset[c];
+    const double f = Channel(sample.wrench, c) - offset[c];
     sum += f * f;
   }
   return std::sqrt(sum);
@@ -26,13 +26,13 @@ double ForceMagnitude(const WrenchSample& sample,
 // Median rather than mean so that one spike during free motion does not
 // shift the offset of the whole trace.
 std::array<double, kWrenchChannels> MedianOffset(
-    absl::Span<const WrenchSample> trace, double tare_s) {
+    absl::Span<const TimedWrench> trace, double tare_s) {
   size_t n = 1;
   while (n < trace.size() && trace[n].t_s - trace[0].t_s < tare_s) ++n;
   std::array<double, kWrenchChannels> offset{};
   std::vector<double> values(n);
   for (int c = 0; c < kWrenchChannels; ++c) {
-    for (size_t i = 0; i < n; ++i) values[i] = trace[i].values[c];
+    for (size_t i = 0; i < n; ++i) values[i] = Channel(trace[i].wrench, c);
     std::sort(values.begin(), values.end());
     offset[c] =
         n % 2 == 1 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
@@ -66,7 +66,7 @@ absl::Status ValidateContactOptions(const ContactDetectorOptions& options) {
 }
 
 absl::StatusOr<ContactResult> ContactDetector::Detect(
-    absl::Span<const WrenchSample> trace) const {
+    absl::Span<const TimedWrench> trace) const {
   if (trace.empty()) {
     return absl::InvalidArgumentError("samples: the trace is empty");
   }

@@ -57,7 +57,7 @@ class ContactDetector {
   // FAILED_PRECONDITION when no contact is found, with the peak tared force
   // and the threshold in the message.
   absl::StatusOr<ContactResult> Detect(
-      absl::Span<const WrenchSample> trace) const;
+      absl::Span<const TimedWrench> trace) const;
 
   const ContactDetectorOptions& options() const { return options_; }
 

@@ -18,8 +18,7 @@ absl::Status ValidatePipelineOptions(const HapticPipelineOptions& options) {
 }
 
 absl::StatusOr<HapticFeatures> ExtractHapticFeatures(
-    absl::Span<const WrenchSample> trace,
-    const HapticPipelineOptions& options) {
+    absl::Span<const TimedWrench> trace, const HapticPipelineOptions& options) {
   RETURN_IF_ERROR(ValidateTrace(trace, options.min_trace_samples));
   HapticFeatures features;
   ASSIGN_OR_RETURN(features.contact,
@@ -31,7 +30,7 @@ absl::StatusOr<HapticFeatures> ExtractHapticFeatures(
 }
 
 absl::StatusOr<HapticClassification> HapticClassifier::Classify(
-    absl::Span<const WrenchSample> trace) const {
+    absl::Span<const TimedWrench> trace) const {
   ASSIGN_OR_RETURN(HapticFeatures features,
                    ExtractHapticFeatures(trace, options_));
   ASSIGN_OR_RETURN(HapticNetOutput output, net_->Run(features.window.inputs));

@@ -41,7 +41,7 @@ struct HapticFeatures {
 // that ends too soon after contact; FAILED_PRECONDITION when there is no
 // contact (the message gives the peak force).
 absl::StatusOr<HapticFeatures> ExtractHapticFeatures(
-    absl::Span<const WrenchSample> trace, const HapticPipelineOptions& options);
+    absl::Span<const TimedWrench> trace, const HapticPipelineOptions& options);
 
 struct HapticClassification {
   std::array<double, kHapticClasses> probabilities{};
@@ -61,7 +61,7 @@ class HapticClassifier {
 
   // Errors as ExtractHapticFeatures; INTERNAL if the network fails.
   absl::StatusOr<HapticClassification> Classify(
-      absl::Span<const WrenchSample> trace) const;
+      absl::Span<const TimedWrench> trace) const;
 
   const HapticNet& net() const { return *net_; }
   const HapticPipelineOptions& options() const { return options_; }

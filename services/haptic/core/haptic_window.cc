@@ -20,22 +20,23 @@ absl::Status ValidateWindowOptions(const WindowOptions& options) {
 }
 
 std::vector<std::array<double, kWrenchChannels>> ResampleLinear(
-    absl::Span<const WrenchSample> trace, absl::Span<const double> times_s) {
+    absl::Span<const TimedWrench> trace, absl::Span<const double> times_s) {
   std::vector<std::array<double, kWrenchChannels>> out(times_s.size());
   size_t right = 0;  // first sample with t_s >= the query time
   for (size_t k = 0; k < times_s.size(); ++k) {
     const double t = times_s[k];
     while (right < trace.size() && trace[right].t_s < t) ++right;
     if (right == 0) {
-      out[k] = trace.front().values;
+      out[k] = Channels(trace.front().wrench);
     } else if (right == trace.size()) {
-      out[k] = trace.back().values;
+      out[k] = Channels(trace.back().wrench);
     } else {
-      const WrenchSample& a = trace[right - 1];
-      const WrenchSample& b = trace[right];
+      const TimedWrench& a = trace[right - 1];
+      const TimedWrench& b = trace[right];
       const double w = (t - a.t_s) / (b.t_s - a.t_s);
       for (int c = 0; c < kWrenchChannels; ++c) {
-        out[k][c] = a.values[c] + w * (b.values[c] - a.values[c]);
+        out[k][c] = Channel(a.wrench, c) +
+                    w * (Channel(b.wrench, c) - Channel(a.wrench, c));
       }
     }
   }
@@ -43,12 +44,12 @@ std::vector<std::array<double, kWrenchChannels>> ResampleLinear(
 }
 
 absl::StatusOr<HapticWindow> ExtractWindow(
-    absl::Span<const WrenchSample> trace, double contact_time_s,
+    absl::Span<const TimedWrench> trace, double contact_time_s,
     const std::array<double, kWrenchChannels>& offset,
     const WindowOptions& options) {
   const auto first_after = std::upper_bound(
       trace.begin(), trace.end(), contact_time_s,
-      [](double t, const WrenchSample& s) { return t < s.t_s; });
+      [](double t, const TimedWrench& s) { return t < s.t_s; });
   const int after = static_cast<int>(trace.end() - first_after);
   if (after < options.min_window_samples) {
     return absl::InvalidArgumentError(absl::StrCat(

@@ -37,7 +37,7 @@ absl::Status ValidateWindowOptions(const WindowOptions& options);
 // must be non-empty with strictly increasing timestamps; `times_s` must be
 // non-decreasing.
 std::vector<std::array<double, kWrenchChannels>> ResampleLinear(
-    absl::Span<const WrenchSample> trace, absl::Span<const double> times_s);
+    absl::Span<const TimedWrench> trace, absl::Span<const double> times_s);
 
 struct HapticWindow {
   // Channel-major: inputs[c * 64 + k] is channel c (fx, fy, fz, tx, ty, tz)
@@ -51,7 +51,7 @@ struct HapticWindow {
 // subtracted. Errors: INVALID_ARGUMENT when fewer than min_window_samples
 // samples follow the contact (the trace ends too soon).
 absl::StatusOr<HapticWindow> ExtractWindow(
-    absl::Span<const WrenchSample> trace, double contact_time_s,
+    absl::Span<const TimedWrench> trace, double contact_time_s,
     const std::array<double, kWrenchChannels>& offset,
     const WindowOptions& options);
 

@@ -12,28 +12,29 @@ constexpr const char* kChannelNames[kWrenchChannels] = {
 
 }  // namespace
 
-absl::Status ValidateTrace(absl::Span<const WrenchSample> trace,
+absl::Status ValidateTrace(absl::Span<const TimedWrench> trace,
                            int min_samples) {
   if (static_cast<int>(trace.size()) < min_samples) {
     return absl::InvalidArgumentError(absl::StrCat(
         "samples: ", trace.size(), " samples, need at least ", min_samples));
   }
   for (size_t i = 0; i < trace.size(); ++i) {
-    const WrenchSample& sample = trace[i];
+    const TimedWrench& sample = trace[i];
     if (!std::isfinite(sample.t_s)) {
       return absl::InvalidArgumentError(absl::StrCat(
           "samples[", i, "].t_s is not finite (", sample.t_s, ")"));
     }
     for (int c = 0; c < kWrenchChannels; ++c) {
-      if (!std::isfinite(sample.values[c])) {
+      const double value = Channel(sample.wrench, c);
+      if (!std::isfinite(value)) {
         return absl::InvalidArgumentError(
             absl::StrCat("samples[", i, "].", kChannelNames[c],
-                         " is not finite (", sample.values[c], ")"));
+                         " is not finite (", value, ")"));
       }
       const double limit = c < 3 ? kMaxForceN : kMaxTorqueNm;
-      if (std::abs(sample.values[c]) > limit) {
+      if (std::abs(value) > limit) {
         return absl::InvalidArgumentError(absl::StrCat(
-            "samples[", i, "].", kChannelNames[c], " = ", sample.values[c],
+            "samples[", i, "].", kChannelNames[c], " = ", value,
             " is beyond any F/T sensor's range (limit ", limit, ")"));
       }
     }

@@ -5,23 +5,21 @@
 #ifndef BITEWISE_SERVICES_HAPTIC_CORE_WRENCH_TRACE_H_
 #define BITEWISE_SERVICES_HAPTIC_CORE_WRENCH_TRACE_H_
 
-#include <array>
-
 #include "absl/status/status.h"
 #include "absl/types/span.h"
 #include "services/domain/haptic_class.h"
+#include "services/domain/wrench.h"
 
 namespace bitewise::haptic {
 
-// Channels in the order HapticNet reads them: fx, fy, fz (N), tx, ty, tz
-// (N·m).
-constexpr int kWrenchChannels = 6;
-
-struct WrenchSample {
-  double t_s = 0.0;
-  // fx_n, fy_n, fz_n, tx_nm, ty_nm, tz_nm.
-  std::array<double, kWrenchChannels> values{};
-};
+// A trace's sample (services/domain/wrench.h): t_s, then the wrench, whose
+// channels HapticNet reads in the order fx, fy, fz (N), tx, ty, tz (N·m);
+// Channel(), Channels() and WrenchFromChannels() work by that order.
+using TimedWrench = domain::TimedWrench;
+using domain::Channel;
+using domain::Channels;
+using domain::kWrenchChannels;
+using domain::WrenchFromChannels;
 
 // HapticNet's classes, in the order of its outputs
 // (services/domain/haptic_class.h).
@@ -42,7 +40,7 @@ inline constexpr double kMaxRateHz = 7700.0;
 // samples, finite values within the limits above, strictly increasing
 // timestamps, the average rate within the limits. INVALID_ARGUMENT naming
 // the first offending sample and field (or the measured rate) otherwise.
-absl::Status ValidateTrace(absl::Span<const WrenchSample> trace,
+absl::Status ValidateTrace(absl::Span<const TimedWrench> trace,
                            int min_samples);
 
 }  // namespace bitewise::haptic

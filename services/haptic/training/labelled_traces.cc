@@ -60,19 +60,6 @@ bool ParseLabel(absl::string_view text, HapticClass* label) {
 
 }  // namespace
 
-std::vector<WrenchSample> ToWrenchSamples(
-    const std::vector<sim::TimedWrench>& simulated) {
-  std::vector<WrenchSample> samples;
-  samples.reserve(simulated.size());
-  for (const sim::TimedWrench& s : simulated) {
-    samples.push_back({s.t_s,
-                       {s.wrench.force_n[0], s.wrench.force_n[1],
-                        s.wrench.force_n[2], s.wrench.torque_nm[0],
-                        s.wrench.torque_nm[1], s.wrench.torque_nm[2]}});
-  }
-  return samples;
-}
-
 bool SimulationConditions::Augmented() const {
   for (int k = 0; k < kHapticClasses; ++k) {
     if (min_amplitude_scale[k] != 1.0 || max_amplitude_scale[k] != 1.0 ||
@@ -145,8 +132,7 @@ std::vector<LabelledTrace> SimulateLabelledTraces(
       }
       LabelledTrace trace;
       trace.label = static_cast<HapticClass>(k);
-      trace.samples =
-          ToWrenchSamples(sim::SimulateTrace(profile, options, rng));
+      trace.samples = sim::SimulateTrace(profile, options, rng);
       traces.push_back(std::move(trace));
     }
   }
@@ -217,16 +203,16 @@ std::vector<LabelledTrace> StoryTraces(TraceStory story, int per_class,
       const auto category = static_cast<sim::HapticCategory>(k);
       LabelledTrace trace;
       trace.label = static_cast<HapticClass>(k);
-      trace.samples = ToWrenchSamples(draw(category, rng));
+      trace.samples = draw(category, rng);
       traces.push_back(std::move(trace));
     }
   }
   return traces;
 }
 
-std::vector<WrenchSample> AugmentTrace(const std::vector<WrenchSample>& samples,
-                                       const TraceAugmentation& augmentation,
-                                       std::mt19937_64& rng) {
+std::vector<TimedWrench> AugmentTrace(const std::vector<TimedWrench>& samples,
+                                      const TraceAugmentation& augmentation,
+                                      std::mt19937_64& rng) {
   const auto log_uniform_around_one = [&](double max_scale) {
     return std::exp(Uniform(rng, -std::log(max_scale), std::log(max_scale)));
   };
@@ -263,26 +249,24 @@ std::vector<WrenchSample> AugmentTrace(const std::vector<WrenchSample>& samples,
   const double noise_sd = Uniform(rng, 0.0, augmentation.max_coloured_noise_n);
 
   // Clock, amplitude, angle and lever.
-  std::vector<WrenchSample> out;
+  std::vector<TimedWrench> out;
   out.reserve(samples.size());
-  for (const WrenchSample& sample : samples) {
-    WrenchSample w;
+  for (const TimedWrench& sample : samples) {
+    TimedWrench w;
     w.t_s = sample.t_s * time_scale;
     std::array<double, 3> f, t;
     for (int i = 0; i < 3; ++i) {
       f[i] = t[i] = 0.0;
       for (int j = 0; j < 3; ++j) {
-        f[i] += rotation[i][j] * sample.values[j] * amplitude;
-        t[i] += rotation[i][j] * sample.values[3 + j] * amplitude;
+        f[i] += rotation[i][j] * sample.wrench.force_n[j] * amplitude;
+        t[i] += rotation[i][j] * sample.wrench.torque_nm[j] * amplitude;
       }
     }
     t[0] += offset[1] * f[2] - offset[2] * f[1];
     t[1] += offset[2] * f[0] - offset[0] * f[2];
     t[2] += offset[0] * f[1] - offset[1] * f[0];
-    for (int i = 0; i < 3; ++i) {
-      w.values[i] = f[i];
-      w.values[3 + i] = t[i];
-    }
+    w.wrench.force_n = f;
+    w.wrench.torque_nm = t;
     out.push_back(w);
   }
   // The lag (exact for a first-order filter between samples).
@@ -290,8 +274,8 @@ std::vector<WrenchSample> AugmentTrace(const std::vector<WrenchSample>& samples,
     for (size_t i = 1; i < out.size(); ++i) {
       const double keep = std::exp(-(out[i].t_s - out[i - 1].t_s) / lag_s);
       for (int k = 0; k < kWrenchChannels; ++k) {
-        out[i].values[k] =
-            keep * out[i - 1].values[k] + (1.0 - keep) * out[i].values[k];
+        Channel(out[i].wrench, k) = keep * Channel(out[i - 1].wrench, k) +
+                                    (1.0 - keep) * Channel(out[i].wrench, k);
       }
     }
   }
@@ -304,18 +288,18 @@ std::vector<WrenchSample> AugmentTrace(const std::vector<WrenchSample>& samples,
           std::exp(std::log(augmentation.min_rate_hz) +
                    resample_draw *
                        (std::log(rate) - std::log(augmentation.min_rate_hz)));
-      std::vector<WrenchSample> resampled;
+      std::vector<TimedWrench> resampled;
       size_t j = 0;
       for (double t = out.front().t_s; t <= out.back().t_s;
            t += 1.0 / new_rate) {
         while (j + 2 < out.size() && out[j + 1].t_s < t) ++j;
         const double span = out[j + 1].t_s - out[j].t_s;
         const double w = span > 0.0 ? (t - out[j].t_s) / span : 0.0;
-        WrenchSample sample;
+        TimedWrench sample;
         sample.t_s = t;
         for (int k = 0; k < kWrenchChannels; ++k) {
-          sample.values[k] =
-              (1.0 - w) * out[j].values[k] + w * out[j + 1].values[k];
+          Channel(sample.wrench, k) = (1.0 - w) * Channel(out[j].wrench, k) +
+                                      w * Channel(out[j + 1].wrench, k);
         }
         resampled.push_back(sample);
       }
@@ -335,7 +319,7 @@ std::vector<WrenchSample> AugmentTrace(const std::vector<WrenchSample>& samples,
       const double sd = noise_sd * (k < 3 ? 1.0 : 0.02);
       noise[k] =
           keep * noise[k] + std::sqrt(1.0 - keep * keep) * sd * normal(rng);
-      out[i].values[k] += drift[k] * out[i].t_s + noise[k];
+      Channel(out[i].wrench, k) += drift[k] * out[i].t_s + noise[k];
     }
   }
   return out;
@@ -352,9 +336,9 @@ absl::Status WriteTraceCsv(const std::string& path,
   for (size_t i = 0; i < traces.size(); ++i) {
     rows.clear();
     const std::string id = absl::StrCat(i);
-    for (const WrenchSample& s : traces[i].samples) {
+    for (const TimedWrench& s : traces[i].samples) {
       domain::AppendTraceCsvRow(&rows, id, HapticClassName(traces[i].label),
-                                s.t_s, s.values);
+                                s.t_s, Channels(s.wrench));
     }
     std::fwrite(rows.data(), 1, rows.size(), file);
   }
@@ -403,10 +387,10 @@ absl::StatusOr<std::vector<RecordedTrace>> ReadCsv(const std::string& path,
           allow_unlabelled ? "\" (hard, medium, soft, hard_skin, unknown)"
                            : "\" (hard, medium, soft, hard_skin)"));
     }
-    WrenchSample sample;
+    TimedWrench sample;
     bool ok = absl::SimpleAtod(fields[2], &sample.t_s);
     for (int c = 0; c < kWrenchChannels && ok; ++c) {
-      ok = absl::SimpleAtod(fields[3 + c], &sample.values[c]);
+      ok = absl::SimpleAtod(fields[3 + c], &Channel(sample.wrench, c));
     }
     if (!ok) {
       return absl::InvalidArgumentError(

@@ -26,7 +26,7 @@ namespace bitewise::haptic {
 
 struct LabelledTrace {
   HapticClass label = HapticClass::kHard;
-  std::vector<WrenchSample> samples;
+  std::vector<TimedWrench> samples;
 };
 
 // Sensor and timing conditions of simulated traces. Ranges are sampled
@@ -92,10 +92,6 @@ SimulationConditions TrainingConditions();
 // hard_skin, each from a new simulated food item. Deterministic in `seed`.
 std::vector<LabelledTrace> SimulateLabelledTraces(
     int per_class, const SimulationConditions& conditions, uint64_t seed);
-
-// A simulated trace as the haptic core's samples (same channel order).
-std::vector<WrenchSample> ToWrenchSamples(
-    const std::vector<sim::TimedWrench>& simulated);
 
 // Where simulated traces come from: the simulated world's force-trace model
 // under TrainingConditions() (augmented), or one of the independent stories
@@ -171,16 +167,16 @@ struct TraceAugmentation {
 };
 
 // One augmented copy of `samples` (see TraceAugmentation).
-std::vector<WrenchSample> AugmentTrace(const std::vector<WrenchSample>& samples,
-                                       const TraceAugmentation& augmentation,
-                                       std::mt19937_64& rng);
+std::vector<TimedWrench> AugmentTrace(const std::vector<TimedWrench>& samples,
+                                      const TraceAugmentation& augmentation,
+                                      std::mt19937_64& rng);
 
 // A trace as recorded by a meal (clients/meal/trace_recording.h): its id in
 // the file, and its label unless the food was unknown ("unknown").
 struct RecordedTrace {
   std::string id;
   std::optional<HapticClass> label;
-  std::vector<WrenchSample> samples;
+  std::vector<TimedWrench> samples;
 };
 
 // Reads the CSV format above, accepting the label "unknown". Errors as
