@@ -1,6 +1,6 @@
 // The domain vocabulary every process shares (services/domain): the six
-// skewering actions, the haptic classes' two spellings, the person-id rule
-// and the new user's context ridge.
+// skewering actions, the haptic classes' two spellings, the person-id rule,
+// the new user's context ridge and the wrench's channels.
 #include <set>
 #include <string>
 
@@ -12,6 +12,7 @@
 #include "services/domain/haptic_class.h"
 #include "services/domain/skewering_actions.h"
 #include "services/domain/user_id.h"
+#include "services/domain/wrench.h"
 
 namespace bitewise::domain {
 namespace {
@@ -73,6 +74,21 @@ TEST(UserIdTest, OnlyCharactersThatNeedNoEscaping) {
     EXPECT_THAT(status.message(), HasSubstr("only letters, digits")) << bad;
   }
   EXPECT_THAT(ValidateId("meal_id", "").message(), HasSubstr("meal_id:"));
+}
+
+TEST(WrenchTest, ChannelsInHapticNetsOrderBothWays) {
+  Wrench w;
+  w.force_n = {1.0, 2.0, 3.0};
+  w.torque_nm = {0.1, 0.2, 0.3};
+  const std::array<double, kWrenchChannels> want = {1.0, 2.0, 3.0,
+                                                    0.1, 0.2, 0.3};
+  EXPECT_EQ(Channels(w), want);
+  for (int k = 0; k < kWrenchChannels; ++k) EXPECT_EQ(Channel(w, k), want[k]);
+  Channel(w, 4) = -7.0;  // ty
+  EXPECT_EQ(w.torque_nm[1], -7.0);
+  const Wrench back = WrenchFromChannels(Channels(w));
+  EXPECT_EQ(back.force_n, w.force_n);
+  EXPECT_EQ(back.torque_nm, w.torque_nm);
 }
 
 TEST(ContextRidgeTest, ExplicitThenScaleRuleThenTheServiceDefault) {
