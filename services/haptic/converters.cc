@@ -1,30 +1,21 @@
 #include "services/haptic/converters.h"
 
+#include "services/common/wrench_proto.h"
+
 namespace bitewise::haptic {
 
 std::vector<TimedWrench> TraceFromProto(const v1::ClassifyRequest& request) {
   std::vector<TimedWrench> trace;
   trace.reserve(request.samples_size());
   for (const v1::WrenchSample& s : request.samples()) {
-    trace.push_back(
-        {s.t_s(),
-         {{s.fx_n(), s.fy_n(), s.fz_n()}, {s.tx_nm(), s.ty_nm(), s.tz_nm()}}});
+    trace.push_back(TimedWrenchFromProto(s));
   }
   return trace;
 }
 
 void TraceToProto(const std::vector<TimedWrench>& trace,
                   v1::ClassifyRequest* request) {
-  for (const TimedWrench& s : trace) {
-    v1::WrenchSample* out = request->add_samples();
-    out->set_t_s(s.t_s);
-    out->set_fx_n(s.wrench.force_n[0]);
-    out->set_fy_n(s.wrench.force_n[1]);
-    out->set_fz_n(s.wrench.force_n[2]);
-    out->set_tx_nm(s.wrench.torque_nm[0]);
-    out->set_ty_nm(s.wrench.torque_nm[1]);
-    out->set_tz_nm(s.wrench.torque_nm[2]);
-  }
+  AppendTraceToProto(trace, request->mutable_samples());
 }
 
 v1::HapticCategory CategoryToProto(HapticClass haptic_class) {

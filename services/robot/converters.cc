@@ -3,6 +3,7 @@
 #include <string>
 
 #include "absl/strings/str_cat.h"
+#include "services/common/wrench_proto.h"
 
 namespace bitewise::robot {
 
@@ -63,17 +64,7 @@ void OutcomeToProto(const AcquireOutcome& outcome, const ActionSpec& action,
   proto->set_duration_s(outcome.duration_s);
   proto->set_dry_run(outcome.dry_run);
   ActionToProto(action, proto->mutable_action());
-  proto->mutable_trace()->Reserve(static_cast<int>(outcome.trace.size()));
-  for (const domain::TimedWrench& s : outcome.trace) {
-    v1::WrenchSample* w = proto->add_trace();
-    w->set_t_s(s.t_s);
-    w->set_fx_n(s.wrench.force_n[0]);
-    w->set_fy_n(s.wrench.force_n[1]);
-    w->set_fz_n(s.wrench.force_n[2]);
-    w->set_tx_nm(s.wrench.torque_nm[0]);
-    w->set_ty_nm(s.wrench.torque_nm[1]);
-    w->set_tz_nm(s.wrench.torque_nm[2]);
-  }
+  AppendTraceToProto(outcome.trace, proto->mutable_trace());
 }
 
 void StatusToProto(const RobotStatusInfo& info, bool simulated, int items_left,

@@ -26,6 +26,7 @@
 #include "bitewise/v1/haptic.grpc.pb.h"
 #include "gtest/gtest.h"
 #include "services/common/channel.h"
+#include "services/common/wrench_proto.h"
 #include "services/haptic/training/labelled_traces.h"
 #include "tests/common/child_process.h"
 
@@ -424,16 +425,7 @@ TEST_F(MealEndToEndTest, RecordedMealsRetrainHapticNetAndTheServiceServesIt) {
   ASSERT_TRUE(channel.ok());
   auto stub = v1::HapticService::NewStub(*channel);
   v1::ClassifyRequest request;
-  for (const domain::TimedWrench& s : (*traces)[0].samples) {
-    v1::WrenchSample* sample = request.add_samples();
-    sample->set_t_s(s.t_s);
-    sample->set_fx_n(s.wrench.force_n[0]);
-    sample->set_fy_n(s.wrench.force_n[1]);
-    sample->set_fz_n(s.wrench.force_n[2]);
-    sample->set_tx_nm(s.wrench.torque_nm[0]);
-    sample->set_ty_nm(s.wrench.torque_nm[1]);
-    sample->set_tz_nm(s.wrench.torque_nm[2]);
-  }
+  AppendTraceToProto((*traces)[0].samples, request.mutable_samples());
   v1::ClassifyResponse response;
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() +
