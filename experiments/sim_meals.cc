@@ -368,8 +368,11 @@ absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
         bandit::SelectRng(seed, first_round + static_cast<int64_t>(t));
     const bandit::Choice choice = bandit::ChooseAction(
         bandit_config, model.Estimate(attempt.context), rng);
-    const bool failed =
-        !(attempt.coin < world.foods[attempt.food]->success[choice.action]);
+    ASSIGN_OR_RETURN(
+        const double p,
+        sim::SuccessProbability(*world.foods[attempt.food],
+                                bandit_config.action_names[choice.action]));
+    const bool failed = !(attempt.coin < p);
     bandit::Round round;
     round.context = attempt.context;
     round.action = choice.action;
@@ -408,8 +411,11 @@ std::vector<double> OracleExpectedFailures(const SimMealWorld& world) {
   std::vector<double> out;
   double sum = 0.0;
   for (const SimAttempt& attempt : world.attempts) {
-    const auto& success = foods[attempt.food]->success;
-    sum += 1.0 - *std::max_element(success.begin(), success.end());
+    double best = 0.0;
+    for (const sim::ActionSuccess& entry : foods[attempt.food]->success) {
+      best = std::max(best, entry.probability);
+    }
+    sum += 1.0 - best;
     out.push_back(sum);
   }
   return out;
@@ -420,8 +426,8 @@ std::vector<double> UniformExpectedFailures(const SimMealWorld& world) {
   std::vector<double> out;
   double sum = 0.0;
   for (const SimAttempt& attempt : world.attempts) {
-    for (double p : foods[attempt.food]->success) {
-      sum += (1.0 - p) / sim::kNumActions;
+    for (const sim::ActionSuccess& entry : foods[attempt.food]->success) {
+      sum += (1.0 - entry.probability) / sim::kNumActions;
     }
     out.push_back(sum);
   }

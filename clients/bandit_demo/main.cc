@@ -210,8 +210,14 @@ int main(int argc, char** argv) {
     grpc::Status status = stub->Select(Context().get(), select, &chosen);
     if (!status.ok()) return Fail("Select", status);
 
-    const bool success =
-        bitewise::random::Canonical(rng) < spec.success[chosen.action()];
+    absl::StatusOr<double> p_success =
+        bitewise::sim::SuccessProbability(spec, chosen.action_name());
+    if (!p_success.ok()) {
+      std::fprintf(stderr, "Select: %s\n",
+                   std::string(p_success.status().message()).c_str());
+      return 1;
+    }
+    const bool success = bitewise::random::Canonical(rng) < *p_success;
     const std::vector<double> probs = HapticProbabilities(spec.category, rng);
     const int sensed = static_cast<int>(
         std::max_element(probs.begin(), probs.end()) - probs.begin());

@@ -24,14 +24,17 @@ const char* HapticLabel(v1::HapticCategory category) {
   return domain::HapticClassLabel(static_cast<domain::HapticClass>(index));
 }
 
+// The bandit's choice (its index among the person's actions, and the
+// action's name) for people: the title and description of the skewering
+// action of that name.
 mealpb::ActionInfo DescribeAction(int index, const std::string& name) {
   mealpb::ActionInfo info;
   info.set_index(index);
   info.set_name(name);
-  if (index >= 0 && index < domain::kNumActions) {
-    const domain::SkeweringAction& action = domain::kSkeweringActions[index];
-    info.set_title(action.title);
-    info.set_description(action.description);
+  if (const domain::SkeweringAction* action =
+          domain::FindSkeweringAction(name)) {
+    info.set_title(action->title);
+    info.set_description(action->description);
   }
   return info;
 }
@@ -428,7 +431,8 @@ absl::Status Meal::Bite(std::optional<int> item_index) {
   absl::StatusOr<v1::SelectResponse> chosen = Select(select);
   if (!chosen.ok()) return chosen.status();
 
-  absl::StatusOr<v1::AcquireResult> result = Acquire(item, chosen->action());
+  absl::StatusOr<v1::AcquireResult> result =
+      Acquire(item, chosen->action_name());
   if (!result.ok()) return result.status();
   Judge(*result);
   absl::Status classified = Classify(*result);
@@ -558,14 +562,42 @@ absl::StatusOr<v1::SelectResponse> Meal::Select(
   return chosen;
 }
 
+absl::StatusOr<int> Meal::RobotActionNumber(const std::string& name) {
+  if (robot_actions_.empty()) {
+    absl::StatusOr<v1::ListActionsResponse> listed =
+        clients_->robot.ListActions();
+    if (!listed.ok()) return listed.status();
+    for (const v1::Action& action : listed->actions()) {
+      robot_actions_[action.name()] = action.index();
+    }
+  }
+  auto found = robot_actions_.find(name);
+  if (found == robot_actions_.end()) {
+    std::vector<std::string> names;
+    for (const auto& [known, number] : robot_actions_) names.push_back(known);
+    return absl::FailedPreconditionError(absl::StrCat(
+        "the BanditService chose action \"", name, "\" for ", options_.user_id,
+        " but the robot has no action of that name (it has ",
+        absl::StrJoin(names, ", "), ")"));
+  }
+  return found->second;
+}
+
 absl::StatusOr<v1::AcquireResult> Meal::Acquire(const v1::FoodItem& item,
-                                                int action) {
+                                                const std::string& action) {
+  absl::StatusOr<int> number = RobotActionNumber(action);
+  if (!number.ok()) {
+    Fail(mealpb::STEP_ACQUIRE, number.status(), "error",
+         "nothing is learned from this bite (it stays pending)")
+        .IgnoreError();
+    return number.status();
+  }
   v1::AcquireRequest request;
   *request.mutable_target()->mutable_center_camera_m() = item.center_camera_m();
   request.mutable_target()->set_major_axis_angle_rad(
       item.major_axis_angle_rad());
   *request.mutable_target()->mutable_bbox() = item.bbox();
-  request.set_action(action);
+  request.set_action(*number);
   Emit(mealpb::STEP_ACQUIRE, mealpb::STEP_STATE_STARTED, "The arm is moving.");
   absl::StatusOr<v1::AcquireResult> result = clients_->robot.Acquire(
       request, [&](const v1::AcquireProgress& progress) {

@@ -34,6 +34,7 @@
 #ifndef BITEWISE_CLIENTS_MEAL_MEAL_H_
 #define BITEWISE_CLIENTS_MEAL_MEAL_H_
 
+#include <map>
 #include <optional>
 #include <string>
 
@@ -166,8 +167,13 @@ class Meal {
                                                   const v1::FoodItem& item);
   absl::Status EnsureUser(int context_dim, double context_msn);
   absl::StatusOr<v1::SelectResponse> Select(const v1::SelectRequest& request);
+  // The RobotService's number for the action named `name` (ListActions,
+  // asked once); FAILED_PRECONDITION naming the action and the robot's
+  // actions when it has none of that name.
+  absl::StatusOr<int> RobotActionNumber(const std::string& name);
+  // Runs the action named `action` (the person's choice, by name) on `item`.
   absl::StatusOr<v1::AcquireResult> Acquire(const v1::FoodItem& item,
-                                            int action);
+                                            const std::string& action);
   void Judge(const v1::AcquireResult& result);
   absl::Status Classify(const v1::AcquireResult& result);
   // Records the trace when options_.recording is set (`haptic` null when
@@ -190,6 +196,8 @@ class Meal {
 
   // Touched only by the thread running LookAtPlate or Bite.
   std::optional<v1::User> user_;
+  // The robot's actions: name -> its wire number.
+  std::map<std::string, int> robot_actions_;
   absl::Mutex busy_mu_;  // held through LookAtPlate and Bite
 
   mutable absl::Mutex mu_;

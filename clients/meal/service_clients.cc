@@ -64,6 +64,12 @@ absl::StatusOr<v1::RobotStatus> RobotClient::GetStatus() {
                deadlines_.unary);
 }
 
+absl::StatusOr<v1::ListActionsResponse> RobotClient::ListActions() {
+  return Unary(stub_.get(), &v1::RobotService::Stub::ListActions,
+               "RobotService.ListActions", v1::ListActionsRequest(),
+               deadlines_.unary);
+}
+
 absl::StatusOr<v1::StopResponse> RobotClient::Stop() {
   return Unary(stub_.get(), &v1::RobotService::Stub::Stop, "RobotService.Stop",
                v1::StopRequest(), deadlines_.unary);

@@ -72,6 +72,7 @@ class RobotClient {
 
   absl::StatusOr<v1::Frame> CaptureFrame();
   absl::StatusOr<v1::RobotStatus> GetStatus();
+  absl::StatusOr<v1::ListActionsResponse> ListActions();
   // Runs the action; `on_progress` hears every progress report (the final
   // one carries the result). A stream that ends without a result is
   // INTERNAL.

@@ -2,11 +2,14 @@
 // docs/robot.md): fork pitch from vertical, roll relative to the item's
 // major axis, and the largest force the skewer may apply. Defined once here;
 // the bandit's default action names, the robot's motions and the simulated
-// world's success tables all index this list.
+// world's success tables find their actions in it by name. The position in
+// the list is the RobotService's wire number for the action (0..5) and
+// nothing else.
 #ifndef BITEWISE_SERVICES_DOMAIN_SKEWERING_ACTIONS_H_
 #define BITEWISE_SERVICES_DOMAIN_SKEWERING_ACTIONS_H_
 
 #include <array>
+#include <string_view>
 
 namespace bitewise::domain {
 
@@ -44,6 +47,14 @@ inline constexpr std::array<SkeweringAction, kNumActions> kSkeweringActions = {
      {"TA90", 0.4, kQuarterTurnRad, 10.0, "Tilted, angled, turned",
       "The fork tilts forward and slides in at an angle across the food's "
       "long side, gently, with up to 10 N, for soft food."}}};
+
+// The action named `name`, or nullptr if no action has that name.
+inline const SkeweringAction* FindSkeweringAction(std::string_view name) {
+  for (const SkeweringAction& action : kSkeweringActions) {
+    if (name == action.name) return &action;
+  }
+  return nullptr;
+}
 
 }  // namespace bitewise::domain
 

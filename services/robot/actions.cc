@@ -21,16 +21,31 @@ const std::vector<ActionSpec>& SkeweringActions() {
   return *kActions;
 }
 
-absl::StatusOr<ActionSpec> FindAction(int index) {
+namespace {
+
+std::string ActionNames() {
+  return absl::StrJoin(
+      SkeweringActions(), ", ",
+      [](std::string* out, const ActionSpec& a) { out->append(a.name); });
+}
+
+}  // namespace
+
+absl::StatusOr<ActionSpec> FindAction(std::string_view name) {
+  for (const ActionSpec& action : SkeweringActions()) {
+    if (action.name == name) return action;
+  }
+  return absl::InvalidArgumentError(
+      absl::StrCat("no skewering action is named \"", std::string(name),
+                   "\": the actions are ", ActionNames()));
+}
+
+absl::StatusOr<ActionSpec> ActionFromWire(int index) {
   const auto& actions = SkeweringActions();
   if (index < 0 || index >= static_cast<int>(actions.size())) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "action ", index, " is out of range: actions are 0..",
-        actions.size() - 1, " (",
-        absl::StrJoin(
-            actions, ", ",
-            [](std::string* out, const ActionSpec& a) { out->append(a.name); }),
-        ")"));
+    return absl::InvalidArgumentError(
+        absl::StrCat("action ", index, " is out of range: actions are 0..",
+                     actions.size() - 1, " (", ActionNames(), ")"));
   }
   return actions[index];
 }

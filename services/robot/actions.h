@@ -6,6 +6,7 @@
 #define BITEWISE_SERVICES_ROBOT_ACTIONS_H_
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "Eigen/Core"
@@ -14,6 +15,8 @@
 namespace bitewise::robot {
 
 struct ActionSpec {
+  // The RobotService's number for the action (AcquireRequest.action,
+  // ListActions); only the wire uses it.
   int index = 0;
   std::string name;
   double pitch_rad = 0.0;
@@ -24,8 +27,15 @@ struct ActionSpec {
 // VS0, VS90, TV0, TV90, TA0, TA90, in the paper's order.
 const std::vector<ActionSpec>& SkeweringActions();
 
-// INVALID_ARGUMENT naming the valid range when `index` is not an action.
-absl::StatusOr<ActionSpec> FindAction(int index);
+// The action named `name`; INVALID_ARGUMENT naming the valid actions when
+// no action has that name.
+absl::StatusOr<ActionSpec> FindAction(std::string_view name);
+// Actions are found by name; a number is the wire's (ActionFromWire).
+absl::StatusOr<ActionSpec> FindAction(int) = delete;
+
+// The action with the RobotService's wire number `index`; INVALID_ARGUMENT
+// naming the valid range when `index` is not an action.
+absl::StatusOr<ActionSpec> ActionFromWire(int index);
 
 // A rigid transform X_AB: p_A = R_AB * p_B + p_AB.
 struct RigidTransform {

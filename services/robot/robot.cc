@@ -349,9 +349,9 @@ Robot::Robot(Arm* arm, netft::NetFtRdtClient* ft, SuccessJudge* judge,
     : arm_(arm), ft_(ft), judge_(judge), config_(config) {}
 
 absl::StatusOr<AcquireOutcome> Robot::Acquire(
-    const AcquireTarget& target, int action_index,
+    const AcquireTarget& target, std::string_view action_name,
     const AcquireProgressCallback& on_progress, const AcquireOptions& options) {
-  ASSIGN_OR_RETURN(const ActionSpec action, FindAction(action_index));
+  ASSIGN_OR_RETURN(const ActionSpec action, FindAction(action_name));
   const TaskTarget task_target = ToTaskFrame(target, config_.X_TaskCamera);
   RETURN_IF_ERROR(CheckInWorkspace(task_target, config_.workspace));
   {
@@ -373,7 +373,7 @@ absl::StatusOr<AcquireOutcome> Robot::Acquire(
   } else {
     // A dry run is no attempt: the judge (and the simulated world) never
     // hears of it.
-    if (!options.dry_run) judge_->BeginAttempt(action_index);
+    if (!options.dry_run) judge_->BeginAttempt(action);
     Run run(this, action, task_target, on_progress, options.dry_run);
     absl::Status status = run.Execute();
     if (status.ok()) {

@@ -138,10 +138,10 @@ class Robot {
   Robot(Arm* arm, netft::NetFtRdtClient* ft, SuccessJudge* judge,
         const AcquisitionConfig& config);
 
-  // Runs `action_index` on `target`; `on_progress` (may be empty) hears
-  // each phase start and progress_rate_hz reports. Errors, all leaving the
-  // arm halted if it had moved:
-  //  - INVALID_ARGUMENT: action out of range, target not finite or outside
+  // Runs the action named `action` on `target`; `on_progress` (may be empty)
+  // hears each phase start and progress_rate_hz reports. Errors, all leaving
+  // the arm halted if it had moved:
+  //  - INVALID_ARGUMENT: no action has that name, target not finite or outside
   //    the workspace (nothing moves);
   //  - FAILED_PRECONDITION: another acquisition is running (nothing moves);
   //  - UNAVAILABLE naming the F/T sensor: no live F/T stream at the start,
@@ -153,7 +153,7 @@ class Robot {
   // With options.dry_run, also ABORTED when any force above the reduced
   // limit is felt in any phase (the fork should touch nothing).
   absl::StatusOr<AcquireOutcome> Acquire(
-      const AcquireTarget& target, int action_index,
+      const AcquireTarget& target, std::string_view action,
       const AcquireProgressCallback& on_progress,
       const AcquireOptions& options = {});
 

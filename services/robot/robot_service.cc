@@ -59,12 +59,12 @@ grpc::Status RobotServiceImpl::Acquire(
       [&]() -> absl::Status {
         ASSIGN_OR_RETURN(const AcquireTarget target, TargetFromProto(*request));
         ASSIGN_OR_RETURN(const ActionSpec action,
-                         FindAction(request->action()));
+                         ActionFromWire(request->action()));
         AcquireOptions options;
         options.dry_run = request->dry_run();
         ASSIGN_OR_RETURN(const AcquireOutcome outcome,
                          backend_->robot().Acquire(
-                             target, request->action(),
+                             target, action.name,
                              [&](const AcquireProgressEvent& event) {
                                if (context->IsCancelled()) return false;
                                // The final message, with the result, is written

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "services/domain/haptic_class.h"
+#include "services/robot/actions.h"
 
 namespace bitewise::robot {
 
@@ -27,8 +28,8 @@ struct AttemptOutcome {
 class SuccessJudge {
  public:
   virtual ~SuccessJudge() = default;
-  // Before the arm moves.
-  virtual void BeginAttempt(int action_index) = 0;
+  // Before the arm moves `action`.
+  virtual void BeginAttempt(const ActionSpec& action) = 0;
   // After extraction and settling; `static_load_n` is the weight the fork
   // carries (N, positive down), measured against the pre-approach baseline.
   virtual AttemptOutcome EndAttempt(double static_load_n) = 0;
@@ -40,7 +41,7 @@ class SuccessJudge {
 class StaticLoadJudge final : public SuccessJudge {
  public:
   explicit StaticLoadJudge(double threshold_n) : threshold_n_(threshold_n) {}
-  void BeginAttempt(int) override {}
+  void BeginAttempt(const ActionSpec&) override {}
   AttemptOutcome EndAttempt(double static_load_n) override {
     AttemptOutcome outcome;
     outcome.success = static_load_n >= threshold_n_;
@@ -55,7 +56,7 @@ class StaticLoadJudge final : public SuccessJudge {
 // Hardware without a trusted load threshold: the operator decides.
 class OperatorJudge final : public SuccessJudge {
  public:
-  void BeginAttempt(int) override {}
+  void BeginAttempt(const ActionSpec&) override {}
   AttemptOutcome EndAttempt(double) override {
     AttemptOutcome outcome;
     outcome.decided_by_operator = true;

@@ -14,8 +14,10 @@
 
 #include <array>
 #include <string>
+#include <string_view>
 #include <vector>
 
+#include "absl/status/statusor.h"
 #include "services/domain/haptic_class.h"
 #include "services/domain/skewering_actions.h"
 
@@ -28,11 +30,18 @@ inline constexpr int kHapticCategories = domain::kHapticClasses;
 // VS0, VS90, TV0, TV90, TA0, TA90 (services/domain/skewering_actions.h).
 inline constexpr int kNumActions = domain::kNumActions;
 
+// How often one skewering action, by name, acquires a food.
+struct ActionSuccess {
+  const char* action;
+  double probability;
+};
+
 struct FoodType {
   std::string name;
   HapticCategory category;
-  // Probability that each action (the paper's order) acquires the item.
-  std::array<double, kNumActions> success;
+  // Probability that each action acquires the item, one entry per action of
+  // services/domain/skewering_actions.h, by name.
+  std::array<ActionSuccess, kNumActions> success;
   // Appearance: mean colour (linear RGB in [0, 1]) and its per-item spread;
   // items vary in size within [min, max] metres and lie at any angle.
   std::array<double, 3> rgb;
@@ -54,6 +63,11 @@ std::vector<const FoodType*> UnseenFoods();
 std::vector<const FoodType*> SeenFoods();
 // nullptr if no food has this name.
 const FoodType* FindFood(const std::string& name);
+
+// The probability that the action named `action` acquires `food`;
+// NOT_FOUND naming the food and the action if the catalog has no entry.
+absl::StatusOr<double> SuccessProbability(const FoodType& food,
+                                          std::string_view action);
 
 }  // namespace bitewise::sim
 

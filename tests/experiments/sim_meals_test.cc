@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "gtest/gtest.h"
+#include "services/domain/skewering_actions.h"
 #include "services/perception/default_featurizer.h"
 #include "services/sim/food_catalog.h"
 
@@ -144,8 +145,11 @@ TEST_F(SimMealsTest, FailuresFollowTheSharedOutcomeDraws) {
       ASSERT_GE(action, 0);
       ASSERT_LT(action, sim::kNumActions);
       const SimAttempt& attempt = world->attempts[t];
-      EXPECT_EQ(run->failed[t],
-                attempt.coin < foods[attempt.food]->success[action] ? 0 : 1);
+      // The action is an index into the default action names (the domain's).
+      const absl::StatusOr<double> p = sim::SuccessProbability(
+          *foods[attempt.food], domain::kSkeweringActions[action].name);
+      ASSERT_TRUE(p.ok()) << p.status();
+      EXPECT_EQ(run->failed[t], attempt.coin < *p ? 0 : 1);
       EXPECT_EQ(run->cumulative_failures[t], previous + run->failed[t]);
       EXPECT_GE(run->cumulative_failures[t], previous);  // nondecreasing
       previous = run->cumulative_failures[t];

@@ -127,6 +127,16 @@ class MealTest : public ::testing::Test {
     return {events->events().begin(), events->events().end()};
   }
 
+  // The featurizer's context size, from a person who is not the test's.
+  int ContextDim() {
+    MealOptions other = options_;
+    other.user_id = options_.user_id + "-probe";
+    Meal probe(clients_.get(), journal_.get(), other, nullptr);
+    if (!probe.LookAtPlate().ok() || !probe.Bite(std::nullopt).ok()) return 0;
+    absl::StatusOr<v1::User> user = clients_->bandit.GetUser(other.user_id);
+    return user.ok() ? static_cast<int>(user->config().context_dim()) : 0;
+  }
+
   static FourServices* services_;
   std::unique_ptr<ServiceClients> clients_;
   std::unique_ptr<UpdateJournal> journal_;
@@ -285,6 +295,63 @@ TEST_F(MealTest, AChosenLearnerIsTheNewUsers) {
     EXPECT_TRUE(event.completed());
     EXPECT_EQ(event.posthoc_size(), 4);
   }
+}
+
+// A person's actions are the robot's by name, in any order: the bandit's
+// first choice (index 0, untrained) is TA90 here, and the bite is told as
+// TA90, not as the robot's action 0.
+TEST_F(MealTest, ThePersonsActionsAreTheRobotsByName) {
+  const int context_dim = ContextDim();
+  ASSERT_GT(context_dim, 0);
+  v1::CreateUserRequest create;
+  create.set_user_id(options_.user_id);
+  create.mutable_config()->set_context_dim(context_dim);
+  create.mutable_config()->set_learner(v1::LEARNER_CONTEXT_ONLY);
+  for (const char* name : {"TA90", "TA0", "TV90", "TV0", "VS90", "VS0"}) {
+    create.mutable_config()->add_action_names(name);
+  }
+  ASSERT_TRUE(clients_->bandit.CreateUser(create).ok());
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  ASSERT_OK(meal->Bite(std::nullopt));
+  const mealpb::Bite bite = meal->state().current();
+  EXPECT_EQ(bite.action().index(), 0);
+  EXPECT_EQ(bite.action().name(), "TA90");
+  EXPECT_EQ(bite.action().title(), "Tilted, angled, turned");
+  const std::vector<v1::Event> events = Events();
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_EQ(events[0].action(), 0);
+  EXPECT_TRUE(events[0].completed());
+}
+
+// An action the robot does not have is refused before the arm moves,
+// naming it and the robot's actions; the selection stays pending.
+TEST_F(MealTest, AnActionTheRobotLacksIsRefusedByName) {
+  const int context_dim = ContextDim();
+  ASSERT_GT(context_dim, 0);
+  v1::CreateUserRequest create;
+  create.set_user_id(options_.user_id);
+  create.mutable_config()->set_context_dim(context_dim);
+  create.mutable_config()->set_learner(v1::LEARNER_CONTEXT_ONLY);
+  create.mutable_config()->add_action_names("SCOOP");
+  create.mutable_config()->add_action_names("VS0");
+  ASSERT_TRUE(clients_->bandit.CreateUser(create).ok());
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  EXPECT_THAT(
+      meal->Bite(std::nullopt),
+      StatusIs(absl::StatusCode::kFailedPrecondition,
+               HasSubstr("chose action \"SCOOP\" for " + options_.user_id +
+                         " but the robot has no action of that name "
+                         "(it has TA0, TA90, TV0, TV90, VS0, VS90)")));
+  // The arm never started.
+  for (const auto& [step, state] : listener_.Steps()) {
+    EXPECT_FALSE(step == mealpb::STEP_ACQUIRE &&
+                 state == mealpb::STEP_STATE_STARTED);
+  }
+  const std::vector<v1::Event> events = Events();
+  ASSERT_EQ(events.size(), 1u);
+  EXPECT_FALSE(events[0].completed());
 }
 
 TEST_F(MealTest, ThePersonChoosesTheItem) {

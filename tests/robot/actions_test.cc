@@ -25,15 +25,26 @@ TEST(ActionsTest, TheRobotsTableIsTheDomains) {
     EXPECT_EQ(actions[i].pitch_rad, want.pitch_rad);
     EXPECT_EQ(actions[i].roll_rad, want.roll_rad);
     EXPECT_EQ(actions[i].max_force_n, want.max_force_n);
-    absl::StatusOr<ActionSpec> found = FindAction(i);
-    ASSERT_TRUE(found.ok()) << found.status();
-    EXPECT_EQ(found->name, want.name);
+    absl::StatusOr<ActionSpec> by_name = FindAction(want.name);
+    ASSERT_TRUE(by_name.ok()) << by_name.status();
+    EXPECT_EQ(by_name->index, i);
+    absl::StatusOr<ActionSpec> from_wire = ActionFromWire(i);
+    ASSERT_TRUE(from_wire.ok()) << from_wire.status();
+    EXPECT_EQ(from_wire->name, want.name);
   }
 }
 
 TEST(ActionsTest, AnUnknownActionNamesTheValidOnes) {
-  for (int bad : {-1, domain::kNumActions, 1000}) {
+  for (const char* bad : {"", "VS45", "vs0", "VS0 "}) {
     const absl::Status status = FindAction(bad).status();
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+    EXPECT_EQ(status.message(),
+              absl::StrCat("no skewering action is named \"", bad,
+                           "\": the actions are VS0, VS90, TV0, TV90, TA0, "
+                           "TA90"));
+  }
+  for (int bad : {-1, domain::kNumActions, 1000}) {
+    const absl::Status status = ActionFromWire(bad).status();
     EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
     EXPECT_THAT(status.message(),
                 HasSubstr(absl::StrCat("action ", bad, " is out of range")));
@@ -55,11 +66,12 @@ TEST(ActionsTest, ACameraTargetBecomesATaskTargetAndAForkYaw) {
   EXPECT_NEAR(task.major_axis_yaw_rad, -M_PI / 6, 1e-12);
   // VS0 follows the axis, VS90 turns a quarter from it; yaws stay in
   // [-pi, pi].
-  EXPECT_NEAR(ForkYaw(*FindAction(0), task.major_axis_yaw_rad), -M_PI / 6,
+  EXPECT_NEAR(ForkYaw(*FindAction("VS0"), task.major_axis_yaw_rad), -M_PI / 6,
               1e-12);
-  EXPECT_NEAR(ForkYaw(*FindAction(1), task.major_axis_yaw_rad), M_PI / 3,
+  EXPECT_NEAR(ForkYaw(*FindAction("VS90"), task.major_axis_yaw_rad), M_PI / 3,
               1e-12);
-  EXPECT_NEAR(ForkYaw(*FindAction(1), 3.0), 3.0 + M_PI / 2 - 2 * M_PI, 1e-12);
+  EXPECT_NEAR(ForkYaw(*FindAction("VS90"), 3.0), 3.0 + M_PI / 2 - 2 * M_PI,
+              1e-12);
 }
 
 TEST(ActionsTest, TheWorkspaceRefusesNamingTheLimit) {

@@ -67,7 +67,7 @@ class RobotTest : public ::testing::Test {
   // Runs Acquire on another thread; `on_phase` is called (on that thread)
   // once when `phase` starts.
   std::future<absl::StatusOr<AcquireOutcome>> AcquireAsync(
-      const AcquireTarget& target, int action, AcquirePhase phase,
+      const AcquireTarget& target, std::string action, AcquirePhase phase,
       std::atomic<bool>* reached) {
     return std::async(std::launch::async, [=] {
       return backend_->robot().Acquire(target, action,
@@ -95,7 +95,7 @@ TEST_F(RobotTest, AcquireRunsEveryPhaseAndRecordsTheTrace) {
   const int items_before = backend_->items_left();
   std::vector<AcquirePhase> phases;
   absl::StatusOr<AcquireOutcome> outcome = backend_->robot().Acquire(
-      target, /*action_index=*/0, [&](const AcquireProgressEvent& event) {
+      target, "VS0", [&](const AcquireProgressEvent& event) {
         if (phases.empty() || phases.back() != event.phase) {
           phases.push_back(event.phase);
         }
@@ -141,7 +141,7 @@ TEST_F(RobotTest, ADryRunFliesTheActionAboveTheFoodWithoutAnAttempt) {
   AcquireOptions options;
   options.dry_run = true;
   absl::StatusOr<AcquireOutcome> dry = backend_->robot().Acquire(
-      target, /*TV0*/ 2,
+      target, "TV0",
       [&](const AcquireProgressEvent& event) {
         if (phases.empty() || phases.back() != event.phase) {
           phases.push_back(event.phase);
@@ -162,7 +162,7 @@ TEST_F(RobotTest, ADryRunFliesTheActionAboveTheFoodWithoutAnAttempt) {
   EXPECT_FALSE(dry->attempt.success);
   // At a quarter of the speed: it takes longer than the real action.
   absl::StatusOr<AcquireOutcome> real =
-      backend_->robot().Acquire(target, 2, nullptr);
+      backend_->robot().Acquire(target, "TV0", nullptr);
   ASSERT_TRUE(real.ok()) << real.status();
   EXPECT_GT(dry->duration_s, 2.0 * real->duration_s);
 }
@@ -173,7 +173,7 @@ TEST_F(RobotTest, AnyForceInADryRunStopsTheArm) {
   options.dry_run = true;
   bool pressed = false;
   absl::StatusOr<AcquireOutcome> dry = backend_->robot().Acquire(
-      TargetOfItem(0), /*TV0, 20 N; 10 N in a dry run*/ 2,
+      TargetOfItem(0), /*20 N; 10 N in a dry run*/ "TV0",
       [&](const AcquireProgressEvent& event) {
         if (event.phase == AcquirePhase::kOrient && !pressed) {
           pressed = true;
@@ -197,7 +197,7 @@ TEST_F(RobotTest, TheSeedDecidesTheOutcome) {
     Start({"banana", "carrot"}, /*seed=*/11);
     for (size_t i = 0; i < 2; ++i) {
       absl::StatusOr<AcquireOutcome> outcome =
-          backend_->robot().Acquire(TargetOfItem(0), 5, nullptr);
+          backend_->robot().Acquire(TargetOfItem(0), "TA90", nullptr);
       ASSERT_TRUE(outcome.ok()) << outcome.status();
       run->push_back(outcome->attempt.success);
       if (backend_->items_left() == 0) break;
@@ -224,7 +224,7 @@ TEST_F(RobotTest, ForceLimitStopsTheDescent) {
   ASSERT_GT(hardest_n, 12.0) << "seed 5 should give a stiff item";
   const double item_top_m = scene.items[hardest].height_m;
   absl::StatusOr<AcquireOutcome> outcome =
-      backend_->robot().Acquire(TargetOfItem(hardest), 4, nullptr);
+      backend_->robot().Acquire(TargetOfItem(hardest), "TA0", nullptr);
   ASSERT_TRUE(outcome.ok()) << outcome.status();
   EXPECT_TRUE(outcome->force_limit_reached);
   EXPECT_GE(outcome->peak_force_n, 10.0);
@@ -242,7 +242,7 @@ TEST_F(RobotTest, StopHaltsWithinOneControlPeriod) {
   Start({"banana"});
   std::atomic<bool> descending{false};
   auto running =
-      AcquireAsync(TargetOfItem(0), 4, AcquirePhase::kDescend, &descending);
+      AcquireAsync(TargetOfItem(0), "TA0", AcquirePhase::kDescend, &descending);
   ASSERT_TRUE(WaitFor([&] { return descending.load(); }));
   const int commands_before = backend_->sim_arm()->commands();
   const double before_s = SteadyNowS();
@@ -264,14 +264,14 @@ TEST_F(RobotTest, StopHaltsWithinOneControlPeriod) {
   EXPECT_TRUE(ArmFrozen());
   // A Stop while idle changes nothing for the next acquisition.
   ASSERT_FALSE(*backend_->robot().Stop());
-  EXPECT_TRUE(backend_->robot().Acquire(TargetOfItem(0), 4, nullptr).ok());
+  EXPECT_TRUE(backend_->robot().Acquire(TargetOfItem(0), "TA0", nullptr).ok());
 }
 
 TEST_F(RobotTest, WatchdogStopsTheArmWhenTheSensorGoesSilent) {
   Start({"cantaloupe"});
   std::atomic<bool> descending{false};
   auto running =
-      AcquireAsync(TargetOfItem(0), 0, AcquirePhase::kDescend, &descending);
+      AcquireAsync(TargetOfItem(0), "VS0", AcquirePhase::kDescend, &descending);
   ASSERT_TRUE(WaitFor([&] { return descending.load(); }));
   sim::SimNetFtFaults faults;
   faults.silent = true;
@@ -287,13 +287,13 @@ TEST_F(RobotTest, WatchdogStopsTheArmWhenTheSensorGoesSilent) {
   // No live stream: the next Acquire refuses before moving.
   const int commands = backend_->sim_arm()->commands();
   absl::Status refused =
-      backend_->robot().Acquire(TargetOfItem(0), 0, nullptr).status();
+      backend_->robot().Acquire(TargetOfItem(0), "VS0", nullptr).status();
   EXPECT_EQ(refused.code(), absl::StatusCode::kUnavailable);
   EXPECT_THAT(refused.message(), HasSubstr("is silent"));
   EXPECT_EQ(backend_->sim_arm()->commands(), commands);
   backend_->box()->SetFaults(sim::SimNetFtFaults());
   ASSERT_TRUE(WaitFor([&] { return backend_->FtLive(); }));
-  EXPECT_TRUE(backend_->robot().Acquire(TargetOfItem(0), 0, nullptr).ok());
+  EXPECT_TRUE(backend_->robot().Acquire(TargetOfItem(0), "VS0", nullptr).ok());
 }
 
 // The force limit and the F/T counter: the safety cases, each asserting what
@@ -319,7 +319,7 @@ TEST_F(RobotTest, ACounterAtAnotherRateThanConfiguredNeverMovesTheArm) {
   EXPECT_NEAR(status.ft_health.counter.measured_rate_hz, 1000.0, 100.0);
   const int commands = backend_->sim_arm()->commands();
   absl::Status refused =
-      backend_->robot().Acquire(TargetOfItem(0), 0, nullptr).status();
+      backend_->robot().Acquire(TargetOfItem(0), "VS0", nullptr).status();
   EXPECT_EQ(refused.code(), absl::StatusCode::kUnavailable);
   EXPECT_THAT(std::string(refused.message()),
               AllOf(HasSubstr("Net F/T sensor at 127.0.0.1:" +
@@ -340,7 +340,7 @@ void ExpectAStepOfFortyNewtonsStopsTheDescent(RobotBackend* backend) {
       backend->world()->TargetOf(backend->world()->scene().items.at(0).id);
   ASSERT_TRUE(target.has_value());
   absl::StatusOr<AcquireOutcome> outcome = backend->robot().Acquire(
-      *target, /*VS0*/ 0, [&](const AcquireProgressEvent& event) {
+      *target, "VS0", [&](const AcquireProgressEvent& event) {
         if (event.phase == AcquirePhase::kDescend && std::isnan(z_at_step_m)) {
           z_at_step_m = backend->sim_arm()->MeasuredPose()->p_TaskTip_m.z();
           sim::SimNetFtFaults faults = backend->box()->faults();
@@ -387,7 +387,7 @@ TEST_F(RobotTest, ACounterThatJumpsMidDescentStopsTheArm) {
   Start({"banana"});
   std::atomic<bool> descending{false};
   auto running =
-      AcquireAsync(TargetOfItem(0), 0, AcquirePhase::kDescend, &descending);
+      AcquireAsync(TargetOfItem(0), "VS0", AcquirePhase::kDescend, &descending);
   ASSERT_TRUE(WaitFor([&] { return descending.load(); }));
   SetFault([](sim::SimNetFtFaults* f) { f->counter_offset_counts = 70000; });
   absl::StatusOr<AcquireOutcome> outcome = running.get();
@@ -402,14 +402,14 @@ TEST_F(RobotTest, ACounterThatJumpsMidDescentStopsTheArm) {
   // (the counter keeps its new offset and counts on at the right rate).
   EXPECT_FALSE(backend_->FtLive());
   ASSERT_TRUE(WaitFor([&] { return backend_->FtLive(); }));
-  EXPECT_TRUE(backend_->robot().Acquire(TargetOfItem(0), 0, nullptr).ok());
+  EXPECT_TRUE(backend_->robot().Acquire(TargetOfItem(0), "VS0", nullptr).ok());
 }
 
 TEST_F(RobotTest, ACounterThatStallsMidDescentStopsTheArm) {
   Start({"banana"});
   std::atomic<bool> descending{false};
   auto running =
-      AcquireAsync(TargetOfItem(0), 0, AcquirePhase::kDescend, &descending);
+      AcquireAsync(TargetOfItem(0), "VS0", AcquirePhase::kDescend, &descending);
   ASSERT_TRUE(WaitFor([&] { return descending.load(); }));
   SetFault([](sim::SimNetFtFaults* f) { f->counter_frozen = true; });
   absl::StatusOr<AcquireOutcome> outcome = running.get();
@@ -418,7 +418,7 @@ TEST_F(RobotTest, ACounterThatStallsMidDescentStopsTheArm) {
   EXPECT_GE(backend_->sim_arm()->halts(), 1);
   EXPECT_TRUE(ArmFrozen());
   const int commands = backend_->sim_arm()->commands();
-  EXPECT_FALSE(backend_->robot().Acquire(TargetOfItem(0), 0, nullptr).ok());
+  EXPECT_FALSE(backend_->robot().Acquire(TargetOfItem(0), "VS0", nullptr).ok());
   EXPECT_EQ(backend_->sim_arm()->commands(), commands);
 }
 
@@ -426,7 +426,7 @@ TEST_F(RobotTest, AFaultStatusWordMidDescentStopsTheArm) {
   Start({"banana"});
   std::atomic<bool> descending{false};
   auto running =
-      AcquireAsync(TargetOfItem(0), 0, AcquirePhase::kDescend, &descending);
+      AcquireAsync(TargetOfItem(0), "VS0", AcquirePhase::kDescend, &descending);
   ASSERT_TRUE(WaitFor([&] { return descending.load(); }));
   SetFault([](sim::SimNetFtFaults* f) { f->status_word = 0x00010000; });
   absl::StatusOr<AcquireOutcome> outcome = running.get();
@@ -446,7 +446,7 @@ TEST_F(RobotTest, ACounterThatWrapsIsNotAFault) {
   StartWith(options);
   for (int i = 0; i < 2; ++i) {
     absl::StatusOr<AcquireOutcome> outcome =
-        backend_->robot().Acquire(TargetOfItem(0), 0, nullptr);
+        backend_->robot().Acquire(TargetOfItem(0), "VS0", nullptr);
     ASSERT_TRUE(outcome.ok()) << outcome.status();
     ASSERT_GT(outcome->trace.size(), 0.7 * 1000 * outcome->duration_s);
     for (size_t k = 1; k < outcome->trace.size(); ++k) {
@@ -466,8 +466,7 @@ TEST_F(RobotTest, AStalledControlLoopIsCountedAsAnOverrun) {
   EXPECT_EQ(backend_->robot().Status().control_overruns, 0);
   bool stalled = false;
   absl::StatusOr<AcquireOutcome> outcome = backend_->robot().Acquire(
-      TargetOfItem(0), /*action_index=*/0,
-      [&](const AcquireProgressEvent& event) {
+      TargetOfItem(0), "VS0", [&](const AcquireProgressEvent& event) {
         if (event.phase == AcquirePhase::kApproach && !stalled) {
           stalled = true;
           std::this_thread::sleep_for(std::chrono::milliseconds(50));
@@ -482,11 +481,11 @@ TEST_F(RobotTest, AStalledControlLoopIsCountedAsAnOverrun) {
 TEST_F(RobotTest, OneAcquisitionAtATime) {
   Start({"kiwi"});
   std::atomic<bool> approaching{false};
-  auto running =
-      AcquireAsync(TargetOfItem(0), 4, AcquirePhase::kApproach, &approaching);
+  auto running = AcquireAsync(TargetOfItem(0), "TA0", AcquirePhase::kApproach,
+                              &approaching);
   ASSERT_TRUE(WaitFor([&] { return approaching.load(); }));
   absl::Status second =
-      backend_->robot().Acquire(TargetOfItem(0), 4, nullptr).status();
+      backend_->robot().Acquire(TargetOfItem(0), "TA0", nullptr).status();
   EXPECT_EQ(second.code(), absl::StatusCode::kFailedPrecondition);
   EXPECT_THAT(second.message(), HasSubstr("another Acquire is running"));
   absl::Status tare = backend_->robot().Tare();
@@ -502,24 +501,24 @@ TEST_F(RobotTest, BadRequestsAreRejectedAndMoveNothing) {
   Start({"grape"});
   const int commands = backend_->sim_arm()->commands();
   const AcquireTarget good = TargetOfItem(0);
-  for (int action : {-1, 6, 100}) {
+  for (const char* action : {"", "VS45", "vs0"}) {
     absl::Status status =
         backend_->robot().Acquire(good, action, nullptr).status();
     EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
-    EXPECT_THAT(status.message(), HasSubstr("out of range"));
+    EXPECT_THAT(status.message(), HasSubstr("no skewering action is named"));
   }
   AcquireTarget far = good;
   far.p_CameraItem_m.x() = 0.4;
-  absl::Status status = backend_->robot().Acquire(far, 0, nullptr).status();
+  absl::Status status = backend_->robot().Acquire(far, "VS0", nullptr).status();
   EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(status.message(), HasSubstr("outside the workspace"));
   AcquireTarget deep = good;
   deep.p_CameraItem_m.z() = 0.5;  // 15 cm below the plate
-  status = backend_->robot().Acquire(deep, 0, nullptr).status();
+  status = backend_->robot().Acquire(deep, "VS0", nullptr).status();
   EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
   AcquireTarget nan = good;
   nan.major_axis_angle_rad = std::nan("");
-  status = backend_->robot().Acquire(nan, 0, nullptr).status();
+  status = backend_->robot().Acquire(nan, "VS0", nullptr).status();
   EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(status.message(), HasSubstr("finite"));
   EXPECT_EQ(backend_->sim_arm()->commands(), commands);

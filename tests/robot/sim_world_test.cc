@@ -120,7 +120,7 @@ TEST_F(SimWorldTest, PulledOutItemsAreCarriedOrLeft) {
     SimWorldOptions options;
     options.seed = seed;
     SimWorld world(scene_, &arm_, options);
-    world.BeginAttempt(1);  // VS90: 0.9 for carrots
+    world.BeginAttempt(*robot::FindAction("VS90"));  // 0.9 for carrots
     At(world, {0.02, -0.01, 0.013});
     At(world, {0.02, -0.01, 0.006});
     const Wrench lifted = At(world, {0.02, -0.01, 0.05});

@@ -14,10 +14,12 @@
 namespace bitewise::sim {
 namespace {
 
-int BestAction(const FoodType& food) {
-  return static_cast<int>(
-      std::max_element(food.success.begin(), food.success.end()) -
-      food.success.begin());
+std::string BestAction(const FoodType& food) {
+  return std::max_element(food.success.begin(), food.success.end(),
+                          [](const ActionSuccess& a, const ActionSuccess& b) {
+                            return a.probability < b.probability;
+                          })
+      ->action;
 }
 
 TEST(FoodCatalogTest, UnseenAndSeenFoodsAreThePapersAndApart) {
@@ -44,20 +46,45 @@ TEST(FoodCatalogTest, UnseenAndSeenFoodsAreThePapersAndApart) {
 // The optima the paper reports (docs/robot.md): grape TV90; strawberry VS0
 // or TV0; banana TA0 or TA90; carrot VS90.
 TEST(FoodCatalogTest, ThePapersKnownOptimaAreBest) {
-  EXPECT_EQ(BestAction(*FindFood("grape")), 3);  // TV90
-  const int strawberry = BestAction(*FindFood("strawberry"));
-  EXPECT_TRUE(strawberry == 0 || strawberry == 2) << strawberry;
-  const int banana = BestAction(*FindFood("banana"));
-  EXPECT_TRUE(banana == 4 || banana == 5) << banana;
-  EXPECT_EQ(BestAction(*FindFood("carrot")), 1);  // VS90
+  EXPECT_EQ(BestAction(*FindFood("grape")), "TV90");
+  const std::string strawberry = BestAction(*FindFood("strawberry"));
+  EXPECT_TRUE(strawberry == "VS0" || strawberry == "TV0") << strawberry;
+  const std::string banana = BestAction(*FindFood("banana"));
+  EXPECT_TRUE(banana == "TA0" || banana == "TA90") << banana;
+  EXPECT_EQ(BestAction(*FindFood("carrot")), "VS90");
+}
+
+// Every food names every skewering action of the domain once, so the
+// simulated world finds an action's probability by its name.
+TEST(FoodCatalogTest, EveryFoodNamesEveryActionOnce) {
+  for (const FoodType& f : FoodCatalog()) {
+    SCOPED_TRACE(f.name);
+    std::set<std::string> named;
+    for (const ActionSuccess& entry : f.success) {
+      EXPECT_NE(domain::FindSkeweringAction(entry.action), nullptr)
+          << entry.action;
+      EXPECT_TRUE(named.insert(entry.action).second)
+          << "twice: " << entry.action;
+      absl::StatusOr<double> p = SuccessProbability(f, entry.action);
+      ASSERT_TRUE(p.ok()) << p.status();
+      EXPECT_EQ(*p, entry.probability);
+    }
+    EXPECT_EQ(named.size(), static_cast<size_t>(domain::kNumActions));
+  }
+  const absl::Status missing =
+      SuccessProbability(*FindFood("grape"), "VS45").status();
+  EXPECT_EQ(missing.code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(missing.message(),
+            "the simulated food \"grape\" has no success probability for "
+            "action \"VS45\"");
 }
 
 TEST(FoodCatalogTest, EveryNumberInItsPhysicalRange) {
   for (const FoodType& f : FoodCatalog()) {
     SCOPED_TRACE(f.name);
-    for (double p : f.success) {
-      EXPECT_GE(p, 0.0);
-      EXPECT_LE(p, 1.0);
+    for (const ActionSuccess& entry : f.success) {
+      EXPECT_GE(entry.probability, 0.0);
+      EXPECT_LE(entry.probability, 1.0);
     }
     for (double c : f.rgb) {
       EXPECT_GE(c, 0.0);

@@ -39,8 +39,11 @@ Wrench SimWorld::WrenchAt(double time_s) {
 
 void SimWorld::Resolve() {
   resolved_ = true;
-  if (action_ < 0 || !engaged_) return;
-  const double p = engaged_->food->success[action_];
+  if (action_.empty() || !engaged_) return;
+  // Every catalog food lists every action (tests/sim/food_catalog_test.cc);
+  // an action it lacks would never acquire it.
+  const double p =
+      sim::SuccessProbability(*engaged_->food, action_).value_or(0.0);
   const bool success = random::Uniform(outcome_rng_, 0.0, 1.0) < p;
   if (!success) return;
   carried_ = engaged_;
@@ -52,9 +55,9 @@ void SimWorld::Resolve() {
               items.end());
 }
 
-void SimWorld::BeginAttempt(int action_index) {
+void SimWorld::BeginAttempt(const robot::ActionSpec& action) {
   absl::MutexLock lock(&mu_);
-  action_ = action_index;
+  action_ = action.name;
   engaged_.reset();
   contact_.reset();
   resolved_ = false;
@@ -70,7 +73,7 @@ robot::AttemptOutcome SimWorld::EndAttempt(double) {
     outcome.true_haptic_class = engaged_->food->category;
   }
   // The bite is delivered: the carried item is gone for good.
-  action_ = -1;
+  action_.clear();
   engaged_.reset();
   contact_.reset();
   resolved_ = false;
@@ -82,7 +85,7 @@ void SimWorld::AbortAttempt() {
   absl::MutexLock lock(&mu_);
   // A stopped arm drops what it carries back onto the plate.
   if (carried_) scene_.items.push_back(*carried_);
-  action_ = -1;
+  action_.clear();
   engaged_.reset();
   contact_.reset();
   resolved_ = false;

@@ -49,7 +49,7 @@ class SimWorld final : public WrenchSource, public robot::SuccessJudge {
   Wrench WrenchAt(double time_s) override;
 
   // SuccessJudge.
-  void BeginAttempt(int action_index) override;
+  void BeginAttempt(const robot::ActionSpec& action) override;
   robot::AttemptOutcome EndAttempt(double static_load_n) override;
   void AbortAttempt() override;
 
@@ -80,7 +80,8 @@ class SimWorld final : public WrenchSource, public robot::SuccessJudge {
   std::map<uint32_t, ForceProfile> profiles_ ABSL_GUARDED_BY(mu_);
   std::mt19937_64 outcome_rng_ ABSL_GUARDED_BY(mu_);
   // The current attempt.
-  int action_ ABSL_GUARDED_BY(mu_) = -1;
+  // The action of the attempt under way ("" between attempts).
+  std::string action_ ABSL_GUARDED_BY(mu_);
   std::optional<SceneItem> engaged_ ABSL_GUARDED_BY(mu_);
   std::optional<ItemContact> contact_ ABSL_GUARDED_BY(mu_);
   bool resolved_ ABSL_GUARDED_BY(mu_) = false;
