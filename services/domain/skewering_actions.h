@@ -27,7 +27,9 @@ inline constexpr int kNumActions = 6;
 inline constexpr double kQuarterTurnRad = 1.57079632679489661923;
 
 // VS0, VS90 (vertical skewer), TV0, TV90 (tines vertical), TA0, TA90 (tilted
-// angled), in this index order everywhere.
+// angled). The order is the RobotService's wire numbering (0..5) and the
+// default action list of a new bandit user; everything else finds an action
+// by its name.
 inline constexpr std::array<SkeweringAction, kNumActions> kSkeweringActions = {
     {{"VS0", 0.0, 0.0, 25.0, "Vertical skewer",
       "The fork comes straight down with its tines along the food's long "
