@@ -95,6 +95,12 @@ absl::StatusOr<std::map<std::string, Authorizer::Grant>> Authorizer::Parse(
       return bad(absl::StrCat("identity \"", words[0], "\" listed twice"));
     }
   }
+  // A read error (a directory opens, then fails to read) is not an empty
+  // file.
+  if (in.bad()) {
+    return absl::NotFoundError(
+        absl::StrCat("roles file \"", path, "\" cannot be read"));
+  }
   return roles;
 }
 

@@ -3,7 +3,7 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
-#include <sstream>
+#include <string>
 
 #include "absl/strings/str_cat.h"
 
@@ -16,13 +16,19 @@ absl::StatusOr<std::string> ReadPemFile(const std::string& path,
     return absl::FailedPreconditionError(absl::StrCat(
         "cannot read ", what, " file \"", path, "\": ", std::strerror(errno)));
   }
-  std::ostringstream contents;
-  contents << in.rdbuf();
+  // Read through the stream (not `<< in.rdbuf()`, which swallows a read
+  // error such as a directory's and returns nothing) so that bad() tells.
+  std::string contents;
+  char buffer[4096];
+  while (in.read(buffer, sizeof(buffer)) || in.gcount() > 0) {
+    contents.append(buffer, in.gcount());
+  }
   if (in.bad()) {
     return absl::FailedPreconditionError(
-        absl::StrCat("error reading ", what, " file \"", path, "\""));
+        absl::StrCat("error reading ", what, " file \"", path,
+                     "\": ", std::strerror(errno)));
   }
-  return contents.str();
+  return contents;
 }
 
 }  // namespace bitewise

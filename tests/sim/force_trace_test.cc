@@ -1,0 +1,226 @@
+// The force-trace model (services/sim/force_trace.h): a profile is zero
+// before contact and its torques are the lever times the force, a trace is
+// sampled at its rate with contact at its time and, unvaried, is Measure()'s
+// sample for sample; the random bias is one per trace; each variation
+// (amplitude, time, drop time, lateral, twist, touch) does what it says
+// against the unvaried profile; jitter stays within its fraction.
+#include "services/sim/force_trace.h"
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "gtest/gtest.h"
+
+namespace bitewise::sim {
+namespace {
+
+constexpr HapticCategory kCategories[] = {
+    HapticCategory::kHard, HapticCategory::kMedium, HapticCategory::kSoft,
+    HapticCategory::kHardSkin};
+
+ForceProfile Profile(HapticCategory category, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  return ForceProfile::Sample(category, rng);
+}
+
+// No noise, no bias: the trace is the (varied) profile itself.
+TraceOptions Clean() {
+  TraceOptions options;
+  options.noise.force_sd_n = 0.0;
+  options.noise.torque_sd_nm = 0.0;
+  options.noise.random_bias_n = 0.0;
+  return options;
+}
+
+TEST(ForceProfileTest, IsZeroBeforeContactAndItsTorqueIsTheLeverTimesForce) {
+  for (const HapticCategory category : kCategories) {
+    const ForceProfile profile = Profile(category, 5);
+    for (const double tau : {-0.1, 0.0}) {
+      const Wrench w = profile.At(tau);
+      for (int i = 0; i < 3; ++i) {
+        EXPECT_EQ(w.force_n[i], 0.0);
+        EXPECT_EQ(w.torque_nm[i], 0.0);
+      }
+    }
+    // The tines 25-35 mm below the sensor, along -z: tau = r x F.
+    const Wrench first = profile.At(0.02);
+    const double lever = first.torque_nm[0] / first.force_n[1];
+    EXPECT_GE(lever, 0.025);
+    EXPECT_LE(lever, 0.035);
+    // Fx and Fy a fixed 5-20 % of Fz, whatever the time.
+    const double lateral =
+        std::hypot(first.force_n[0], first.force_n[1]) / first.force_n[2];
+    EXPECT_GE(lateral, 0.05 - 1e-12);
+    EXPECT_LE(lateral, 0.20 + 1e-12);
+    for (const double tau : {0.001, 0.03, 0.2}) {
+      const Wrench w = profile.At(tau);
+      EXPECT_GT(w.force_n[2], 0.0);
+      EXPECT_NEAR(w.torque_nm[0], lever * w.force_n[1], 1e-12);
+      EXPECT_NEAR(w.torque_nm[1], -lever * w.force_n[0], 1e-12);
+      EXPECT_EQ(w.torque_nm[2], 0.0);
+      EXPECT_NEAR(std::hypot(w.force_n[0], w.force_n[1]) / w.force_n[2],
+                  lateral, 1e-12);
+    }
+  }
+}
+
+TEST(SimulateTraceTest, SamplesAtTheRateWithContactAtItsTime) {
+  const ForceProfile profile = Profile(HapticCategory::kHardSkin, 7);
+  TraceOptions options = Clean();
+  options.rate_hz = 2500.0;
+  options.contact_s = 0.1;
+  options.duration_s = 0.3;
+  std::mt19937_64 rng(1);
+  const std::vector<TimedWrench> trace = SimulateTrace(profile, options, rng);
+  ASSERT_EQ(trace.size(), 750u);
+  for (size_t i = 0; i < trace.size(); ++i) {
+    const double t = i / 2500.0;
+    EXPECT_NEAR(trace[i].t_s, t, 1e-15);
+    const Wrench want = profile.At(trace[i].t_s - 0.1);
+    for (int c = 0; c < 3; ++c) {
+      ASSERT_EQ(trace[i].wrench.force_n[c], want.force_n[c]) << i;
+      ASSERT_EQ(trace[i].wrench.torque_nm[c], want.torque_nm[c]) << i;
+    }
+  }
+  // Nothing until contact, then the item.
+  EXPECT_EQ(trace[249].wrench.force_n[2], 0.0);
+  EXPECT_GT(trace[251].wrench.force_n[2], 0.0);
+}
+
+TEST(SimulateTraceTest, UnvariedItIsMeasuresSampleForSample) {
+  const ForceProfile profile = Profile(HapticCategory::kMedium, 3);
+  TraceOptions options;  // noise on
+  options.noise.random_bias_n = 0.0;
+  options.noise.bias.force_n = {0.2, -0.1, 0.4};
+  options.noise.bias.torque_nm = {0.01, 0.0, -0.02};
+  std::mt19937_64 a(9), b(9);
+  const std::vector<TimedWrench> trace = SimulateTrace(profile, options, a);
+  ASSERT_EQ(trace.size(), 600u);
+  for (size_t i = 0; i < trace.size(); ++i) {
+    const Wrench want = Measure(profile, trace[i].t_s - options.contact_s,
+                                options.noise, options.noise.bias, b);
+    for (int c = 0; c < 3; ++c) {
+      ASSERT_EQ(trace[i].wrench.force_n[c], want.force_n[c]) << i;
+      ASSERT_EQ(trace[i].wrench.torque_nm[c], want.torque_nm[c]) << i;
+    }
+  }
+}
+
+TEST(SimulateTraceTest, TheRandomBiasIsOnePerTraceWithinItsBounds) {
+  const ForceProfile profile = Profile(HapticCategory::kHard, 2);
+  TraceOptions options = Clean();
+  options.noise.random_bias_n = 0.5;
+  std::mt19937_64 rng(4);
+  std::vector<Wrench> biases;
+  for (int trace_index = 0; trace_index < 20; ++trace_index) {
+    const std::vector<TimedWrench> trace = SimulateTrace(profile, options, rng);
+    // Before contact the sensor reads its bias alone, the same throughout.
+    const Wrench bias = trace[0].wrench;
+    for (int i = 1; i < 300; ++i) {
+      for (int c = 0; c < 3; ++c) {
+        ASSERT_EQ(trace[i].wrench.force_n[c], bias.force_n[c]);
+        ASSERT_EQ(trace[i].wrench.torque_nm[c], bias.torque_nm[c]);
+      }
+    }
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_LE(std::abs(bias.force_n[c]), 0.5);
+      EXPECT_LE(std::abs(bias.torque_nm[c]), 0.01);
+    }
+    // After contact: the profile plus the same bias.
+    const Wrench at = profile.At(trace[450].t_s - options.contact_s);
+    EXPECT_NEAR(trace[450].wrench.force_n[2], at.force_n[2] + bias.force_n[2],
+                1e-12);
+    biases.push_back(bias);
+  }
+  EXPECT_NE(biases[0].force_n[2], biases[1].force_n[2]);
+}
+
+// The trace's Fz at sample i.
+double Fz(const std::vector<TimedWrench>& trace, int i) {
+  return trace[i].wrench.force_n[2];
+}
+
+TEST(SimulateTraceTest, AmplitudeLateralTwistAndTouchDoWhatTheySay) {
+  const ForceProfile profile = Profile(HapticCategory::kHard, 11);
+  TraceOptions options = Clean();
+  options.variation.amplitude = 1.5;
+  options.variation.lateral_scale = 0.0;
+  options.variation.twist_m = 0.01;
+  options.variation.touch_n = 0.4;
+  options.variation.touch_s = 0.1;
+  std::mt19937_64 rng(1);
+  const std::vector<TimedWrench> trace = SimulateTrace(profile, options, rng);
+  ASSERT_EQ(trace.size(), 600u);
+  for (int i = 0; i < 600; ++i) {
+    const double tau = trace[i].t_s - options.contact_s;
+    // The touch: nothing until 0.1 s before contact, a ramp to 0.4 N, then
+    // 0.4 N under the item's force.
+    double touch = 0.0;
+    if (tau > 0.0) {
+      touch = 0.4;
+    } else if (tau > -0.1) {
+      touch = 0.4 * (tau + 0.1) / 0.1;
+    }
+    const double fz = 1.5 * profile.At(tau).force_n[2] + touch;
+    ASSERT_NEAR(Fz(trace, i), fz, 1e-12) << i;
+    const Wrench& w = trace[i].wrench;
+    ASSERT_EQ(w.force_n[0], 0.0);
+    ASSERT_EQ(w.force_n[1], 0.0);
+    ASSERT_EQ(w.torque_nm[0], 0.0);
+    ASSERT_EQ(w.torque_nm[1], 0.0);
+    ASSERT_NEAR(w.torque_nm[2], 0.01 * fz, 1e-12);
+  }
+  EXPECT_EQ(Fz(trace, 199), 0.0);
+  EXPECT_NEAR(Fz(trace, 250), 0.2, 1e-12);
+}
+
+TEST(SimulateTraceTest, TimeScalesStretchTheRiseAndThenTheDrop) {
+  const ForceProfile profile = Profile(HapticCategory::kHardSkin, 13);
+  // The force peak (the skin break) in the first 100 ms, on a 0.1 ms grid.
+  double peak_s = 0.0, peak_n = -1.0;
+  for (int i = 1; i <= 1000; ++i) {
+    if (profile.At(i * 1e-4).force_n[2] > peak_n) {
+      peak_n = profile.At(i * 1e-4).force_n[2];
+      peak_s = i * 1e-4;
+    }
+  }
+  ASSERT_GT(peak_s, 0.01);
+  ASSERT_LT(peak_s, 0.05);
+
+  TraceOptions options = Clean();
+  options.rate_hz = 4000.0;
+  options.variation.time_scale = 2.0;
+  options.variation.drop_time_scale = 3.0;
+  std::mt19937_64 rng(1);
+  const std::vector<TimedWrench> trace = SimulateTrace(profile, options, rng);
+  for (size_t i = 0; i < trace.size(); ++i) {
+    const double tau = trace[i].t_s - options.contact_s;
+    // Up to the peak the profile runs at half speed; after it, at a sixth.
+    double profile_tau = tau / 2.0;
+    if (profile_tau > peak_s) profile_tau = peak_s + (profile_tau - peak_s) / 3;
+    ASSERT_NEAR(trace[i].wrench.force_n[2], profile.At(profile_tau).force_n[2],
+                1e-12)
+        << "tau " << tau;
+  }
+}
+
+TEST(SimulateTraceTest, JitterMovesEachStampByLessThanItsFraction) {
+  const ForceProfile profile = Profile(HapticCategory::kSoft, 1);
+  TraceOptions options = Clean();
+  options.jitter_fraction = 0.5;
+  std::mt19937_64 rng(6);
+  const std::vector<TimedWrench> trace = SimulateTrace(profile, options, rng);
+  EXPECT_EQ(trace[0].t_s, 0.0);
+  double moved = 0.0;
+  for (size_t i = 1; i < trace.size(); ++i) {
+    const double off = trace[i].t_s - i / options.rate_hz;
+    EXPECT_LE(std::abs(off), 0.25 / options.rate_hz + 1e-15);
+    EXPECT_GT(trace[i].t_s, trace[i - 1].t_s);
+    moved = std::max(moved, std::abs(off));
+  }
+  EXPECT_GT(moved, 0.2 / options.rate_hz);
+}
+
+}  // namespace
+}  // namespace bitewise::sim
