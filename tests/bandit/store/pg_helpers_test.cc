@@ -4,7 +4,6 @@
 // pool whose lost connections are restored.
 #include "services/bandit/store/pg_helpers.h"
 
-#include <chrono>
 #include <cstdint>
 #include <cstring>
 #include <limits>
@@ -14,6 +13,8 @@
 
 #include "absl/strings/str_cat.h"
 #include "absl/synchronization/notification.h"
+#include "absl/time/clock.h"
+#include "absl/time/time.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/bandit/store/write_faults.h"
@@ -75,22 +76,20 @@ class PgHelpersTest : public ::testing::Test {
   }
 
   // Ends `conn`'s server process, as a server restart or an administrator
-  // would.
+  // would, and waits until `conn` has seen its end of the socket close (so
+  // what follows does not race the server's exit).
   void Terminate(Connection& conn) {
     const int64_t pid = Int(conn, "SELECT pg_backend_pid()");
     absl::StatusOr<std::string> done = server_->Query(
         "postgres", absl::StrCat("SELECT pg_terminate_backend(", pid, ")"));
     ASSERT_THAT(done, IsOk());
     ASSERT_EQ(*done, "t");
-    // Until the backend is gone.
-    for (int i = 0; i < 100; ++i) {
-      absl::StatusOr<std::string> left = server_->Query(
-          "postgres",
-          absl::StrCat("SELECT count(*) FROM pg_stat_activity WHERE pid = ",
-                       pid));
-      if (left.ok() && *left == "0") return;
-      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    const absl::Time deadline = absl::Now() + absl::Seconds(30);
+    while (!conn.broken() && absl::Now() < deadline) {
+      absl::SleepFor(absl::Milliseconds(10));
+      conn.Probe();
     }
+    ASSERT_TRUE(conn.broken()) << "backend " << pid << " did not go";
   }
 
   ::bitewise::testing::TestPostgres* server_ = nullptr;
