@@ -22,7 +22,10 @@ void TimeToProto(absl::Time t, google::protobuf::Timestamp* proto) {
   proto->set_nanos(static_cast<int32_t>(rem * 1000));
 }
 
-// FNV-1a: a stable default seed per user, the same on every platform.
+// A stable default seed per user, the same on every platform: FNV-1a's
+// steps and prime, from an offset basis one digit short of FNV's
+// (14695981039346656037). Kept as it is: a user's seed is stored when the
+// user is made, and every earlier release made seeds with this value.
 uint64_t StableHash(const std::string& s) {
   uint64_t h = 1469598103934665603ull;
   for (const unsigned char ch : s) {

@@ -28,6 +28,12 @@ absl::StatusOr<std::string> ReadPemFile(const std::string& path,
         absl::StrCat("error reading ", what, " file \"", path,
                      "\": ", std::strerror(errno)));
   }
+  // An empty CA would make gRPC trust its default roots instead of the
+  // pinned CA; an empty key or certificate is as surely a mistake.
+  if (contents.empty()) {
+    return absl::FailedPreconditionError(
+        absl::StrCat(what, " file \"", path, "\" is empty"));
+  }
   return contents;
 }
 

@@ -11,7 +11,8 @@
 namespace bitewise {
 
 // The whole file. FAILED_PRECONDITION naming `what` (e.g. "server
-// certificate"), the path and the OS error if it cannot be read.
+// certificate"), the path and the OS error if it cannot be read, or saying
+// it is empty (an empty CA would let gRPC fall back to its default roots).
 absl::StatusOr<std::string> ReadPemFile(const std::string& path,
                                         absl::string_view what);
 

@@ -1,5 +1,5 @@
 // ReadPemFile (services/common/tls_files.h): a file is read whole, byte for
-// byte, and one that cannot be read (absent, a directory) is
+// byte, and one that cannot be read (absent, a directory) or is empty is
 // FAILED_PRECONDITION naming what it was for, the path and the OS error.
 #include "services/common/tls_files.h"
 
@@ -57,6 +57,17 @@ TEST(ReadPemFileTest, ADirectoryIsNotReadAsAnEmptyFile) {
   EXPECT_THAT(read.status().message(), HasSubstr("TLS CA"));
   EXPECT_THAT(read.status().message(), HasSubstr(dir));
   EXPECT_THAT(read.status().message(), HasSubstr("Is a directory"));
+}
+
+// An empty file is refused: as a client's CA it would mean gRPC's default
+// roots instead of the pinned CA.
+TEST(ReadPemFileTest, AnEmptyFileIsRefused) {
+  const std::string path = MakeTempDir() + "/empty.pem";
+  std::ofstream(path, std::ios::binary).close();
+  const absl::Status status = ReadPemFile(path, "TLS CA").status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ(status.message(),
+            absl::StrCat("TLS CA file \"", path, "\" is empty"));
 }
 
 }  // namespace
