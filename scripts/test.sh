@@ -1,19 +1,20 @@
 #!/usr/bin/env bash
 # Runs every test: builds (installing missing packages first), checks that
 # the tree is clang-formatted (Google style), then runs CTest; then the
-# sanitizer check of the core libraries (below).
+# sanitizer check of the core libraries and the fuzz targets (below).
 #
 #   scripts/test.sh                 every test, plus the core sanitizer check
+#                                   and five seconds of each fuzz target
 #   scripts/test.sh --sanitize      the whole suite under ASan + UBSan in
-#                                   build-sanitize/ (the pre-release check;
-#                                   about three times slower)
+#                                   build-sanitize/ (GCC; the pre-release
+#                                   check; about three times slower)
 #   scripts/test.sh --sanitize-core only the core sanitizer check
 #
-# The core sanitizer check builds, with -fsanitize=address,undefined into
-# build-sanitize/, the tests of the libraries where undefined behaviour would
-# hurt most (the learning core, the store, engine replicas on PostgreSQL,
-# the RDT decoder and the F/T counter check, frame decoding, the haptic
-# pipeline) and runs them with halt_on_error: any report fails the run.
+# The core sanitizer check builds, with clang and -fsanitize=address,
+# undefined, the tests of the libraries where undefined behaviour would
+# hurt most into build-fuzz/, beside the libFuzzer targets and from the
+# same objects (scripts/fuzz.sh --core-tests), and runs them with
+# halt_on_error: any report fails the run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -28,38 +29,19 @@ case "${1:-}" in
     ;;
 esac
 JOBS="${BITEWISE_JOBS:-$(nproc)}"
-# Leak checking is on for the core check (clean) and off for the whole
-# suite (not yet triaged: gRPC's process-lifetime singletons).
+# Leak checking is off for the whole suite (not yet triaged: gRPC's
+# process-lifetime singletons); the core check turns it on (clean).
 export ASAN_OPTIONS="detect_leaks=0:halt_on_error=1:abort_on_error=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
-# Test executables (build-relative paths) of the core sanitizer check.
-CORE_TESTS=(tests/bandit/bandit_core_test tests/bandit/store/bandit_store_test
-  tests/bandit/bandit_replica_test tests/robot/robot_rdt_protocol_test tests/robot/robot_counter_clock_test
-  tests/perception/perception_frame_test tests/haptic/haptic_core_test)
+started=$(date +%s)
+elapsed() { printf '(%d s so far)\n' $(($(date +%s) - started)); }
 
-configure_sanitize() {
+if [ "$mode" = "sanitize" ]; then
+  scripts/setup.sh
   if [ ! -f build-sanitize/CMakeCache.txt ]; then
     cmake -S . -B build-sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DBITEWISE_SANITIZE=ON -DBITEWISE_WERROR=ON
   fi
-}
-
-sanitize_core() {
-  printf '\n==> Sanitizer check (ASan + UBSan) of the core libraries\n'
-  configure_sanitize
-  local targets=()
-  for t in "${CORE_TESTS[@]}"; do targets+=("$(basename "$t")"); done
-  cmake --build build-sanitize -j "$JOBS" --target "${targets[@]}"
-  for t in "${CORE_TESTS[@]}"; do
-    echo "--- $t"
-    ASAN_OPTIONS="detect_leaks=1:halt_on_error=1:abort_on_error=1" \
-      "build-sanitize/$t" --gtest_brief=1
-  done
-}
-
-if [ "$mode" = "sanitize" ]; then
-  scripts/setup.sh
-  configure_sanitize
   printf '\n==> Building the whole tree with ASan + UBSan (build-sanitize/)\n'
   cmake --build build-sanitize -j "$JOBS"
   printf '\n==> Running every test under the sanitizers\n'
@@ -69,11 +51,12 @@ if [ "$mode" = "sanitize" ]; then
 fi
 if [ "$mode" = "sanitize-core" ]; then
   scripts/setup.sh
-  sanitize_core
+  scripts/fuzz.sh --core-tests --seconds=0
   exit 0
 fi
 
 scripts/setup.sh
+elapsed
 
 printf '\n==> Checking clang-format (Google style) on every C++ file\n'
 unformatted=$(git ls-files '*.cc' '*.h' | while read -r f; do
@@ -90,9 +73,10 @@ fi
 
 printf '\n==> Running tests\n'
 (cd build && ctest --output-on-failure -j "$JOBS" --timeout 300)
+elapsed
 
-sanitize_core
-
-# The decoders and converters under libFuzzer, a few seconds each from the
-# committed corpus (docs/security.md has the long run).
-scripts/fuzz.sh --seconds=5
+# The core libraries' tests under ASan + UBSan, then the decoders and
+# converters under libFuzzer, a few seconds each from the committed corpus
+# (docs/security.md has the long run): one clang build, build-fuzz/.
+scripts/fuzz.sh --core-tests --seconds=5
+elapsed
