@@ -29,25 +29,21 @@ namespace {
 
 using ::bitewise::testing::FourServices;
 using ::bitewise::testing::FourServicesOptions;
+using ::bitewise::testing::SharedFourServicesTest;
 using ::testing::HasSubstr;
 
 const httplib::Headers kPost = {{"X-Bitewise-Request", "1"}};
 
-class ConsoleServerTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
+class ConsoleServerTest : public SharedFourServicesTest<ConsoleServerTest> {
+ public:
+  static FourServicesOptions Options() {
     FourServicesOptions options;
     options.foods = {"strawberry", "carrot", "banana",    "grape",
                      "kiwi",       "celery", "cantaloupe"};
-    auto started = FourServices::Start(options);
-    ASSERT_TRUE(started.ok()) << started.status();
-    services_ = started->release();
-  }
-  static void TearDownTestSuite() {
-    delete services_;
-    services_ = nullptr;
+    return options;
   }
 
+ protected:
   void SetUp() override {
     ASSERT_NE(services_, nullptr);
     clients_ = std::make_unique<meals::ServiceClients>(services_->channels(),
@@ -95,13 +91,10 @@ class ConsoleServerTest : public ::testing::Test {
     return state;
   }
 
-  static FourServices* services_;
   std::unique_ptr<meals::ServiceClients> clients_;
   std::unique_ptr<MealHost> host_;
   std::unique_ptr<ConsoleServer> server_;
 };
-
-FourServices* ConsoleServerTest::services_ = nullptr;
 
 TEST(IsLoopbackTest, OnlyLoopbackAddresses) {
   EXPECT_TRUE(IsLoopback("127.0.0.1"));

@@ -23,6 +23,7 @@ namespace {
 using ::bitewise::testing::FourServices;
 using ::bitewise::testing::FourServicesOptions;
 using ::bitewise::testing::IsOk;
+using ::bitewise::testing::SharedFourServicesTest;
 using ::bitewise::testing::StatusIs;
 using ::testing::AllOf;
 using ::testing::HasSubstr;
@@ -72,20 +73,15 @@ TEST(SubscriptionTest, ABrowserTooFarBehindIsDropped) {
   EXPECT_EQ(subscription.Next(absl::ZeroDuration()), std::nullopt);
 }
 
-class MealHostTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
+class MealHostTest : public SharedFourServicesTest<MealHostTest> {
+ public:
+  static FourServicesOptions Options() {
     FourServicesOptions options;
     options.foods = {"carrot", "banana", "grape"};
-    auto started = FourServices::Start(options);
-    ASSERT_THAT(started, IsOk());
-    services_ = started->release();
-  }
-  static void TearDownTestSuite() {
-    delete services_;
-    services_ = nullptr;
+    return options;
   }
 
+ protected:
   void SetUp() override {
     ASSERT_NE(services_, nullptr);
     clients_ = std::make_unique<meals::ServiceClients>(services_->channels(),
@@ -114,12 +110,9 @@ class MealHostTest : public ::testing::Test {
     return state;
   }
 
-  static FourServices* services_;
   std::unique_ptr<meals::ServiceClients> clients_;
   std::unique_ptr<MealHost> host_;
 };
-
-FourServices* MealHostTest::services_ = nullptr;
 
 TEST_F(MealHostTest, WithoutAMealEachRequestSaysSo) {
   EXPECT_EQ(host_->State().phase(), "idle");

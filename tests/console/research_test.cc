@@ -20,6 +20,7 @@ namespace {
 using ::bitewise::testing::FourServices;
 using ::bitewise::testing::FourServicesOptions;
 using ::bitewise::testing::IsOk;
+using ::bitewise::testing::SharedFourServicesTest;
 using ::bitewise::testing::StatusIs;
 using ::testing::AllOf;
 using ::testing::ElementsAre;
@@ -98,20 +99,15 @@ TEST(EventsCsvTest, OneRowPerEventWithCellsQuotedWhereTheyMustBe) {
 }
 
 // A person's events in a real BanditService (of the four services).
-class ResearchTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
+class ResearchTest : public SharedFourServicesTest<ResearchTest> {
+ public:
+  static FourServicesOptions Options() {
     FourServicesOptions options;
     options.foods = {"carrot"};
-    auto started = FourServices::Start(options);
-    ASSERT_THAT(started, IsOk());
-    services_ = started->release();
-  }
-  static void TearDownTestSuite() {
-    delete services_;
-    services_ = nullptr;
+    return options;
   }
 
+ protected:
   void SetUp() override {
     ASSERT_NE(services_, nullptr);
     clients_ = std::make_unique<meals::ServiceClients>(services_->channels(),
@@ -156,11 +152,8 @@ class ResearchTest : public ::testing::Test {
     return ids;
   }
 
-  static FourServices* services_;
   std::unique_ptr<meals::ServiceClients> clients_;
 };
-
-FourServices* ResearchTest::services_ = nullptr;
 
 TEST_F(ResearchTest, AllEventsAreListedWithContextsOnlyWhenAsked) {
   const std::vector<std::string> ids =

@@ -20,6 +20,7 @@
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
 #include "clients/meal/service_clients.h"
+#include "gtest/gtest.h"
 
 namespace bitewise::testing {
 
@@ -71,6 +72,24 @@ class FourServices {
   FaultInjector faults_;
   meals::ServiceChannels channels_;
   std::string dir_;
+};
+
+// A test suite whose tests share one FourServices, started before the
+// first test with `Suite::Options()` and stopped after the last.
+template <typename Suite>
+class SharedFourServicesTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    auto started = FourServices::Start(Suite::Options());
+    ASSERT_TRUE(started.ok()) << started.status();
+    services_ = started->release();
+  }
+  static void TearDownTestSuite() {
+    delete services_;
+    services_ = nullptr;
+  }
+
+  static inline FourServices* services_ = nullptr;
 };
 
 }  // namespace bitewise::testing

@@ -31,6 +31,7 @@ namespace {
 using ::bitewise::testing::FourServices;
 using ::bitewise::testing::FourServicesOptions;
 using ::bitewise::testing::IsOk;
+using ::bitewise::testing::SharedFourServicesTest;
 using ::bitewise::testing::StatusIs;
 using ::testing::HasSubstr;
 
@@ -81,21 +82,16 @@ class RecordingListener : public MealListener {
   std::function<void(const mealpb::BiteEvent&)> hook_;
 };
 
-class MealTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
+class MealTest : public SharedFourServicesTest<MealTest> {
+ public:
+  static FourServicesOptions Options() {
     FourServicesOptions options;
     options.foods = {"strawberry", "carrot", "banana",
                      "grape",      "kiwi",   "celery"};
-    auto started = FourServices::Start(options);
-    ASSERT_TRUE(started.ok()) << started.status();
-    services_ = started->release();
-  }
-  static void TearDownTestSuite() {
-    delete services_;
-    services_ = nullptr;
+    return options;
   }
 
+ protected:
   void SetUp() override {
     ASSERT_NE(services_, nullptr);
     services_->faults().Clear();
@@ -137,14 +133,11 @@ class MealTest : public ::testing::Test {
     return user.ok() ? static_cast<int>(user->config().context_dim()) : 0;
   }
 
-  static FourServices* services_;
   std::unique_ptr<ServiceClients> clients_;
   std::unique_ptr<UpdateJournal> journal_;
   MealOptions options_;
   RecordingListener listener_;
 };
-
-FourServices* MealTest::services_ = nullptr;
 
 TEST(MealWordsTest, SingularAndPlural) {
   EXPECT_EQ(SummaryText(1, 1), "1 attempt, 1 failure");

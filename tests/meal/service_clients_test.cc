@@ -21,6 +21,7 @@ namespace {
 using ::bitewise::testing::FourServices;
 using ::bitewise::testing::FourServicesOptions;
 using ::bitewise::testing::IsOk;
+using ::bitewise::testing::SharedFourServicesTest;
 using ::bitewise::testing::StatusIs;
 using ::testing::AllOf;
 using ::testing::HasSubstr;
@@ -152,24 +153,17 @@ TEST(ServiceClientsTest, EveryCallToAnAbsentServiceIsUnavailableNamingIt) {
 }
 
 // The real services: answers come through, and their errors are named.
-class ServiceClientsWithServicesTest : public ::testing::Test {
- protected:
-  static void SetUpTestSuite() {
+class ServiceClientsWithServicesTest
+    : public SharedFourServicesTest<ServiceClientsWithServicesTest> {
+ public:
+  static FourServicesOptions Options() {
     FourServicesOptions options;
     options.foods = {"carrot"};
-    auto started = FourServices::Start(options);
-    ASSERT_THAT(started, IsOk());
-    services_ = started->release();
-  }
-  static void TearDownTestSuite() {
-    delete services_;
-    services_ = nullptr;
+    return options;
   }
 
-  static FourServices* services_;
+ protected:
 };
-
-FourServices* ServiceClientsWithServicesTest::services_ = nullptr;
 
 TEST_F(ServiceClientsWithServicesTest, AnswersComeThroughAndErrorsAreNamed) {
   ASSERT_NE(services_, nullptr);
