@@ -123,6 +123,21 @@ class MealTest : public SharedFourServicesTest<MealTest> {
     return {events->events().begin(), events->events().end()};
   }
 
+  // Makes the test's person a context-only learner over `actions`, with
+  // the featurizer's context size.
+  absl::Status CreateUserWithActions(const std::vector<std::string>& actions) {
+    const int context_dim = ContextDim();
+    if (context_dim <= 0) return absl::InternalError("no context size");
+    v1::CreateUserRequest create;
+    create.set_user_id(options_.user_id);
+    create.mutable_config()->set_context_dim(context_dim);
+    create.mutable_config()->set_learner(v1::LEARNER_CONTEXT_ONLY);
+    for (const std::string& name : actions) {
+      create.mutable_config()->add_action_names(name);
+    }
+    return clients_->bandit.CreateUser(create).status();
+  }
+
   // The featurizer's context size, from a person who is not the test's.
   int ContextDim() {
     MealOptions other = options_;
@@ -294,16 +309,8 @@ TEST_F(MealTest, AChosenLearnerIsTheNewUsers) {
 // first choice (index 0, untrained) is TA90 here, and the bite is told as
 // TA90, not as the robot's action 0.
 TEST_F(MealTest, ThePersonsActionsAreTheRobotsByName) {
-  const int context_dim = ContextDim();
-  ASSERT_GT(context_dim, 0);
-  v1::CreateUserRequest create;
-  create.set_user_id(options_.user_id);
-  create.mutable_config()->set_context_dim(context_dim);
-  create.mutable_config()->set_learner(v1::LEARNER_CONTEXT_ONLY);
-  for (const char* name : {"TA90", "TA0", "TV90", "TV0", "VS90", "VS0"}) {
-    create.mutable_config()->add_action_names(name);
-  }
-  ASSERT_TRUE(clients_->bandit.CreateUser(create).ok());
+  ASSERT_OK(
+      CreateUserWithActions({"TA90", "TA0", "TV90", "TV0", "VS90", "VS0"}));
   auto meal = NewMeal();
   ASSERT_OK(meal->LookAtPlate());
   ASSERT_OK(meal->Bite(std::nullopt));
@@ -320,15 +327,7 @@ TEST_F(MealTest, ThePersonsActionsAreTheRobotsByName) {
 // An action the robot does not have is refused before the arm moves,
 // naming it and the robot's actions; the selection stays pending.
 TEST_F(MealTest, AnActionTheRobotLacksIsRefusedByName) {
-  const int context_dim = ContextDim();
-  ASSERT_GT(context_dim, 0);
-  v1::CreateUserRequest create;
-  create.set_user_id(options_.user_id);
-  create.mutable_config()->set_context_dim(context_dim);
-  create.mutable_config()->set_learner(v1::LEARNER_CONTEXT_ONLY);
-  create.mutable_config()->add_action_names("SCOOP");
-  create.mutable_config()->add_action_names("VS0");
-  ASSERT_TRUE(clients_->bandit.CreateUser(create).ok());
+  ASSERT_OK(CreateUserWithActions({"SCOOP", "VS0"}));
   auto meal = NewMeal();
   ASSERT_OK(meal->LookAtPlate());
   EXPECT_THAT(
