@@ -36,8 +36,26 @@ struct FoodDetectorOptions {
   int valley_width_px = 31;
   double min_valley_mm = 1.5;
   double valley_fraction = 0.15;
+  // Seeds stop at height steps too (an item lying partly on another): a
+  // pixel whose cliff_window_px neighbourhood rises above it by more than
+  // max(min_cliff_mm, cliff_fraction x its height). 0 or 1: no step cut.
+  int cliff_window_px = 5;
+  double min_cliff_mm = 3.0;
+  double cliff_fraction = 0.25;
   // A cut seed counts as a part when it keeps at least this many pixels.
   int min_seed_px = 30;
+  // Terraces: an item partly under another (a slice lying on a slice) shows
+  // as a lower step beside the upper one, below half the local top and so
+  // with no seed. Pixels that are at least half as high as the highest point
+  // within terrace_window_px / 2 (too small a window to see the step's top)
+  // and not next to a seed are seeded on their own when, after an opening
+  // that drops the thin flanks of every item, they keep min_terrace_px.
+  int terrace_window_px = 7;
+  int min_terrace_px = 40;
+  // Neighbours of similar colour are merged (one item cut in two) only when
+  // the higher one's top is at most this many times the lower one's: a
+  // slice lying on another stands about twice as high as the one under it.
+  double max_merge_top_ratio = 1.5;
   // RANSAC plane fit: iterations and seed (fixed, so detection repeats).
   int ransac_iterations = 150;
   uint64_t ransac_seed = 1;

@@ -292,6 +292,21 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
   cv::Mat seams(h, w, CV_8UC1, cv::Scalar(0));
   const float min_valley = static_cast<float>(options.min_valley_mm);
   const float valley_fraction = static_cast<float>(options.valley_fraction);
+  // Height steps (cliffs): an item lying partly on another stands on it, so
+  // the lower one's visible part meets the upper one at a step, not in a
+  // valley. A pixel whose neighbourhood (cliff_window_px) rises more than
+  // max(min_cliff_mm, cliff_fraction x its own height) above it is at such
+  // a step; like a valley, it cuts a seed only where that splits it.
+  cv::Mat cliff_top;
+  const bool cut_cliffs = options.cliff_window_px > 1;
+  if (cut_cliffs) {
+    cv::dilate(
+        height_mm, cliff_top,
+        cv::getStructuringElement(cv::MORPH_RECT, {options.cliff_window_px,
+                                                   options.cliff_window_px}));
+  }
+  const float min_cliff = static_cast<float>(options.min_cliff_mm);
+  const float cliff_fraction = static_cast<float>(options.cliff_fraction);
   const float edge2 =
       static_cast<float>(options.min_edge_strength * options.min_edge_strength);
   for (int v = 0; v < h; ++v) {
@@ -307,7 +322,10 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
       if (in[u] && hv[u] >= 0.5f * top[u] &&
           a[u].dot(a[u]) + b[u].dot(b[u]) <= edge2) {
         out[u] = 255;
-        seam[u] = dip[u] > std::max(min_valley, valley_fraction * top[u]);
+        seam[u] =
+            dip[u] > std::max(min_valley, valley_fraction * top[u]) ||
+            (cut_cliffs && cliff_top.at<float>(v, u) - hv[u] >
+                               std::max(min_cliff, cliff_fraction * hv[u]));
       }
     }
   }
@@ -350,10 +368,67 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
     }
     cores = cut;
   }
+  // Terraces: the visible part of an item partly under another is about
+  // half as high as the item on it, so the half-height rule over 21 px
+  // gives it no seed and the watershed would hand it to the item on top.
+  // Over a window too small to reach the upper item's top it is a bump of
+  // its own. The flanks of every item pass that test too, but they are thin
+  // rings around a seed, which the distance from the seeds and the opening
+  // take out.
+  cv::Mat terraces;
+  if (options.terrace_window_px > 0 && options.min_terrace_px > 0) {
+    cv::Mat near_top;
+    cv::dilate(
+        height_mm, near_top,
+        cv::getStructuringElement(cv::MORPH_RECT, {options.terrace_window_px,
+                                                   options.terrace_window_px}));
+    cv::Mat near_cores;
+    cv::dilate(cores, near_cores,
+               cv::getStructuringElement(cv::MORPH_ELLIPSE, {5, 5}));
+    terraces = cv::Mat(h, w, CV_8UC1, cv::Scalar(0));
+    for (int v = 0; v < h; ++v) {
+      const auto* a = gx.ptr<cv::Vec3f>(v);
+      const auto* b = gy.ptr<cv::Vec3f>(v);
+      const auto* in = above.ptr<uint8_t>(v);
+      const auto* hv = height_mm.ptr<float>(v);
+      const auto* top = local_top.ptr<float>(v);
+      const auto* near = near_top.ptr<float>(v);
+      const auto* taken = near_cores.ptr<uint8_t>(v);
+      auto* out = terraces.ptr<uint8_t>(v);
+      for (int u = 0; u < w; ++u) {
+        if (in[u] && !taken[u] && hv[u] < 0.5f * top[u] &&
+            hv[u] >= 0.5f * near[u] &&
+            a[u].dot(a[u]) + b[u].dot(b[u]) <= edge2) {
+          out[u] = 255;
+        }
+      }
+    }
+    cv::morphologyEx(terraces, terraces, cv::MORPH_OPEN,
+                     cv::getStructuringElement(cv::MORPH_ELLIPSE, {5, 5}));
+  }
   const int n_cores =
       cv::connectedComponents(cores, regions.markers, 4, CV_32S);
-  if (n_cores <= 1) return std::nullopt;
-  regions.background = n_cores;
+  int n_seeds = n_cores;
+  if (!terraces.empty()) {
+    cv::Mat steps, step_stats, step_centroids;
+    const int n_steps = cv::connectedComponentsWithStats(
+        terraces, steps, step_stats, step_centroids, 4, CV_32S);
+    std::vector<int> step_label(n_steps, 0);
+    for (int s = 1; s < n_steps; ++s) {
+      if (step_stats.at<int>(s, cv::CC_STAT_AREA) >= options.min_terrace_px) {
+        step_label[s] = n_seeds++;
+      }
+    }
+    for (int v = 0; v < h; ++v) {
+      const auto* step = steps.ptr<int>(v);
+      auto* m = regions.markers.ptr<int>(v);
+      for (int u = 0; u < w; ++u) {
+        if (step[u] > 0 && step_label[step[u]] > 0) m[u] = step_label[step[u]];
+      }
+    }
+  }
+  if (n_seeds <= 1) return std::nullopt;
+  regions.background = n_seeds;
   return regions;
 }
 
@@ -457,6 +532,13 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         lab_sum[a] / lab_count[a] - lab_sum[b] / lab_count[b];
     const double seam_mm = seam.height_sum / seam.count;
     const double lower_top = std::min(top_mm[a], top_mm[b]);
+    // One item lying on the other: the upper one's top stands well above
+    // the lower one's (a terrace and the slice on it), not one item cut in
+    // two, whose parts are seeded at about the same height.
+    if (std::max(top_mm[a], top_mm[b]) >
+        options.max_merge_top_ratio * lower_top) {
+      continue;
+    }
     // No valley between them, by height and by the closing's lift.
     if (cv::norm(diff) < options.min_colour_distance &&
         seam_mm > 0.8 * lower_top &&

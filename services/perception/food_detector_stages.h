@@ -5,7 +5,8 @@
 //   FindPlate       heights -> the plate (its region and visible surface)
 //   FindEvidence    colour and heights inside the plate -> food-like pixels
 //   PlantSeeds      one seed per item: bump tops, cut at colour edges and
-//                   at height valleys between touching items
+//                   at height valleys and steps between touching items,
+//                   and terraces (an item's part showing beside one on it)
 //   GrowRegions     watershed on the RGB image from the seeds
 //   MergeSplitItems neighbours that are one item cut in two become one
 //   DescribeItems   each region -> a DetectedFood (box, centre, depth, ...)
@@ -84,8 +85,10 @@ struct Regions {
 
 // Seeds: the upper half of every bump in the height map (at least half its
 // local top within 21 px), not on a strong colour edge, cut along height
-// valleys only where that splits a seed into two or more parts of
-// min_seed_px. nullopt when there is no seed.
+// valleys and steps only where that splits a seed into two or more parts of
+// min_seed_px; and terraces, the lower steps beside a higher item that the
+// half-height rule leaves without a seed (see FoodDetectorOptions). nullopt
+// when there is no seed.
 std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
                                   const cv::Mat& height_mm,
                                   const FoodDetectorOptions& options);
@@ -96,7 +99,8 @@ void GrowRegions(const cv::Mat& rgb, const FoodEvidence& evidence,
                  const cv::Mat& plate, Regions& regions);
 
 // Joins neighbouring regions of similar colour with no valley in height
-// along their shared boundary (one item cut in two).
+// along their shared boundary (one item cut in two), unless one's top stands
+// more than max_merge_top_ratio times the other's (one lies on the other).
 void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
                      const cv::Mat& valid, const FoodDetectorOptions& options,
                      Regions& regions);

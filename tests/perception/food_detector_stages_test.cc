@@ -173,6 +173,84 @@ TEST(DetectorStagesTest, GrowAndMergeJoinOneItemSeededTwice) {
   EXPECT_EQ(ItemLabels(regions), 1);
 }
 
+// Two flat items of one colour, the second partly lying on the first: the
+// lower one shows as a strip [240, 240 + shown) x [220, 260) of
+// `lower_mm`, the upper one [240 + shown, 340) x [220, 260) stands
+// `upper_mm` high.
+Scene Overlapping(int shown, float lower_mm, float upper_mm) {
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  height(cv::Rect(240, 220, shown, 40)).setTo(lower_mm);
+  height(cv::Rect(240 + shown, 220, 100 - shown, 40)).setTo(upper_mm);
+  return MakeScene(height, height > 0.0f);
+}
+
+TEST(DetectorStagesTest, PlantSeedsCutsAtTheStepOfAnItemLyingOnAnother) {
+  // The lower item's strip (10 mm) is above half the upper one's top
+  // (16 mm), so it joins the upper seed; only the step cut parts them.
+  const Scene scene = Overlapping(30, 10.0f, 16.0f);
+  std::optional<Regions> seeds =
+      PlantSeeds(scene.evidence, scene.height_mm, FoodDetectorOptions());
+  ASSERT_TRUE(seeds.has_value());
+  EXPECT_EQ(seeds->background, 3);
+  EXPECT_NE(seeds->markers.at<int>(240, 250), seeds->markers.at<int>(240, 320));
+  FoodDetectorOptions no_step;
+  no_step.cliff_window_px = 0;
+  seeds = PlantSeeds(scene.evidence, scene.height_mm, no_step);
+  ASSERT_TRUE(seeds.has_value());
+  EXPECT_EQ(seeds->background, 2);
+}
+
+TEST(DetectorStagesTest, PlantSeedsSeedsATerraceBelowHalfTheItemOnIt) {
+  // A 10 px strip of 6 mm beside a 16 mm item: below half of the local top
+  // everywhere, so only the terrace rule seeds it.
+  const Scene scene = Overlapping(10, 6.0f, 16.0f);
+  std::optional<Regions> seeds =
+      PlantSeeds(scene.evidence, scene.height_mm, FoodDetectorOptions());
+  ASSERT_TRUE(seeds.has_value());
+  EXPECT_EQ(seeds->background, 3);
+  EXPECT_GT(seeds->markers.at<int>(240, 243), 0);
+  EXPECT_NE(seeds->markers.at<int>(240, 243), seeds->markers.at<int>(240, 320));
+  FoodDetectorOptions no_terraces;
+  no_terraces.min_terrace_px = 0;
+  seeds = PlantSeeds(scene.evidence, scene.height_mm, no_terraces);
+  ASSERT_TRUE(seeds.has_value());
+  EXPECT_EQ(seeds->background, 2);
+  // A single flat item has no terrace: its rim is too thin to seed.
+  cv::Mat mask;
+  const Scene single = MakeScene(Domes({{320, 240}}, &mask), mask);
+  seeds = PlantSeeds(single.evidence, single.height_mm, FoodDetectorOptions());
+  ASSERT_TRUE(seeds.has_value());
+  EXPECT_EQ(seeds->background, 2);
+}
+
+TEST(DetectorStagesTest, MergeKeepsAnItemApartFromTheOneLyingOnIt) {
+  // Same colour, no valley between them: only the ratio of their tops
+  // (16 / 10) says that one lies on the other. The upper item's edge is
+  // shaded darker (as rendered), so the watershed's ridge follows it.
+  Scene scene = Overlapping(30, 10.0f, 16.0f);
+  scene.rgb(cv::Rect(270, 220, 2, 40)).setTo(cv::Scalar(150, 45, 38));
+  auto grow = [&] {
+    Regions regions;
+    regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(0));
+    regions.markers(cv::Rect(245, 230, 15, 20)).setTo(1);
+    regions.markers(cv::Rect(300, 230, 20, 20)).setTo(2);
+    regions.background = 3;
+    regions.valley_mm = cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0));
+    GrowRegions(scene.rgb, scene.evidence, scene.plate.plate, regions);
+    return regions;
+  };
+  Regions regions = grow();
+  MergeSplitItems(scene.evidence, scene.height_mm, scene.valid,
+                  FoodDetectorOptions(), regions);
+  EXPECT_EQ(ItemLabels(regions), 2);
+  FoodDetectorOptions any_ratio;
+  any_ratio.max_merge_top_ratio = 1e9;
+  regions = grow();
+  MergeSplitItems(scene.evidence, scene.height_mm, scene.valid, any_ratio,
+                  regions);
+  EXPECT_EQ(ItemLabels(regions), 1);
+}
+
 TEST(DetectorStagesTest, DescribeItemsGivesBoxCentreAndDepth) {
   const cv::Rect item(300, 220, 40, 20);
   cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
