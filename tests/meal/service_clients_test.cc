@@ -170,9 +170,13 @@ TEST_F(ServiceClientsWithServicesTest, AnswersComeThroughAndErrorsAreNamed) {
   ServiceClients clients(services_->channels(), CallDeadlines());
   absl::StatusOr<v1::Frame> frame = clients.robot.CaptureFrame();
   ASSERT_THAT(frame, IsOk());
+  EXPECT_EQ(frame->width(), 640u);
+  EXPECT_EQ(frame->height(), 480u);
   absl::StatusOr<v1::DetectFoodResponse> found =
       clients.perception.DetectFood(*frame);
   ASSERT_THAT(found, IsOk());
+  // The plate holds one carrot.
+  EXPECT_EQ(found->items_size(), 1);
 
   EXPECT_THAT(clients.bandit.GetUser("nobody-at-all"),
               StatusIs(absl::StatusCode::kNotFound,

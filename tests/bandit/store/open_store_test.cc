@@ -108,7 +108,9 @@ TEST_F(OpenEventStoreTest, APostgresUriOpensThePostgresStore) {
   absl::StatusOr<std::unique_ptr<EventStore>> again =
       OpenEventStore(postgres, options);
   ASSERT_THAT(again, IsOk());
-  EXPECT_THAT((*again)->GetUser("bo"), IsOk());
+  absl::StatusOr<UserRecord> bo = (*again)->GetUser("bo");
+  ASSERT_THAT(bo, IsOk());
+  EXPECT_EQ(bo->user_id, "bo");
   again->reset();
   server->Query("postgres", "DROP DATABASE open_store_test").IgnoreError();
 }
