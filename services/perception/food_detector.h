@@ -50,12 +50,20 @@ struct FoodDetectorOptions {
   // within terrace_window_px / 2 (too small a window to see the step's top)
   // and not next to a seed are seeded on their own when, after an opening
   // that drops the thin flanks of every item, they keep min_terrace_px.
+  // The opening's width: a strip of a lower item narrower than this is
+  // not seeded (the flanks of an item are about 2 px wide).
   int terrace_window_px = 7;
+  int terrace_open_px = 3;
   int min_terrace_px = 40;
   // Neighbours of similar colour are merged (one item cut in two) only when
   // the higher one's top is at most this many times the lower one's: a
   // slice lying on another stands about twice as high as the one under it.
   double max_merge_top_ratio = 1.5;
+  // A stick with an item lying across it shows as two parts; they are
+  // joined when the item on them borders both, the line between them runs
+  // under that item, and each elongated part lies within this angle of
+  // that line. 0: never joined.
+  double max_join_angle_rad = 0.35;
   // RANSAC plane fit: iterations and seed (fixed, so detection repeats).
   int ransac_iterations = 150;
   uint64_t ransac_seed = 1;

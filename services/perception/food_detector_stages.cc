@@ -404,7 +404,9 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
       }
     }
     cv::morphologyEx(terraces, terraces, cv::MORPH_OPEN,
-                     cv::getStructuringElement(cv::MORPH_ELLIPSE, {5, 5}));
+                     cv::getStructuringElement(
+                         cv::MORPH_ELLIPSE,
+                         {options.terrace_open_px, options.terrace_open_px}));
   }
   const int n_cores =
       cv::connectedComponents(cores, regions.markers, 4, CV_32S);
@@ -546,6 +548,101 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
             std::max(options.min_valley_mm,
                      options.valley_fraction * lower_top)) {
       parent[root(a)] = root(b);
+    }
+  }
+  // A stick with another item lying across it shows as two parts, one on
+  // each side of the item on it; the watershed gives them two labels and
+  // neither covers the stick. Two parts are joined when: an item lying on
+  // them (its top more than max_merge_top_ratio times theirs) borders both;
+  // they are of similar colour and height; the straight line between their
+  // centroids runs over them and the item on them only (the stick goes on
+  // underneath); and at least one part is elongated and each elongated
+  // part lies along that line.
+  if (options.max_join_angle_rad > 0) {
+    std::vector<std::vector<int>> neighbours(n_cores);
+    for (const auto& [pair, seam] : boundary) {
+      if (seam.count < 3) continue;
+      neighbours[pair.first].push_back(pair.second);
+      neighbours[pair.second].push_back(pair.first);
+    }
+    // Centroid and axis per region, from its pixels' moments.
+    struct Shape {
+      double u = 0, v = 0, elongation = 1, angle = 0;
+    };
+    std::vector<Shape> shape(n_cores);
+    {
+      std::vector<cv::Vec6d> moments(n_cores, cv::Vec6d::all(0));
+      for (int v = 0; v < h; ++v) {
+        const auto* m = markers.ptr<int>(v);
+        for (int u = 0; u < w; ++u) {
+          if (m[u] <= 0 || m[u] >= background) continue;
+          moments[m[u]] +=
+              cv::Vec6d(1, u, v, double(u) * u, double(v) * v, double(u) * v);
+        }
+      }
+      for (int i = 1; i < background; ++i) {
+        const cv::Vec6d& mo = moments[i];
+        if (mo[0] < 1) continue;
+        Shape& sh = shape[i];
+        sh.u = mo[1] / mo[0];
+        sh.v = mo[2] / mo[0];
+        const double cuu = mo[3] / mo[0] - sh.u * sh.u;
+        const double cvv = mo[4] / mo[0] - sh.v * sh.v;
+        const double cuv = mo[5] / mo[0] - sh.u * sh.v;
+        const double mean = (cuu + cvv) / 2;
+        const double spread =
+            std::sqrt((cuu - cvv) * (cuu - cvv) / 4 + cuv * cuv);
+        const double minor = std::max(mean - spread, 1e-6);
+        sh.elongation = std::sqrt((mean + spread) / minor);
+        sh.angle = 0.5 * std::atan2(2 * cuv, cuu - cvv);
+      }
+    }
+    auto along = [&](const Shape& part, double line_angle) {
+      if (part.elongation < 2.0) return true;
+      double diff = std::fmod(std::abs(part.angle - line_angle), kPi);
+      diff = std::min(diff, kPi - diff);
+      return diff <= options.max_join_angle_rad;
+    };
+    for (int o = 1; o < background; ++o) {
+      const std::vector<int>& near = neighbours[o];
+      for (size_t i = 0; i < near.size(); ++i) {
+        for (size_t j = i + 1; j < near.size(); ++j) {
+          const int a = near[i], b = near[j];
+          if (lab_count[a] == 0 || lab_count[b] == 0 || root(a) == root(b)) {
+            continue;
+          }
+          const double lower = std::min(top_mm[a], top_mm[b]);
+          const double upper = std::max(top_mm[a], top_mm[b]);
+          if (upper > options.max_merge_top_ratio * lower ||
+              top_mm[o] <= options.max_merge_top_ratio * upper) {
+            continue;
+          }
+          const cv::Vec3d diff =
+              lab_sum[a] / lab_count[a] - lab_sum[b] / lab_count[b];
+          if (cv::norm(diff) >= options.min_colour_distance) continue;
+          const double du = shape[b].u - shape[a].u;
+          const double dv = shape[b].v - shape[a].v;
+          const double line_angle = std::atan2(dv, du);
+          // A stick: at least one part is elongated, and every elongated
+          // part lies along the line (two round slices on either side of
+          // an item are two items).
+          if (std::max(shape[a].elongation, shape[b].elongation) < 2.0 ||
+              !along(shape[a], line_angle) || !along(shape[b], line_angle)) {
+            continue;
+          }
+          const int steps = static_cast<int>(std::ceil(std::hypot(du, dv)));
+          bool covered = steps > 0;
+          for (int t = 0; t <= steps && covered; ++t) {
+            const int u = static_cast<int>(
+                std::lround(shape[a].u + du * t / std::max(steps, 1)));
+            const int v = static_cast<int>(
+                std::lround(shape[a].v + dv * t / std::max(steps, 1)));
+            const int label = markers.at<int>(v, u);
+            covered = label == -1 || label == a || label == b || label == o;
+          }
+          if (covered) parent[root(a)] = root(b);
+        }
+      }
     }
   }
   for (int v = 0; v < h; ++v) {

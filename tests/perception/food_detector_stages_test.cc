@@ -251,6 +251,60 @@ TEST(DetectorStagesTest, MergeKeepsAnItemApartFromTheOneLyingOnIt) {
   EXPECT_EQ(ItemLabels(regions), 1);
 }
 
+// A red stick (10 mm) with a green item lying across its middle (24 mm):
+// the stick shows as two parts, one on each side.
+Scene StickUnderAnItem(int right_part_shift_v) {
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  height(cv::Rect(200, 230, 100, 20)).setTo(10.0f);
+  height(cv::Rect(340, 230 + right_part_shift_v, 100, 20)).setTo(10.0f);
+  const cv::Rect across(300, 200, 40, 80);
+  height(across).setTo(24.0f);
+  Scene scene = MakeScene(height, height > 0.0f);
+  scene.rgb(across).setTo(cv::Scalar(60, 170, 60));
+  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                scene.plate, FoodDetectorOptions());
+  return scene;
+}
+
+Regions GrowThree(const Scene& scene, int right_part_shift_v) {
+  Regions regions;
+  regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(0));
+  regions.markers(cv::Rect(220, 235, 20, 10)).setTo(1);
+  regions.markers(cv::Rect(400, 235 + right_part_shift_v, 20, 10)).setTo(2);
+  regions.markers(cv::Rect(310, 220, 20, 40)).setTo(3);
+  regions.background = 4;
+  regions.valley_mm = cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0));
+  GrowRegions(scene.rgb, scene.evidence, scene.plate.plate, regions);
+  return regions;
+}
+
+TEST(DetectorStagesTest, MergeJoinsTheTwoPartsOfAStickUnderAnItem) {
+  const Scene scene = StickUnderAnItem(0);
+  Regions regions = GrowThree(scene, 0);
+  ASSERT_EQ(ItemLabels(regions), 3);
+  MergeSplitItems(scene.evidence, scene.height_mm, scene.valid,
+                  FoodDetectorOptions(), regions);
+  EXPECT_EQ(ItemLabels(regions), 2);
+  EXPECT_EQ(regions.markers.at<int>(240, 210),
+            regions.markers.at<int>(240, 430));
+  EXPECT_NE(regions.markers.at<int>(240, 210),
+            regions.markers.at<int>(240, 320));
+
+  FoodDetectorOptions never;
+  never.max_join_angle_rad = 0;
+  regions = GrowThree(scene, 0);
+  MergeSplitItems(scene.evidence, scene.height_mm, scene.valid, never, regions);
+  EXPECT_EQ(ItemLabels(regions), 3);
+
+  // Two sticks that do not line up (the line between them crosses the
+  // plate below the item) stay two.
+  const Scene apart = StickUnderAnItem(45);
+  regions = GrowThree(apart, 45);
+  MergeSplitItems(apart.evidence, apart.height_mm, apart.valid,
+                  FoodDetectorOptions(), regions);
+  EXPECT_EQ(ItemLabels(regions), 3);
+}
+
 TEST(DetectorStagesTest, DescribeItemsGivesBoxCentreAndDepth) {
   const cv::Rect item(300, 220, 40, 20);
   cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
