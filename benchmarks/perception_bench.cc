@@ -6,12 +6,14 @@
 #include <cstdlib>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <random>
 #include <vector>
 
 #include "benchmark/benchmark.h"
 #include "services/perception/default_featurizer.h"
 #include "services/perception/food_detector.h"
+#include "services/perception/food_detector_stages.h"
 #include "services/perception/frame.h"
 #include "services/perception/spanet_featurizer.h"
 #include "services/sim/scene.h"
@@ -54,6 +56,80 @@ void BM_DetectFood(benchmark::State& state) {
   state.counters["items"] = static_cast<double>(items);
 }
 BENCHMARK(BM_DetectFood)->Unit(benchmark::kMillisecond);
+
+// DetectFood's stages one at a time (range(0): 0 MeasureHeight, 1
+// FindPlate, 2 FindEvidence, 3 PlantSeeds, 4 GrowRegions, 5 MergeSplitItems,
+// 6 DescribeItems), each on its inputs from the stages before it, computed
+// once outside the timing.
+void BM_DetectStage(benchmark::State& state) {
+  using namespace detection;  // NOLINT: the stages, in order
+  const Scene& scene = RenderedScene();
+  const DecodedFrame& frame = scene.frame;
+  const FoodDetectorOptions options;
+  const std::optional<HeightMap> heights =
+      MeasureHeight(frame.depth_mm, frame.intrinsics, options);
+  const std::optional<PlateRegion> plate =
+      heights ? FindPlate(*heights, options) : std::nullopt;
+  if (!plate) {
+    state.SkipWithError("no plate");
+    return;
+  }
+  const cv::Rect& roi = plate->roi;
+  const cv::Mat rgb = frame.rgb(roi);
+  const cv::Mat height_mm = heights->height_mm(roi);
+  const cv::Mat valid = heights->valid(roi);
+  const FoodEvidence evidence =
+      FindEvidence(rgb, height_mm, valid, *plate, options);
+  const std::optional<Regions> seeds = PlantSeeds(evidence, height_mm, options);
+  Regions grown = *seeds;
+  grown.markers = seeds->markers.clone();
+  GrowRegions(rgb, evidence, plate->plate, grown);
+  Regions merged = grown;
+  merged.markers = grown.markers.clone();
+  MergeSplitItems(evidence, height_mm, valid, options, merged);
+  static constexpr const char* kNames[] = {
+      "MeasureHeight", "FindPlate",       "FindEvidence", "PlantSeeds",
+      "GrowRegions",   "MergeSplitItems", "DescribeItems"};
+  const int stage = static_cast<int>(state.range(0));
+  for (auto _ : state) {
+    switch (stage) {
+      case 0:
+        benchmark::DoNotOptimize(
+            MeasureHeight(frame.depth_mm, frame.intrinsics, options));
+        break;
+      case 1:
+        benchmark::DoNotOptimize(FindPlate(*heights, options));
+        break;
+      case 2:
+        benchmark::DoNotOptimize(
+            FindEvidence(rgb, height_mm, valid, *plate, options));
+        break;
+      case 3:
+        benchmark::DoNotOptimize(PlantSeeds(evidence, height_mm, options));
+        break;
+      case 4: {
+        Regions regions = *seeds;
+        regions.markers = seeds->markers.clone();
+        GrowRegions(rgb, evidence, plate->plate, regions);
+        benchmark::DoNotOptimize(regions);
+        break;
+      }
+      case 5: {
+        Regions regions = grown;
+        regions.markers = grown.markers.clone();
+        MergeSplitItems(evidence, height_mm, valid, options, regions);
+        benchmark::DoNotOptimize(regions);
+        break;
+      }
+      default:
+        benchmark::DoNotOptimize(
+            DescribeItems(merged, evidence, frame.depth_mm(roi), roi,
+                          heights->plane, frame.intrinsics, options));
+    }
+  }
+  state.SetLabel(kNames[stage]);
+}
+BENCHMARK(BM_DetectStage)->DenseRange(0, 6)->Unit(benchmark::kMillisecond);
 
 void BM_FeaturizeDefault(benchmark::State& state) {
   const Scene& scene = RenderedScene();

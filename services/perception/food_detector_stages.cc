@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <optional>
 #include <random>
@@ -258,6 +259,114 @@ FoodEvidence FindEvidence(const cv::Mat& rgb, const cv::Mat& height_mm,
   return evidence;
 }
 
+namespace {
+
+// Dilation (max) or erosion (min) by `element`: per row of the element a
+// horizontal running max (min) over its run, combined over the rows. Runs
+// centred on the anchor (an ellipse's, a rectangle's) are built up one
+// half-width at a time from the narrower ones; others take a pass each.
+template <bool kMax>
+cv::Mat MorphByRows(const cv::Mat& image, const cv::Mat& element) {
+  const int rows = element.rows;
+  const cv::Point anchor(element.cols / 2, rows / 2);
+  const int w = image.cols, h = image.rows;
+  const float none = kMax ? -std::numeric_limits<float>::max()
+                          : std::numeric_limits<float>::max();
+  // Row-wise max (min) into `out`: loops the compiler vectorizes.
+  auto pick = [](float* __restrict out, const float* __restrict in, int n) {
+    for (int u = 0; u < n; ++u) {
+      if constexpr (kMax) {
+        out[u] = std::max(out[u], in[u]);
+      } else {
+        out[u] = std::min(out[u], in[u]);
+      }
+    }
+  };
+  struct Run {
+    int first = -1;
+    int last = -1;
+  };
+  std::vector<Run> runs(rows);
+  bool centred = true;
+  int widest = 0;
+  for (int i = 0; i < rows; ++i) {
+    const auto* e = element.ptr<uint8_t>(i);
+    for (int j = 0; j < element.cols; ++j) {
+      if (!e[j]) continue;
+      if (runs[i].first < 0) runs[i].first = j;
+      runs[i].last = j;
+    }
+    if (runs[i].first < 0) continue;
+    CV_Assert(cv::countNonZero(element.row(i)) ==
+              runs[i].last - runs[i].first + 1);
+    centred &= anchor.x - runs[i].first == runs[i].last - anchor.x;
+    widest = std::max(widest, anchor.x - runs[i].first);
+  }
+  cv::Mat out(image.size(), CV_32FC1, cv::Scalar(none));
+  // Output row v takes row v + dy of a horizontal pass.
+  auto combine = [&](const cv::Mat& pass, int dy) {
+    for (int v = std::max(0, -dy); v < std::min(h, h - dy); ++v) {
+      pick(out.ptr<float>(v), pass.ptr<float>(v + dy), w);
+    }
+  };
+  if (centred) {
+    // Strips of output rows, so that the passes over the input rows a strip
+    // needs stay in the cache.
+    constexpr int kStrip = 64;
+    for (int v0 = 0; v0 < h; v0 += kStrip) {
+      const int v1 = std::min(h, v0 + kStrip);
+      const int a0 = std::max(0, v0 - anchor.y);
+      const int a1 = std::min(h, v1 + rows - 1 - anchor.y);
+      const cv::Mat source = image.rowRange(a0, a1);
+      cv::Mat pass = source.clone();  // the running max over [u - r, u + r]
+      for (int r = 0; r <= widest; ++r) {
+        if (r > 0 && r < w) {
+          for (int v = 0; v < a1 - a0; ++v) {
+            float* p = pass.ptr<float>(v);
+            const float* in = source.ptr<float>(v);
+            pick(p + r, in, w - r);
+            pick(p, in + r, w - r);
+          }
+        }
+        for (int i = 0; i < rows; ++i) {
+          if (runs[i].first < 0 || anchor.x - runs[i].first != r) continue;
+          // Output row v takes pass row v + dy (input rows outside the
+          // image count for nothing).
+          const int dy = i - anchor.y;
+          const int lo = std::max(v0, a0 - dy);
+          const int hi = std::min(v1, a1 - dy);
+          if (hi <= lo) continue;
+          for (int v = lo; v < hi; ++v) {
+            pick(out.ptr<float>(v), pass.ptr<float>(v + dy - a0), w);
+          }
+        }
+      }
+    }
+    return out;
+  }
+  for (int i = 0; i < rows; ++i) {
+    if (runs[i].first < 0) continue;
+    const cv::Mat line =
+        cv::Mat::ones(1, runs[i].last - runs[i].first + 1, CV_8UC1);
+    const cv::Point line_anchor(anchor.x - runs[i].first, 0);
+    cv::Mat pass;
+    if constexpr (kMax) {
+      cv::dilate(image, pass, line, line_anchor);
+    } else {
+      cv::erode(image, pass, line, line_anchor);
+    }
+    combine(pass, i - anchor.y);
+  }
+  return out;
+}
+
+}  // namespace
+
+cv::Mat CloseByRows(const cv::Mat& image, const cv::Mat& element) {
+  CV_Assert(image.type() == CV_32FC1 && element.type() == CV_8UC1);
+  return MorphByRows<false>(MorphByRows<true>(image, element), element);
+}
+
 std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
                                   const cv::Mat& height_mm,
                                   const FoodDetectorOptions& options) {
@@ -283,8 +392,8 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
   // their height); the top of one item is not lifted at all.
   Regions regions;
   cv::Mat& valley = regions.valley_mm;
-  cv::morphologyEx(
-      height_mm, valley, cv::MORPH_CLOSE,
+  valley = CloseByRows(
+      height_mm,
       cv::getStructuringElement(cv::MORPH_ELLIPSE, {options.valley_width_px,
                                                     options.valley_width_px}));
   valley -= height_mm;

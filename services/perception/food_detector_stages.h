@@ -83,6 +83,17 @@ struct Regions {
   cv::Mat valley_mm;
 };
 
+// Greyscale closing (dilate, then erode) of a CV_32FC1 image by a
+// structuring element whose rows are each one run of ones (an ellipse, a
+// rectangle), anchored at its centre, with OpenCV's border rule (outside
+// the image counts for nothing). The same result as cv::morphologyEx(
+// MORPH_CLOSE) to the bit, in a fraction of the time for a large ellipse:
+// each row of the element is a horizontal running max or min, and the
+// rows are combined. Each row of the element must be one run of ones
+// (cv::getStructuringElement's ellipses and rectangles are); a row with a
+// gap fails a CV_Assert.
+cv::Mat CloseByRows(const cv::Mat& image, const cv::Mat& element);
+
 // Seeds: the upper half of every bump in the height map (at least half its
 // local top within 21 px), not on a strong colour edge, cut along height
 // valleys and steps only where that splits a seed into two or more parts of

@@ -114,6 +114,26 @@ int ItemLabels(const Regions& regions) {
   return static_cast<int>(labels.size());
 }
 
+TEST(DetectorStagesTest, CloseByRowsIsOpenCvsClosingToTheBit) {
+  cv::RNG rng(20261203);
+  for (const cv::Size size : {cv::Size(97, 61), cv::Size(40, 300)}) {
+    cv::Mat image(size, CV_32FC1);
+    rng.fill(image, cv::RNG::UNIFORM, -5.0, 30.0);
+    image(cv::Rect(3, 5, 20, 20)).setTo(0.0f);  // a flat patch, as a plate
+    for (const int width : {1, 3, 6, 7, 31}) {
+      for (const int shape : {cv::MORPH_ELLIPSE, cv::MORPH_RECT}) {
+        const cv::Mat element =
+            cv::getStructuringElement(shape, {width, width});
+        cv::Mat expected;
+        cv::morphologyEx(image, expected, cv::MORPH_CLOSE, element);
+        const cv::Mat got = CloseByRows(image, element);
+        EXPECT_EQ(cv::norm(expected, got, cv::NORM_INF), 0.0)
+            << "width " << width << " shape " << shape << " size " << size;
+      }
+    }
+  }
+}
+
 TEST(DetectorStagesTest, FindEvidenceSeesTheItemByHeightAndByColour) {
   cv::Mat mask;
   const Scene scene = MakeScene(Domes({{320, 240}}, &mask), mask);
