@@ -30,6 +30,10 @@ struct FoodDetectorOptions {
   // Colour gradient (CIELAB units per pixel) that separates two touching
   // items; texture within one item stays below it.
   double min_edge_strength = 10.0;
+  // Soft edges: pixels whose colours 2 px to either side (across or down)
+  // differ by more than this (CIELAB) cut seeds too, where a shaded rim
+  // spreads the change between two items over a few pixels. 0: off.
+  double min_soft_edge_distance = 20.0;
   // Seeds stop at height valleys (where touching items meet): a pixel that
   // a closing of this width lifts by more than max(min_valley_mm,
   // valley_fraction x the local top) is not a seed.

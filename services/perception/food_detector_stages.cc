@@ -418,6 +418,25 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
   const float cliff_fraction = static_cast<float>(options.cliff_fraction);
   const float edge2 =
       static_cast<float>(options.min_edge_strength * options.min_edge_strength);
+  // Soft colour edges: colours more than min_soft_edge_distance apart
+  // 4 px apart (a pale slice on a pale stick, whose shaded edge spreads
+  // the change over a few pixels, below min_edge_strength per pixel).
+  cv::Mat wide_edge(h, w, CV_8UC1, cv::Scalar(0));
+  if (options.min_soft_edge_distance > 0) {
+    const float wide2 = static_cast<float>(options.min_soft_edge_distance *
+                                           options.min_soft_edge_distance);
+    for (int v = 2; v + 2 < h; ++v) {
+      const auto* row = smooth.ptr<cv::Vec3f>(v);
+      const auto* up = smooth.ptr<cv::Vec3f>(v - 2);
+      const auto* down = smooth.ptr<cv::Vec3f>(v + 2);
+      auto* out = wide_edge.ptr<uint8_t>(v);
+      for (int u = 2; u + 2 < w; ++u) {
+        const cv::Vec3f dx = row[u + 2] - row[u - 2];
+        const cv::Vec3f dy = down[u] - up[u];
+        if (dx.dot(dx) > wide2 || dy.dot(dy) > wide2) out[u] = 255;
+      }
+    }
+  }
   for (int v = 0; v < h; ++v) {
     const auto* a = gx.ptr<cv::Vec3f>(v);
     const auto* b = gy.ptr<cv::Vec3f>(v);
@@ -425,6 +444,7 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
     const auto* hv = height_mm.ptr<float>(v);
     const auto* top = local_top.ptr<float>(v);
     const auto* dip = valley.ptr<float>(v);
+    const auto* soft = wide_edge.ptr<uint8_t>(v);
     auto* out = cores.ptr<uint8_t>(v);
     auto* seam = seams.ptr<uint8_t>(v);
     for (int u = 0; u < w; ++u) {
@@ -432,6 +452,7 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
           a[u].dot(a[u]) + b[u].dot(b[u]) <= edge2) {
         out[u] = 255;
         seam[u] =
+            soft[u] ||
             dip[u] > std::max(min_valley, valley_fraction * top[u]) ||
             (cut_cliffs && cliff_top.at<float>(v, u) - hv[u] >
                                std::max(min_cliff, cliff_fraction * hv[u]));

@@ -171,6 +171,33 @@ TEST(DetectorStagesTest, PlantSeedsCutsTwoTouchingDomesOfOneColourApart) {
           .has_value());
 }
 
+TEST(DetectorStagesTest, PlantSeedsCutsAtASoftColourEdge) {
+  // One flat 10 mm region: red on the left, orange on the right, the colour
+  // changing over 6 px (a shaded rim), so no pixel's gradient reaches
+  // min_edge_strength and there is no valley or step.
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  const cv::Rect region(260, 220, 120, 40);
+  height(region).setTo(10.0f);
+  Scene scene = MakeScene(height, height > 0.0f);
+  for (int u = 320; u < 380; ++u) {
+    const double t = std::min(1.0, (u - 320) / 6.0);
+    scene.rgb(cv::Rect(u, 220, 1, 40))
+        .setTo(cv::Scalar(200, 60 + 70 * t, 50 - 10 * t));
+  }
+  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                scene.plate, FoodDetectorOptions());
+  FoodDetectorOptions no_soft;
+  no_soft.min_soft_edge_distance = 0;
+  std::optional<Regions> seeds =
+      PlantSeeds(scene.evidence, scene.height_mm, no_soft);
+  ASSERT_TRUE(seeds.has_value());
+  EXPECT_EQ(seeds->background, 2);  // the 3 px gradient sees no edge
+  seeds = PlantSeeds(scene.evidence, scene.height_mm, FoodDetectorOptions());
+  ASSERT_TRUE(seeds.has_value());
+  EXPECT_EQ(seeds->background, 3);
+  EXPECT_NE(seeds->markers.at<int>(240, 290), seeds->markers.at<int>(240, 350));
+}
+
 TEST(DetectorStagesTest, GrowAndMergeJoinOneItemSeededTwice) {
   // One flat-topped item (15 mm) seeded at both ends by hand.
   cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
