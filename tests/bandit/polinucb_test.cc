@@ -1,10 +1,14 @@
 // PoLinUcbModel against the dense float64 evaluation of its formulas
 // (DensePoLinUcbReference), on random problems in the dual, switching and
 // primal regimes, with and without weights and a population prior; its
-// rebuild, replay and saved state; its input checks.
+// rebuild, replay and saved state; its pooled factors across the pooled
+// model's switch to primal form; a state of format 1; its input checks.
 #include "services/bandit/core/polinucb.h"
 
 #include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iterator>
 #include <random>
 #include <string>
 #include <vector>
@@ -176,6 +180,146 @@ INSTANTIATE_TEST_SUITE_P(
                       Problem{16, 1, 2, 160, false, 0, true},
                       Problem{20, 6, 5, 220, true, 5, true}),
     Name);
+
+// The pooled radius from the factors while every context model is dual,
+// then from the pooled model's primal form: against the dense reference
+// every few rounds (weighted; half the Updates with their Select's
+// products), and rebuilt, saved, loaded and replayed on both sides of the
+// switch.
+void CheckPooledFactorsAcrossTheSwitch(const Problem& p) {
+  std::mt19937_64 rng(77 + p.d + p.k);
+  const BanditConfig config = MakeConfig(p, rng);
+  const std::vector<Round> rounds = MakeRounds(p, rng);
+  PoLinUcbModel model = *PoLinUcbModel::Create(config, p.primal_threshold);
+  EXPECT_TRUE(model.UsesPooledFactors());
+  std::vector<Round> seen;
+  int on = 0, off = 0;
+  for (int t = 0; t <= p.rounds; ++t) {
+    if (t % 3 == 0) {
+      const std::vector<double> at = rounds[(t * 5) % p.rounds].context;
+      ExpectMatchesReference(model, config, seen, at,
+                             absl::StrCat("d ", p.d, " after ", t, " rounds"));
+      (model.UsesPooledFactors() ? on : off) += 1;
+    }
+    if (t == p.rounds) break;
+    SelectProducts products;
+    if (t % 2 == 0) model.Estimate(rounds[t].context, &products);
+    model.Update(rounds[t], t % 2 == 0 ? &products : nullptr);
+    seen.push_back(rounds[t]);
+  }
+  EXPECT_GT(on, 5) << "the factors were barely used";
+  EXPECT_GT(off, 1) << "the pooled model never turned primal";
+  EXPECT_FALSE(model.UsesPooledFactors());
+
+  const int threshold =
+      p.primal_threshold > 0 ? p.primal_threshold : p.d * 3 / 4;
+  for (int cut : {threshold / 2, threshold - 3, threshold + 2, p.rounds - 12}) {
+    const std::string where = absl::StrCat("d ", p.d, ", cut at ", cut);
+    const std::vector<Round> first(rounds.begin(), rounds.begin() + cut);
+    PoLinUcbModel rebuilt =
+        *PoLinUcbModel::Rebuild(config, first, p.primal_threshold);
+    ExpectMatchesReference(rebuilt, config, first, rounds[cut].context,
+                           where + ", rebuilt");
+    const std::string state = rebuilt.SaveState();
+    absl::StatusOr<PoLinUcbModel> loaded =
+        PoLinUcbModel::LoadState(config, state, p.primal_threshold);
+    ASSERT_TRUE(loaded.ok()) << loaded.status();
+    EXPECT_EQ(loaded->SaveState(), state) << where;
+    EXPECT_EQ(loaded->UsesPooledFactors(), rebuilt.UsesPooledFactors());
+    // Ten rounds replayed, then six Updates.
+    const std::vector<Round> replayed(rounds.begin() + cut,
+                                      rounds.begin() + cut + 10);
+    loaded->Replay(replayed);
+    std::vector<Round> upto(rounds.begin(), rounds.begin() + cut + 10);
+    ExpectMatchesReference(*loaded, config, upto, rounds[cut + 10].context,
+                           where + ", replayed");
+    for (int t = cut + 10; t < cut + 12; ++t) {
+      SelectProducts products;
+      if (t % 2 == 0) loaded->Estimate(rounds[t].context, &products);
+      loaded->Update(rounds[t], t % 2 == 0 ? &products : nullptr);
+      upto.push_back(rounds[t]);
+    }
+    ExpectMatchesReference(*loaded, config, upto, rounds[0].context,
+                           where + ", replayed and updated");
+  }
+}
+
+TEST(PoLinUcbTest, PooledFactorsMatchDenseAcrossThePooledSwitch) {
+  // Four actions, all dual while the pooled model switches.
+  CheckPooledFactorsAcrossTheSwitch(Problem{48, 3, 4, 90, true, 0});
+  // One action: it converts beside the pooled model.
+  CheckPooledFactorsAcrossTheSwitch(Problem{30, 2, 1, 70, true, 0});
+  // A small threshold, a prior.
+  CheckPooledFactorsAcrossTheSwitch(Problem{36, 4, 3, 80, true, 20, true});
+}
+
+// tests/bandit/testdata/polinucb_format1_2026-12-03.state: a state of
+// format 1 (no pooled factors), saved by the code of commit 60dbe81 after
+// Updates of the first 24 of these rounds, with this configuration.
+std::vector<Round> Format1FixtureRounds(int count) {
+  constexpr int kD = 40, kQ = 3, kK = 4;
+  std::vector<Round> rounds(count);
+  for (int t = 0; t < count; ++t) {
+    Round& r = rounds[t];
+    r.context.resize(kD);
+    for (int i = 0; i < kD; ++i) {
+      r.context[i] = 0.7 * std::sin(0.37 * (t + 1) * (i + 1) + 0.11 * i) + 0.2;
+    }
+    r.posthoc.resize(kQ);
+    for (int j = 0; j < kQ; ++j) {
+      r.posthoc[j] = std::cos(0.23 * (t + 1) * (j + 2));
+    }
+    r.action = (7 * t + t / 3) % kK;
+    r.loss = 0.5 + 0.4 * std::sin(1.3 * t);
+    r.weight = 1.0 + 0.5 * (1.0 + std::sin(0.9 * t));
+  }
+  return rounds;
+}
+
+TEST(PoLinUcbTest, Format1StateLoadsAndLearnsOn) {
+  BanditConfig config;
+  config.learner = Learner::kPoLinUcb;
+  config.context_dim = 40;
+  config.posthoc_dim = 3;
+  config.action_names = {"a0", "a1", "a2", "a3"};
+  config.alpha = 0.3;
+  config.lambda_c = 1.5;
+  config.lambda_p = 0.8;
+  config.phi_radius = 0.7;
+  std::ifstream file(BITEWISE_TESTDATA "/polinucb_format1_2026-12-03.state",
+                     std::ios::binary);
+  ASSERT_TRUE(file.good());
+  const std::string state((std::istreambuf_iterator<char>(file)),
+                          std::istreambuf_iterator<char>());
+  int32_t format = 0;
+  std::memcpy(&format, state.data() + 4, sizeof(format));
+  ASSERT_EQ(format, 1);
+  absl::StatusOr<PoLinUcbModel> loaded =
+      PoLinUcbModel::LoadState(config, state);
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  // No order of rounds to build the factors from: the pooled model's rows.
+  EXPECT_FALSE(loaded->UsesPooledFactors());
+  const std::vector<Round> rounds = Format1FixtureRounds(70);
+  std::vector<Round> seen(rounds.begin(), rounds.begin() + 24);
+  ASSERT_EQ(loaded->TotalRounds(), 24);
+  ExpectMatchesReference(*loaded, config, seen, rounds[24].context, "loaded");
+  // On past the pooled model's switch (threshold 30).
+  for (int t = 24; t < 70; ++t) {
+    SelectProducts products;
+    if (t % 2 == 0) loaded->Estimate(rounds[t].context, &products);
+    loaded->Update(rounds[t], t % 2 == 0 ? &products : nullptr);
+    seen.push_back(rounds[t]);
+    if (t % 9 == 0) {
+      ExpectMatchesReference(*loaded, config, seen, rounds[t % 24].context,
+                             absl::StrCat("loaded, then ", t + 1, " rounds"));
+    }
+  }
+  // Saved again in format 2.
+  const std::string again = loaded->SaveState();
+  std::memcpy(&format, again.data() + 4, sizeof(format));
+  EXPECT_EQ(format, 2);
+  EXPECT_EQ(PoLinUcbModel::LoadState(config, again)->SaveState(), again);
+}
 
 TEST(PoLinUcbTest, SavedStateLoadsBitForBit) {
   const Problem p{10, 3, 4, 90, true, 4};

@@ -206,6 +206,16 @@ VectorXd LinUcbModel::Product(const ActionState& s,
   return v;
 }
 
+MatrixXd LinUcbModel::DualProducts(int action,
+                                   const Eigen::Ref<const MatrixXd>& x) const {
+  const ActionState& s = actions_[action];
+  MatrixXd v(s.w.rows(), x.cols());
+  s.w.ForEachBlock([&](int first, int rows, const double* data) {
+    v.middleRows(first, rows).noalias() = ConstRowMap(data, rows, d_) * x;
+  });
+  return v;
+}
+
 VectorXd LinUcbModel::WTranspose(const ActionState& s,
                                  const VectorXd& v) const {
   VectorXd out = VectorXd::Zero(d_);

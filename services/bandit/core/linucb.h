@@ -188,6 +188,15 @@ class LinUcbModel final : public LearnerModel {
   }
   int64_t TotalRounds() const override { return total_rounds_; }
   bool IsPrimal(int action) const { return actions_[action].primal; }
+  // The diagonal of A_a (lambda_c, plus kappa_c with a population prior)
+  // and the primal threshold T in use.
+  double ridge() const { return lambda_a_; }
+  int primal_threshold() const { return primal_threshold_; }
+  // W_a X for an action in dual form (not IsPrimal) and a d x k matrix X:
+  // the products of its whitened rows with X's columns (n_a x k), the
+  // Select's product when k = 1; one pass over the rows.
+  Eigen::MatrixXd DualProducts(
+      int action, const Eigen::Ref<const Eigen::MatrixXd>& x) const;
   bool IsConverting(int action) const { return actions_[action].converting; }
   const InputScale& input_scale() const override { return scale_; }
 

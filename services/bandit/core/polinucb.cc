@@ -16,7 +16,10 @@ using Eigen::MatrixXd;
 using Eigen::VectorXd;
 
 constexpr char kStateMagic[4] = {'B', 'W', 'P', 'O'};
-constexpr int32_t kStateFormat = 1;
+// 2: the pooled factors (format 1, without them, still loads: such a model
+// answers from the pooled model's rows until they would be dropped anyway).
+constexpr int32_t kStateFormat = 2;
+constexpr int32_t kOldestStateFormat = 1;
 constexpr double kLayoutMarker = 1.0 + 1.0 / 1024;
 constexpr StateHeader kStateHeader = {kStateMagic, kStateFormat, kLayoutMarker,
                                       "poLinUCB"};
@@ -50,6 +53,105 @@ ContextRounds SplitRounds(const std::vector<Round>& rounds) {
 }
 
 }  // namespace
+
+double* GrowingLower::AppendRow() {
+  const int block = rows_ / kBlockRows;
+  const size_t first = static_cast<size_t>(block) * kBlockRows;
+  const size_t width = first + kBlockRows;
+  if (block == static_cast<int>(blocks_.size())) {
+    blocks_.emplace_back(new double[kBlockRows * width]);
+  }
+  double* out = blocks_[block].get() + (rows_ - first) * width;
+  ++rows_;
+  return out;
+}
+
+const double* GrowingLower::Row(int i) const {
+  const int block = i / kBlockRows;
+  const size_t first = static_cast<size_t>(block) * kBlockRows;
+  return blocks_[block].get() + (i - first) * (first + kBlockRows);
+}
+
+GrowingLower::Block GrowingLower::BlockAt(int b) const {
+  const int first = b * kBlockRows;
+  const int width = first + kBlockRows;
+  return Block(blocks_[b].get(), std::min(kBlockRows, rows_ - first), width,
+               Eigen::OuterStride<>(width));
+}
+
+size_t GrowingLower::CapacityDoubles() const {
+  size_t n = 0;
+  for (size_t b = 0; b < blocks_.size(); ++b) {
+    n += kBlockRows * ((b + 1) * kBlockRows);
+  }
+  return n;
+}
+
+VectorXd GrowingLower::Times(const Eigen::Ref<const VectorXd>& x) const {
+  VectorXd y(rows_);
+  for (int b = 0; b * kBlockRows < rows_; ++b) {
+    const Block block = BlockAt(b);
+    const int first = b * kBlockRows;
+    const int r = static_cast<int>(block.rows());
+    y.segment(first, r).noalias() =
+        block.block(0, first, r, r).triangularView<Eigen::Lower>() *
+        x.segment(first, r);
+    if (first > 0) {
+      y.segment(first, r).noalias() += block.leftCols(first) * x.head(first);
+    }
+  }
+  return y;
+}
+
+MatrixXd GrowingLower::TimesMatrix(const Eigen::Ref<const MatrixXd>& x) const {
+  MatrixXd y(rows_, x.cols());
+  for (int b = 0; b * kBlockRows < rows_; ++b) {
+    const Block block = BlockAt(b);
+    const int first = b * kBlockRows;
+    const int r = static_cast<int>(block.rows());
+    y.middleRows(first, r).noalias() =
+        block.block(0, first, r, r).triangularView<Eigen::Lower>() *
+        x.middleRows(first, r);
+    if (first > 0) {
+      y.middleRows(first, r).noalias() +=
+          block.leftCols(first) * x.topRows(first);
+    }
+  }
+  return y;
+}
+
+VectorXd GrowingLower::Solve(const Eigen::Ref<const VectorXd>& k) const {
+  VectorXd u = k;
+  for (int b = 0; b * kBlockRows < rows_; ++b) {
+    const Block block = BlockAt(b);
+    const int first = b * kBlockRows;
+    const int r = static_cast<int>(block.rows());
+    if (first > 0) {
+      u.segment(first, r).noalias() -= block.leftCols(first) * u.head(first);
+    }
+    block.block(0, first, r, r)
+        .triangularView<Eigen::Lower>()
+        .solveInPlace(u.segment(first, r));
+  }
+  return u;
+}
+
+MatrixXd GrowingLower::SolveMatrix(const Eigen::Ref<const MatrixXd>& k) const {
+  MatrixXd u = k;
+  for (int b = 0; b * kBlockRows < rows_; ++b) {
+    const Block block = BlockAt(b);
+    const int first = b * kBlockRows;
+    const int r = static_cast<int>(block.rows());
+    if (first > 0) {
+      u.middleRows(first, r).noalias() -=
+          block.leftCols(first) * u.topRows(first);
+    }
+    block.block(0, first, r, r)
+        .triangularView<Eigen::Lower>()
+        .solveInPlace(u.middleRows(first, r));
+  }
+  return u;
+}
 
 BanditConfig PoLinUcbModel::ContextsConfig(const BanditConfig& config) {
   BanditConfig inner = config;
@@ -94,6 +196,10 @@ PoLinUcbModel::PoLinUcbModel(const BanditConfig& config, LinUcbModel contexts,
       actions_(config.num_actions()),
       s_cp_(MatrixXd::Zero(d_, q_)),
       q_map_(MatrixXd::Zero(d_, q_)) {
+  factors_.on = true;
+  factors_.per_action.resize(actions_.size());
+  factors_.row.resize(actions_.size());
+  factors_.scale.resize(actions_.size());
   const PopulationPrior& prior = config_.prior;
   const double ridge = config_.lambda_p + prior.kappa_p();
   for (size_t a = 0; a < actions_.size(); ++a) {
@@ -137,40 +243,78 @@ void PoLinUcbModel::Refresh(ActionState& s) {
   s.s_inv_max = 1.0 / eigen.eigenvalues()(0);
 }
 
-VectorXd PoLinUcbModel::PredictPosthoc(const Eigen::Ref<const VectorXd>& c,
-                                       double* radius,
-                                       SelectProducts* products) const {
-  if (radius != nullptr) {
-    // sqrt(c^T X^-1 c): the pooled model's width.
-    const std::vector<ActionEstimate> pooled = pooled_.Estimate(
-        absl::Span<const double>(c.data(), static_cast<size_t>(c.size())),
-        products);
-    *radius = config_.phi_radius * pooled[0].width;
+bool PoLinUcbModel::AllDual() const {
+  if (pooled_.IsPrimal(0)) return false;
+  for (int a = 0; a < num_actions(); ++a) {
+    if (contexts_.IsPrimal(a)) return false;
   }
-  return q_map_.transpose() * c;
+  return true;
+}
+
+VectorXd PoLinUcbModel::PooledKernel(const std::vector<VectorXd>& v) const {
+  // Action a's rows of R c: D_a^-1/2 L_a (W_a c).
+  VectorXd k(factors_.pooled.rows());
+  for (size_t a = 0; a < actions_.size(); ++a) {
+    const std::vector<int>& rows = factors_.row[a];
+    if (rows.empty()) continue;
+    const VectorXd raw = factors_.per_action[a].Times(v[a]);
+    const std::vector<double>& scale = factors_.scale[a];
+    for (size_t i = 0; i < rows.size(); ++i) k(rows[i]) = raw(i) * scale[i];
+  }
+  return k;
+}
+
+double PoLinUcbModel::PooledWidth(const Eigen::Ref<const VectorXd>& c,
+                                  const SelectProducts* context_products,
+                                  SelectProducts* pooled_products) const {
+  const absl::Span<const double> span(c.data(), static_cast<size_t>(c.size()));
+  if (!factors_.on) return pooled_.Estimate(span, pooled_products)[0].width;
+  std::vector<VectorXd> computed;
+  if (context_products == nullptr) {
+    computed.resize(actions_.size());
+    for (int a = 0; a < num_actions(); ++a) {
+      computed[a] = contexts_.DualProducts(a, c);
+    }
+  }
+  // u = L_X^-1 R c, which is W_X c, the pooled model's Select product.
+  VectorXd u = factors_.pooled.Solve(PooledKernel(
+      context_products != nullptr ? context_products->per_action : computed));
+  const double var = (c.squaredNorm() - u.squaredNorm()) / pooled_.ridge();
+  if (pooled_products != nullptr) {
+    pooled_products->total_rounds = pooled_.TotalRounds();
+    pooled_products->context.assign(span.begin(), span.end());
+    pooled_products->per_action.resize(1);
+    pooled_products->per_action[0] = std::move(u);
+  }
+  return std::sqrt(std::max(var, 0.0));
 }
 
 VectorXd PoLinUcbModel::PredictPosthoc(absl::Span<const double> c) const {
-  return PredictPosthoc(AsVector(c), nullptr, nullptr);
+  return q_map_.transpose() * AsVector(c);
 }
 
 double PoLinUcbModel::PosthocRadius(absl::Span<const double> c) const {
-  double radius = 0.0;
-  PredictPosthoc(AsVector(c), &radius, nullptr);
-  return radius;
+  return config_.phi_radius * PooledWidth(AsVector(c), nullptr, nullptr);
 }
 
 std::vector<ActionEstimate> PoLinUcbModel::Estimate(
     absl::Span<const double> context, SelectProducts* products) const {
   const Eigen::Map<const VectorXd> c = AsVector(context);
-  std::vector<ActionEstimate> out = contexts_.Estimate(context, products);
+  // The context models' products feed the pooled factors: kept here when
+  // the caller does not want them.
+  SelectProducts own;
+  SelectProducts* context_products =
+      products != nullptr ? products : (factors_.on ? &own : nullptr);
+  std::vector<ActionEstimate> out =
+      contexts_.Estimate(context, context_products);
   SelectProducts* pooled_products = nullptr;
   if (products != nullptr) {
     products->nested = std::make_shared<SelectProducts>();
     pooled_products = products->nested.get();
   }
-  double radius = 0.0;
-  const VectorXd p_hat = PredictPosthoc(c, &radius, pooled_products);
+  const double radius =
+      config_.phi_radius * PooledWidth(c, context_products, pooled_products);
+  const VectorXd p_hat = q_map_.transpose() * c;
   for (size_t a = 0; a < actions_.size(); ++a) {
     const ActionState& s = actions_[a];
     // With k = C^-1 c: [c; z]^T A^-1 [c; z] = c^T k + (z - G^T c)^T S^-1
@@ -203,18 +347,143 @@ void PoLinUcbModel::AddSums(const Round& round) {
   scale_.posthoc_sq_sum += w * p.squaredNorm();
 }
 
+void PoLinUcbModel::GrowFactors(const Round& round, const VectorXd& v,
+                                const VectorXd& u) {
+  const Eigen::Map<const VectorXd> c = AsVector(round.context);
+  // L_X's new row [u^T delta], delta^2 = lambda + |c|^2 - |u|^2.
+  const int n = factors_.pooled.rows();
+  const double lambda_x = pooled_.ridge();
+  double* row = factors_.pooled.AppendRow();
+  std::copy(u.data(), u.data() + n, row);
+  row[n] = std::sqrt(std::max(lambda_x + c.squaredNorm() - u.squaredNorm(),
+                              lambda_x * 1e-300));
+  // L_a's, as LinUcbModel's Update computes it: [l^T delta] with
+  // l = sqrt(w) W_a c.
+  const int a = round.action;
+  const double sw = std::sqrt(round.weight);
+  const double lambda_a = contexts_.ridge();
+  const VectorXd x = sw * c;
+  const VectorXd l = sw * v;
+  const double delta2 = lambda_a + x.squaredNorm() - l.squaredNorm();
+  GrowingLower& factor = factors_.per_action[a];
+  const int m = factor.rows();
+  row = factor.AppendRow();
+  std::copy(l.data(), l.data() + m, row);
+  row[m] = std::sqrt(std::max(delta2, lambda_a * 1e-300));
+  factors_.row[a].push_back(n);
+  factors_.scale[a].push_back(1.0 / sw);
+}
+
+void PoLinUcbModel::ExtendFactors(const std::vector<Round>& rounds) {
+  const int k = static_cast<int>(rounds.size());
+  const int n = factors_.pooled.rows();
+  MatrixXd cols(d_, k);  // the new contexts
+  for (int j = 0; j < k; ++j) cols.col(j) = AsVector(rounds[j].context);
+  // Every action's W_a (new contexts), and from them R_old (new contexts).
+  std::vector<MatrixXd> v(actions_.size());
+  MatrixXd k12(n, k);
+  for (size_t a = 0; a < actions_.size(); ++a) {
+    const std::vector<int>& rows = factors_.row[a];
+    if (rows.empty()) continue;
+    v[a] = contexts_.DualProducts(static_cast<int>(a), cols);
+    const MatrixXd raw = factors_.per_action[a].TimesMatrix(v[a]);
+    for (size_t i = 0; i < rows.size(); ++i) {
+      k12.row(rows[i]) = raw.row(i) * factors_.scale[a][i];
+    }
+  }
+  // L_X's new block row [B L22]: B^T = L_X^-1 K12, L22 L22^T = lambda I +
+  // R_new R_new^T - B B^T.
+  const MatrixXd bt = factors_.pooled.SolveMatrix(k12);
+  MatrixXd k22 = pooled_.ridge() * MatrixXd::Identity(k, k);
+  k22.selfadjointView<Eigen::Lower>().rankUpdate(cols.transpose());
+  if (n > 0) k22.selfadjointView<Eigen::Lower>().rankUpdate(bt.transpose(), -1);
+  const Eigen::LLT<MatrixXd> llt(k22);
+  const MatrixXd l22 = llt.matrixL();
+  for (int j = 0; j < k; ++j) {
+    double* row = factors_.pooled.AppendRow();
+    if (n > 0) Eigen::Map<VectorXd>(row, n) = bt.col(j);
+    Eigen::Map<Eigen::RowVectorXd>(row + n, j + 1) = l22.row(j).head(j + 1);
+  }
+  // Each L_a likewise, with X_a = D^1/2 C_new: B = X_a W_a^T, L22 L22^T =
+  // lambda I + X_a X_a^T - B B^T.
+  for (size_t a = 0; a < actions_.size(); ++a) {
+    std::vector<int> taken;
+    for (int j = 0; j < k; ++j) {
+      if (rounds[j].action == static_cast<int>(a)) taken.push_back(j);
+    }
+    if (taken.empty()) continue;
+    GrowingLower& factor = factors_.per_action[a];
+    const int m = factor.rows();
+    const int t = static_cast<int>(taken.size());
+    MatrixXd x(t, d_);
+    MatrixXd b(t, m);
+    for (int i = 0; i < t; ++i) {
+      const double sw = std::sqrt(rounds[taken[i]].weight);
+      x.row(i) = sw * cols.col(taken[i]).transpose();
+      if (m > 0) b.row(i) = sw * v[a].col(taken[i]).transpose();
+    }
+    MatrixXd g = contexts_.ridge() * MatrixXd::Identity(t, t);
+    g.selfadjointView<Eigen::Lower>().rankUpdate(x);
+    if (m > 0) g.selfadjointView<Eigen::Lower>().rankUpdate(b, -1);
+    const Eigen::LLT<MatrixXd> factor_llt(g);
+    const MatrixXd lower = factor_llt.matrixL();
+    for (int i = 0; i < t; ++i) {
+      double* row = factor.AppendRow();
+      if (m > 0) Eigen::Map<Eigen::RowVectorXd>(row, m) = b.row(i);
+      Eigen::Map<Eigen::RowVectorXd>(row + m, i + 1) = lower.row(i).head(i + 1);
+      factors_.row[a].push_back(n + taken[i]);
+      factors_.scale[a].push_back(1.0 / std::sqrt(rounds[taken[i]].weight));
+    }
+  }
+}
+
 void PoLinUcbModel::Update(const Round& round, const SelectProducts* products) {
   const VectorXd c = AsVector(round.context);
   const Eigen::Map<const VectorXd> p = AsVector(round.posthoc);
   const double w = round.weight;
   ActionState& s = actions_[round.action];
-  // Sherman-Morrison with k = C^-1 c before the round: C'^-1 c = k / den,
-  // so G' = C'^-1 (E + w c p^T) = G + (w / den) k (p - G^T c)^T, and the
-  // same for C^-1 b_c with l for p.
   // The Select's products, when they are of this state and context, save a
   // pass over each form.
   const SelectProducts* pooled_products =
       products != nullptr ? products->nested.get() : nullptr;
+  SelectProducts own, own_pooled;
+  if (factors_.on) {
+    // The factors gain the round from every action's W_a c and u = W_X c:
+    // the Select's if they are current, else computed here (one pass over
+    // the actions' rows, none over the pooled model's), and then handed to
+    // the context models' Updates as if from a Select.
+    bool current = products != nullptr &&
+                   products->total_rounds == contexts_.TotalRounds() &&
+                   products->context == round.context &&
+                   products->per_action.size() == actions_.size();
+    for (int a = 0; current && a < num_actions(); ++a) {
+      current = products->per_action[a].size() == contexts_.Count(a);
+    }
+    if (!current) {
+      own.total_rounds = contexts_.TotalRounds();
+      own.context = round.context;
+      own.per_action.resize(actions_.size());
+      for (int a = 0; a < num_actions(); ++a) {
+        own.per_action[a] = contexts_.DualProducts(a, c);
+      }
+      products = &own;
+    }
+    const bool pooled_current =
+        pooled_products != nullptr &&
+        pooled_products->total_rounds == pooled_.TotalRounds() &&
+        pooled_products->context == round.context &&
+        pooled_products->per_action.size() == 1 &&
+        pooled_products->per_action[0].size() == pooled_.TotalRounds();
+    if (!pooled_current) {
+      PooledWidth(c, products, &own_pooled);
+      pooled_products = &own_pooled;
+    }
+    GrowFactors(round, products->per_action[round.action],
+                pooled_products->per_action[0]);
+  }
+  // Sherman-Morrison with k = C^-1 c before the round: C'^-1 c = k / den,
+  // so G' = C'^-1 (E + w c p^T) = G + (w / den) k (p - G^T c)^T, and the
+  // same for C^-1 b_c with l for p.
   const VectorXd k = contexts_.SolveA(round.action, c, products);
   const double den = 1.0 + w * c.dot(k);
   s.g.noalias() += (w / den) * k * (p - s.g.transpose() * c).transpose();
@@ -227,6 +496,7 @@ void PoLinUcbModel::Update(const Round& round, const SelectProducts* products) {
   AddSums(round);
   contexts_.Update(ContextRound(round, round.action, w), products);
   pooled_.Update(ContextRound(round, 0, 1.0), pooled_products);
+  if (factors_.on && !AllDual()) DropFactors();
   Refresh(s);
 }
 
@@ -244,10 +514,22 @@ void PoLinUcbModel::Recompute() {
 
 void PoLinUcbModel::Replay(const std::vector<Round>& rounds) {
   if (rounds.empty()) return;
+  // The factors gain the rounds first (they read the context models' rows
+  // as they are), unless the pooled model would pass its threshold: the
+  // factors of that many rounds would soon go.
+  if (factors_.on) {
+    if (pooled_.TotalRounds() + static_cast<int64_t>(rounds.size()) >=
+        pooled_.primal_threshold()) {
+      DropFactors();
+    } else {
+      ExtendFactors(rounds);
+    }
+  }
   const ContextRounds split = SplitRounds(rounds);
   for (const Round& round : rounds) AddSums(round);
   contexts_.Replay(split.per_action);
   pooled_.Replay(split.pooled);
+  if (factors_.on && !AllDual()) DropFactors();
   Recompute();
 }
 
@@ -268,6 +550,13 @@ absl::StatusOr<PoLinUcbModel> PoLinUcbModel::Rebuild(
   }
   model.contexts_ = std::move(context_model);
   model.pooled_ = std::move(pooled_model);
+  // The factors from the rounds themselves (empty factors read no rows),
+  // when every context model is dual.
+  if (model.AllDual()) {
+    if (!rounds.empty()) model.ExtendFactors(rounds);
+  } else {
+    model.DropFactors();
+  }
   model.Recompute();
   return model;
 }
@@ -286,9 +575,23 @@ size_t PoLinUcbModel::MemoryBytes() const {
         static_cast<size_t>(s.e.size() + s.g.size() + s.theta_c.size() +
                             2 * s.p.size() + s.bp.size() + s.beta.size());
   }
-  return contexts_.MemoryBytes() + pooled_.MemoryBytes() +
+  return contexts_.MemoryBytes() + pooled_.MemoryBytes() + FactorBytes() +
          doubles * sizeof(double) + sizeof(*this) +
          actions_.size() * sizeof(ActionState);
+}
+
+size_t PoLinUcbModel::FactorBytes() const {
+  size_t doubles = factors_.pooled.CapacityDoubles();
+  size_t ints = 0;
+  for (size_t a = 0; a < factors_.per_action.size(); ++a) {
+    doubles +=
+        factors_.per_action[a].CapacityDoubles() + factors_.scale[a].capacity();
+    ints += factors_.row[a].capacity();
+  }
+  return doubles * sizeof(double) + ints * sizeof(int) +
+         factors_.per_action.size() *
+             (sizeof(GrowingLower) + sizeof(std::vector<int>) +
+              sizeof(std::vector<double>));
 }
 
 size_t PoLinUcbModel::StateBytesBound() const {
@@ -319,6 +622,21 @@ void PoLinUcbModel::SaveState(std::string* state) const {
     out.Doubles(s.p.data(), s.p.size());
     out.Doubles(s.bp.data(), s.bp.size());
   }
+  // Format 2: the pooled factors, if on: per action its rows' pooled
+  // indices and 1 / sqrt(w), then L_X and every L_a row by row.
+  out.Value(static_cast<int32_t>(factors_.on));
+  if (factors_.on) {
+    for (size_t a = 0; a < actions_.size(); ++a) {
+      out.Value(static_cast<int32_t>(factors_.row[a].size()));
+      for (int i : factors_.row[a]) out.Value(static_cast<int32_t>(i));
+      out.Doubles(factors_.scale[a].data(), factors_.scale[a].size());
+    }
+    auto lower = [&out](const GrowingLower& l) {
+      for (int i = 0; i < l.rows(); ++i) out.Doubles(l.Row(i), i + 1);
+    };
+    lower(factors_.pooled);
+    for (const GrowingLower& l : factors_.per_action) lower(l);
+  }
   out.Value(static_cast<uint64_t>(contexts.size()));
   out.Value(static_cast<uint64_t>(pooled.size()));
   std::string head = out.Take();
@@ -331,7 +649,9 @@ absl::StatusOr<PoLinUcbModel> PoLinUcbModel::LoadState(
     const BanditConfig& config, absl::string_view state, int primal_threshold) {
   ASSIGN_OR_RETURN(PoLinUcbModel model, Create(config, primal_threshold));
   StateReader in(state);
-  RETURN_IF_ERROR(ReadStateHeader(in, kStateHeader));
+  int32_t format = 0;
+  RETURN_IF_ERROR(
+      ReadStateHeader(in, kStateHeader, kOldestStateFormat, &format));
   int32_t d = 0, q = 0, k = 0;
   double ridge = 0;
   RETURN_IF_ERROR(in.Value(&d, "the header"));
@@ -361,6 +681,61 @@ absl::StatusOr<PoLinUcbModel> PoLinUcbModel::LoadState(
     RETURN_IF_ERROR(in.Doubles(s.p.data(), s.p.size(), "an action's P"));
     RETURN_IF_ERROR(in.Doubles(s.bp.data(), s.bp.size(), "an action's r"));
   }
+  // Format 1 has no factors: the model answers from the pooled model's rows
+  // (which a state of that format has no order of rounds to rebuild them
+  // from) until it would have dropped them.
+  int32_t factors_on = 0;
+  if (format >= 2) RETURN_IF_ERROR(in.Value(&factors_on, "the factors"));
+  if (factors_on != 0) {
+    int64_t total = 0;
+    for (size_t a = 0; a < model.actions_.size(); ++a) {
+      int32_t rows = 0;
+      RETURN_IF_ERROR(in.Value(&rows, "the factors"));
+      if (rows < 0 || static_cast<size_t>(rows) > in.left() / sizeof(int32_t)) {
+        return absl::DataLossError("model state: truncated in the factors");
+      }
+      total += rows;
+      std::vector<int>& row = model.factors_.row[a];
+      row.resize(rows);
+      for (int& i : row) {
+        int32_t v = 0;
+        RETURN_IF_ERROR(in.Value(&v, "the factors"));
+        i = v;
+      }
+      std::vector<double>& scale = model.factors_.scale[a];
+      if (static_cast<size_t>(rows) > in.left() / sizeof(double)) {
+        return absl::DataLossError("model state: truncated in the factors");
+      }
+      scale.resize(rows);
+      RETURN_IF_ERROR(in.Doubles(scale.data(), scale.size(), "the factors"));
+    }
+    // Every pooled row belongs to one action's row, in order within each.
+    std::vector<char> seen(static_cast<size_t>(total), 0);
+    for (const std::vector<int>& row : model.factors_.row) {
+      for (size_t i = 0; i < row.size(); ++i) {
+        if (row[i] < 0 || row[i] >= total || seen[row[i]] != 0 ||
+            (i > 0 && row[i] <= row[i - 1])) {
+          return absl::DataLossError("model state: the factors' rows disagree");
+        }
+        seen[row[i]] = 1;
+      }
+    }
+    auto lower = [&in](GrowingLower& l, int64_t rows) -> absl::Status {
+      for (int64_t i = 0; i < rows; ++i) {
+        if (static_cast<size_t>(i + 1) > in.left() / sizeof(double)) {
+          return absl::DataLossError("model state: truncated in a factor");
+        }
+        RETURN_IF_ERROR(in.Doubles(l.AppendRow(), i + 1, "a factor"));
+      }
+      return absl::OkStatus();
+    };
+    RETURN_IF_ERROR(lower(model.factors_.pooled, total));
+    for (size_t a = 0; a < model.actions_.size(); ++a) {
+      RETURN_IF_ERROR(
+          lower(model.factors_.per_action[a],
+                static_cast<int64_t>(model.factors_.row[a].size())));
+    }
+  }
   uint64_t contexts_bytes = 0, pooled_bytes = 0;
   RETURN_IF_ERROR(in.Value(&contexts_bytes, "the context models' sizes"));
   RETURN_IF_ERROR(in.Value(&pooled_bytes, "the context models' sizes"));
@@ -378,6 +753,21 @@ absl::StatusOr<PoLinUcbModel> PoLinUcbModel::LoadState(
       model.pooled_,
       LinUcbModel::LoadState(PooledConfig(config), rest.substr(contexts_bytes),
                              primal_threshold));
+  if (factors_on == 0) {
+    model.DropFactors();
+  } else {
+    // The factors must be of these context models, all dual.
+    bool agree = model.AllDual() &&
+                 model.factors_.pooled.rows() == model.pooled_.TotalRounds();
+    for (int a = 0; agree && a < model.num_actions(); ++a) {
+      agree = static_cast<int64_t>(model.factors_.row[a].size()) ==
+              model.contexts_.Count(a);
+    }
+    if (!agree) {
+      return absl::DataLossError(
+          "model state: the pooled factors disagree with the context models");
+    }
+  }
   for (ActionState& s : model.actions_) model.Refresh(s);
   return model;
 }

@@ -24,12 +24,26 @@
 // term per round; X^-1 lives in a second context-only model with one
 // action that every round feeds.
 //
+// While that pooled model and every action's C_a are in dual form, a
+// Select does not pass over the pooled model's rows: with R the rounds'
+// raw contexts (weight 1, in arrival order) and L_X the Cholesky factor of
+// lambda_c I + R R^T, c^T X^-1 c = (|c|^2 - |u|^2) / lambda_c with
+// u = L_X^-1 R c, and R c comes from the per-action passes the Select
+// makes anyway: action a's rows sqrt(w) c_i = (L_a W_a)_i, so its part of
+// R c is D_a^-1/2 L_a (W_a c), with L_a the Cholesky factor of
+// lambda I + C_a C_a^T (the dual form's, which LinUcbModel does not keep).
+// The model keeps L_X and every L_a (n x n triangles, grown a row per
+// round from the Select's products) and which pooled row each action's
+// row is; u is also the pooled model's own Select product W_X c, so its
+// Update reuses it. Once any of the context models turns primal, they go.
+//
 // Thread-compatible: const methods may run concurrently; Update needs
 // exclusive access.
 #ifndef BITEWISE_SERVICES_BANDIT_CORE_POLINUCB_H_
 #define BITEWISE_SERVICES_BANDIT_CORE_POLINUCB_H_
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -43,6 +57,41 @@
 #include "services/bandit/core/linucb.h"
 
 namespace bitewise::bandit {
+
+// A lower-triangular matrix grown a row at a time, in blocks of kBlockRows
+// rows that never move: the block of rows [s, s + B) is a row-major
+// B x (s + B) rectangle (its entries right of the diagonal unused), so the
+// part left of the block's diagonal is read as one matrix.
+class GrowingLower {
+ public:
+  static constexpr int kBlockRows = 64;
+
+  GrowingLower() = default;
+  GrowingLower(GrowingLower&&) = default;
+  GrowingLower& operator=(GrowingLower&&) = default;
+
+  int rows() const { return rows_; }
+  // Room for row rows() (its rows() + 1 entries up to the diagonal), which
+  // counts from now on.
+  double* AppendRow();
+  const double* Row(int i) const;
+  // L x for x of rows() values, and for rows() x k.
+  Eigen::VectorXd Times(const Eigen::Ref<const Eigen::VectorXd>& x) const;
+  Eigen::MatrixXd TimesMatrix(const Eigen::Ref<const Eigen::MatrixXd>& x) const;
+  // L^-1 k (forward substitution), and for rows() x k.
+  Eigen::VectorXd Solve(const Eigen::Ref<const Eigen::VectorXd>& k) const;
+  Eigen::MatrixXd SolveMatrix(const Eigen::Ref<const Eigen::MatrixXd>& k) const;
+  size_t CapacityDoubles() const;
+
+ private:
+  using Block = Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic,
+                                               Eigen::Dynamic, Eigen::RowMajor>,
+                           0, Eigen::OuterStride<>>;
+  // Block b's rows in use.
+  Block BlockAt(int b) const;
+  std::vector<std::unique_ptr<double[]>> blocks_;
+  int rows_ = 0;
+};
 
 class PoLinUcbModel final : public LearnerModel {
  public:
@@ -96,6 +145,9 @@ class PoLinUcbModel final : public LearnerModel {
   int64_t TotalRounds() const override { return contexts_.TotalRounds(); }
   const InputScale& input_scale() const override { return scale_; }
   size_t MemoryBytes() const override;
+  // Whether the pooled radius comes from the factors (see the top of this
+  // file) rather than from a pass over the pooled model's form.
+  bool UsesPooledFactors() const { return factors_.on; }
 
   // The whole state, as LinUcbModel's: LoadState restores this model bit
   // for bit. FAILED_PRECONDITION for a state of another configuration,
@@ -130,10 +182,36 @@ class PoLinUcbModel final : public LearnerModel {
   void Recompute();
   // Adds a round's sums (E, P, bp, the pooled sums and the scale).
   void AddSums(const Round& round);
-  // With `products`, the pooled model's Select products go there.
-  Eigen::VectorXd PredictPosthoc(const Eigen::Ref<const Eigen::VectorXd>& c,
-                                 double* radius,
-                                 SelectProducts* products) const;
+  // sqrt(c^T X^-1 c). With `context_products` (the context models' Select
+  // products at c, of this state) the factors need no pass over any rows;
+  // with `pooled_products`, the pooled model's Select products go there.
+  double PooledWidth(const Eigen::Ref<const Eigen::VectorXd>& c,
+                     const SelectProducts* context_products,
+                     SelectProducts* pooled_products) const;
+  // Whether every context model's action is in dual form.
+  bool AllDual() const;
+  // R c from the per-action products W_a c (`v`, one per action).
+  Eigen::VectorXd PooledKernel(const std::vector<Eigen::VectorXd>& v) const;
+  // The factors gain `rounds`, before the context models do: from the
+  // context models' rows as they are (none read when the factors are
+  // empty, as in Rebuild).
+  void ExtendFactors(const std::vector<Round>& rounds);
+  // The factors gain one round from W_a c (`v`, before the round, of the
+  // round's action) and u = L_X^-1 R c.
+  void GrowFactors(const Round& round, const Eigen::VectorXd& v,
+                   const Eigen::VectorXd& u);
+  void DropFactors() { factors_ = PooledFactors(); }
+  size_t FactorBytes() const;
+
+  // L_X, every L_a and the map between them (see the top of this file);
+  // `on` while every context model's action is dual (and from Create).
+  struct PooledFactors {
+    bool on = false;
+    GrowingLower pooled;                     // L_X, rows in arrival order
+    std::vector<GrowingLower> per_action;    // L_a
+    std::vector<std::vector<int>> row;       // per action: its pooled rows
+    std::vector<std::vector<double>> scale;  // per action: 1 / sqrt(w)
+  };
 
   BanditConfig config_;
   int d_ = 0;
@@ -143,6 +221,7 @@ class PoLinUcbModel final : public LearnerModel {
   std::vector<ActionState> actions_;
   Eigen::MatrixXd s_cp_;   // sum c p^T over every round (d x q)
   Eigen::MatrixXd q_map_;  // X^-1 s_cp (d x q): p_hat(c) = q_map^T c
+  PooledFactors factors_;
   InputScale scale_;
 };
 
