@@ -705,12 +705,17 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
     text = absl::StrFormat("It felt %s (%.0f%% sure).", summary->label(),
                            100.0 * summary->probability());
     if (haptic->unfamiliar() && options_.posthoc != PosthocMode::kNone) {
+      const domain::UnfamiliarPosthoc rule = options_.unfamiliar_posthoc;
       absl::StrAppendFormat(
           &text,
           " The trace is unlike those HapticNet was trained on (familiarity "
-          "%.3f), so the bandit is sent %s post hoc context.",
+          "%.3f); %s.",
           haptic->familiarity(),
-          domain::UnfamiliarPosthocName(options_.unfamiliar_posthoc));
+          rule == domain::UnfamiliarPosthoc::kAsIs
+              ? "its answer is still sent as it is, which measured best"
+          : rule == domain::UnfamiliarPosthoc::kUniform
+              ? "the bandit is sent flattened (uniform) post hoc context"
+              : "the bandit is sent no post hoc context");
     }
     // An answer given while the trace was being classified is saved now.
     if (!bite->answer().empty() && update_.has_value()) answered = *update_;

@@ -155,9 +155,9 @@ class MealTest : public SharedFourServicesTest<MealTest> {
   RecordingListener listener_;
 };
 
-// A HapticService that calls (nearly) every trace unfamiliar: the bite's
-// post hoc context is flattened to the uniform log-probabilities, and the
-// person is told why (MealOptions::unfamiliar_posthoc's default).
+// A HapticService that calls (nearly) every trace unfamiliar: with
+// --unfamiliar_posthoc=uniform the bite's post hoc context is flattened to
+// the uniform log-probabilities, and the person is told why.
 TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
   FourServicesOptions service_options;
   service_options.foods = {"carrot", "banana"};
@@ -171,7 +171,10 @@ TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
   MealOptions options;
   options.user_id = "unfamiliar-user";
   options.meal_id = "lunch";
-  ASSERT_EQ(options.unfamiliar_posthoc, domain::UnfamiliarPosthoc::kUniform);
+  // The default sends HapticNet's answer as it is (measured); this test
+  // checks the flattening path the flag chooses.
+  EXPECT_EQ(options.unfamiliar_posthoc, domain::UnfamiliarPosthoc::kAsIs);
+  options.unfamiliar_posthoc = domain::UnfamiliarPosthoc::kUniform;
   RecordingListener listener;
   Meal meal(&clients, &journal, options, &listener);
   ASSERT_OK(meal.LookAtPlate());
@@ -179,7 +182,7 @@ TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
   bool told = false;
   for (const mealpb::BiteEvent& e : listener.events()) {
     told = told || (e.step() == mealpb::STEP_CLASSIFY &&
-                    absl::StrContains(e.text(), "sent uniform post hoc"));
+                    absl::StrContains(e.text(), "sent flattened (uniform)"));
   }
   EXPECT_TRUE(told);
   v1::ListEventsRequest request;
