@@ -101,20 +101,24 @@ const char* HapticContextName(HapticContext kind) {
 }
 
 std::vector<double> PosthocContext(
-    const haptic::HapticClassification& classification, HapticContext kind) {
+    const haptic::HapticClassification& classification, HapticContext kind,
+    domain::UnfamiliarPosthoc unfamiliar) {
+  const bool flagged =
+      classification.has_familiarity && classification.familiarity.unfamiliar;
   switch (kind) {
     case HapticContext::kLogProbabilities:
-      return {classification.log_probabilities.begin(),
-              classification.log_probabilities.end()};
+      return domain::PosthocContext(classification.log_probabilities,
+                                    /*log_form=*/true, flagged, unfamiliar);
     case HapticContext::kProbabilities:
-      return {classification.probabilities.begin(),
-              classification.probabilities.end()};
+      return domain::PosthocContext(classification.probabilities,
+                                    /*log_form=*/false, flagged, unfamiliar);
     case HapticContext::kOneHot:
       break;
   }
   std::vector<double> one_hot(haptic::kHapticClasses, 0.0);
   one_hot[static_cast<int>(classification.category)] = 1.0;
-  return one_hot;
+  return domain::PosthocContext(one_hot, /*log_form=*/false, flagged,
+                                unfamiliar);
 }
 
 absl::Status ValidateSimMealsConfig(const SimMealsConfig& config) {
@@ -199,8 +203,27 @@ absl::StatusOr<std::unique_ptr<SimMealsSimulator>> SimMealsSimulator::Create(
           : haptic::HapticNet::FromOnnxFile(onnx_path));
   const haptic::HapticPipelineOptions options;  // the service's defaults
   RETURN_IF_ERROR(haptic::ValidatePipelineOptions(options));
+  std::unique_ptr<haptic::FamiliarityModel> familiarity;
+  if (onnx_path.empty()) {
+    ASSIGN_OR_RETURN(haptic::FamiliarityModel model,
+                     haptic::FamiliarityModel::FromText(
+                         haptic::DefaultHapticFamiliarity(),
+                         haptic::kDefaultHapticFamiliaritySource));
+    familiarity = std::make_unique<haptic::FamiliarityModel>(std::move(model));
+  } else {
+    absl::StatusOr<haptic::FamiliarityModel> model =
+        haptic::FamiliarityModel::FromFile(
+            haptic::FamiliarityPathFor(onnx_path));
+    if (model.ok()) {
+      familiarity =
+          std::make_unique<haptic::FamiliarityModel>(std::move(model).value());
+    } else if (!absl::IsNotFound(model.status())) {
+      return model.status();
+    }
+  }
   return std::make_unique<SimMealsSimulator>(
-      std::make_unique<haptic::HapticClassifier>(std::move(net), options),
+      std::make_unique<haptic::HapticClassifier>(std::move(net), options,
+                                                 std::move(familiarity)),
       std::move(featurizer));
 }
 
@@ -357,7 +380,8 @@ bandit::BanditConfig SimUserConfig(const SimMealsConfig& config,
 absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
                                        HapticContext kind, uint64_t seed,
                                        int64_t first_round,
-                                       bandit::LearnerModel& model) {
+                                       bandit::LearnerModel& model,
+                                       domain::UnfamiliarPosthoc unfamiliar) {
   const bandit::BanditConfig& bandit_config = model.config();
   SimMealRun run;
   double failures = 0.0;
@@ -378,7 +402,7 @@ absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
     round.action = choice.action;
     round.loss = failed ? 1.0 : 0.0;
     if (bandit::UsesPosthoc(bandit_config.learner)) {
-      round.posthoc = PosthocContext(attempt.haptic, kind);
+      round.posthoc = PosthocContext(attempt.haptic, kind, unfamiliar);
     }
     RETURN_IF_ERROR(model.ValidateRound(round));
     model.Update(round);
@@ -403,7 +427,8 @@ absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
       bandit::CreateModel(SimUserConfig(
           config, learner, strategy,
           static_cast<int>(world.attempts.front().context.size()), seed)));
-  return PlaySimMeal(world, kind, seed, /*first_round=*/0, *model);
+  return PlaySimMeal(world, kind, seed, /*first_round=*/0, *model,
+                     config.unfamiliar_posthoc);
 }
 
 std::vector<double> OracleExpectedFailures(const SimMealWorld& world) {

@@ -28,6 +28,7 @@
 #include "absl/status/statusor.h"
 #include "services/bandit/core/config.h"
 #include "services/bandit/core/learner_model.h"
+#include "services/domain/posthoc_context.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/perception/default_featurizer.h"
 #include "services/perception/featurizer.h"
@@ -55,9 +56,13 @@ enum class HapticContext {
 };
 // "logprob", "prob", "onehot".
 const char* HapticContextName(HapticContext kind);
-// The 4-vector p for `classification` in the form `kind`.
+// The 4-vector p for `classification` in the form `kind`. When the trace was
+// scored unfamiliar, `unfamiliar` decides what is sent instead, as the
+// orchestrator does (domain::PosthocContext; the one-hot form flattens to
+// 1/4 each, or 0).
 std::vector<double> PosthocContext(
-    const haptic::HapticClassification& classification, HapticContext kind);
+    const haptic::HapticClassification& classification, HapticContext kind,
+    domain::UnfamiliarPosthoc unfamiliar = domain::UnfamiliarPosthoc::kAsIs);
 
 // In which order a trial's attempts visit the foods.
 enum class MealOrder {
@@ -115,6 +120,12 @@ struct SimMealsConfig {
   // attempt). A story trace the haptic pipeline rejects (a soft item too
   // weak to register contact) is drawn again.
   std::string trace_story = "world";
+  // What the post hoc learners are given for an attempt whose trace the
+  // familiarity model calls unfamiliar (as the orchestrator:
+  // domain::kDefaultUnfamiliarPosthoc). Without a familiarity model no
+  // trace is unfamiliar.
+  domain::UnfamiliarPosthoc unfamiliar_posthoc =
+      domain::kDefaultUnfamiliarPosthoc;
 };
 
 // The lambda_c the learners use under `config` (see SimMealsConfig).
@@ -165,7 +176,9 @@ class SimMealsSimulator {
 
   // The HapticService's classifier with its default pipeline options and the
   // model in `onnx_path`, or the embedded models/hapticnet/hapticnet.onnx
-  // when `onnx_path` is empty; the SPANet featurizer from `spanet_model`
+  // when `onnx_path` is empty, with its familiarity model as the service
+  // loads it (the embedded one, or "<onnx_path>.familiarity" when that file
+  // exists); the SPANet featurizer from `spanet_model`
   // (with its "<model>.stats" context scale), or the default featurizer when
   // empty. Errors from loading either model.
   static absl::StatusOr<std::unique_ptr<SimMealsSimulator>> Create(
@@ -216,11 +229,14 @@ bandit::BanditConfig SimUserConfig(const SimMealsConfig& config,
 // Plays `world` on an existing user's `model` (which keeps learning across
 // meals), as RunSimMealTrial does. `seed` and `first_round` seed the
 // Select generator per round.
-absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
-                                       HapticContext kind, uint64_t seed,
-                                       int64_t first_round,
-                                       bandit::LearnerModel& model);
+// `unfamiliar`: what an unfamiliar attempt's post hoc context becomes.
+absl::StatusOr<SimMealRun> PlaySimMeal(
+    const SimMealWorld& world, HapticContext kind, uint64_t seed,
+    int64_t first_round, bandit::LearnerModel& model,
+    domain::UnfamiliarPosthoc unfamiliar = domain::UnfamiliarPosthoc::kAsIs);
 
+// Post hoc learners treat unfamiliar attempts as config.unfamiliar_posthoc
+// says.
 absl::StatusOr<SimMealRun> RunSimMealTrial(
     const SimMealsConfig& config, const SimMealWorld& world,
     bandit::Learner learner, HapticContext kind, uint64_t seed,

@@ -53,6 +53,14 @@ ABSL_FLAG(std::string, trace_story, "world",
           "Where the attempts' force/torque traces come from: world (the "
           "simulated robot's model) or a trace story HapticNet may never "
           "have seen: piecewise, mechanics, compliant.");
+ABSL_FLAG(std::string, unfamiliar_posthoc,
+          bitewise::domain::UnfamiliarPosthocName(
+              bitewise::domain::kDefaultUnfamiliarPosthoc),
+          "What the post hoc learners get for an attempt whose trace is "
+          "scored unfamiliar: asis (HapticNet's answer), uniform (flattened) "
+          "or zero (no post hoc context). Every run also plays post hoc "
+          "LinUCB (logprob) under each of the three, paired with "
+          "context-only.");
 ABSL_FLAG(uint64_t, seed, 1,
           "Base seed; trial i uses a seed mixed from (seed, i).");
 ABSL_FLAG(std::string, haptic_model, "",
@@ -85,6 +93,8 @@ struct LearnerSpec {
   int baseline;  // the context-only spec it is paired with; -1: none
   // A second spec it is paired with (printed only); -1: none.
   int versus = -1;
+  // What it gets for unfamiliar attempts; -1: --unfamiliar_posthoc.
+  int unfamiliar = -1;
 };
 
 std::vector<LearnerSpec> Learners() {
@@ -108,6 +118,18 @@ std::vector<LearnerSpec> Learners() {
   specs.push_back({"poLinUCB (logprob)", "polinucb_logprob",
                    bandit::Learner::kPoLinUcb, HapticContext::kLogProbabilities,
                    bandit::Strategy::kLinUcb, 0, 1});
+  // The choice of what an unfamiliar attempt sends (docs/experiments.md,
+  // "Unfamiliar traces"), each paired with context-only.
+  for (domain::UnfamiliarPosthoc rule :
+       {domain::UnfamiliarPosthoc::kAsIs, domain::UnfamiliarPosthoc::kUniform,
+        domain::UnfamiliarPosthoc::kZero}) {
+    specs.push_back(
+        {absl::StrCat("post hoc, unfam. ", domain::UnfamiliarPosthocName(rule)),
+         absl::StrCat("posthoc_logprob_unfamiliar_",
+                      domain::UnfamiliarPosthocName(rule)),
+         bandit::Learner::kPostHoc, HapticContext::kLogProbabilities,
+         bandit::Strategy::kLinUcb, 0, -1, static_cast<int>(rule)});
+  }
   return specs;
 }
 constexpr int kLinUcbLearners = 1 + kHapticContexts.size();
@@ -125,6 +147,16 @@ int Run() {
   config.haptic_accuracy = absl::GetFlag(FLAGS_haptic_accuracy);
   config.trace_story = absl::GetFlag(FLAGS_trace_story);
   config.lambda_p = absl::GetFlag(FLAGS_lambda_p);
+  {
+    absl::StatusOr<domain::UnfamiliarPosthoc> rule =
+        domain::ParseUnfamiliarPosthoc(absl::GetFlag(FLAGS_unfamiliar_posthoc));
+    if (!rule.ok()) {
+      absl::FPrintF(stderr, "--unfamiliar_posthoc: %s\n",
+                    rule.status().message());
+      return 2;
+    }
+    config.unfamiliar_posthoc = *rule;
+  }
   const std::string order = absl::GetFlag(FLAGS_order);
   if (order == "shuffled") {
     config.order = MealOrder::kShuffled;
@@ -185,6 +217,9 @@ int Run() {
   std::vector<std::vector<double>> failures_by_food(
       kLearners, std::vector<double>(num_foods, 0.0));
   int64_t haptic_correct = 0, haptic_total = 0;
+  // Attempts scored unfamiliar, and how many of them HapticNet got right.
+  int64_t unfamiliar_total = 0, unfamiliar_correct = 0;
+  bool scored = false;
   int plate_redraws = 0;
   // Scale of what the learners see, against the ridges: mean squared norm
   // of the visual context and of each form of the haptic context.
@@ -203,12 +238,20 @@ int Run() {
     }
     plate_redraws += world->plate_redraws;
     for (const SimAttempt& attempt : world->attempts) {
-      haptic_correct += static_cast<int>(attempt.haptic.category) ==
-                        static_cast<int>(foods[attempt.food]->category);
+      const bool correct = static_cast<int>(attempt.haptic.category) ==
+                           static_cast<int>(foods[attempt.food]->category);
+      haptic_correct += correct;
       ++haptic_total;
+      scored = scored || attempt.haptic.has_familiarity;
+      if (attempt.haptic.has_familiarity &&
+          attempt.haptic.familiarity.unfamiliar) {
+        ++unfamiliar_total;
+        unfamiliar_correct += correct;
+      }
       for (double v : attempt.context) context_norm2 += v * v;
       for (size_t v = 0; v < kHapticContexts.size(); ++v) {
-        for (double x : PosthocContext(attempt.haptic, kHapticContexts[v])) {
+        for (double x : PosthocContext(attempt.haptic, kHapticContexts[v],
+                                       config.unfamiliar_posthoc)) {
           posthoc_norm2[v] += x * x;
         }
       }
@@ -217,8 +260,13 @@ int Run() {
     uniform.push_back(UniformExpectedFailures(*world));
     for (int learner = 0; learner < kLearners; ++learner) {
       const LearnerSpec& spec = learners[learner];
+      SimMealsConfig learner_config = config;
+      if (spec.unfamiliar >= 0) {
+        learner_config.unfamiliar_posthoc =
+            static_cast<domain::UnfamiliarPosthoc>(spec.unfamiliar);
+      }
       absl::StatusOr<SimMealRun> run = RunSimMealTrial(
-          config, *world, spec.learner, spec.kind, seed, spec.strategy);
+          learner_config, *world, spec.learner, spec.kind, seed, spec.strategy);
       if (!run.ok()) {
         absl::FPrintF(stderr, "trial %d, %s: %s\n", trial, spec.label,
                       run.status().ToString());
@@ -317,6 +365,23 @@ int Run() {
       plate_redraws, plate_redraws + trials * ResolvedPlatesPerTrial(config));
   absl::PrintF("HapticNet category accuracy on the attempts' traces: %.2f%%\n",
                100.0 * haptic_correct / haptic_total);
+  if (scored) {
+    absl::PrintF(
+        "attempts scored unfamiliar: %.2f%% (HapticNet right on %.2f%% of "
+        "them, %.2f%% of the others); post hoc learners given %s for them "
+        "(--unfamiliar_posthoc)\n",
+        100.0 * unfamiliar_total / haptic_total,
+        unfamiliar_total > 0 ? 100.0 * unfamiliar_correct / unfamiliar_total
+                             : 0.0,
+        haptic_total > unfamiliar_total
+            ? 100.0 * (haptic_correct - unfamiliar_correct) /
+                  (haptic_total - unfamiliar_total)
+            : 0.0,
+        domain::UnfamiliarPosthocName(config.unfamiliar_posthoc));
+  } else {
+    absl::PrintF("no familiarity score (no familiarity model beside %s)\n",
+                 absl::GetFlag(FLAGS_haptic_model));
+  }
   absl::PrintF(
       "mean squared norm: visual context (d_c = %d) %.2f; haptic context "
       "logprob %.1f, prob %.3f, onehot %.3f\n",

@@ -694,17 +694,29 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
                                  ? haptic->probabilities(category - 1)
                                  : 0.0);
     *summary->mutable_probabilities() = haptic->probabilities();
-    if (update_.has_value()) {
-      if (options_.posthoc == PosthocMode::kLogProbabilities) {
-        update_->posthoc.assign(haptic->log_probabilities().begin(),
-                                haptic->log_probabilities().end());
-      } else if (options_.posthoc == PosthocMode::kProbabilities) {
-        update_->posthoc.assign(haptic->probabilities().begin(),
-                                haptic->probabilities().end());
-      }
+    if (update_.has_value() && options_.posthoc != PosthocMode::kNone) {
+      const bool log_form = options_.posthoc == PosthocMode::kLogProbabilities;
+      const auto& answer =
+          log_form ? haptic->log_probabilities() : haptic->probabilities();
+      update_->posthoc = domain::PosthocContext(
+          std::vector<double>(answer.begin(), answer.end()), log_form,
+          haptic->unfamiliar(), options_.unfamiliar_posthoc);
     }
     text = absl::StrFormat("It felt %s (%.0f%% sure).", summary->label(),
                            100.0 * summary->probability());
+    if (haptic->unfamiliar() && options_.posthoc != PosthocMode::kNone) {
+      const domain::UnfamiliarPosthoc rule = options_.unfamiliar_posthoc;
+      absl::StrAppendFormat(
+          &text,
+          " The trace is unlike those HapticNet was trained on (familiarity "
+          "%.3f); %s.",
+          haptic->familiarity(),
+          rule == domain::UnfamiliarPosthoc::kAsIs
+              ? "its answer is still sent as it is, which measured best"
+          : rule == domain::UnfamiliarPosthoc::kUniform
+              ? "the bandit is sent flattened (uniform) post hoc context"
+              : "the bandit is sent no post hoc context");
+    }
     // An answer given while the trace was being classified is saved now.
     if (!bite->answer().empty() && update_.has_value()) answered = *update_;
   }

@@ -46,6 +46,7 @@
 #include "clients/meal/service_clients.h"
 #include "clients/meal/trace_recording.h"
 #include "clients/meal/update_journal.h"
+#include "services/domain/posthoc_context.h"
 
 namespace bitewise::meals {
 
@@ -65,6 +66,12 @@ struct MealOptions {
   std::string user_id = "demo-user";
   std::string meal_id = "meal-1";
   PosthocMode posthoc = PosthocMode::kLogProbabilities;
+  // What a bite whose trace the HapticService calls unfamiliar sends as its
+  // post hoc context (services/domain/posthoc_context.h; measured in
+  // docs/experiments.md, "Unfamiliar traces"). A service without a
+  // familiarity model never calls a trace unfamiliar.
+  domain::UnfamiliarPosthoc unfamiliar_posthoc =
+      domain::kDefaultUnfamiliarPosthoc;
   // For a NEW user: LEARNER_UNSPECIFIED picks poLinUCB, or the
   // context-only learner with PosthocMode::kNone (ParseLearner).
   v1::Learner learner = v1::LEARNER_UNSPECIFIED;

@@ -55,6 +55,12 @@ ABSL_FLAG(std::string, posthoc, "logprob",
           "Post hoc context sent to the bandit: logprob (as the original "
           "research code), prob (as the paper's text) or none (vision only; "
           "new users get the context-only learner).");
+ABSL_FLAG(std::string, unfamiliar_posthoc,
+          bitewise::domain::UnfamiliarPosthocName(
+              bitewise::domain::kDefaultUnfamiliarPosthoc),
+          "Post hoc context of a bite whose trace the HapticService calls "
+          "unfamiliar: uniform (flattened), zero (none) or asis (HapticNet's "
+          "answer); docs/experiments.md, \"Unfamiliar traces\".");
 ABSL_FLAG(std::string, journal, "bitewise-orchestrator.journal",
           "File of updates not yet delivered to the BanditService.");
 ABSL_FLAG(int, deadline_ms, 10000, "Deadline of every unary call.");
@@ -225,6 +231,17 @@ int main(int argc, char** argv) {
                                          : meals::PosthocMode::kNone;
   options.confirm = confirm == "operator" ? meals::ConfirmBy::kOperator
                                           : meals::ConfirmBy::kRobot;
+  {
+    absl::StatusOr<bitewise::domain::UnfamiliarPosthoc> rule =
+        bitewise::domain::ParseUnfamiliarPosthoc(
+            absl::GetFlag(FLAGS_unfamiliar_posthoc));
+    if (!rule.ok()) {
+      std::fprintf(stderr, "--unfamiliar_posthoc: %s\n",
+                   std::string(rule.status().message()).c_str());
+      return 2;
+    }
+    options.unfamiliar_posthoc = *rule;
+  }
   absl::StatusOr<bitewise::v1::Learner> learner =
       meals::ParseLearner(absl::GetFlag(FLAGS_learner), options.posthoc);
   if (!learner.ok()) {

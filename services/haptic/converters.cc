@@ -43,6 +43,10 @@ void ClassificationToProto(const HapticClassification& result,
   response->set_contact_time_s(result.contact_time_s);
   response->set_peak_force_n(result.peak_force_n);
   response->set_model_fingerprint(model_fingerprint);
+  if (result.has_familiarity) {
+    response->set_familiarity(result.familiarity.familiarity);
+    response->set_unfamiliar(result.familiarity.unfamiliar);
+  }
 }
 
 }  // namespace bitewise::haptic

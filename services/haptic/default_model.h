@@ -16,6 +16,13 @@ absl::string_view DefaultHapticNetOnnx();
 constexpr char kDefaultHapticNetSource[] =
     "<embedded models/hapticnet/hapticnet.onnx>";
 
+// The familiarity model fitted with it,
+// models/hapticnet/hapticnet.onnx.familiarity (core/familiarity.h).
+absl::string_view DefaultHapticFamiliarity();
+
+constexpr char kDefaultHapticFamiliaritySource[] =
+    "<embedded models/hapticnet/hapticnet.onnx.familiarity>";
+
 }  // namespace bitewise::haptic
 
 #endif  // BITEWISE_SERVICES_HAPTIC_DEFAULT_MODEL_H_

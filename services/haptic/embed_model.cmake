@@ -1,5 +1,9 @@
-# Writes a C++ source defining bitewise::haptic::DefaultHapticNetOnnx() from
-# a binary file. Run at build time: cmake -DINPUT=... -DOUTPUT=... -P this.
+# Writes a C++ source defining bitewise::haptic::${FUNCTION}() (default
+# DefaultHapticNetOnnx) from a binary file. Run at build time:
+# cmake -DINPUT=... -DOUTPUT=... [-DFUNCTION=...] -P this.
+if(NOT FUNCTION)
+  set(FUNCTION DefaultHapticNetOnnx)
+endif()
 file(READ "${INPUT}" hex HEX)
 string(LENGTH "${hex}" hex_length)
 math(EXPR size "${hex_length} / 2")
@@ -16,7 +20,7 @@ alignas(16) const unsigned char kModel[${size} + 1] = {
 ${bytes}0};
 }  // namespace
 
-absl::string_view DefaultHapticNetOnnx() {
+absl::string_view ${FUNCTION}() {
   return absl::string_view(reinterpret_cast<const char*>(kModel), ${size});
 }
 

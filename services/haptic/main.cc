@@ -2,16 +2,19 @@
 // nowhere else; everything below main takes Options structs. With no flags
 // it serves the model compiled into the binary on 127.0.0.1:50053.
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
+#include "absl/strings/str_cat.h"
 #include "services/common/flags_usage.h"
 #include "services/common/rpc_environment.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
+#include "services/haptic/core/familiarity.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/core/haptic_net.h"
 #include "services/haptic/default_model.h"
@@ -21,6 +24,12 @@ ABSL_FLAG(std::string, model, "",
           "HapticNet ONNX file. Empty: the model compiled into the binary "
           "(models/hapticnet/hapticnet.onnx). A missing or malformed file "
           "stops the start.");
+ABSL_FLAG(std::string, familiarity, "",
+          "Familiarity model (docs/haptic.md, \"Familiarity\"). Empty: the "
+          "one beside the model, <model>.familiarity (or the compiled-in one "
+          "with the compiled-in model); without that file Classify answers "
+          "carry no familiarity score. \"none\": no score. A named file "
+          "that is missing, or any malformed file, stops the start.");
 ABSL_FLAG(double, tare_s, 0.05,
           "Leading free-motion span (s) whose median is the sensor offset.");
 ABSL_FLAG(double, contact_threshold_n, 1.0,
@@ -38,6 +47,42 @@ namespace {
 
 constexpr char kProgram[] = "bitewise-haptic";
 constexpr int kDefaultPort = 50053;
+
+// The familiarity model the flags ask for, null for none; `described` says
+// which (for the start-up line).
+absl::StatusOr<std::unique_ptr<bitewise::haptic::FamiliarityModel>>
+LoadFamiliarity(const std::string& flag, const std::string& model_path,
+                std::string* described) {
+  using bitewise::haptic::FamiliarityModel;
+  if (flag == "none") {
+    *described = "no familiarity score (--familiarity=none)";
+    return nullptr;
+  }
+  absl::StatusOr<FamiliarityModel> model = absl::InternalError("not loaded");
+  std::string source;
+  if (!flag.empty()) {
+    source = flag;
+    model = FamiliarityModel::FromFile(flag);
+  } else if (model_path.empty()) {
+    source = bitewise::haptic::kDefaultHapticFamiliaritySource;
+    model = FamiliarityModel::FromText(
+        bitewise::haptic::DefaultHapticFamiliarity(), source);
+  } else {
+    source = bitewise::haptic::FamiliarityPathFor(model_path);
+    std::error_code error;
+    if (!std::filesystem::exists(source, error)) {
+      *described =
+          absl::StrCat("no familiarity score: ", source, " does not exist");
+      return nullptr;
+    }
+    model = FamiliarityModel::FromFile(source);
+  }
+  if (!model.ok()) return model.status();
+  *described =
+      absl::StrCat("familiarity ", source, ", threshold ", model->threshold(),
+                   ", fitted on ", model->trained_on());
+  return std::make_unique<FamiliarityModel>(std::move(model).value());
+}
 
 }  // namespace
 
@@ -70,9 +115,17 @@ int main(int argc, char** argv) {
     return bitewise::ReportFatal(kProgram, "cannot load the HapticNet model",
                                  net.status());
   }
+  std::string familiarity_described;
+  absl::StatusOr<std::unique_ptr<bitewise::haptic::FamiliarityModel>>
+      familiarity = LoadFamiliarity(absl::GetFlag(FLAGS_familiarity),
+                                    model_path, &familiarity_described);
+  if (!familiarity.ok()) {
+    return bitewise::ReportFatal(kProgram, "cannot load the familiarity model",
+                                 familiarity.status());
+  }
   const std::string fingerprint = (*net)->fingerprint();
-  const bitewise::haptic::HapticClassifier classifier(std::move(net).value(),
-                                                      options);
+  const bitewise::haptic::HapticClassifier classifier(
+      std::move(net).value(), options, std::move(familiarity).value());
   bitewise::RpcEnvironment env;  // what every call runs with
   bitewise::haptic::HapticServiceImpl service(&env, &classifier);
 
@@ -85,11 +138,11 @@ int main(int argc, char** argv) {
   }
   // Ready: the model is loaded and checked, and the server accepts calls.
   (*server)->SetServing(true);
-  std::fprintf(stderr, "bitewise-haptic: serving on %s (model %s, %s)\n",
+  std::fprintf(stderr, "bitewise-haptic: serving on %s (model %s, %s; %s)\n",
                (*server)->description().c_str(),
                model_path.empty() ? bitewise::haptic::kDefaultHapticNetSource
                                   : model_path.c_str(),
-               fingerprint.c_str());
+               fingerprint.c_str(), familiarity_described.c_str());
   std::fflush(stderr);
   absl::Status status = bitewise::RunUntilSignal(**server);
   if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);

@@ -1,8 +1,10 @@
 // The domain vocabulary every process shares (services/domain): the six
 // skewering actions, the haptic classes' two spellings, the person-id rule,
 // the new user's context ridge and the wrench's channels.
+#include <cmath>
 #include <set>
 #include <string>
+#include <vector>
 
 #include "absl/status/status.h"
 #include "absl/strings/str_cat.h"
@@ -10,6 +12,7 @@
 #include "gtest/gtest.h"
 #include "services/domain/context_ridge.h"
 #include "services/domain/haptic_class.h"
+#include "services/domain/posthoc_context.h"
 #include "services/domain/skewering_actions.h"
 #include "services/domain/user_id.h"
 #include "services/domain/wrench.h"
@@ -96,6 +99,41 @@ TEST(ContextRidgeTest, ExplicitThenScaleRuleThenTheServiceDefault) {
   EXPECT_EQ(NewUserContextRidge(0.0, 3.0, 100.0), 300.0);
   EXPECT_EQ(NewUserContextRidge(0.0, 3.0, 0.0), 0.0);
   EXPECT_EQ(NewUserContextRidge(-1.0, 0.5, 8.0), 4.0);
+}
+
+TEST(PosthocContextTest, AFamiliarBiteSendsHapticNetsAnswer) {
+  const std::vector<double> log_p = {-0.1, -2.5, -4.6, -4.6};
+  for (UnfamiliarPosthoc rule :
+       {UnfamiliarPosthoc::kAsIs, UnfamiliarPosthoc::kUniform,
+        UnfamiliarPosthoc::kZero}) {
+    EXPECT_EQ(PosthocContext(log_p, true, /*unfamiliar=*/false, rule), log_p);
+  }
+  EXPECT_EQ(PosthocContext(log_p, true, true, UnfamiliarPosthoc::kAsIs), log_p);
+}
+
+TEST(PosthocContextTest, AnUnfamiliarBiteSendsWhatTheRuleSays) {
+  const std::vector<double> p = {0.9, 0.05, 0.03, 0.02};
+  EXPECT_EQ(PosthocContext(p, false, true, UnfamiliarPosthoc::kUniform),
+            std::vector<double>(4, 0.25));
+  EXPECT_EQ(PosthocContext(p, true, true, UnfamiliarPosthoc::kUniform),
+            std::vector<double>(4, std::log(0.25)));
+  EXPECT_EQ(PosthocContext(p, true, true, UnfamiliarPosthoc::kZero),
+            std::vector<double>(4, 0.0));
+}
+
+TEST(PosthocContextTest, RuleNamesRoundTripAndABadOneNamesTheChoices) {
+  for (UnfamiliarPosthoc rule :
+       {UnfamiliarPosthoc::kAsIs, UnfamiliarPosthoc::kUniform,
+        UnfamiliarPosthoc::kZero}) {
+    absl::StatusOr<UnfamiliarPosthoc> parsed =
+        ParseUnfamiliarPosthoc(UnfamiliarPosthocName(rule));
+    ASSERT_TRUE(parsed.ok());
+    EXPECT_EQ(*parsed, rule);
+  }
+  absl::StatusOr<UnfamiliarPosthoc> bad = ParseUnfamiliarPosthoc("flat");
+  EXPECT_EQ(bad.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(bad.status().message(),
+              ::testing::HasSubstr("expected asis, uniform or zero"));
 }
 
 }  // namespace

@@ -195,6 +195,51 @@ TEST(HapticContextTest, Forms) {
   EXPECT_STREQ(HapticContextName(HapticContext::kLogProbabilities), "logprob");
 }
 
+// An attempt the familiarity model calls unfamiliar gets what the rule
+// says, in every form; a familiar one (or one with no score) keeps
+// HapticNet's answer.
+TEST(HapticContextTest, UnfamiliarAttemptsFollowTheRule) {
+  haptic::HapticClassification c;
+  c.probabilities = {0.1, 0.2, 0.6, 0.1};
+  c.log_probabilities = {std::log(0.1), std::log(0.2), std::log(0.6),
+                         std::log(0.1)};
+  c.category = haptic::HapticClass::kSoft;
+  using domain::UnfamiliarPosthoc;
+  for (HapticContext kind :
+       {HapticContext::kLogProbabilities, HapticContext::kProbabilities,
+        HapticContext::kOneHot}) {
+    const std::vector<double> as_is = PosthocContext(c, kind);
+    // No score: nothing is unfamiliar.
+    EXPECT_EQ(PosthocContext(c, kind, UnfamiliarPosthoc::kUniform), as_is);
+    c.has_familiarity = true;
+    c.familiarity.unfamiliar = false;
+    EXPECT_EQ(PosthocContext(c, kind, UnfamiliarPosthoc::kUniform), as_is);
+    c.familiarity.unfamiliar = true;
+    EXPECT_EQ(PosthocContext(c, kind, UnfamiliarPosthoc::kAsIs), as_is);
+    const double flat =
+        kind == HapticContext::kLogProbabilities ? std::log(0.25) : 0.25;
+    EXPECT_EQ(PosthocContext(c, kind, UnfamiliarPosthoc::kUniform),
+              std::vector<double>(4, flat));
+    EXPECT_EQ(PosthocContext(c, kind, UnfamiliarPosthoc::kZero),
+              std::vector<double>(4, 0.0));
+    c.has_familiarity = false;
+  }
+}
+
+// The simulator scores every attempt with the shipped familiarity model,
+// as the service does.
+TEST_F(SimMealsTest, AttemptsCarryTheShippedFamiliarityScore) {
+  auto world = simulator_->DrawWorld(TinyConfig(), 11);
+  ASSERT_TRUE(world.ok()) << world.status();
+  for (const SimAttempt& a : world->attempts) {
+    EXPECT_TRUE(a.haptic.has_familiarity);
+    EXPECT_GE(a.haptic.familiarity.familiarity, 0.0);
+    EXPECT_LE(a.haptic.familiarity.familiarity, 1.0);
+  }
+  EXPECT_EQ(SimMealsConfig().unfamiliar_posthoc,
+            domain::kDefaultUnfamiliarPosthoc);
+}
+
 TEST(SimMealsConfigTest, RejectsNonPositiveCounts) {
   SimMealsConfig config;
   config.attempts_per_food = 0;

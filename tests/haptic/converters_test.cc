@@ -76,6 +76,30 @@ TEST(HapticConvertersTest, AClassificationReachesTheResponseFieldByField) {
   EXPECT_EQ(response.contact_time_s(), 0.125);
   EXPECT_EQ(response.peak_force_n(), 6.5);
   EXPECT_EQ(response.model_fingerprint(), "sha256:abc");
+  // No familiarity model: the field is absent, and nothing is unfamiliar.
+  EXPECT_FALSE(response.has_familiarity());
+  EXPECT_FALSE(response.unfamiliar());
+}
+
+TEST(HapticConvertersTest, TheFamiliarityScoreReachesTheResponse) {
+  HapticClassification result;
+  result.probabilities = {0.25, 0.25, 0.25, 0.25};
+  result.log_probabilities = {-1.39, -1.39, -1.39, -1.39};
+  result.has_familiarity = true;
+  result.familiarity.familiarity = 0.0125;
+  result.familiarity.unfamiliar = true;
+  v1::ClassifyResponse response;
+  ClassificationToProto(result, "fnv1a64:0", &response);
+  ASSERT_TRUE(response.has_familiarity());
+  EXPECT_EQ(response.familiarity(), 0.0125);
+  EXPECT_TRUE(response.unfamiliar());
+
+  result.familiarity = {3.0, 0.5, false};
+  v1::ClassifyResponse familiar;
+  ClassificationToProto(result, "fnv1a64:0", &familiar);
+  ASSERT_TRUE(familiar.has_familiarity());
+  EXPECT_EQ(familiar.familiarity(), 0.5);
+  EXPECT_FALSE(familiar.unfamiliar());
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdio>
 #include <fstream>
 #include <iostream>
 #include <random>
@@ -126,6 +127,10 @@ TEST(HapticBinaryTest, ServesTheEmbeddedModelWithNoModelFlags) {
   HapticProcess process("embedded");
   ASSERT_NO_FATAL_FAILURE(process.Spawn({}));
   ExpectServesAndStops(process);
+  EXPECT_THAT(process.log(),
+              HasSubstr("familiarity <embedded "
+                        "models/hapticnet/hapticnet.onnx.familiarity>, "
+                        "threshold 0.05"));
 }
 
 TEST(HapticBinaryTest, ServesAModelFileGivenByFlag) {
@@ -158,6 +163,32 @@ TEST(HapticBinaryTest, MalformedModelFileStopsTheStart) {
   ASSERT_NO_FATAL_FAILURE(process.Spawn({"--model=" + path}));
   ExpectStartFails(process, "cannot load the HapticNet model");
   EXPECT_THAT(process.log(), HasSubstr(path));
+}
+
+// The familiarity model beside a --model file: a malformed one stops the
+// start naming it; without one the service runs and says it has no score.
+TEST(HapticBinaryTest, MalformedFamiliarityFileStopsTheStart) {
+  const std::string model = ::testing::TempDir() + "/with_bad_familiarity.onnx";
+  std::ofstream(model, std::ios::binary)
+      << ReadFile(BITEWISE_HAPTIC_MODEL_FILE);
+  std::ofstream(model + ".familiarity") << "bitewise-haptic-familiarity 1\n";
+  HapticProcess process("bad_familiarity");
+  ASSERT_NO_FATAL_FAILURE(process.Spawn({"--model=" + model}));
+  ExpectStartFails(process, "cannot load the familiarity model");
+  EXPECT_THAT(process.log(), HasSubstr(model + ".familiarity"));
+}
+
+TEST(HapticBinaryTest, AModelWithoutAFamiliarityFileServesWithoutTheScore) {
+  const std::string model = ::testing::TempDir() + "/no_familiarity.onnx";
+  std::ofstream(model, std::ios::binary)
+      << ReadFile(BITEWISE_HAPTIC_MODEL_FILE);
+  std::remove((model + ".familiarity").c_str());
+  HapticProcess process("no_familiarity");
+  ASSERT_NO_FATAL_FAILURE(process.Spawn({"--model=" + model}));
+  ExpectServesAndStops(process);
+  EXPECT_THAT(process.log(),
+              HasSubstr(absl::StrCat("no familiarity score: ", model,
+                                     ".familiarity does not exist")));
 }
 
 TEST(HapticBinaryTest, TruncatedModelFileStopsTheStart) {

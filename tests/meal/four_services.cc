@@ -187,8 +187,20 @@ absl::StatusOr<std::unique_ptr<FourServices>> FourServices::Start(
       std::unique_ptr<haptic::HapticNet> net,
       haptic::HapticNet::FromOnnxBytes(haptic::DefaultHapticNetOnnx(),
                                        haptic::kDefaultHapticNetSource));
+  std::unique_ptr<haptic::FamiliarityModel> familiarity;
+  if (options.familiarity_threshold >= 0.0) {
+    // The shipped model with the threshold line replaced.
+    std::string text(haptic::DefaultHapticFamiliarity());
+    const size_t at = text.find("\nthreshold ");
+    const size_t end = text.find('\n', at + 1);
+    text.replace(at + 1, end - at - 1,
+                 absl::StrCat("threshold ", options.familiarity_threshold));
+    ASSIGN_OR_RETURN(haptic::FamiliarityModel model,
+                     haptic::FamiliarityModel::FromText(text, "test"));
+    familiarity = std::make_unique<haptic::FamiliarityModel>(std::move(model));
+  }
   impl->classifier = std::make_unique<haptic::HapticClassifier>(
-      std::move(net), haptic::HapticPipelineOptions());
+      std::move(net), haptic::HapticPipelineOptions(), std::move(familiarity));
   impl->haptic_service = std::make_unique<haptic::HapticServiceImpl>(
       &impl->haptic_env, impl->classifier.get());
   ASSIGN_OR_RETURN(impl->haptic_server,

@@ -47,6 +47,10 @@ struct FourServicesOptions {
   // Arm speeds multiplied by this outside the descent (whose speed the
   // simulated force traces are modelled at), so tests wait less.
   double transit_speedup = 4.0;
+  // Negative: the HapticService has no familiarity model. Otherwise it has
+  // the shipped one with this threshold (1 flags nearly every trace
+  // unfamiliar).
+  double familiarity_threshold = -1.0;
 };
 
 class FourServices {

@@ -6,6 +6,7 @@
 #include "clients/meal/meal.h"
 
 #include <algorithm>
+#include <cmath>
 #include <fstream>
 #include <memory>
 #include <optional>
@@ -153,6 +154,46 @@ class MealTest : public SharedFourServicesTest<MealTest> {
   MealOptions options_;
   RecordingListener listener_;
 };
+
+// A HapticService that calls (nearly) every trace unfamiliar: with
+// --unfamiliar_posthoc=uniform the bite's post hoc context is flattened to
+// the uniform log-probabilities, and the person is told why.
+TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
+  FourServicesOptions service_options;
+  service_options.foods = {"carrot", "banana"};
+  service_options.familiarity_threshold = 1.0;
+  absl::StatusOr<std::unique_ptr<FourServices>> services =
+      FourServices::Start(service_options);
+  ASSERT_OK(services.status());
+  ServiceClients clients((*services)->channels(), CallDeadlines());
+  UpdateJournal journal(
+      absl::StrCat((*services)->dir(), "/unfamiliar.journal"));
+  MealOptions options;
+  options.user_id = "unfamiliar-user";
+  options.meal_id = "lunch";
+  // The default sends HapticNet's answer as it is (measured); this test
+  // checks the flattening path the flag chooses.
+  EXPECT_EQ(options.unfamiliar_posthoc, domain::UnfamiliarPosthoc::kAsIs);
+  options.unfamiliar_posthoc = domain::UnfamiliarPosthoc::kUniform;
+  RecordingListener listener;
+  Meal meal(&clients, &journal, options, &listener);
+  ASSERT_OK(meal.LookAtPlate());
+  ASSERT_OK(meal.Bite(std::nullopt));
+  bool told = false;
+  for (const mealpb::BiteEvent& e : listener.events()) {
+    told = told || (e.step() == mealpb::STEP_CLASSIFY &&
+                    absl::StrContains(e.text(), "sent flattened (uniform)"));
+  }
+  EXPECT_TRUE(told);
+  v1::ListEventsRequest request;
+  request.set_user_id(options.user_id);
+  absl::StatusOr<v1::ListEventsResponse> events =
+      clients.bandit.ListEvents(request);
+  ASSERT_OK(events.status());
+  ASSERT_EQ(events->events_size(), 1);
+  EXPECT_THAT(events->events(0).posthoc(),
+              ::testing::Each(::testing::DoubleEq(std::log(0.25))));
+}
 
 TEST(MealWordsTest, SingularAndPlural) {
   EXPECT_EQ(SummaryText(1, 1), "1 attempt, 1 failure");

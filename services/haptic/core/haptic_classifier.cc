@@ -43,6 +43,11 @@ absl::StatusOr<HapticClassification> HapticClassifier::Classify(
       output.log_probabilities.begin());
   result.contact_time_s = features.contact.contact_time_s;
   result.peak_force_n = features.contact.peak_force_n;
+  if (familiarity_ != nullptr) {
+    result.has_familiarity = true;
+    result.familiarity =
+        familiarity_->Score(FamiliarityFeatures(features.window.inputs));
+  }
   return result;
 }
 

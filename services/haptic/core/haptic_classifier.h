@@ -12,6 +12,7 @@
 #include "absl/status/statusor.h"
 #include "absl/types/span.h"
 #include "services/haptic/core/contact_detector.h"
+#include "services/haptic/core/familiarity.h"
 #include "services/haptic/core/haptic_net.h"
 #include "services/haptic/core/haptic_window.h"
 #include "services/haptic/core/wrench_trace.h"
@@ -49,15 +50,23 @@ struct HapticClassification {
   HapticClass category = HapticClass::kHard;
   double contact_time_s = 0.0;
   double peak_force_n = 0.0;
+  // How familiar the trace is (familiarity.h); only when the classifier
+  // has a familiarity model (has_familiarity).
+  bool has_familiarity = false;
+  FamiliarityScore familiarity;
 };
 
 // Thread-safe.
 class HapticClassifier {
  public:
-  // `options` must have passed ValidatePipelineOptions.
+  // `options` must have passed ValidatePipelineOptions. `familiarity`
+  // null: answers carry no familiarity score.
   HapticClassifier(std::unique_ptr<HapticNet> net,
-                   const HapticPipelineOptions& options)
-      : net_(std::move(net)), options_(options) {}
+                   const HapticPipelineOptions& options,
+                   std::unique_ptr<FamiliarityModel> familiarity = nullptr)
+      : net_(std::move(net)),
+        options_(options),
+        familiarity_(std::move(familiarity)) {}
 
   // Errors as ExtractHapticFeatures; INTERNAL if the network fails.
   absl::StatusOr<HapticClassification> Classify(
@@ -65,10 +74,13 @@ class HapticClassifier {
 
   const HapticNet& net() const { return *net_; }
   const HapticPipelineOptions& options() const { return options_; }
+  // Null when there is no familiarity model.
+  const FamiliarityModel* familiarity() const { return familiarity_.get(); }
 
  private:
   const std::unique_ptr<HapticNet> net_;
   const HapticPipelineOptions options_;
+  const std::unique_ptr<FamiliarityModel> familiarity_;
 };
 
 }  // namespace bitewise::haptic

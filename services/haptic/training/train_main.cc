@@ -82,6 +82,20 @@ ABSL_FLAG(double, min_temperature, 1.0,
 ABSL_FLAG(int, held_out_per_class, 500,
           "Traces per class of each simulated story not trained on, scored "
           "after training (0: none).");
+ABSL_FLAG(bool, familiarity, true,
+          "Also fit the familiarity model (services/haptic/core/"
+          "familiarity.h) on the training windows, calibrate it on the "
+          "validation windows and write it to <out>.familiarity.");
+ABSL_FLAG(bool, familiarity_only, false,
+          "Fit, report and write the familiarity model, then stop without "
+          "training the network (the leave-one-story-out study of the "
+          "score).");
+ABSL_FLAG(double, familiarity_threshold, 0.05,
+          "Familiarity below which a trace is unfamiliar: the share of the "
+          "validation windows flagged (0.05: 5% of familiar traces).");
+ABSL_FLAG(double, familiarity_shrinkage, 0.1,
+          "Shrinkage of each class's feature covariance towards its "
+          "diagonal.");
 ABSL_FLAG(int, patience, 8,
           "Stop after this many epochs without a better validation loss.");
 
@@ -201,6 +215,109 @@ int AssembleEnsemble() {
         score.confusion.ToString().c_str());
   }
   return ReportWritten(out, bytes.size(), **net, max_difference, "");
+}
+
+std::vector<FamiliarityVector> FamiliarityOf(const LabelledWindows& windows) {
+  std::vector<FamiliarityVector> features;
+  features.reserve(windows.inputs.size());
+  for (const auto& window : windows.inputs) {
+    features.push_back(FamiliarityFeatures(window));
+  }
+  return features;
+}
+
+// One line of the familiarity report: flagged share, quantiles of the
+// familiarity and, against `familiar` distances, the AUROC.
+std::string FamiliarityLine(const FamiliarityModel& model,
+                            const LabelledWindows& windows,
+                            const std::vector<double>* familiar_distances,
+                            std::vector<double>* distances_out) {
+  std::vector<double> distances, familiarity;
+  std::array<int, kHapticClasses> flagged_by_class{}, count_by_class{};
+  int flagged = 0;
+  for (size_t i = 0; i < windows.inputs.size(); ++i) {
+    const FamiliarityScore score =
+        model.Score(FamiliarityFeatures(windows.inputs[i]));
+    distances.push_back(score.distance);
+    familiarity.push_back(score.familiarity);
+    flagged += score.unfamiliar;
+    ++count_by_class[windows.labels[i]];
+    flagged_by_class[windows.labels[i]] += score.unfamiliar;
+  }
+  std::sort(familiarity.begin(), familiarity.end());
+  auto quantile = [&](double q) {
+    return familiarity.empty()
+               ? 0.0
+               : familiarity[static_cast<size_t>(
+                     q * static_cast<double>(familiarity.size() - 1))];
+  };
+  std::string line = absl::StrFormat(
+      "%zu windows, flagged unfamiliar %.1f%% (hard %.1f, medium %.1f, soft "
+      "%.1f, hard-skin %.1f); familiarity quantiles 10/25/50/75/90%%: "
+      "%.3f %.3f %.3f %.3f %.3f",
+      distances.size(), 100.0 * flagged / std::max<size_t>(1, distances.size()),
+      100.0 * flagged_by_class[0] / std::max(1, count_by_class[0]),
+      100.0 * flagged_by_class[1] / std::max(1, count_by_class[1]),
+      100.0 * flagged_by_class[2] / std::max(1, count_by_class[2]),
+      100.0 * flagged_by_class[3] / std::max(1, count_by_class[3]),
+      quantile(0.1), quantile(0.25), quantile(0.5), quantile(0.75),
+      quantile(0.9));
+  if (familiar_distances != nullptr) {
+    absl::StrAppendFormat(&line, "; AUROC against the test split %.3f",
+                          Auroc(distances, *familiar_distances));
+  }
+  if (distances_out != nullptr) *distances_out = std::move(distances);
+  return line;
+}
+
+// Fits the familiarity model on `train`, calibrates it on `validation`,
+// reports it on `test` and on every story in `held_out` (fresh items, seed
+// `held_out_seed`) and writes it to `path`. Nonzero on failure.
+int FitFamiliarity(const LabelledWindows& train,
+                   const LabelledWindows& validation,
+                   const LabelledWindows& test,
+                   const std::vector<TraceStory>& held_out,
+                   uint64_t held_out_seed,
+                   const HapticPipelineOptions& pipeline,
+                   const std::string& trained_on, const std::string& path) {
+  const std::vector<FamiliarityVector> train_features = FamiliarityOf(train);
+  const std::vector<FamiliarityVector> validation_features =
+      FamiliarityOf(validation);
+  absl::StatusOr<FamiliarityModel> model = FamiliarityModel::Fit(
+      train_features, train.labels, validation_features,
+      absl::GetFlag(FLAGS_familiarity_threshold),
+      absl::GetFlag(FLAGS_familiarity_shrinkage), trained_on);
+  if (!model.ok()) return Die(model.status().ToString());
+  std::printf(
+      "\nfamiliarity (per-class Gaussian on %d trace summaries, fitted on "
+      "%zu training windows, threshold %.3f = the share of the %zu "
+      "validation windows flagged)\n",
+      kFamiliarityFeatures, train_features.size(), model->threshold(),
+      validation_features.size());
+  std::vector<double> test_distances;
+  std::printf("  test split (familiar): %s\n",
+              FamiliarityLine(*model, test, nullptr, &test_distances).c_str());
+  const int per_class = absl::GetFlag(FLAGS_held_out_per_class);
+  for (TraceStory story : held_out) {
+    if (per_class <= 0) break;
+    int skipped = 0;
+    const LabelledWindows windows = WindowsFromTraces(
+        StoryTraces(story, per_class, held_out_seed), pipeline, &skipped);
+    std::printf(
+        "  held-out story %s (seed %lu): %s\n", TraceStoryName(story),
+        static_cast<unsigned long>(held_out_seed),
+        FamiliarityLine(*model, windows, &test_distances, nullptr).c_str());
+  }
+  std::FILE* file = std::fopen(path.c_str(), "wb");
+  const std::string text = model->ToText();
+  if (file == nullptr ||
+      std::fwrite(text.data(), 1, text.size(), file) != text.size() ||
+      std::fclose(file) != 0) {
+    return Die(absl::StrCat("cannot write ", path));
+  }
+  std::printf("wrote %s (%zu bytes)\n", path.c_str(), text.size());
+  std::fflush(stdout);
+  return 0;
 }
 
 }  // namespace
@@ -367,6 +484,19 @@ int main(int argc, char** argv) {
       source.c_str(), train_windows.inputs.size(),
       validation_windows.inputs.size(), test_windows.inputs.size(),
       skipped_train, skipped_validation, skipped_test);
+  if (absl::GetFlag(FLAGS_familiarity) ||
+      absl::GetFlag(FLAGS_familiarity_only)) {
+    if (int failed =
+            FitFamiliarity(train_windows, validation_windows, test_windows,
+                           held_out, seed + 1000, pipeline,
+                           names.empty() ? std::string("recordings")
+                                         : absl::StrJoin(names, ","),
+                           FamiliarityPathFor(absl::GetFlag(FLAGS_out)));
+        failed != 0) {
+      return failed;
+    }
+    if (absl::GetFlag(FLAGS_familiarity_only)) return 0;
+  }
 
   TrainerOptions options;
   options.seed = seed;

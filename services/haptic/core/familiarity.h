@@ -1,0 +1,107 @@
+// How familiar a force/torque trace is to the stories HapticNet was trained
+// on, computed from the trace itself (no change to the ONNX graph): a few
+// physical summaries of HapticNet's input window (peak force, when it peaks,
+// the largest drop and how fast it happens, the shape of the rise, ringing,
+// lateral and torque ratios) and a per-class Gaussian density over them,
+// fitted by the trainer on its training windows and shipped beside the model
+// as "<model>.familiarity". The familiarity of a window is the share of the
+// trainer's validation windows that lie at least as far from every class as
+// it does: about uniform on [0, 1] for traces like the training ones, near 0
+// for traces unlike any of them. Below the file's threshold the trace is
+// called unfamiliar (docs/haptic.md, "Familiarity").
+#ifndef BITEWISE_SERVICES_HAPTIC_CORE_FAMILIARITY_H_
+#define BITEWISE_SERVICES_HAPTIC_CORE_FAMILIARITY_H_
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
+#include "absl/types/span.h"
+#include "services/haptic/core/haptic_window.h"
+#include "services/haptic/core/wrench_trace.h"
+
+namespace bitewise::haptic {
+
+// The summaries, in this order (docs/haptic.md lists their definitions).
+inline constexpr int kFamiliarityFeatures = 10;
+const char* FamiliarityFeatureName(int index);
+
+using FamiliarityVector = std::array<double, kFamiliarityFeatures>;
+
+// The summaries of one HapticNet input window (tared, channel-major, as
+// ExtractWindow makes it). Always finite.
+FamiliarityVector FamiliarityFeatures(
+    const std::array<float, kHapticInputs>& window);
+
+// One class's Gaussian: mean and precision (inverse covariance), row-major.
+struct FamiliarityClass {
+  FamiliarityVector mean{};
+  std::array<double, kFamiliarityFeatures * kFamiliarityFeatures> precision{};
+};
+
+struct FamiliarityScore {
+  // Smallest squared Mahalanobis distance to a class.
+  double distance = 0.0;
+  // Share of the calibration windows at least that far out, in [0, 1].
+  double familiarity = 0.0;
+  // familiarity < the model's threshold.
+  bool unfamiliar = false;
+};
+
+// The fitted density, its calibration and threshold. Immutable, so
+// thread-safe.
+class FamiliarityModel {
+ public:
+  // Fits one Gaussian per class on `features[i]` labelled `labels[i]`
+  // (0..3), each covariance shrunk by `shrinkage` towards its diagonal, and
+  // calibrates on `calibration` (windows of the same sources, not fitted
+  // on). `threshold` is the familiarity below which a trace is unfamiliar;
+  // `trained_on` names the sources (recorded in the file). INVALID_ARGUMENT
+  // when a class has fewer than 2 * kFamiliarityFeatures windows, the
+  // calibration set is empty, a label is out of range, or a parameter is
+  // outside its range.
+  static absl::StatusOr<FamiliarityModel> Fit(
+      absl::Span<const FamiliarityVector> features,
+      absl::Span<const int> labels,
+      absl::Span<const FamiliarityVector> calibration, double threshold,
+      double shrinkage, const std::string& trained_on);
+
+  // Parses the text written by ToText. `source` names the file in errors:
+  // INVALID_ARGUMENT naming it and the line for anything malformed.
+  static absl::StatusOr<FamiliarityModel> FromText(absl::string_view text,
+                                                   const std::string& source);
+  // Reads and parses `path`; NOT_FOUND naming it when it does not exist.
+  static absl::StatusOr<FamiliarityModel> FromFile(const std::string& path);
+
+  // The file's text ("bitewise-haptic-familiarity 1" and one field a line).
+  std::string ToText() const;
+
+  double Distance(const FamiliarityVector& features) const;
+  FamiliarityScore Score(const FamiliarityVector& features) const;
+
+  double threshold() const { return threshold_; }
+  const std::string& trained_on() const { return trained_on_; }
+
+ private:
+  FamiliarityModel() = default;
+
+  std::array<FamiliarityClass, kHapticClasses> classes_{};
+  // Sorted squared distances of the calibration windows.
+  std::vector<double> calibration_;
+  double threshold_ = 0.05;
+  std::string trained_on_;
+};
+
+// The file beside a model: "<model_path>.familiarity".
+std::string FamiliarityPathFor(const std::string& model_path);
+
+// Area under the ROC curve of `scores` separating `positives` (should score
+// higher) from `negatives`; ties count half. 0.5 when either is empty.
+double Auroc(absl::Span<const double> positives,
+             absl::Span<const double> negatives);
+
+}  // namespace bitewise::haptic
+
+#endif  // BITEWISE_SERVICES_HAPTIC_CORE_FAMILIARITY_H_
