@@ -416,8 +416,21 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
   }
   const float min_cliff = static_cast<float>(options.min_cliff_mm);
   const float cliff_fraction = static_cast<float>(options.cliff_fraction);
-  const float edge2 =
-      static_cast<float>(options.min_edge_strength * options.min_edge_strength);
+  // Strong colour edges (the gradient of one pixel), which no seed or
+  // terrace crosses.
+  cv::Mat strong_edge(h, w, CV_8UC1, cv::Scalar(0));
+  {
+    const float edge2 = static_cast<float>(options.min_edge_strength *
+                                           options.min_edge_strength);
+    for (int v = 0; v < h; ++v) {
+      const auto* a = gx.ptr<cv::Vec3f>(v);
+      const auto* b = gy.ptr<cv::Vec3f>(v);
+      auto* out = strong_edge.ptr<uint8_t>(v);
+      for (int u = 0; u < w; ++u) {
+        if (a[u].dot(a[u]) + b[u].dot(b[u]) > edge2) out[u] = 255;
+      }
+    }
+  }
   // Soft colour edges: colours more than min_soft_edge_distance apart
   // 4 px apart (a pale slice on a pale stick, whose shaded edge spreads
   // the change over a few pixels, below min_edge_strength per pixel).
@@ -438,8 +451,7 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
     }
   }
   for (int v = 0; v < h; ++v) {
-    const auto* a = gx.ptr<cv::Vec3f>(v);
-    const auto* b = gy.ptr<cv::Vec3f>(v);
+    const auto* edge = strong_edge.ptr<uint8_t>(v);
     const auto* in = above.ptr<uint8_t>(v);
     const auto* hv = height_mm.ptr<float>(v);
     const auto* top = local_top.ptr<float>(v);
@@ -448,8 +460,7 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
     auto* out = cores.ptr<uint8_t>(v);
     auto* seam = seams.ptr<uint8_t>(v);
     for (int u = 0; u < w; ++u) {
-      if (in[u] && hv[u] >= 0.5f * top[u] &&
-          a[u].dot(a[u]) + b[u].dot(b[u]) <= edge2) {
+      if (in[u] && hv[u] >= 0.5f * top[u] && !edge[u]) {
         out[u] = 255;
         seam[u] =
             soft[u] ||
@@ -517,8 +528,7 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
                cv::getStructuringElement(cv::MORPH_ELLIPSE, {5, 5}));
     terraces = cv::Mat(h, w, CV_8UC1, cv::Scalar(0));
     for (int v = 0; v < h; ++v) {
-      const auto* a = gx.ptr<cv::Vec3f>(v);
-      const auto* b = gy.ptr<cv::Vec3f>(v);
+      const auto* edge = strong_edge.ptr<uint8_t>(v);
       const auto* in = above.ptr<uint8_t>(v);
       const auto* hv = height_mm.ptr<float>(v);
       const auto* top = local_top.ptr<float>(v);
@@ -527,8 +537,7 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
       auto* out = terraces.ptr<uint8_t>(v);
       for (int u = 0; u < w; ++u) {
         if (in[u] && !taken[u] && hv[u] < 0.5f * top[u] &&
-            hv[u] >= 0.5f * near[u] &&
-            a[u].dot(a[u]) + b[u].dot(b[u]) <= edge2) {
+            hv[u] >= 0.5f * near[u] && !edge[u]) {
           out[u] = 255;
         }
       }
