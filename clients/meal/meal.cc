@@ -708,14 +708,14 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
       const domain::UnfamiliarPosthoc rule = options_.unfamiliar_posthoc;
       absl::StrAppendFormat(
           &text,
-          " The trace is unlike those HapticNet was trained on (familiarity "
-          "%.3f); %s.",
+          " This bite felt unusual, unlike what HapticNet learned from "
+          "(familiarity %.3f); %s.",
           haptic->familiarity(),
           rule == domain::UnfamiliarPosthoc::kAsIs
-              ? "its answer is still sent as it is, which measured best"
+              ? "its answer is still used for learning"
           : rule == domain::UnfamiliarPosthoc::kUniform
-              ? "the bandit is sent flattened (uniform) post hoc context"
-              : "the bandit is sent no post hoc context");
+              ? "learning treats how it felt as unknown (uniform)"
+              : "learning leaves out how it felt");
     }
     // An answer given while the trace was being classified is saved now.
     if (!bite->answer().empty() && update_.has_value()) answered = *update_;

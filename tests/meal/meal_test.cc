@@ -182,7 +182,9 @@ TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
   bool told = false;
   for (const mealpb::BiteEvent& e : listener.events()) {
     told = told || (e.step() == mealpb::STEP_CLASSIFY &&
-                    absl::StrContains(e.text(), "sent flattened (uniform)"));
+                    absl::StrContains(e.text(), "This bite felt unusual") &&
+                    absl::StrContains(
+                        e.text(), "treats how it felt as unknown (uniform)"));
   }
   EXPECT_TRUE(told);
   v1::ListEventsRequest request;
