@@ -120,6 +120,7 @@ void MealHost::WorkerLoop() {
       task = std::move(*task_);
       task_.reset();
       working_ = true;
+      task_published_ = false;
     }
     task();
     absl::MutexLock lock(&mu_);
@@ -129,10 +130,14 @@ void MealHost::WorkerLoop() {
 
 absl::Status MealHost::Enqueue(std::function<void()> task) {
   // A task ends a moment after the state it leaves is published (a browser
-  // may tap as soon as it sees the plate), so that moment is waited out;
-  // while a bite or a look is under way, the answer is "busy" at once.
+  // may tap as soon as it sees the plate), so that moment is waited out.
+  // While a bite or a look is under way, or a task is queued or has just
+  // started (it has published nothing yet, so the phase shown is the one
+  // before it), the answer is "busy" at once.
   const std::string phase = meal_ != nullptr ? meal_->state().phase() : "";
-  if (phase != "biting" && phase != "looking") {
+  const bool just_started = working_ && !task_published_;
+  if (!task_.has_value() && !just_started && phase != "biting" &&
+      phase != "looking") {
     auto idle = [this]() ABSL_SHARED_LOCKS_REQUIRED(mu_) {
       return !working_ && !task_.has_value();
     };
@@ -338,6 +343,7 @@ void MealHost::OnEvent(const mealpb::BiteEvent& event,
   {
     absl::MutexLock lock(&mu_);
     meal = meal_;
+    if (working_) task_published_ = true;
   }
   // Encoded before the state goes out, so a browser that fetches the
   // picture on seeing a new plate_version finds it.

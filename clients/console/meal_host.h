@@ -117,6 +117,9 @@ class MealHost : public meals::MealListener {
   std::shared_ptr<meals::Meal> meal_ ABSL_GUARDED_BY(mu_);
   std::optional<std::function<void()>> task_ ABSL_GUARDED_BY(mu_);
   bool working_ ABSL_GUARDED_BY(mu_) = false;
+  // Whether the running task has published a state yet (one that has not
+  // is just starting, not ending).
+  bool task_published_ ABSL_GUARDED_BY(mu_) = false;
   bool stopping_ ABSL_GUARDED_BY(mu_) = false;
   std::vector<std::shared_ptr<Subscription>> subscriptions_
       ABSL_GUARDED_BY(mu_);
