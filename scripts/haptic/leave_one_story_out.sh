@@ -54,3 +54,6 @@ done
 PYTHON=python3
 if [ -x /usr/bin/python3 ]; then PYTHON=/usr/bin/python3; fi
 "$PYTHON" scripts/haptic/story_calibration.py "$OUT" "${STORIES[@]}"
+# The familiarity-dependent flattening, chosen the same way (docs/haptic.md,
+# "Confidence that falls with familiarity").
+"$PYTHON" scripts/haptic/unfamiliar_calibration.py "$OUT" "${STORIES[@]}"

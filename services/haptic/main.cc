@@ -2,7 +2,6 @@
 // nowhere else; everything below main takes Options structs. With no flags
 // it serves the model compiled into the binary on 127.0.0.1:50053.
 #include <cstdio>
-#include <filesystem>
 #include <memory>
 #include <string>
 
@@ -19,6 +18,7 @@
 #include "services/haptic/core/haptic_net.h"
 #include "services/haptic/default_model.h"
 #include "services/haptic/haptic_service.h"
+#include "services/haptic/model_loading.h"
 
 ABSL_FLAG(std::string, model, "",
           "HapticNet ONNX file. Empty: the model compiled into the binary "
@@ -48,42 +48,6 @@ namespace {
 constexpr char kProgram[] = "bitewise-haptic";
 constexpr int kDefaultPort = 50053;
 
-// The familiarity model the flags ask for, null for none; `described` says
-// which (for the start-up line).
-absl::StatusOr<std::unique_ptr<bitewise::haptic::FamiliarityModel>>
-LoadFamiliarity(const std::string& flag, const std::string& model_path,
-                std::string* described) {
-  using bitewise::haptic::FamiliarityModel;
-  if (flag == "none") {
-    *described = "no familiarity score (--familiarity=none)";
-    return nullptr;
-  }
-  absl::StatusOr<FamiliarityModel> model = absl::InternalError("not loaded");
-  std::string source;
-  if (!flag.empty()) {
-    source = flag;
-    model = FamiliarityModel::FromFile(flag);
-  } else if (model_path.empty()) {
-    source = bitewise::haptic::kDefaultHapticFamiliaritySource;
-    model = FamiliarityModel::FromText(
-        bitewise::haptic::DefaultHapticFamiliarity(), source);
-  } else {
-    source = bitewise::haptic::FamiliarityPathFor(model_path);
-    std::error_code error;
-    if (!std::filesystem::exists(source, error)) {
-      *described =
-          absl::StrCat("no familiarity score: ", source, " does not exist");
-      return nullptr;
-    }
-    model = FamiliarityModel::FromFile(source);
-  }
-  if (!model.ok()) return model.status();
-  *described =
-      absl::StrCat("familiarity ", source, ", threshold ", model->threshold(),
-                   ", fitted on ", model->trained_on());
-  return std::make_unique<FamiliarityModel>(std::move(model).value());
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -107,18 +71,15 @@ int main(int argc, char** argv) {
   using bitewise::haptic::HapticNet;
   const std::string model_path = absl::GetFlag(FLAGS_model);
   absl::StatusOr<std::unique_ptr<HapticNet>> net =
-      model_path.empty()
-          ? HapticNet::FromOnnxBytes(bitewise::haptic::DefaultHapticNetOnnx(),
-                                     bitewise::haptic::kDefaultHapticNetSource)
-          : HapticNet::FromOnnxFile(model_path);
+      bitewise::haptic::LoadHapticNet(model_path);
   if (!net.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot load the HapticNet model",
                                  net.status());
   }
   std::string familiarity_described;
   absl::StatusOr<std::unique_ptr<bitewise::haptic::FamiliarityModel>>
-      familiarity = LoadFamiliarity(absl::GetFlag(FLAGS_familiarity),
-                                    model_path, &familiarity_described);
+      familiarity = bitewise::haptic::LoadFamiliarity(
+          absl::GetFlag(FLAGS_familiarity), model_path, &familiarity_described);
   if (!familiarity.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot load the familiarity model",
                                  familiarity.status());

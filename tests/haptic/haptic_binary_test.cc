@@ -17,7 +17,9 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_split.h"
 #include "absl/time/time.h"
 #include "bitewise/v1/haptic.grpc.pb.h"
 #include "gmock/gmock.h"
@@ -189,6 +191,84 @@ TEST(HapticBinaryTest, AModelWithoutAFamiliarityFileServesWithoutTheScore) {
   EXPECT_THAT(process.log(),
               HasSubstr(absl::StrCat("no familiarity score: ", model,
                                      ".familiarity does not exist")));
+}
+
+// bitewise-haptic-eval loads the familiarity file as the service does and
+// reports it per trace and per row; a malformed one stops it naming the
+// file, and --familiarity=none leaves the columns empty.
+class HapticEvalTest : public ::testing::Test {
+ protected:
+  // Runs the evaluator on a few mechanics traces; its exit status.
+  int RunEval(const std::string& name, std::vector<std::string> args) {
+    args.insert(args.begin(),
+                {BITEWISE_HAPTIC_EVAL_BINARY, "--traces_per_class=10",
+                 "--stories=mechanics", "--confusion=false"});
+    log_ = ::testing::TempDir() + "/" + name + ".log";
+    unlink(log_.c_str());
+    bitewise::testing::ChildProcess child;
+    const absl::Status started = child.Start(args, log_);
+    EXPECT_TRUE(started.ok()) << started;
+    absl::StatusOr<int> status = child.Wait(kTimeout);
+    EXPECT_TRUE(status.ok()) << status.status();
+    return status.ok() ? *status : -1;
+  }
+  std::string log() const { return ReadFile(log_); }
+  std::string log_;
+};
+
+TEST_F(HapticEvalTest, ReportsTheFamiliarityOfEveryTrace) {
+  const std::string csv = ::testing::TempDir() + "/eval_probabilities.csv";
+  const int status = RunEval("eval", {"--probabilities_csv=" + csv});
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << DescribeWaitStatus(status) << "\n"
+      << log();
+  EXPECT_THAT(log(), HasSubstr("familiarity <embedded "
+                               "models/hapticnet/hapticnet.onnx.familiarity>"));
+  std::ifstream in(csv);
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  EXPECT_EQ(line,
+            "condition,label,p_hard,p_medium,p_soft,p_hard_skin,familiarity,"
+            "distance");
+  int rows = 0;
+  while (std::getline(in, line)) {
+    ++rows;
+    const std::vector<std::string> fields = absl::StrSplit(line, ',');
+    ASSERT_EQ(fields.size(), 8u) << line;
+    double familiarity = -1.0, distance = -1.0;
+    ASSERT_TRUE(absl::SimpleAtod(fields[6], &familiarity)) << line;
+    ASSERT_TRUE(absl::SimpleAtod(fields[7], &distance)) << line;
+    EXPECT_GE(familiarity, 0.0);
+    EXPECT_LE(familiarity, 1.0);
+    EXPECT_GT(distance, 0.0);
+  }
+  EXPECT_GE(rows, 36);  // 40 traces; a weak soft item may be rejected
+}
+
+TEST_F(HapticEvalTest, NoneLeavesTheColumnsEmpty) {
+  const std::string csv = ::testing::TempDir() + "/eval_none.csv";
+  const int status = RunEval(
+      "eval_none", {"--familiarity=none", "--probabilities_csv=" + csv});
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << DescribeWaitStatus(status) << "\n"
+      << log();
+  std::ifstream in(csv);
+  std::string line;
+  ASSERT_TRUE(std::getline(in, line));
+  ASSERT_TRUE(std::getline(in, line));
+  EXPECT_THAT(line, ::testing::EndsWith(",,"));
+  EXPECT_THAT(log(), HasSubstr("| - | - | - |"));
+}
+
+TEST_F(HapticEvalTest, AMalformedFamiliarityFileStopsIt) {
+  const std::string model = ::testing::TempDir() + "/eval_bad.onnx";
+  std::ofstream(model, std::ios::binary)
+      << ReadFile(BITEWISE_HAPTIC_MODEL_FILE);
+  std::ofstream(model + ".familiarity") << "bitewise-haptic-familiarity 1\n";
+  const int status = RunEval("eval_bad", {"--model=" + model});
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
+      << DescribeWaitStatus(status);
+  EXPECT_THAT(log(), HasSubstr(model + ".familiarity"));
 }
 
 TEST(HapticBinaryTest, TruncatedModelFileStopsTheStart) {

@@ -24,12 +24,17 @@
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/core/haptic_net.h"
 #include "services/haptic/default_model.h"
+#include "services/haptic/model_loading.h"
 #include "services/haptic/training/haptic_trainer.h"
 #include "services/haptic/training/labelled_traces.h"
 
 ABSL_FLAG(std::string, model, "",
           "ONNX model to evaluate. Empty: the model compiled into the "
           "binary (models/hapticnet/hapticnet.onnx).");
+ABSL_FLAG(std::string, familiarity, "",
+          "Familiarity model, as bitewise-haptic's flag: empty, the one "
+          "beside the model (or the compiled-in one with the compiled-in "
+          "model); \"none\": no score.");
 ABSL_FLAG(int, traces_per_class, 500,
           "Simulated traces per class and "
           "condition.");
@@ -39,7 +44,9 @@ ABSL_FLAG(uint64_t, seed, 20261123,
 ABSL_FLAG(bool, confusion, true, "Print a confusion matrix per condition.");
 ABSL_FLAG(std::string, probabilities_csv, "",
           "Also write every classified trace's true label and probabilities "
-          "(condition,label,p_hard,p_medium,p_soft,p_hard_skin) to this CSV, "
+          "(condition,label,p_hard,p_medium,p_soft,p_hard_skin,familiarity,"
+          "distance; the last two empty without a familiarity model) to this "
+          "CSV, "
           "for calibration studies.");
 ABSL_FLAG(std::string, stories, "",
           "Evaluate only these trace stories (comma-separated; empty: the "
@@ -89,30 +96,40 @@ int main(int argc, char** argv) {
   bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
   const std::string path = absl::GetFlag(FLAGS_model);
-  absl::StatusOr<std::unique_ptr<HapticNet>> net =
-      path.empty() ? HapticNet::FromOnnxBytes(DefaultHapticNetOnnx(),
-                                              kDefaultHapticNetSource)
-                   : HapticNet::FromOnnxFile(path);
+  absl::StatusOr<std::unique_ptr<HapticNet>> net = LoadHapticNet(path);
   if (!net.ok()) {
     std::fprintf(stderr, "bitewise-haptic-eval: %s\n",
                  net.status().ToString().c_str());
     return 1;
   }
-  std::printf("model %s (%s), %d traces per class and condition, seed %lu\n",
-              path.empty() ? kDefaultHapticNetSource : path.c_str(),
-              (*net)->fingerprint().c_str(),
-              absl::GetFlag(FLAGS_traces_per_class),
-              static_cast<unsigned long>(absl::GetFlag(FLAGS_seed)));
+  std::string familiarity_described;
+  absl::StatusOr<std::unique_ptr<FamiliarityModel>> familiarity =
+      LoadFamiliarity(absl::GetFlag(FLAGS_familiarity), path,
+                      &familiarity_described);
+  if (!familiarity.ok()) {
+    std::fprintf(stderr, "bitewise-haptic-eval: %s\n",
+                 familiarity.status().ToString().c_str());
+    return 1;
+  }
+  std::printf(
+      "model %s (%s), %s, %d traces per class and condition, seed %lu\n",
+      path.empty() ? kDefaultHapticNetSource : path.c_str(),
+      (*net)->fingerprint().c_str(), familiarity_described.c_str(),
+      absl::GetFlag(FLAGS_traces_per_class),
+      static_cast<unsigned long>(absl::GetFlag(FLAGS_seed)));
   const HapticClassifier classifier(std::move(net).value(),
-                                    HapticPipelineOptions());
+                                    HapticPipelineOptions(),
+                                    std::move(familiarity).value());
   std::printf(
       "\nlog-probability columns: the smallest log-probability of each trace "
       "(its least likely class), as the median, 1st percentile and minimum "
-      "over the traces\n\n| traces | accuracy | hard | medium | soft | "
-      "hard-skin | log loss | ECE | over-confidence: hard | medium | soft | "
-      "hard-skin | min log p: median | 1 %% | min | rejected |\n"
+      "over the traces; familiarity columns: its median and 10th percentile "
+      "over the traces and the share called unfamiliar\n\n| traces | "
+      "accuracy | hard | medium | soft | hard-skin | log loss | ECE | "
+      "over-confidence: hard | medium | soft | hard-skin | min log p: median "
+      "| 1 %% | min | familiarity: median | 10 %% | unfamiliar | rejected |\n"
       "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
-      "---:|---:|\n");
+      "---:|---:|---:|---:|---:|\n");
   std::string matrices;
   const int per_class = absl::GetFlag(FLAGS_traces_per_class);
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
@@ -124,13 +141,17 @@ int main(int argc, char** argv) {
                    absl::GetFlag(FLAGS_probabilities_csv).c_str());
       return 1;
     }
-    std::fprintf(dump, "condition,label,p_hard,p_medium,p_soft,p_hard_skin\n");
+    std::fprintf(dump,
+                 "condition,label,p_hard,p_medium,p_soft,p_hard_skin,"
+                 "familiarity,distance\n");
   }
   auto evaluate = [&](const std::string& name,
                       const std::vector<LabelledTrace>& traces) {
     std::vector<std::array<double, kHapticClasses>> probabilities;
     std::vector<int> labels;
     std::vector<double> smallest;
+    std::vector<double> familiarities;
+    int unfamiliar = 0;
     int rejected = 0;
     for (const LabelledTrace& trace : traces) {
       absl::StatusOr<HapticClassification> result =
@@ -141,20 +162,29 @@ int main(int argc, char** argv) {
       }
       probabilities.push_back(result->probabilities);
       labels.push_back(static_cast<int>(trace.label));
+      if (result->has_familiarity) {
+        familiarities.push_back(result->familiarity.familiarity);
+        if (result->familiarity.unfamiliar) ++unfamiliar;
+      }
       if (dump != nullptr) {
-        std::fprintf(dump, "%s,%s,%.9g,%.9g,%.9g,%.9g\n", name.c_str(),
+        const std::string familiarity_fields =
+            result->has_familiarity
+                ? absl::StrCat(result->familiarity.familiarity, ",",
+                               result->familiarity.distance)
+                : ",";
+        std::fprintf(dump, "%s,%s,%.9g,%.9g,%.9g,%.9g,%s\n", name.c_str(),
                      HapticClassName(trace.label), result->probabilities[0],
                      result->probabilities[1], result->probabilities[2],
-                     result->probabilities[3]);
+                     result->probabilities[3], familiarity_fields.c_str());
       }
       smallest.push_back(*std::min_element(result->log_probabilities.begin(),
                                            result->log_probabilities.end()));
     }
-    std::sort(smallest.begin(), smallest.end());
-    auto quantile = [&](double q) {
-      return smallest.empty()
+    auto quantile = [](std::vector<double>& values, double q) {
+      std::sort(values.begin(), values.end());
+      return values.empty()
                  ? 0.0
-                 : smallest[static_cast<size_t>(q * (smallest.size() - 1))];
+                 : values[static_cast<size_t>(q * (values.size() - 1))];
     };
     const ProbabilisticScore score = ScorePredictions(probabilities, labels);
     std::printf("| %s | %.2f%%", name.c_str(),
@@ -167,8 +197,16 @@ int main(int argc, char** argv) {
     for (int k = 0; k < kHapticClasses; ++k) {
       std::printf(" | %+.3f", score.overconfidence[k]);
     }
-    std::printf(" | %.2f | %.2f | %.2f | %d |\n", quantile(0.5), quantile(0.01),
-                quantile(0.0), rejected);
+    std::printf(" | %.2f | %.2f | %.2f", quantile(smallest, 0.5),
+                quantile(smallest, 0.01), quantile(smallest, 0.0));
+    if (familiarities.empty()) {
+      std::printf(" | - | - | -");
+    } else {
+      std::printf(" | %.3f | %.3f | %.1f%%", quantile(familiarities, 0.5),
+                  quantile(familiarities, 0.1),
+                  100.0 * unfamiliar / familiarities.size());
+    }
+    std::printf(" | %d |\n", rejected);
     std::fflush(stdout);
     matrices += "\n" + name + "\n" + score.confusion.ToString();
   };
