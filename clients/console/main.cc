@@ -213,6 +213,9 @@ int main(int argc, char** argv) {
     }
     recording = std::move(opened).value();
     defaults.recording = recording.get();
+    if (!recording->note().empty()) {
+      std::fprintf(stderr, "--record_traces: %s\n", recording->note().c_str());
+    }
   }
   console::MealHost host(&clients, host_options);
   // What a killed console left undelivered goes first.

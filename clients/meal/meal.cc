@@ -758,6 +758,10 @@ void Meal::Record(const v1::AcquireResult& result,
     bite.probabilities.assign(haptic->probabilities().begin(),
                               haptic->probabilities().end());
   }
+  if (haptic != nullptr && haptic->has_familiarity()) {
+    bite.familiarity = haptic->familiarity();
+    bite.unfamiliar = haptic->unfamiliar();
+  }
   absl::StatusOr<std::string> id =
       options_.recording->Record(bite, result.trace());
   if (!id.ok() && listener_ != nullptr) {

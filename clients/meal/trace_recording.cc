@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cerrno>
+#include <cmath>
 #include <cstring>
 #include <utility>
 
@@ -16,6 +17,7 @@
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
+#include "absl/types/span.h"
 #include "services/domain/trace_csv.h"
 
 namespace bitewise::meals {
@@ -24,6 +26,12 @@ namespace {
 constexpr char kTracesFile[] = "traces.csv";
 constexpr char kBitesFile[] = "bites.csv";
 constexpr char kBitesHeader[] =
+    "trace,time_utc,user,meal,event_id,food,label,action,outcome,haptic,"
+    "p_hard,p_medium,p_soft,p_hard_skin,familiarity,unfamiliar";
+// The header before the familiarity columns. Such a file is appended to in
+// its own format, so that it stays one table for the lab's spreadsheet and
+// the trainer's --labels.
+constexpr char kBitesHeaderBeforeFamiliarity[] =
     "trace,time_utc,user,meal,event_id,food,label,action,outcome,haptic,"
     "p_hard,p_medium,p_soft,p_hard_skin";
 
@@ -40,11 +48,14 @@ std::string Tail(int fd, off_t size) {
   return text;
 }
 
-// Opens `path` for appending, writing `header` if the file is new or empty
-// and checking it otherwise. Sets `*last_id` to the first field of the last
-// complete row, if it is a number. A last row cut short is cut off.
-absl::StatusOr<int> OpenCsv(const std::string& path, const char* header,
-                            int64_t* last_id) {
+// Opens `path` for appending, writing `headers[0]` if the file is new or
+// empty and otherwise checking that its first line is one of `headers`.
+// Sets `*header` to the index of the file's header and `*last_id` to the
+// first field of the last complete row, if it is a number. A last row cut
+// short is cut off.
+absl::StatusOr<int> OpenCsv(const std::string& path,
+                            absl::Span<const absl::string_view> headers,
+                            int* header, int64_t* last_id) {
   const int fd =
       open(path.c_str(), O_RDWR | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
   if (fd < 0) return absl::InternalError(Errno("cannot open", path));
@@ -53,9 +64,10 @@ absl::StatusOr<int> OpenCsv(const std::string& path, const char* header,
     close(fd);
     return absl::InternalError(Errno("cannot stat", path));
   }
+  *header = 0;
   *last_id = -1;
   if (st.st_size == 0) {
-    const std::string line = absl::StrCat(header, "\n");
+    const std::string line = absl::StrCat(headers[0], "\n");
     if (write(fd, line.data(), line.size()) !=
             static_cast<ssize_t>(line.size()) ||
         fsync(fd) != 0) {
@@ -64,17 +76,28 @@ absl::StatusOr<int> OpenCsv(const std::string& path, const char* header,
     }
     return fd;
   }
-  std::string first(std::strlen(header) + 1, '\0');
+  size_t longest = 0;
+  for (absl::string_view h : headers) longest = std::max(longest, h.size());
+  std::string first(longest + 1, '\0');
   const ssize_t n = pread(fd, first.data(), first.size(), 0);
-  if (n != static_cast<ssize_t>(first.size()) ||
-      first != absl::StrCat(header, "\n")) {
+  first.resize(n > 0 ? static_cast<size_t>(n) : 0);
+  const size_t end = first.find('\n');
+  const auto found = end == std::string::npos
+                         ? headers.end()
+                         : std::find(headers.begin(), headers.end(),
+                                     absl::string_view(first).substr(0, end));
+  if (found == headers.end()) {
     close(fd);
-    return absl::InvalidArgumentError(
-        absl::StrCat(path,
-                     " is not a bitewise recording: its first line is "
-                     "not \"",
-                     header, "\""));
+    std::string message = absl::StrCat(
+        path, " is not a bitewise recording: its first line is not \"",
+        headers[0], "\"");
+    for (size_t i = 1; i < headers.size(); ++i) {
+      absl::StrAppend(&message, " nor \"", headers[i],
+                      "\" (an earlier release's)");
+    }
+    return absl::InvalidArgumentError(message);
   }
+  *header = static_cast<int>(found - headers.begin());
   std::string tail = Tail(fd, st.st_size);
   if (!tail.empty() && tail.back() != '\n') {
     // A row cut short (a power loss between write and fsync): drop it.
@@ -128,22 +151,36 @@ absl::StatusOr<std::unique_ptr<TraceRecording>> TraceRecording::Open(
     return absl::InternalError(Errno("cannot create the directory", dir));
   }
   int64_t last_trace = -1, last_bite = -1;
-  absl::StatusOr<int> traces = OpenCsv(absl::StrCat(dir, "/", kTracesFile),
-                                       domain::kTraceCsvHeader, &last_trace);
+  int traces_header = 0, bites_header = 0;
+  const absl::string_view trace_headers[] = {domain::kTraceCsvHeader};
+  absl::StatusOr<int> traces =
+      OpenCsv(absl::StrCat(dir, "/", kTracesFile), trace_headers,
+              &traces_header, &last_trace);
   if (!traces.ok()) return traces.status();
-  absl::StatusOr<int> bites =
-      OpenCsv(absl::StrCat(dir, "/", kBitesFile), kBitesHeader, &last_bite);
+  const absl::string_view bite_headers[] = {kBitesHeader,
+                                            kBitesHeaderBeforeFamiliarity};
+  absl::StatusOr<int> bites = OpenCsv(absl::StrCat(dir, "/", kBitesFile),
+                                      bite_headers, &bites_header, &last_bite);
   if (!bites.ok()) {
     close(*traces);
     return bites.status();
   }
   return std::unique_ptr<TraceRecording>(new TraceRecording(
-      dir, *traces, *bites, std::max(last_trace, last_bite) + 1));
+      dir, *traces, *bites, std::max(last_trace, last_bite) + 1,
+      /*records_familiarity=*/bites_header == 0));
 }
 
 TraceRecording::TraceRecording(std::string dir, int traces_fd, int bites_fd,
-                               int64_t next_id)
+                               int64_t next_id, bool records_familiarity)
     : dir_(std::move(dir)),
+      records_familiarity_(records_familiarity),
+      note_(records_familiarity
+                ? ""
+                : absl::StrCat(dir_, "/", kBitesFile,
+                               " predates the familiarity columns (an "
+                               "earlier release started it), so familiarity "
+                               "is not recorded in this directory; record "
+                               "into a new directory to have it")),
       traces_fd_(traces_fd),
       bites_fd_(bites_fd),
       next_id_(next_id) {}
@@ -197,6 +234,14 @@ absl::StatusOr<std::string> TraceRecording::Record(
                       absl::StrFormat("%.6f", bite.probabilities[k]));
     } else {
       absl::StrAppend(&row, ",");
+    }
+  }
+  if (records_familiarity_) {
+    if (bite.familiarity.has_value() && std::isfinite(*bite.familiarity)) {
+      absl::StrAppend(&row, ",", absl::StrFormat("%.6f", *bite.familiarity),
+                      ",", bite.unfamiliar ? "1" : "0");
+    } else {
+      absl::StrAppend(&row, ",,");
     }
   }
   row.push_back('\n');

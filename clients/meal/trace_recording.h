@@ -10,9 +10,17 @@
 //   bites.csv   one row per trace: trace, time_utc, user, meal, event_id,
 //               food, label, action, outcome, haptic (HapticNet's answer,
 //               "none" if the HapticService did not answer), p_hard,
-//               p_medium, p_soft, p_hard_skin. A lab labels its bites here,
-//               one row per bite, and passes the file to the trainer with
-//               --labels.
+//               p_medium, p_soft, p_hard_skin, familiarity (the
+//               HapticService's familiarity score) and unfamiliar (1 or 0);
+//               the last two are empty when the service did not answer or
+//               gave no score. A lab labels its bites here, one row per
+//               bite, and passes the file to the trainer with --labels.
+//
+// A bites.csv written before the familiarity columns existed (its header
+// ends at p_hard_skin) is kept in that format: rows appended to it have no
+// familiarity columns, so the file stays one table, and
+// records_familiarity() is false (note() says so for the operator). A new
+// directory gets the current header.
 //
 // Each bite is written with one write per file and fsync'd before Record
 // returns. Trace ids continue across runs, so one directory can collect
@@ -49,13 +57,19 @@ struct RecordedBite {
   // HapticNet's answer; empty when the HapticService did not answer.
   std::optional<domain::HapticClass> haptic;
   std::vector<double> probabilities;  // 4 when `haptic` is set
+  // The HapticService's familiarity score and its verdict; empty when the
+  // service did not answer or gave no score (no familiarity model).
+  std::optional<double> familiarity;
+  bool unfamiliar = false;  // meaningful only with `familiarity`
 };
 
 class TraceRecording {
  public:
   // Opens (creating it and its files if need be) the recording in `dir`.
-  // INVALID_ARGUMENT if a file there has another header; INTERNAL naming
-  // the file if it cannot be created or read.
+  // A bites.csv with the header of a release before the familiarity columns
+  // is appended to in its own format. INVALID_ARGUMENT naming the file if a
+  // file there has any other header; INTERNAL naming the file if it cannot
+  // be created or read.
   static absl::StatusOr<std::unique_ptr<TraceRecording>> Open(
       const std::string& dir);
   ~TraceRecording();
@@ -71,10 +85,19 @@ class TraceRecording {
   const std::string& dir() const { return dir_; }
   int64_t recorded() const;  // traces recorded through this object
 
+  // False when this directory's bites.csv predates the familiarity columns.
+  bool records_familiarity() const { return records_familiarity_; }
+  // What the operator should be told once, on opening: empty, or that
+  // familiarity is not recorded in this directory and why.
+  const std::string& note() const { return note_; }
+
  private:
-  TraceRecording(std::string dir, int traces_fd, int bites_fd, int64_t next_id);
+  TraceRecording(std::string dir, int traces_fd, int bites_fd, int64_t next_id,
+                 bool records_familiarity);
 
   const std::string dir_;
+  const bool records_familiarity_;
+  const std::string note_;
   mutable absl::Mutex mu_;
   int traces_fd_ ABSL_GUARDED_BY(mu_);
   int bites_fd_ ABSL_GUARDED_BY(mu_);

@@ -265,6 +265,9 @@ int main(int argc, char** argv) {
     }
     recording = std::move(opened).value();
     options.recording = recording.get();
+    if (!recording->note().empty()) {
+      std::printf("--record_traces: %s\n", recording->note().c_str());
+    }
   }
 
   meals::UpdateJournal journal(absl::GetFlag(FLAGS_journal));

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
 #include "absl/time/clock.h"
@@ -365,8 +366,9 @@ TEST_F(MealEndToEndTest, RecordedMealsRetrainHapticNetAndTheServiceServesIt) {
   out = RunOrchestrator(args, "rec2.log", &status);
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << out;
 
-  // Ten bites: ids 0-9, each labelled with the simulated food's class and
-  // HapticNet's answer, the trace readable by the trainer's reader.
+  // Ten bites: ids 0-9, each labelled with the simulated food's class,
+  // HapticNet's answer and the familiarity of its trace, the trace readable
+  // by the trainer's reader.
   absl::StatusOr<std::vector<haptic::RecordedTrace>> traces =
       haptic::ReadRecordedTraces(absl::StrCat(recording, "/traces.csv"));
   ASSERT_TRUE(traces.ok()) << traces.status();
@@ -381,12 +383,25 @@ TEST_F(MealEndToEndTest, RecordedMealsRetrainHapticNetAndTheServiceServesIt) {
   for (std::string line; std::getline(bites_file, line);) bites.push_back(line);
   ASSERT_EQ(bites.size(), 11u);
   EXPECT_TRUE(absl::StartsWith(bites[0], "trace,time_utc,user,meal,event_id"));
+  EXPECT_TRUE(absl::EndsWith(bites[0], ",p_hard_skin,familiarity,unfamiliar"))
+      << bites[0];
   const std::vector<std::string> row = absl::StrSplit(bites[7], ',');
-  ASSERT_EQ(row.size(), 14u) << bites[7];
+  ASSERT_EQ(row.size(), 16u) << bites[7];
   EXPECT_EQ(row[0], "6");
   EXPECT_EQ(row[2], "lab");
   EXPECT_EQ(row[3], "m2");
   EXPECT_NE(row[9], "none");  // HapticNet answered
+  // The shipped model has a familiarity model: every bite has its score
+  // (in [0, 1]) and the verdict, unfamiliar exactly below the threshold.
+  for (size_t i = 1; i < bites.size(); ++i) {
+    const std::vector<std::string> fields = absl::StrSplit(bites[i], ',');
+    ASSERT_EQ(fields.size(), 16u) << bites[i];
+    double familiarity = -1.0;
+    EXPECT_TRUE(absl::SimpleAtod(fields[14], &familiarity)) << bites[i];
+    EXPECT_GE(familiarity, 0.0) << bites[i];
+    EXPECT_LE(familiarity, 1.0) << bites[i];
+    EXPECT_EQ(fields[15], familiarity < 0.05 ? "1" : "0") << bites[i];
+  }
 
   // Retrain on the recording mixed with one story; the trainer reports the
   // held-out recorded traces and every story it did not train on.

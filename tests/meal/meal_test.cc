@@ -15,9 +15,12 @@
 #include <vector>
 
 #include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/str_split.h"
 #include "absl/synchronization/mutex.h"
+#include "clients/meal/trace_recording.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/domain/context_ridge.h"
@@ -157,7 +160,8 @@ class MealTest : public SharedFourServicesTest<MealTest> {
 
 // A HapticService that calls (nearly) every trace unfamiliar: with
 // --unfamiliar_posthoc=uniform the bite's post hoc context is flattened to
-// the uniform log-probabilities, and the person is told why.
+// the uniform log-probabilities, the person is told why, and the recording
+// keeps the score and the verdict.
 TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
   FourServicesOptions service_options;
   service_options.foods = {"carrot", "banana"};
@@ -175,6 +179,11 @@ TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
   // checks the flattening path the flag chooses.
   EXPECT_EQ(options.unfamiliar_posthoc, domain::UnfamiliarPosthoc::kAsIs);
   options.unfamiliar_posthoc = domain::UnfamiliarPosthoc::kUniform;
+  const std::string recorded = absl::StrCat((*services)->dir(), "/recorded");
+  absl::StatusOr<std::unique_ptr<TraceRecording>> recording =
+      TraceRecording::Open(recorded);
+  ASSERT_OK(recording.status());
+  options.recording = recording->get();
   RecordingListener listener;
   Meal meal(&clients, &journal, options, &listener);
   ASSERT_OK(meal.LookAtPlate());
@@ -195,6 +204,18 @@ TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
   ASSERT_EQ(events->events_size(), 1);
   EXPECT_THAT(events->events(0).posthoc(),
               ::testing::Each(::testing::DoubleEq(std::log(0.25))));
+
+  std::ifstream bites(absl::StrCat(recorded, "/bites.csv"));
+  std::string header, line;
+  ASSERT_TRUE(std::getline(bites, header) && std::getline(bites, line));
+  EXPECT_TRUE(absl::EndsWith(header, ",familiarity,unfamiliar")) << header;
+  const std::vector<std::string> row = absl::StrSplit(line, ',');
+  ASSERT_EQ(row.size(), 16u) << line;
+  double familiarity = -1.0;
+  EXPECT_TRUE(absl::SimpleAtod(row[14], &familiarity)) << line;
+  EXPECT_GE(familiarity, 0.0);
+  EXPECT_LE(familiarity, 1.0);
+  EXPECT_EQ(row[15], "1") << line;  // the threshold 1 flags it
 }
 
 TEST(MealWordsTest, SingularAndPlural) {

@@ -1,5 +1,6 @@
 // The meal's trace recording: files the trainer reads back exactly, ids that
-// continue across runs, a row cut short by a crash repaired, and bad
+// continue across runs, a row cut short by a crash repaired, a directory of
+// an earlier release (no familiarity columns) kept in its format, and bad
 // directories and traces refused by name.
 #include "clients/meal/trace_recording.h"
 
@@ -16,6 +17,7 @@
 #include "absl/strings/str_split.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/domain/trace_csv.h"
 #include "services/haptic/training/labelled_traces.h"
 #include "tests/common/status_matchers.h"
 
@@ -59,8 +61,15 @@ RecordedBite Bite(const std::string& event, bool labelled) {
   bite.outcome = "success";
   bite.haptic = domain::HapticClass::kMedium;
   bite.probabilities = {0.1, 0.6, 0.1, 0.2};
+  bite.familiarity = 0.7 / 24.0;  // 0.029166..., below the 0.05 threshold
+  bite.unfamiliar = true;
   return bite;
 }
+
+// bites.csv as the release before the familiarity columns wrote it.
+constexpr char kHeaderBeforeFamiliarity[] =
+    "trace,time_utc,user,meal,event_id,food,label,action,outcome,haptic,"
+    "p_hard,p_medium,p_soft,p_hard_skin";
 
 std::vector<std::string> Lines(const std::string& path) {
   std::ifstream in(path);
@@ -73,11 +82,14 @@ TEST(TraceRecordingTest, WritesWhatTheTrainerReadsBackExactly) {
   const std::string dir = TempDir() + "/new";  // created by Open
   auto recording = TraceRecording::Open(dir);
   ASSERT_THAT(recording.status(), IsOk());
+  EXPECT_TRUE((*recording)->records_familiarity());
+  EXPECT_EQ((*recording)->note(), "");
   const auto first = Trace(50, 1.0);
   const auto second = Trace(30, 2.5);
   ASSERT_THAT((*recording)->Record(Bite("e1", true), first).status(), IsOk());
-  absl::StatusOr<std::string> id =
-      (*recording)->Record(Bite("e2", false), second);
+  RecordedBite no_score = Bite("e2", false);  // a service without the model
+  no_score.familiarity.reset();
+  absl::StatusOr<std::string> id = (*recording)->Record(no_score, second);
   ASSERT_THAT(id.status(), IsOk());
   EXPECT_EQ(*id, "1");
   EXPECT_EQ((*recording)->recorded(), 2);
@@ -102,8 +114,10 @@ TEST(TraceRecordingTest, WritesWhatTheTrainerReadsBackExactly) {
 
   const std::vector<std::string> bites = Lines(dir + "/bites.csv");
   ASSERT_EQ(bites.size(), 3u);
+  EXPECT_EQ(bites[0],
+            absl::StrCat(kHeaderBeforeFamiliarity, ",familiarity,unfamiliar"));
   const std::vector<std::string> row = absl::StrSplit(bites[1], ',');
-  ASSERT_EQ(row.size(), 14u);
+  ASSERT_EQ(row.size(), 16u);
   EXPECT_EQ(row[0], "0");
   EXPECT_THAT(row[1],
               ::testing::MatchesRegex("[0-9]{4}-[0-9]{2}-[0-9]{2}T[0-9:.]+Z"));
@@ -114,6 +128,13 @@ TEST(TraceRecordingTest, WritesWhatTheTrainerReadsBackExactly) {
   EXPECT_EQ(row[7], "TV0");
   EXPECT_EQ(row[9], "medium");
   EXPECT_EQ(row[11], "0.600000");
+  EXPECT_EQ(row[14], "0.029167");
+  EXPECT_EQ(row[15], "1");
+  const std::vector<std::string> unscored = absl::StrSplit(bites[2], ',');
+  ASSERT_EQ(unscored.size(), 16u);
+  EXPECT_EQ(unscored[13], "0.200000");  // HapticNet answered
+  EXPECT_EQ(unscored[14], "");          // but gave no familiarity
+  EXPECT_EQ(unscored[15], "");
 
   // A lab labels the unknown bite in bites.csv; the labels file says so.
   auto labels = haptic::ReadTraceLabels(dir + "/bites.csv");
@@ -148,12 +169,88 @@ TEST(TraceRecordingTest, IdsContinueAcrossRunsAndACutRowIsDropped) {
   EXPECT_EQ(Lines(dir + "/bites.csv").size(), 4u);
 }
 
+// A lab's directory from the release before the familiarity columns: the
+// new orchestrator keeps appending to it in its own format (one table for
+// the spreadsheet and --labels), says once that familiarity is not recorded
+// there, and the trainer reads its labels.
+TEST(TraceRecordingTest, AnOlderDirectoryKeepsItsFormatAndSaysSo) {
+  const std::string dir = TempDir();
+  {
+    std::string traces = absl::StrCat(domain::kTraceCsvHeader, "\n");
+    for (int i = 0; i < 20; ++i) {
+      domain::AppendTraceCsvRow(&traces, "0", "hard", 0.001 * i,
+                                {0, 0, 0.5 * i, 0, 0, 0});
+    }
+    std::ofstream(dir + "/traces.csv") << traces;
+    std::ofstream(dir + "/bites.csv")
+        << kHeaderBeforeFamiliarity << "\n"
+        << "0,2026-11-30T10:00:00.000Z,alice,m0,e0,carrot,hard,VS0,success,"
+           "hard,0.970000,0.010000,0.010000,0.010000\n";
+  }
+  for (int run = 1; run <= 2; ++run) {  // and again: still the old format
+    auto recording = TraceRecording::Open(dir);
+    ASSERT_THAT(recording.status(), IsOk());
+    EXPECT_FALSE((*recording)->records_familiarity());
+    EXPECT_EQ((*recording)->note(),
+              absl::StrCat(dir,
+                           "/bites.csv predates the familiarity columns (an "
+                           "earlier release started it), so familiarity is "
+                           "not recorded in this directory; record into a "
+                           "new directory to have it"));
+    absl::StatusOr<std::string> id =
+        (*recording)
+            ->Record(Bite(absl::StrCat("e", run), run == 1), Trace(20, 1));
+    ASSERT_THAT(id.status(), IsOk());
+    EXPECT_EQ(*id, absl::StrCat(run));
+  }
+  const std::vector<std::string> bites = Lines(dir + "/bites.csv");
+  ASSERT_EQ(bites.size(), 4u);
+  EXPECT_EQ(bites[0], kHeaderBeforeFamiliarity);
+  for (size_t i = 1; i < bites.size(); ++i) {
+    const std::vector<std::string> row = absl::StrSplit(bites[i], ',');
+    ASSERT_EQ(row.size(), 14u) << bites[i];
+    EXPECT_EQ(row[0], absl::StrCat(i - 1));
+  }
+  EXPECT_THAT(bites[2], HasSubstr(",hard_skin,TV0,success,medium,0.100000,"
+                                  "0.600000,0.100000,0.200000"));
+
+  auto labels = haptic::ReadTraceLabels(dir + "/bites.csv");
+  ASSERT_THAT(labels.status(), IsOk());
+  ASSERT_EQ(labels->size(), 3u);
+  EXPECT_EQ(labels->at("0"), domain::HapticClass::kHard);
+  EXPECT_EQ(labels->at("1"), domain::HapticClass::kHardSkin);
+  EXPECT_FALSE(labels->at("2").has_value());
+  auto traces = haptic::ReadRecordedTraces(dir + "/traces.csv");
+  ASSERT_THAT(traces.status(), IsOk());
+  EXPECT_EQ(traces->size(), 3u);
+}
+
 TEST(TraceRecordingTest, RefusesForeignFilesEmptyTracesAndUnwritableDirs) {
   const std::string dir = TempDir();
   { std::ofstream(dir + "/traces.csv") << "time,fz\n0,1\n"; }
   EXPECT_THAT(TraceRecording::Open(dir).status(),
               StatusIs(absl::StatusCode::kInvalidArgument,
                        HasSubstr("traces.csv is not a bitewise recording")));
+  // A bites.csv whose first line is neither this release's header nor the
+  // one before is refused, naming the file: another CSV, a header cut short
+  // or extended, and this release's header without its newline.
+  const std::string current =
+      absl::StrCat(kHeaderBeforeFamiliarity, ",familiarity,unfamiliar");
+  for (const std::string& text :
+       {std::string("trace,label\n0,hard\n"),
+        absl::StrCat(kHeaderBeforeFamiliarity, ",familiarity\n"),
+        absl::StrCat(current, ",x\n"), absl::StrCat("#", current, "\n"),
+        current}) {
+    const std::string foreign = TempDir();
+    { std::ofstream(foreign + "/bites.csv") << text; }
+    EXPECT_THAT(
+        TraceRecording::Open(foreign).status(),
+        StatusIs(absl::StatusCode::kInvalidArgument,
+                 HasSubstr(absl::StrCat(foreign,
+                                        "/bites.csv is not a bitewise "
+                                        "recording: its first line is not"))))
+        << text;
+  }
 
   const std::string good = TempDir();
   auto recording = TraceRecording::Open(good);
