@@ -2,6 +2,7 @@
 // nowhere else; everything below main takes Options structs.
 #include <csignal>
 #include <cstdio>
+#include <limits>
 #include <memory>
 #include <string>
 
@@ -11,6 +12,7 @@
 #include "absl/strings/str_cat.h"
 #include "services/bandit/bandit_service.h"
 #include "services/bandit/core/learners.h"
+#include "services/bandit/core/split_run.h"
 #include "services/bandit/engine.h"
 #include "services/bandit/store/open_store.h"
 #include "services/common/flags_usage.h"
@@ -65,6 +67,10 @@ ABSL_FLAG(int, default_context_dim, 2048,
           "Context dimension for new users (SPANet: 2048).");
 ABSL_FLAG(int, default_posthoc_dim, 4,
           "Post hoc dimension for new users (HapticNet: 4).");
+ABSL_FLAG(int, select_threads, 2,
+          "Threads one Select may use: 2 splits a large model's per-action "
+          "passes over two cores (at least 8 MB read; docs/benchmarks.md), 1 "
+          "keeps every Select on its gRPC thread.");
 
 namespace {
 
@@ -126,6 +132,16 @@ int main(int argc, char** argv) {
   absl::StatusOr<bitewise::bandit::BanditConfig> defaults = DefaultsFromFlags();
   if (!defaults.ok()) {
     return bitewise::ReportFatal(kProgram, "bad flags", defaults.status());
+  }
+  const int select_threads = absl::GetFlag(FLAGS_select_threads);
+  if (select_threads != 1 && select_threads != 2) {
+    return bitewise::ReportFatal(
+        kProgram, "bad flags",
+        absl::InvalidArgumentError(absl::StrCat(
+            "--select_threads must be 1 or 2, not ", select_threads)));
+  }
+  if (select_threads == 1) {
+    bitewise::bandit::SetSplitMinCost(std::numeric_limits<double>::infinity());
   }
 
   // What every call runs with (metrics, authorizer, audit sink). Made

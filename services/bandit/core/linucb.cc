@@ -8,6 +8,7 @@
 
 #include "absl/strings/str_cat.h"
 #include "services/bandit/core/model_state_io.h"
+#include "services/bandit/core/split_run.h"
 #include "services/common/status_macros.h"
 
 namespace bitewise::bandit {
@@ -432,6 +433,18 @@ void LinUcbModel::RefreshPostHocCache(ActionState& s) {
 
 std::vector<ActionEstimate> LinUcbModel::Estimate(
     absl::Span<const double> context, SelectProducts* products) const {
+  return EstimateAlongside(context, products, nullptr, 0.0);
+}
+
+double LinUcbModel::SelectCost(int action) const {
+  const ActionState& s = actions_[action];
+  if (s.primal) return 0.5 * d_ * (d_ + 1.0);
+  return static_cast<double>(s.w.rows()) * d_;
+}
+
+std::vector<ActionEstimate> LinUcbModel::EstimateAlongside(
+    absl::Span<const double> context, SelectProducts* products,
+    const std::function<void()>& also, double also_cost) const {
   const Eigen::Map<const VectorXd> c = AsVector(context);
   const double lambda = lambda_a_;
   const double cc = c.squaredNorm();
@@ -443,7 +456,9 @@ std::vector<ActionEstimate> LinUcbModel::Estimate(
     products->per_action.resize(actions_.size());
   }
   std::vector<ActionEstimate> out(actions_.size());
-  for (size_t a = 0; a < actions_.size(); ++a) {
+  // Each action's pass writes only its own entries, so the passes may run
+  // on two threads (split_run.h); `also` is one more task beside them.
+  auto one = [&](size_t a) {
     const ActionState& s = actions_[a];
     VectorXd v = Product(s, c);
     double s1 = 0.0;  // c^T A^-1 c
@@ -475,7 +490,18 @@ std::vector<ActionEstimate> LinUcbModel::Estimate(
     e.width = std::sqrt(std::max(var, 0.0));
     e.lcb = pred - config_.alpha * e.width;
     if (products != nullptr) products->per_action[a] = std::move(v);
-  }
+  };
+  const int k = static_cast<int>(actions_.size());
+  std::vector<double> costs(k + (also ? 1 : 0));
+  for (int a = 0; a < k; ++a) costs[a] = SelectCost(a);
+  if (also) costs[k] = also_cost;
+  SplitRun(costs, [&](int i) {
+    if (i < k) {
+      one(static_cast<size_t>(i));
+    } else {
+      also();
+    }
+  });
   return out;
 }
 

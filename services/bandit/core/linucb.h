@@ -47,6 +47,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -156,6 +157,16 @@ class LinUcbModel final : public LearnerModel {
   // `products`, also leaves there what Update can reuse for this context.
   std::vector<ActionEstimate> Estimate(absl::Span<const double> c,
                                        SelectProducts* products) const override;
+
+  // Estimate, with `also` (reading about `also_cost` numbers) run as one
+  // more task beside the actions' passes, on the same two threads when
+  // they split (split_run.h): poLinUCB's pooled model in primal form.
+  std::vector<ActionEstimate> EstimateAlongside(
+      absl::Span<const double> c, SelectProducts* products,
+      const std::function<void()>& also, double also_cost) const;
+  // The numbers a Select reads for `action`: n_a d in dual form, d(d+1)/2
+  // in primal form.
+  double SelectCost(int action) const;
 
   // Adds one round. The round must pass ValidateRound. `products` from an
   // Estimate of the same context are used if the model has not changed

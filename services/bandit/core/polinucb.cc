@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <memory>
 #include <utility>
 
@@ -305,15 +306,26 @@ std::vector<ActionEstimate> PoLinUcbModel::Estimate(
   SelectProducts own;
   SelectProducts* context_products =
       products != nullptr ? products : (factors_.on ? &own : nullptr);
-  std::vector<ActionEstimate> out =
-      contexts_.Estimate(context, context_products);
   SelectProducts* pooled_products = nullptr;
   if (products != nullptr) {
     products->nested = std::make_shared<SelectProducts>();
     pooled_products = products->nested.get();
   }
-  const double radius =
-      config_.phi_radius * PooledWidth(c, context_products, pooled_products);
+  // Without the factors the pooled width is a pass of its own over X^-1,
+  // run beside the six actions' passes; with them it comes from theirs.
+  double pooled_width = 0.0;
+  std::function<void()> pooled_pass;
+  if (!factors_.on) {
+    pooled_pass = [&] {
+      pooled_width = PooledWidth(c, nullptr, pooled_products);
+    };
+  }
+  std::vector<ActionEstimate> out = contexts_.EstimateAlongside(
+      context, context_products, pooled_pass, pooled_.SelectCost(0));
+  if (factors_.on) {
+    pooled_width = PooledWidth(c, context_products, pooled_products);
+  }
+  const double radius = config_.phi_radius * pooled_width;
   const VectorXd p_hat = q_map_.transpose() * c;
   for (size_t a = 0; a < actions_.size(); ++a) {
     const ActionState& s = actions_[a];

@@ -853,6 +853,26 @@ TEST(BanditBinaryStartTest, AMistypedDbStopsTheStartUnlessCreateIsGiven) {
   EXPECT_NE(access(db.c_str(), F_OK), 0);  // nothing was made
 }
 
+TEST(BanditBinaryStartTest, SelectThreadsOtherThanOneOrTwoStopTheStart) {
+  const std::string db = ::testing::TempDir() + "/bandit_select_threads.db";
+  std::remove(db.c_str());
+  const std::string log = ::testing::TempDir() + "/bandit_select_threads.log";
+  std::remove(log.c_str());
+  testing::ChildProcess child;
+  ASSERT_TRUE(
+      child
+          .Start({BITEWISE_BANDIT_BINARY, absl::StrCat("--db=", db), "--create",
+                  "--select_threads=3", "--listen=127.0.0.1:0"},
+                 log)
+          .ok());
+  const absl::StatusOr<int> status = child.Wait(absl::Seconds(30));
+  ASSERT_TRUE(status.ok()) << status.status();
+  ASSERT_TRUE(WIFEXITED(*status));
+  EXPECT_NE(WEXITSTATUS(*status), 0);
+  EXPECT_THAT(child.log(), HasSubstr("--select_threads must be 1 or 2, not 3"));
+  EXPECT_NE(access(db.c_str(), F_OK), 0);  // checked before the store opens
+}
+
 // Two bitewise-bandit processes (replicas) on one new database of the test
 // binary's PostgreSQL server, logging into a temporary directory; both are
 // killed and the directory removed at the end.
