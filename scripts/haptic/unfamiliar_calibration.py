@@ -28,7 +28,7 @@ import sys
 
 import numpy as np
 
-CLASSES = ["hard", "medium", "soft", "hard_skin"]
+from story_calibration import CLASSES, scores, temper
 
 
 def load(path):
@@ -42,13 +42,6 @@ def load(path):
             np.log(np.maximum(np.array(distances), 1e-12)))
 
 
-def temper(p, t):
-    logits = np.log(np.maximum(p, 1e-300)) / t
-    logits -= logits.max(axis=1, keepdims=True)
-    e = np.exp(logits)
-    return e / e.sum(axis=1, keepdims=True)
-
-
 def flatten(p, log_d, a, b):
     u = 1.0 / (1.0 + np.exp(-(a + b * log_d)))
     return (1.0 - u)[:, None] * p + (u / 4.0)[:, None]
@@ -56,22 +49,6 @@ def flatten(p, log_d, a, b):
 
 def nll(y, p):
     return -np.mean(np.log(np.maximum(p[np.arange(len(y)), y], 1e-12)))
-
-
-def scores(y, p):
-    predicted = p.argmax(axis=1)
-    top = p.max(axis=1)
-    right = predicted == y
-    per_class = [right[y == k].mean() for k in range(4)]
-    over = [top[y == k].mean() - right[y == k].mean() for k in range(4)]
-    ece = 0.0
-    bins = np.minimum((top * 10).astype(int), 9)
-    for b in range(10):
-        m = bins == b
-        if m.any():
-            ece += abs(top[m].sum() - right[m].sum()) / len(y)
-    return dict(accuracy=right.mean(), per_class=per_class, over=over,
-                ece=ece, nll=nll(y, p))
 
 
 T_GRID = np.exp(np.linspace(math.log(0.5), math.log(10.0), 121))
