@@ -30,7 +30,8 @@ done
 JOBS="${JOBS:-${BITEWISE_JOBS:-$(nproc)}}"
 FUZZERS=(rdt_fuzzer frame_fuzzer trace_fuzzer request_fuzzer)
 # Test executables (build-relative paths) of the core sanitizer check.
-CORE_TESTS=(tests/bandit/bandit_core_test tests/bandit/store/bandit_store_test
+CORE_TESTS=(tests/bandit/bandit_core_test tests/bandit/bandit_split_run_test
+  tests/bandit/store/bandit_store_test
   tests/bandit/bandit_replica_test tests/robot/robot_rdt_protocol_test
   tests/robot/robot_counter_clock_test tests/perception/perception_frame_test
   tests/haptic/haptic_core_test)
