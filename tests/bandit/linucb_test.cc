@@ -295,17 +295,17 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
     model.Update(round);
     rounds.push_back(round);
     converting_updates += model.IsConverting(0);
-    // The default threshold is 3/4 of d = 48 rounds. At 42 = ceil(48 * 7/8)
-    // rounds the candidate is prepared (one step at d = 64), at 43 the
+    // The default threshold is 3/4 of d = 48 rounds. At 32 = ceil(48 * 2/3)
+    // rounds the candidate is prepared (one step at d = 64), at 33 the
     // folding begins: 7 rows per update into one of the two column slices in
     // turn, each slice 7 rows on every second update while the count grows
-    // by 2. At 59 both slices are within 7 rows of the count, and as every
+    // by 2. At 45 both slices are within 7 rows of the count, and as every
     // update brings this one action a row, neither slice can hold them all
-    // when the other does: after 8 such updates of chasing, at 67, the last
+    // when the other does: after 8 such updates of chasing, at 53, the last
     // rows go into the whole matrix and the action turns primal.
-    EXPECT_EQ(model.IsConverting(0), t + 1 >= 43 && t + 1 < 67) << t;
-    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 67) << t;
-    if (t + 1 >= 40) {
+    EXPECT_EQ(model.IsConverting(0), t + 1 >= 33 && t + 1 < 53) << t;
+    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 53) << t;
+    if (t + 1 >= 30) {
       ExpectMatchesReference(model, rounds, RandomVector(64, rng),
                              "round " + std::to_string(t + 1));
       LinUcbModel rebuilt = *LinUcbModel::Rebuild(config, rounds);
@@ -320,7 +320,7 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
                              "rebuilt then updated at " + std::to_string(t));
     }
   }
-  EXPECT_EQ(converting_updates, 24);
+  EXPECT_EQ(converting_updates, 20);
 }
 
 // Actions that reach the conversion together convert one after another:
@@ -350,7 +350,7 @@ TEST(LinUcbTest, ActionsConvertOneAtATime) {
       if (model.IsPrimal(a) && !was_primal[a]) {
         order.push_back(a);
         switched = true;
-        EXPECT_GE(model.Count(a), 42) << a;  // ceil(48 * 7/8)
+        EXPECT_GE(model.Count(a), 32) << a;  // ceil(48 * 2/3)
       }
     }
     most_converting = std::max(most_converting, converting);
@@ -402,7 +402,7 @@ TEST(LinUcbTest, SavedStateWithImpossibleConversionIsRefused) {
   config.action_names = {"a", "b", "c"};
   LinUcbModel model = *LinUcbModel::Create(config);
   std::mt19937_64 rng(4);
-  // Action 0 alone, until it converts (threshold 6: folding from 7 rounds).
+  // Action 0 alone, until it converts (threshold 6: folding from 5 rounds).
   while (!model.IsConverting(0)) {
     Round round = RandomRound(8, 0, 1, rng);
     round.posthoc.clear();
@@ -566,10 +566,11 @@ TEST(LinUcbTest, ReplayInOneStepEqualsRoundByRound) {
     int d, rounds, cut;
     bool primal;  // the form of every action at the cut
   };
-  // d 64: actions turn primal past 3d/4 = 48 rows, so 100 rounds over three
-  // actions stay dual; d 16: primal past 12, so 250 rounds are all primal.
+  // d 64: actions start converting at 2/3 of 3d/4 = 32 rows, so 80 rounds
+  // over three actions stay dual (none converting); d 16: primal past 12, so
+  // 250 rounds are all primal.
   for (const Case& c :
-       {Case{"dual", 64, 100, 20, false}, Case{"primal", 16, 400, 250, true}}) {
+       {Case{"dual", 64, 80, 20, false}, Case{"primal", 16, 400, 250, true}}) {
     for (const Learner learner : {Learner::kPostHoc, Learner::kContextOnly}) {
       SCOPED_TRACE(absl::StrCat(c.name, " ", static_cast<int>(learner)));
       const BanditConfig config = ThreeActions(learner, c.d, 3.0);

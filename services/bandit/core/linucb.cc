@@ -191,9 +191,11 @@ absl::Status LinUcbModel::ValidateRound(const Round& round) const {
 }
 
 int LinUcbModel::ConversionStart() const {
-  constexpr int r = kConversionRowsPerUpdate;
-  return static_cast<int>((static_cast<int64_t>(primal_threshold_) * r + r) /
-                          (r + 1));
+  // ceil(T * 2/3): n = d/2 at the default T = 3d/4.
+  return static_cast<int>(
+      (static_cast<int64_t>(primal_threshold_) * kConversionStartNumerator +
+       kConversionStartDenominator - 1) /
+      kConversionStartDenominator);
 }
 
 VectorXd LinUcbModel::Product(const ActionState& s,
