@@ -108,9 +108,12 @@ class LinUcbModel final : public LearnerModel {
   using LearnerModel::Update;
 
   // Rows folded into one column slice of the primal form per Update while
-  // an action converts, and the slices (of equal area) taken in turn.
+  // an action converts, and the slices (of equal area) taken in turn. Four
+  // slices since 2026-12-03 (two before): half the fold per Update, and with
+  // the earlier start below the conversions still end by about 11,500
+  // events at d = 2048, K = 6 (docs/benchmarks.md).
   static constexpr int kConversionRowsPerUpdate = 7;
-  static constexpr int kFoldSlices = 2;
+  static constexpr int kFoldSlices = 4;
   // Updates an action may chase its newest rows (every slice within
   // kConversionRowsPerUpdate rows of its count, none yet holding all)
   // before they go into the whole matrix at once.
