@@ -131,11 +131,12 @@ class LinUcbModel final : public LearnerModel {
 
   // `primal_threshold` T: an action may start converting to primal form at
   // ceil(T * 2/3) rounds, when no other action is converting (the one with
-  // the most rounds first); it then takes about kPrepareUpdates + 2 n / 7
-  // Updates of any actions. 0 means 3d/4: a Select reads n d numbers in dual
-  // form and d^2/2 in primal form (the lower triangle), so primal is faster
-  // from n = d/2, while the dual form is smaller until n = d. T is part of a
-  // saved state (LoadState refuses another); the start is not.
+  // the most rounds first); it then takes about kPrepareUpdates +
+  // kFoldSlices n / 7 Updates of any actions. 0 means 3d/4: a Select reads
+  // n d numbers in dual form and d^2/2 in primal form (the lower triangle),
+  // so primal reads less from n = d/2, while the dual form is smaller until
+  // n = d. T is part of a saved state (LoadState refuses another); the start
+  // is not.
   static absl::StatusOr<LinUcbModel> Create(const BanditConfig& config,
                                             int primal_threshold = 0);
 
