@@ -54,6 +54,11 @@ ABSL_FLAG(int, window, 1000, "Sweep: rounds per reported window.");
 ABSL_FLAG(int, repeat, 1,
           "Sweep: runs of the same rounds; each Update's time is its fastest "
           "run's.");
+ABSL_FLAG(int, top, 0,
+          "Sweep: also list this many slowest Updates (their fastest run), "
+          "with the taken action, its form (P or D) and rounds after the "
+          "Update, and the converting "
+          "action (-1: none).");
 ABSL_FLAG(bool, cold_load, false,
           "Instead: per size, write the log into a real SQLite store, save a "
           "checkpoint, add --tail events, and time the first Select of a "
@@ -287,6 +292,7 @@ int ColdLoad(int d) {
 struct SweepRun {
   std::vector<double> selects, updates, mb, bound_mb;
   std::vector<int> primal;
+  std::vector<std::string> note;  // --top: the taken action, converting
 };
 
 SweepRun RunSweep(int d, int total) {
@@ -295,7 +301,16 @@ SweepRun RunSweep(int d, int total) {
   LinUcbModel model = *LinUcbModel::Create(Config(d));
   for (int t = 1; t <= total; ++t) {
     double s = 0, u = 0;
-    Pair(model, RandomRound(d, rng), rng, &s, &u);
+    const Round played = Pair(model, RandomRound(d, rng), rng, &s, &u);
+    if (absl::GetFlag(FLAGS_top) > 0) {
+      int conv = -1;
+      for (int a = 0; a < kActions; ++a) {
+        if (model.IsConverting(a)) conv = a;
+      }
+      run.note.push_back(absl::StrCat(
+          "taken ", played.action, model.IsPrimal(played.action) ? " P" : " D",
+          " n ", model.Count(played.action), " conv ", conv));
+    }
     run.selects.push_back(s);
     run.updates.push_back(u);
     int primal = 0;
@@ -365,6 +380,17 @@ int Sweep(int d) {
       "rounds): %.2f\n",
       overall_ratio, sweep_median, sweep_worst, sweep_worst / sweep_median,
       peak_over_bound);
+  if (absl::GetFlag(FLAGS_top) > 0) {
+    std::vector<int> idx(total);
+    for (int t = 0; t < total; ++t) idx[t] = t;
+    std::sort(idx.begin(), idx.end(),
+              [&](int a, int b) { return run.updates[a] > run.updates[b]; });
+    for (int i = 0; i < absl::GetFlag(FLAGS_top) && i < total; ++i) {
+      std::printf("top %2d: round %5d %.3f ms primal %d %s\n", i, idx[i] + 1,
+                  run.updates[idx[i]], run.primal[idx[i]],
+                  run.note.empty() ? "" : run.note[idx[i]].c_str());
+    }
+  }
   if (repeat > 1) {
     std::printf(
         "slowest single Update of any run: %.3f ms (round %d)\n",

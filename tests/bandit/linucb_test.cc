@@ -2,6 +2,8 @@
 
 #include <cmath>
 #include <cstring>
+#include <fstream>
+#include <iterator>
 #include <random>
 #include <string>
 #include <vector>
@@ -290,22 +292,23 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
   std::mt19937_64 rng(5);
   std::vector<Round> rounds;
   int converting_updates = 0;
-  for (int t = 0; t < 70; ++t) {
+  for (int t = 0; t < 85; ++t) {
     Round round = RandomRound(64, 4, 1, rng);
     model.Update(round);
     rounds.push_back(round);
     converting_updates += model.IsConverting(0);
-    // The default threshold is 3/4 of d = 48 rounds. At 42 = ceil(48 * 7/8)
-    // rounds the candidate is prepared (one step at d = 64), at 43 the
-    // folding begins: 7 rows per update into one of the two column slices in
-    // turn, each slice 7 rows on every second update while the count grows
-    // by 2. At 59 both slices are within 7 rows of the count, and as every
-    // update brings this one action a row, neither slice can hold them all
-    // when the other does: after 8 such updates of chasing, at 67, the last
-    // rows go into the whole matrix and the action turns primal.
-    EXPECT_EQ(model.IsConverting(0), t + 1 >= 43 && t + 1 < 67) << t;
-    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 67) << t;
-    if (t + 1 >= 40) {
+    // The default threshold is 3/4 of d = 48 rounds. At 32 = ceil(48 * 2/3)
+    // rounds the candidate is prepared (one step at d = 64), at 33 the
+    // folding begins: 7 rows per update into one of the four column slices
+    // in turn, each slice 7 rows on every fourth update while the count
+    // grows by 4. At 69 every slice is within 7 rows of the count, and as
+    // every update brings this one action a row, the slices cannot all hold
+    // them at once: after 8 updates of chasing (updates with every slice
+    // that close), at 79, the last rows go into the whole matrix and the
+    // action turns primal.
+    EXPECT_EQ(model.IsConverting(0), t + 1 >= 33 && t + 1 < 79) << t;
+    EXPECT_EQ(model.IsPrimal(0), t + 1 >= 79) << t;
+    if (t + 1 >= 30) {
       ExpectMatchesReference(model, rounds, RandomVector(64, rng),
                              "round " + std::to_string(t + 1));
       LinUcbModel rebuilt = *LinUcbModel::Rebuild(config, rounds);
@@ -320,7 +323,7 @@ TEST(LinUcbTest, ConversionIsAmortisedAndRebuildResumesIt) {
                              "rebuilt then updated at " + std::to_string(t));
     }
   }
-  EXPECT_EQ(converting_updates, 24);
+  EXPECT_EQ(converting_updates, 46);
 }
 
 // Actions that reach the conversion together convert one after another:
@@ -350,7 +353,7 @@ TEST(LinUcbTest, ActionsConvertOneAtATime) {
       if (model.IsPrimal(a) && !was_primal[a]) {
         order.push_back(a);
         switched = true;
-        EXPECT_GE(model.Count(a), 42) << a;  // ceil(48 * 7/8)
+        EXPECT_GE(model.Count(a), 32) << a;  // ceil(48 * 2/3)
       }
     }
     most_converting = std::max(most_converting, converting);
@@ -402,7 +405,7 @@ TEST(LinUcbTest, SavedStateWithImpossibleConversionIsRefused) {
   config.action_names = {"a", "b", "c"};
   LinUcbModel model = *LinUcbModel::Create(config);
   std::mt19937_64 rng(4);
-  // Action 0 alone, until it converts (threshold 6: folding from 7 rounds).
+  // Action 0 alone, until it converts (threshold 6: folding from 5 rounds).
   while (!model.IsConverting(0)) {
     Round round = RandomRound(8, 0, 1, rng);
     round.posthoc.clear();
@@ -556,6 +559,65 @@ TEST(LinUcbTest, CheckpointPlusReplayEqualsTheWholeLog) {
   }
 }
 
+// tests/bandit/testdata/linucb_format3_converting_2026-12-03.state: a state
+// of format 3 (two fold slices), saved by the code of commit e94968f after
+// the first 17 of these rounds, action 0 converting (folds under way). It
+// loads (the conversion starts again from the whole dual form), equals the
+// dense reference, and learns on through the switch.
+std::vector<Round> Format3FixtureRounds(int count) {
+  std::vector<Round> rounds(count);
+  for (int t = 0; t < count; ++t) {
+    Round& r = rounds[t];
+    r.action = t % 5 == 4 ? 1 + (t / 5) % 2 : 0;
+    r.context.resize(16);
+    r.posthoc.resize(3);
+    for (int i = 0; i < 16; ++i) r.context[i] = ((t * 31 + i * 17) % 97) / 97.0;
+    for (int i = 0; i < 3; ++i) r.posthoc[i] = ((t * 13 + i * 7) % 89) / 89.0;
+    r.loss = (t % 7) / 6.0;
+    r.weight = 1.0 + (t % 3) * 0.5;
+  }
+  return rounds;
+}
+
+TEST(LinUcbTest, Format3StateConvertingLoadsAndLearnsOn) {
+  BanditConfig config;
+  config.learner = Learner::kPostHoc;
+  config.context_dim = 16;
+  config.posthoc_dim = 3;
+  config.lambda_c = 2.0;
+  config.action_names = {"a", "b", "c"};
+  std::ifstream file(BITEWISE_TESTDATA
+                     "/linucb_format3_converting_2026-12-03.state",
+                     std::ios::binary);
+  ASSERT_TRUE(file.good());
+  const std::string state((std::istreambuf_iterator<char>(file)),
+                          std::istreambuf_iterator<char>());
+  int32_t format = 0;
+  std::memcpy(&format, state.data() + 4, sizeof(format));
+  ASSERT_EQ(format, 3);
+  absl::StatusOr<LinUcbModel> loaded = LinUcbModel::LoadState(config, state);
+  ASSERT_TRUE(loaded.ok()) << loaded.status();
+  const std::vector<Round> rounds = Format3FixtureRounds(60);
+  std::vector<Round> seen(rounds.begin(), rounds.begin() + 17);
+  ASSERT_EQ(loaded->TotalRounds(), 17);
+  EXPECT_FALSE(loaded->IsPrimal(0));
+  ExpectMatchesReference(*loaded, seen, rounds[17].context, "loaded");
+  for (int t = 17; t < 60; ++t) {
+    loaded->Update(rounds[t]);
+    seen.push_back(rounds[t]);
+    if (t % 7 == 0 || t == 59) {
+      ExpectMatchesReference(*loaded, seen, rounds[t % 17].context,
+                             absl::StrCat("loaded, then ", t + 1, " rounds"));
+    }
+  }
+  EXPECT_TRUE(loaded->IsPrimal(0));
+  // Saved again in format 4, and loaded bit for bit.
+  const std::string again = loaded->SaveState();
+  std::memcpy(&format, again.data() + 4, sizeof(format));
+  EXPECT_EQ(format, 4);
+  EXPECT_EQ(LinUcbModel::LoadState(config, again)->SaveState(), again);
+}
+
 // With no conversion under way or beginning, Replay adds each action's
 // rounds in one step (primal: Woodbury; dual: a block of the Cholesky
 // factor) instead of one update each: the same model to 1e-10 and to the
@@ -566,10 +628,11 @@ TEST(LinUcbTest, ReplayInOneStepEqualsRoundByRound) {
     int d, rounds, cut;
     bool primal;  // the form of every action at the cut
   };
-  // d 64: actions turn primal past 3d/4 = 48 rows, so 100 rounds over three
-  // actions stay dual; d 16: primal past 12, so 250 rounds are all primal.
+  // d 64: actions start converting at 2/3 of 3d/4 = 32 rows, so 80 rounds
+  // over three actions stay dual (none converting); d 16: primal past 12, so
+  // 250 rounds are all primal.
   for (const Case& c :
-       {Case{"dual", 64, 100, 20, false}, Case{"primal", 16, 400, 250, true}}) {
+       {Case{"dual", 64, 80, 20, false}, Case{"primal", 16, 400, 250, true}}) {
     for (const Learner learner : {Learner::kPostHoc, Learner::kContextOnly}) {
       SCOPED_TRACE(absl::StrCat(c.name, " ", static_cast<int>(learner)));
       const BanditConfig config = ThreeActions(learner, c.d, 3.0);

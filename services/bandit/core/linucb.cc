@@ -34,7 +34,10 @@ MatrixXd LowerSymmetricTimes(const MatrixXd& a, const MatrixXd& x) {
 
 constexpr char kStateMagic[4] = {'B', 'W', 'L', 'U'};
 // 3: each fold slice's count of rows (format 2, one count, still loads).
-constexpr int32_t kStateFormat = 3;
+// 4: four fold slices (format 3 had two; it still loads, a conversion under
+// way in it starting again).
+constexpr int32_t kStateFormat = 4;
+constexpr int kFormat3FoldSlices = 2;
 constexpr int32_t kOldestStateFormat = 2;
 constexpr double kLayoutMarker = 1.0 + 1.0 / 1024;  // bytes tell the layout
 constexpr StateHeader kStateHeader = {kStateMagic, kStateFormat, kLayoutMarker,
@@ -192,9 +195,11 @@ absl::Status LinUcbModel::ValidateRound(const Round& round) const {
 }
 
 int LinUcbModel::ConversionStart() const {
-  constexpr int r = kConversionRowsPerUpdate;
-  return static_cast<int>((static_cast<int64_t>(primal_threshold_) * r + r) /
-                          (r + 1));
+  // ceil(T * 2/3): n = d/2 at the default T = 3d/4.
+  return static_cast<int>(
+      (static_cast<int64_t>(primal_threshold_) * kConversionStartNumerator +
+       kConversionStartDenominator - 1) /
+      kConversionStartDenominator);
 }
 
 VectorXd LinUcbModel::Product(const ActionState& s,
@@ -1035,14 +1040,19 @@ absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,
       counts_agree = counts_agree && rows >= 0 && converted >= 0 &&
                      converted <= rows && rows <= s.count;
     } else {
+      // Format 3 saved two slices' counts; a conversion under way then is
+      // dropped below, as for format 2.
+      const int slices = format == 3 ? kFormat3FoldSlices : kFoldSlices;
       RETURN_IF_ERROR(in.Value(&next_slice, "an action"));
       RETURN_IF_ERROR(in.Value(&chase, "an action"));
-      for (int32_t& f : folded) {
+      for (int i = 0; i < slices; ++i) {
+        int32_t f = 0;
         RETURN_IF_ERROR(in.Value(&f, "an action"));
         counts_agree = counts_agree && f >= 0 && f <= s.count;
+        if (i < kFoldSlices) folded[i] = f;
       }
-      counts_agree = counts_agree && next_slice >= 0 &&
-                     next_slice < kFoldSlices && chase >= 0;
+      counts_agree =
+          counts_agree && next_slice >= 0 && next_slice < slices && chase >= 0;
     }
     if (!counts_agree) {
       return absl::DataLossError("model state: an action's counts disagree");
@@ -1111,10 +1121,13 @@ absl::StatusOr<LinUcbModel> LinUcbModel::LoadState(const BanditConfig& config,
         RETURN_IF_ERROR(in.Doubles(s.y.data(), s.y.size(), "W S_pc^T"));
       }
       RETURN_IF_ERROR(lower(s.candidate, s.prepared));
-      if (format == 2 && s.converting) {
+      if (format < 4 && s.converting) {
         s.candidate = MatrixXd();
         s.converting = false;
         s.prepared = 0;
+        s.folded = {};
+        s.next_slice = 0;
+        s.chase = 0;
       }
     }
     if (model.posthoc()) model.RefreshPostHocCache(s);

@@ -5,7 +5,7 @@
 // Representation. Every action keeps A_a = lambda I + sum w c c^T (lambda =
 // lambda_c, plus kappa_c with a population prior; see PopulationPrior) in
 // the cheaper of two forms:
-//  - dual, while the action has few rounds (n_a below about 2d/3): the whitened
+//  - dual, while the action has few rounds (n_a below about d/2): the whitened
 //  rows
 //    W_a = L_a^-1 C_a (n x d), where C_a holds the rows sqrt(w) c and L_a is
 //    the Cholesky factor of K_a = lambda I + C_a C_a^T. Then
@@ -15,7 +15,7 @@
 //    so the rows live in blocks that never move (no doubling copies);
 //  - primal: A_a^-1 itself (d x d, lower triangle), kept by Sherman-Morrison.
 // The switch is amortised, and one action converts at a time: the action
-// that has passed about 7/8 of the threshold with the most rounds first has
+// that has passed 2/3 of the threshold with the most rounds first has
 // its d x d matrix written a slice per Update (kPrepareUpdates Updates), then
 // every Update, of any action, folds up to kConversionRowsPerUpdate of its
 // rows into one of kFoldSlices column slices of A_a^-1 = (I - sum_i w_i
@@ -109,9 +109,12 @@ class LinUcbModel final : public LearnerModel {
   using LearnerModel::Update;
 
   // Rows folded into one column slice of the primal form per Update while
-  // an action converts, and the slices (of equal area) taken in turn.
+  // an action converts, and the slices (of equal area) taken in turn. Four
+  // slices since 2026-12-03 (two before): half the fold per Update, and with
+  // the earlier start below the conversions still end by about 11,500
+  // events at d = 2048, K = 6 (docs/benchmarks.md).
   static constexpr int kConversionRowsPerUpdate = 7;
-  static constexpr int kFoldSlices = 2;
+  static constexpr int kFoldSlices = 4;
   // Updates an action may chase its newest rows (every slice within
   // kConversionRowsPerUpdate rows of its count, none yet holding all)
   // before they go into the whole matrix at once.
@@ -119,13 +122,22 @@ class LinUcbModel final : public LearnerModel {
   // Updates over which the conversion's d x d matrix is first written (at
   // large d; a d x d matrix under 256 KB is written at once).
   static constexpr int kPrepareUpdates = 32;
+  // An action may start converting at ceil(T * 2/3) rounds (d/2 at the
+  // default T = 3d/4). Converting later (7/8 of T, to 2026-12-03) made the
+  // actions that wait their turn meanwhile grow past 1,800 rows at d = 2048,
+  // and a dual Update of one of them plus a fold was the slowest Update of a
+  // model's life (docs/benchmarks.md, "The switch from dual to primal form").
+  static constexpr int kConversionStartNumerator = 2;
+  static constexpr int kConversionStartDenominator = 3;
 
   // `primal_threshold` T: an action may start converting to primal form at
-  // ceil(T * 7/8) rounds, when no other action is converting (the one with
-  // the most rounds first); it then takes about kPrepareUpdates + n / 7
-  // Updates of any actions. 0 means 3d/4: a Select reads n d numbers in dual
-  // form and d^2/2 in primal form (the lower triangle), so primal is faster
-  // from n = d/2, while the dual form is smaller until n = d.
+  // ceil(T * 2/3) rounds, when no other action is converting (the one with
+  // the most rounds first); it then takes about kPrepareUpdates +
+  // kFoldSlices n / 7 Updates of any actions. 0 means 3d/4: a Select reads
+  // n d numbers in dual form and d^2/2 in primal form (the lower triangle),
+  // so primal reads less from n = d/2, while the dual form is smaller until
+  // n = d. T is part of a saved state (LoadState refuses another); the start
+  // is not.
   static absl::StatusOr<LinUcbModel> Create(const BanditConfig& config,
                                             int primal_threshold = 0);
 
