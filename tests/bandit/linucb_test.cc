@@ -15,6 +15,7 @@
 #include "services/bandit/core/population_prior.h"
 #include "tests/bandit/dense_reference.h"
 #include "tests/bandit/reference_checks.h"
+#include "tests/bandit/state_fixture.h"
 #include "tests/common/near.h"
 
 namespace bitewise::bandit {
@@ -586,14 +587,10 @@ TEST(LinUcbTest, Format3StateConvertingLoadsAndLearnsOn) {
   config.posthoc_dim = 3;
   config.lambda_c = 2.0;
   config.action_names = {"a", "b", "c"};
-  std::ifstream file(BITEWISE_TESTDATA
-                     "/linucb_format3_converting_2026-12-03.state",
-                     std::ios::binary);
-  ASSERT_TRUE(file.good());
-  const std::string state((std::istreambuf_iterator<char>(file)),
-                          std::istreambuf_iterator<char>());
   int32_t format = 0;
-  std::memcpy(&format, state.data() + 4, sizeof(format));
+  const std::string state = testing::ReadStateFixture(
+      BITEWISE_TESTDATA "/linucb_format3_converting_2026-12-03.state", &format);
+  ASSERT_FALSE(state.empty());
   ASSERT_EQ(format, 3);
   absl::StatusOr<LinUcbModel> loaded = LinUcbModel::LoadState(config, state);
   ASSERT_TRUE(loaded.ok()) << loaded.status();

@@ -17,6 +17,7 @@
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "tests/bandit/dense_reference.h"
+#include "tests/bandit/state_fixture.h"
 #include "tests/common/near.h"
 
 namespace bitewise::bandit {
@@ -286,13 +287,10 @@ TEST(PoLinUcbTest, Format1StateLoadsAndLearnsOn) {
   config.lambda_c = 1.5;
   config.lambda_p = 0.8;
   config.phi_radius = 0.7;
-  std::ifstream file(BITEWISE_TESTDATA "/polinucb_format1_2026-12-03.state",
-                     std::ios::binary);
-  ASSERT_TRUE(file.good());
-  const std::string state((std::istreambuf_iterator<char>(file)),
-                          std::istreambuf_iterator<char>());
   int32_t format = 0;
-  std::memcpy(&format, state.data() + 4, sizeof(format));
+  const std::string state = testing::ReadStateFixture(
+      BITEWISE_TESTDATA "/polinucb_format1_2026-12-03.state", &format);
+  ASSERT_FALSE(state.empty());
   ASSERT_EQ(format, 1);
   absl::StatusOr<PoLinUcbModel> loaded =
       PoLinUcbModel::LoadState(config, state);
