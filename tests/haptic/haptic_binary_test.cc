@@ -271,6 +271,39 @@ TEST_F(HapticEvalTest, AMalformedFamiliarityFileStopsIt) {
   EXPECT_THAT(log(), HasSubstr(model + ".familiarity"));
 }
 
+// bitewise-haptic-train's --slow_approach: a factor below 1 (a faster
+// approach is not what it means) stops it naming the flag; a valid one is
+// said in the trainer's account of its data.
+TEST(HapticTrainerBinaryTest, SlowApproachIsCheckedAndReported) {
+  const auto train = [](const std::string& name, const std::string& slow,
+                        std::string* log) {
+    const std::string log_path = ::testing::TempDir() + "/" + name + ".log";
+    bitewise::testing::ChildProcess child;
+    const absl::Status started = child.Start(
+        {BITEWISE_HAPTIC_TRAIN_BINARY, "--slow_approach=" + slow,
+         "--stories=world", "--traces_per_class=20", "--familiarity=false",
+         "--max_epochs=1", "--held_out_per_class=0",
+         "--out=" + ::testing::TempDir() + "/" + name + ".onnx"},
+        log_path);
+    EXPECT_TRUE(started.ok()) << started;
+    absl::StatusOr<int> status = child.Wait(kTimeout);
+    EXPECT_TRUE(status.ok()) << status.status();
+    *log = ReadFile(log_path);
+    return status.ok() ? *status : -1;
+  };
+  std::string log;
+  int status = train("slow_bad", "0.5", &log);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  EXPECT_THAT(log, HasSubstr("--slow_approach must be in [1, 10]; got 0.5"));
+  status = train("slow_good", "2", &log);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  EXPECT_THAT(log, HasSubstr("slow approach up to x2 (--slow_approach)"));
+}
+
 TEST(HapticBinaryTest, TruncatedModelFileStopsTheStart) {
   const std::string bytes = ReadFile(BITEWISE_HAPTIC_MODEL_FILE);
   ASSERT_GT(bytes.size(), 1000u);

@@ -1,5 +1,6 @@
 // The trainer's sensor augmentation (TraceAugmentation) and the
 // per-category over-confidence of ScorePredictions.
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -85,6 +86,34 @@ TEST(TraceAugmentationTest, TheFullAugmentationKeepsATraceTheServiceAccepts) {
   // 90 Hz floor, or a weak soft item shrunk below the contact threshold, is
   // rejected as the service would, and the trainer skips and counts it.
   EXPECT_GE(accepted, 85);
+}
+
+TEST(TraceAugmentationTest, ASlowApproachStretchesTheClockAndNothingElse) {
+  const std::vector<TimedWrench> trace = Trace();
+  std::mt19937_64 rng(3);
+  double smallest = 1e9, largest = 0.0;
+  for (int draw = 0; draw < 200; ++draw) {
+    const std::vector<TimedWrench> out = SlowApproach(trace, 3.0, rng);
+    ASSERT_EQ(out.size(), trace.size());
+    const double factor = out.back().t_s / trace.back().t_s;
+    ASSERT_GE(factor, 1.0);
+    ASSERT_LE(factor, 3.0);
+    smallest = std::min(smallest, factor);
+    largest = std::max(largest, factor);
+    for (size_t i = 0; i < trace.size(); ++i) {
+      ASSERT_NEAR(out[i].t_s, trace[i].t_s * factor, 1e-12);
+      for (int k = 0; k < kWrenchChannels; ++k) {
+        ASSERT_EQ(Channel(out[i].wrench, k), Channel(trace[i].wrench, k));
+      }
+    }
+  }
+  EXPECT_LT(smallest, 1.05);  // log-uniform over [1, 3]
+  EXPECT_GT(largest, 2.85);
+  // At 1, nothing moves.
+  const std::vector<TimedWrench> same = SlowApproach(trace, 1.0, rng);
+  for (size_t i = 0; i < trace.size(); ++i) {
+    EXPECT_EQ(same[i].t_s, trace[i].t_s);
+  }
 }
 
 TEST(ScorePredictionsTest,

@@ -325,6 +325,14 @@ std::vector<TimedWrench> AugmentTrace(const std::vector<TimedWrench>& samples,
   return out;
 }
 
+std::vector<TimedWrench> SlowApproach(const std::vector<TimedWrench>& samples,
+                                      double max_factor, std::mt19937_64& rng) {
+  const double factor = std::exp(Uniform(rng, 0.0, std::log(max_factor)));
+  std::vector<TimedWrench> out = samples;
+  for (TimedWrench& sample : out) sample.t_s *= factor;
+  return out;
+}
+
 absl::Status WriteTraceCsv(const std::string& path,
                            const std::vector<LabelledTrace>& traces) {
   std::FILE* file = std::fopen(path.c_str(), "w");

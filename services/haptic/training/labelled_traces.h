@@ -179,6 +179,12 @@ struct RecordedTrace {
   std::vector<TimedWrench> samples;
 };
 
+// `samples` with its clock stretched by a factor drawn log-uniform in
+// [1, max_factor] (max_factor >= 1): the same trace felt by a fork that
+// meets the food more slowly, so every force change takes longer.
+std::vector<TimedWrench> SlowApproach(const std::vector<TimedWrench>& samples,
+                                      double max_factor, std::mt19937_64& rng);
+
 // Reads the CSV format above, accepting the label "unknown". Errors as
 // ReadTraceCsv.
 absl::StatusOr<std::vector<RecordedTrace>> ReadRecordedTraces(

@@ -56,6 +56,12 @@ ABSL_FLAG(bool, augment, false,
           "recording) with TraceAugmentation's defaults (labelled_traces.h): "
           "clock and amplitude scale, fork angle and lever, sensor lag, "
           "a slower rate, drift and coloured noise.");
+ABSL_FLAG(double, slow_approach, 1.0,
+          "Stretch the clock of every training and validation trace (of "
+          "every story and recording) by a factor drawn log-uniform in [1, "
+          "this]: the fork meeting the food more slowly (a slower "
+          "controller or a compliant wrist), so the force rises more slowly "
+          "and less of it fits the window. 1 (the default) is off.");
 ABSL_FLAG(std::string, ensemble_of, "",
           "Instead of training: assemble these HapticNet files (comma-"
           "separated, each written by this trainer) into one ensemble model "
@@ -422,6 +428,10 @@ int main(int argc, char** argv) {
         "--validation_fraction and --test_fraction must be > 0 with a sum "
         "below 1");
   }
+  if (const double slow = absl::GetFlag(FLAGS_slow_approach);
+      !(slow >= 1.0 && slow <= 10.0)) {
+    return Die(absl::StrCat("--slow_approach must be in [1, 10]; got ", slow));
+  }
   // Shuffles `set` into test, validation and train parts (in that order of
   // the shuffled list), tagging each trace with `tags[i]` when given.
   std::vector<LabelledTrace> test, validation, train;
@@ -464,6 +474,16 @@ int main(int argc, char** argv) {
       }
     }
     absl::StrAppend(&source, "; augmented (--augment)");
+  }
+  if (const double slow = absl::GetFlag(FLAGS_slow_approach); slow != 1.0) {
+    std::mt19937_64 slow_rng(seed ^ 0x510a510a510a510aull);
+    for (auto* set : {&train, &validation}) {
+      for (LabelledTrace& trace : *set) {
+        trace.samples = SlowApproach(trace.samples, slow, slow_rng);
+      }
+    }
+    absl::StrAppend(&source, "; slow approach up to x", slow,
+                    " (--slow_approach)");
   }
   if (test.empty()) {  // trained on recordings alone
     test = std::move(recorded_test);
