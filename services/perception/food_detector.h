@@ -64,10 +64,15 @@ struct FoodDetectorOptions {
   // slice lying on another stands about twice as high as the one under it.
   double max_merge_top_ratio = 1.5;
   // A stick with an item lying across it shows as two parts; they are
-  // joined when the item on them borders both, the line between them runs
-  // under that item, and each elongated part lies within this angle of
-  // that line. 0: never joined.
-  double max_join_angle_rad = 0.35;
+  // joined when the item on them borders both and the line between them
+  // runs under that item, they and that item cover at least min_join_fill
+  // of the smallest rectangle around the two parts (a stick is a
+  // rectangle; a round slice beside a stick leaves plate in it), and one
+  // part has an axis ratio of at least min_join_elongation (two whole round
+  // slices either side of a tall item are two items). Above 1: never
+  // joined.
+  double min_join_fill = 0.75;
+  double min_join_elongation = 1.3;
   // RANSAC plane fit: iterations and seed (fixed, so detection repeats).
   int ransac_iterations = 150;
   uint64_t ransac_seed = 1;

@@ -691,95 +691,154 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   }
   // A stick with another item lying across it shows as two parts, one on
   // each side of the item on it; the watershed gives them two labels and
-  // neither covers the stick. Two parts are joined when: an item lying on
-  // them (its top more than max_merge_top_ratio times theirs) borders both;
-  // they are of similar colour and height; the straight line between their
-  // centroids runs over them and the item on them only (the stick goes on
-  // underneath); and at least one part is elongated and each elongated
-  // part lies along that line.
-  if (options.max_join_angle_rad > 0) {
+  // neither covers the stick. Two parts (each the regions the merge above
+  // made one, since a short stub is often seeded in pieces) are joined
+  // when: an item lying on them (its top more than max_merge_top_ratio
+  // times theirs) borders both; they are of similar colour and height; the
+  // straight line between their centroids runs over them and the item on
+  // them only (the stick goes on underneath); they and the item on them
+  // fill at least min_join_fill of the smallest rectangle around the two
+  // parts (one stick is a rectangle; a round slice and a stick beside it
+  // leave plate in it); and one part is not round (two whole slices either
+  // side of a tall item fill such a rectangle too).
+  if (options.min_join_fill <= 1.0) {
+    std::vector<int> group(n_cores);
+    for (int i = 0; i < n_cores; ++i) group[i] = root(i);
+    // Per part: colour, heights, moments and box.
+    struct Part {
+      cv::Vec3d lab_sum = cv::Vec3d(0, 0, 0);
+      std::vector<double> heights;
+      cv::Vec6d moments = cv::Vec6d::all(0);
+      int u0 = std::numeric_limits<int>::max(), v0 = u0, u1 = -1, v1 = -1;
+      double top_mm = 0, u = 0, v = 0, elongation = 1;
+    };
+    std::vector<Part> part(n_cores);
+    for (int v = 0; v < h; ++v) {
+      const auto* m = markers.ptr<int>(v);
+      const auto* px = lab.ptr<cv::Vec3f>(v);
+      const auto* hv = height_mm.ptr<float>(v);
+      const auto* ok = valid.ptr<uint8_t>(v);
+      for (int u = 0; u < w; ++u) {
+        if (m[u] <= 0 || m[u] >= background) continue;
+        Part& p = part[group[m[u]]];
+        p.lab_sum += cv::Vec3d(px[u][0], px[u][1], px[u][2]);
+        if (ok[u]) p.heights.push_back(hv[u]);
+        p.moments +=
+            cv::Vec6d(1, u, v, double(u) * u, double(v) * v, double(u) * v);
+        p.u0 = std::min(p.u0, u);
+        p.u1 = std::max(p.u1, u);
+        p.v0 = std::min(p.v0, v);
+        p.v1 = std::max(p.v1, v);
+      }
+    }
+    for (int i = 1; i < n_cores; ++i) {
+      Part& p = part[i];
+      const cv::Vec6d& mo = p.moments;
+      if (mo[0] < 1) continue;
+      if (!p.heights.empty()) {
+        const size_t q = p.heights.size() * 9 / 10;
+        std::nth_element(p.heights.begin(), p.heights.begin() + q,
+                         p.heights.end());
+        p.top_mm = p.heights[q];
+      }
+      p.u = mo[1] / mo[0];
+      p.v = mo[2] / mo[0];
+      const double cuu = mo[3] / mo[0] - p.u * p.u;
+      const double cvv = mo[4] / mo[0] - p.v * p.v;
+      const double cuv = mo[5] / mo[0] - p.u * p.v;
+      const double mean = (cuu + cvv) / 2;
+      const double spread =
+          std::sqrt((cuu - cvv) * (cuu - cvv) / 4 + cuv * cuv);
+      p.elongation = std::sqrt((mean + spread) / std::max(mean - spread, 1e-6));
+    }
     std::vector<std::vector<int>> neighbours(n_cores);
     for (const auto& [pair, seam] : boundary) {
-      if (seam.count < 3) continue;
-      neighbours[pair.first].push_back(pair.second);
-      neighbours[pair.second].push_back(pair.first);
+      const int a = group[pair.first], b = group[pair.second];
+      if (seam.count < 3 || a == b ||
+          std::find(neighbours[a].begin(), neighbours[a].end(), b) !=
+              neighbours[a].end()) {
+        continue;
+      }
+      neighbours[a].push_back(b);
+      neighbours[b].push_back(a);
     }
-    // Centroid and axis per region, from its pixels' moments.
-    struct Shape {
-      double u = 0, v = 0, elongation = 1, angle = 0;
+    auto in = [&](int label, int a, int b, int o) {
+      if (label <= 0 || label >= background) return false;
+      const int g = group[label];
+      return g == a || g == b || g == o;
     };
-    std::vector<Shape> shape(n_cores);
-    {
-      std::vector<cv::Vec6d> moments(n_cores, cv::Vec6d::all(0));
-      for (int v = 0; v < h; ++v) {
+    // The share of the smallest rectangle around parts a and b that a, b,
+    // the item o on them and the watershed's ridges cover.
+    auto fill = [&](int a, int b, int o) {
+      std::vector<cv::Point> points;
+      const cv::Rect box =
+          cv::Rect(cv::Point(std::min(part[a].u0, part[b].u0),
+                             std::min(part[a].v0, part[b].v0)),
+                   cv::Point(std::max(part[a].u1, part[b].u1) + 1,
+                             std::max(part[a].v1, part[b].v1) + 1));
+      for (int v = box.y; v < box.br().y; ++v) {
         const auto* m = markers.ptr<int>(v);
-        for (int u = 0; u < w; ++u) {
-          if (m[u] <= 0 || m[u] >= background) continue;
-          moments[m[u]] +=
-              cv::Vec6d(1, u, v, double(u) * u, double(v) * v, double(u) * v);
+        for (int u = box.x; u < box.br().x; ++u) {
+          if (in(m[u], a, b, -1)) points.emplace_back(u, v);
         }
       }
-      for (int i = 1; i < background; ++i) {
-        const cv::Vec6d& mo = moments[i];
-        if (mo[0] < 1) continue;
-        Shape& sh = shape[i];
-        sh.u = mo[1] / mo[0];
-        sh.v = mo[2] / mo[0];
-        const double cuu = mo[3] / mo[0] - sh.u * sh.u;
-        const double cvv = mo[4] / mo[0] - sh.v * sh.v;
-        const double cuv = mo[5] / mo[0] - sh.u * sh.v;
-        const double mean = (cuu + cvv) / 2;
-        const double spread =
-            std::sqrt((cuu - cvv) * (cuu - cvv) / 4 + cuv * cuv);
-        const double minor = std::max(mean - spread, 1e-6);
-        sh.elongation = std::sqrt((mean + spread) / minor);
-        sh.angle = 0.5 * std::atan2(2 * cuv, cuu - cvv);
+      const cv::RotatedRect rect = cv::minAreaRect(points);
+      const cv::Rect around = rect.boundingRect() & cv::Rect(0, 0, w, h);
+      const double c = std::cos(rect.angle * kPi / 180);
+      const double s = std::sin(rect.angle * kPi / 180);
+      int inside = 0, covered = 0;
+      for (int v = around.y; v < around.br().y; ++v) {
+        const auto* m = markers.ptr<int>(v);
+        for (int u = around.x; u < around.br().x; ++u) {
+          const double x = u - rect.center.x, y = v - rect.center.y;
+          if (std::abs(x * c + y * s) > rect.size.width / 2 + 0.5 ||
+              std::abs(y * c - x * s) > rect.size.height / 2 + 0.5) {
+            continue;
+          }
+          ++inside;
+          covered += m[u] == -1 || in(m[u], a, b, o);
+        }
       }
-    }
-    auto along = [&](const Shape& part, double line_angle) {
-      if (part.elongation < 2.0) return true;
-      double diff = std::fmod(std::abs(part.angle - line_angle), kPi);
-      diff = std::min(diff, kPi - diff);
-      return diff <= options.max_join_angle_rad;
+      return inside > 0 ? static_cast<double>(covered) / inside : 0.0;
     };
     for (int o = 1; o < background; ++o) {
+      if (group[o] != o) continue;
       const std::vector<int>& near = neighbours[o];
       for (size_t i = 0; i < near.size(); ++i) {
         for (size_t j = i + 1; j < near.size(); ++j) {
           const int a = near[i], b = near[j];
-          if (lab_count[a] == 0 || lab_count[b] == 0 || root(a) == root(b)) {
+          const Part& pa = part[a];
+          const Part& pb = part[b];
+          if (pa.moments[0] < 1 || pb.moments[0] < 1 || root(a) == root(b)) {
             continue;
           }
-          const double lower = std::min(top_mm[a], top_mm[b]);
-          const double upper = std::max(top_mm[a], top_mm[b]);
+          const double lower = std::min(pa.top_mm, pb.top_mm);
+          const double upper = std::max(pa.top_mm, pb.top_mm);
           if (upper > options.max_merge_top_ratio * lower ||
-              top_mm[o] <= options.max_merge_top_ratio * upper) {
+              part[o].top_mm <= options.max_merge_top_ratio * upper) {
             continue;
           }
           const cv::Vec3d diff =
-              lab_sum[a] / lab_count[a] - lab_sum[b] / lab_count[b];
-          if (cv::norm(diff) >= options.min_colour_distance) continue;
-          const double du = shape[b].u - shape[a].u;
-          const double dv = shape[b].v - shape[a].v;
-          const double line_angle = std::atan2(dv, du);
-          // A stick: at least one part is elongated, and every elongated
-          // part lies along the line (two round slices on either side of
-          // an item are two items).
-          if (std::max(shape[a].elongation, shape[b].elongation) < 2.0 ||
-              !along(shape[a], line_angle) || !along(shape[b], line_angle)) {
+              pa.lab_sum / pa.moments[0] - pb.lab_sum / pb.moments[0];
+          if (cv::norm(diff) >= options.min_colour_distance ||
+              std::max(pa.elongation, pb.elongation) <
+                  options.min_join_elongation) {
             continue;
           }
+          const double du = pb.u - pa.u, dv = pb.v - pa.v;
           const int steps = static_cast<int>(std::ceil(std::hypot(du, dv)));
           bool covered = steps > 0;
           for (int t = 0; t <= steps && covered; ++t) {
             const int u = static_cast<int>(
-                std::lround(shape[a].u + du * t / std::max(steps, 1)));
+                std::lround(pa.u + du * t / std::max(steps, 1)));
             const int v = static_cast<int>(
-                std::lround(shape[a].v + dv * t / std::max(steps, 1)));
+                std::lround(pa.v + dv * t / std::max(steps, 1)));
             const int label = markers.at<int>(v, u);
-            covered = label == -1 || label == a || label == b || label == o;
+            covered = label == -1 || in(label, a, b, o);
           }
-          if (covered) parent[root(a)] = root(b);
+          if (covered && fill(a, b, o) >= options.min_join_fill) {
+            parent[root(a)] = root(b);
+          }
         }
       }
     }

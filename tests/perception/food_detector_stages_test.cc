@@ -338,7 +338,7 @@ TEST(DetectorStagesTest, MergeJoinsTheTwoPartsOfAStickUnderAnItem) {
             regions.markers.at<int>(240, 320));
 
   FoodDetectorOptions never;
-  never.max_join_angle_rad = 0;
+  never.min_join_fill = 2;
   regions = GrowThree(scene, 0);
   MergeSplitItems(scene.evidence, scene.height_mm, scene.valid, never, regions);
   EXPECT_EQ(ItemLabels(regions), 3);
@@ -350,6 +350,93 @@ TEST(DetectorStagesTest, MergeJoinsTheTwoPartsOfAStickUnderAnItem) {
   MergeSplitItems(apart.evidence, apart.height_mm, apart.valid,
                   FoodDetectorOptions(), regions);
   EXPECT_EQ(ItemLabels(regions), 3);
+}
+
+// Red parts (10 mm: rectangles and discs (x, y, radius)) under a green item
+// 24 mm high lying across them ([300, 340) x [200, 280)).
+Scene PartsUnderAnItem(const std::vector<cv::Rect>& rects,
+                       const std::vector<cv::Vec3i>& discs) {
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  for (const cv::Rect& r : rects) height(r).setTo(10.0f);
+  for (const cv::Vec3i& d : discs) {
+    cv::circle(height, {d[0], d[1]}, d[2], cv::Scalar(10.0), cv::FILLED);
+  }
+  const cv::Rect across(300, 200, 40, 80);
+  height(across).setTo(24.0f);
+  Scene scene = MakeScene(height, height > 0.0f);
+  scene.rgb(across).setTo(cv::Scalar(60, 170, 60));
+  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                scene.plate, FoodDetectorOptions());
+  return scene;
+}
+
+// Grows and merges regions from seeds 1..n (the boxes, in order).
+Regions GrowAndMerge(const Scene& scene, const std::vector<cv::Rect>& seeds,
+                     const FoodDetectorOptions& options) {
+  Regions regions;
+  regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(0));
+  for (size_t i = 0; i < seeds.size(); ++i) {
+    regions.markers(seeds[i]).setTo(static_cast<int>(i) + 1);
+  }
+  regions.background = static_cast<int>(seeds.size()) + 1;
+  regions.valley_mm = cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0));
+  GrowRegions(scene.rgb, scene.evidence, scene.plate.plate, regions);
+  MergeSplitItems(scene.evidence, scene.height_mm, scene.valid, options,
+                  regions);
+  return regions;
+}
+
+TEST(DetectorStagesTest, MergeJoinsTheShortStubsOfAStickUnderAnItem) {
+  // A 20 px wide stick shows 30 px on each side of the item on it: neither
+  // stub is elongated along the stick (axis ratio 1.5), and the left one is
+  // seeded in two pieces.
+  const Scene scene = PartsUnderAnItem(
+      {cv::Rect(270, 230, 30, 20), cv::Rect(340, 230, 30, 20)}, {});
+  const std::vector<cv::Rect> seeds = {
+      cv::Rect(273, 235, 8, 10), cv::Rect(287, 235, 8, 10),
+      cv::Rect(350, 235, 10, 10), cv::Rect(310, 220, 20, 40)};
+  Regions regions = GrowAndMerge(scene, seeds, FoodDetectorOptions());
+  EXPECT_EQ(ItemLabels(regions), 2);
+  EXPECT_EQ(regions.markers.at<int>(240, 275),
+            regions.markers.at<int>(240, 365));
+  EXPECT_NE(regions.markers.at<int>(240, 275),
+            regions.markers.at<int>(240, 320));
+  FoodDetectorOptions never;
+  never.min_join_fill = 2;
+  regions = GrowAndMerge(scene, seeds, never);
+  EXPECT_EQ(ItemLabels(regions), 3);  // the left stub's pieces are one
+}
+
+TEST(DetectorStagesTest, MergeKeepsARoundSliceApartFromAStickUnderAnItem) {
+  // A stick on the left of the item and a round slice partly under its
+  // right side, in line: the rectangle around both holds plate above and
+  // below the stick.
+  const Scene scene =
+      PartsUnderAnItem({cv::Rect(200, 230, 100, 20)}, {{352, 240, 18}});
+  const std::vector<cv::Rect> seeds = {cv::Rect(220, 235, 20, 10),
+                                       cv::Rect(350, 235, 10, 10),
+                                       cv::Rect(310, 220, 20, 40)};
+  Regions regions = GrowAndMerge(scene, seeds, FoodDetectorOptions());
+  EXPECT_EQ(ItemLabels(regions), 3);
+  FoodDetectorOptions any_fill;
+  any_fill.min_join_fill = 0;
+  regions = GrowAndMerge(scene, seeds, any_fill);
+  EXPECT_EQ(ItemLabels(regions), 2);
+}
+
+TEST(DetectorStagesTest, MergeKeepsTwoRoundSlicesEitherSideOfAnItemApart) {
+  // Two round slices partly under a tall item, in line: they fill the
+  // rectangle around them as a stick would, but neither is elongated.
+  const Scene scene = PartsUnderAnItem({}, {{288, 240, 18}, {352, 240, 18}});
+  const std::vector<cv::Rect> seeds = {cv::Rect(280, 235, 10, 10),
+                                       cv::Rect(350, 235, 10, 10),
+                                       cv::Rect(310, 220, 20, 40)};
+  Regions regions = GrowAndMerge(scene, seeds, FoodDetectorOptions());
+  EXPECT_EQ(ItemLabels(regions), 3);
+  FoodDetectorOptions round_too;
+  round_too.min_join_elongation = 0;
+  regions = GrowAndMerge(scene, seeds, round_too);
+  EXPECT_EQ(ItemLabels(regions), 2);
 }
 
 TEST(DetectorStagesTest, DescribeItemsGivesBoxCentreAndDepth) {
