@@ -38,7 +38,10 @@ ABSL_FLAG(double, contact_release_n, 0.5,
           "Hysteresis: contact holds while the force stays above this (N).");
 ABSL_FLAG(double, min_contact_s, 0.003,
           "Shortest excursion (s) above the threshold taken as contact.");
-ABSL_FLAG(double, window_s, 0.05, "HapticNet window after contact (s).");
+ABSL_FLAG(double, window_s, 0,
+          "HapticNet window after contact (s). 0: the model's own "
+          "(bitewise.window_s in the model; 0.05 s if it records none). "
+          "Any other value must match the model's, or the start stops.");
 ABSL_FLAG(int, min_window_samples, 5,
           "Samples after contact the window is stretched to hold at low "
           "rates.");
@@ -63,11 +66,7 @@ int main(int argc, char** argv) {
   options.contact.threshold_n = absl::GetFlag(FLAGS_contact_threshold_n);
   options.contact.release_n = absl::GetFlag(FLAGS_contact_release_n);
   options.contact.min_contact_s = absl::GetFlag(FLAGS_min_contact_s);
-  options.window.window_s = absl::GetFlag(FLAGS_window_s);
   options.window.min_window_samples = absl::GetFlag(FLAGS_min_window_samples);
-  absl::Status valid = bitewise::haptic::ValidatePipelineOptions(options);
-  if (!valid.ok()) return bitewise::ReportFatal(kProgram, "bad flags", valid);
-
   using bitewise::haptic::HapticNet;
   const std::string model_path = absl::GetFlag(FLAGS_model);
   absl::StatusOr<std::unique_ptr<HapticNet>> net =
@@ -76,6 +75,16 @@ int main(int argc, char** argv) {
     return bitewise::ReportFatal(kProgram, "cannot load the HapticNet model",
                                  net.status());
   }
+  absl::StatusOr<double> window_s = bitewise::haptic::ModelWindow(
+      **net, absl::GetFlag(FLAGS_window_s),
+      model_path.empty() ? bitewise::haptic::kDefaultHapticNetSource
+                         : model_path);
+  if (!window_s.ok()) {
+    return bitewise::ReportFatal(kProgram, "bad flags", window_s.status());
+  }
+  options.window.window_s = *window_s;
+  absl::Status valid = bitewise::haptic::ValidatePipelineOptions(options);
+  if (!valid.ok()) return bitewise::ReportFatal(kProgram, "bad flags", valid);
   std::string familiarity_described;
   absl::StatusOr<std::unique_ptr<bitewise::haptic::FamiliarityModel>>
       familiarity = bitewise::haptic::LoadFamiliarity(
@@ -99,11 +108,14 @@ int main(int argc, char** argv) {
   }
   // Ready: the model is loaded and checked, and the server accepts calls.
   (*server)->SetServing(true);
-  std::fprintf(stderr, "bitewise-haptic: serving on %s (model %s, %s; %s)\n",
+  std::fprintf(stderr,
+               "bitewise-haptic: serving on %s (model %s, %s, window %g s; "
+               "%s)\n",
                (*server)->description().c_str(),
                model_path.empty() ? bitewise::haptic::kDefaultHapticNetSource
                                   : model_path.c_str(),
-               fingerprint.c_str(), familiarity_described.c_str());
+               fingerprint.c_str(), options.window.window_s,
+               familiarity_described.c_str());
   std::fflush(stderr);
   absl::Status status = bitewise::RunUntilSignal(**server);
   if (!status.ok()) return bitewise::ReportFatal(kProgram, "shutdown", status);

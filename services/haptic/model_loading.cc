@@ -1,6 +1,8 @@
 #include "services/haptic/model_loading.h"
 
+#include <cmath>
 #include <filesystem>
+#include <optional>
 #include <system_error>
 #include <utility>
 
@@ -16,6 +18,24 @@ absl::StatusOr<std::unique_ptr<HapticNet>> LoadHapticNet(
                                     kDefaultHapticNetSource);
   }
   return HapticNet::FromOnnxFile(model_path);
+}
+
+absl::StatusOr<double> ModelWindow(const HapticNet& net, double flag_window_s,
+                                   const std::string& source) {
+  if (!std::isfinite(flag_window_s) || flag_window_s < 0.0) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--window_s must be 0 (the model's own) or positive, not ",
+        flag_window_s));
+  }
+  const std::optional<double> declared = net.window_s();
+  if (flag_window_s == 0.0) return declared.value_or(WindowOptions().window_s);
+  if (declared.has_value() && std::abs(*declared - flag_window_s) > 1e-9) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "HapticNet model ", source, " was trained on a ", *declared,
+        " s window (", kHapticNetWindowKey, ") but --window_s=", flag_window_s,
+        "; leave --window_s at 0 to use the model's"));
+  }
+  return flag_window_s;
 }
 
 absl::StatusOr<std::unique_ptr<FamiliarityModel>> LoadFamiliarity(

@@ -19,6 +19,14 @@ namespace bitewise::haptic {
 absl::StatusOr<std::unique_ptr<HapticNet>> LoadHapticNet(
     const std::string& model_path);
 
+// The window (s) to run `net` with. `flag_window_s` 0 means the model's own
+// (HapticNet::window_s(), or 0.05 s for a model that records none); a
+// positive value is used only for a model that records none or the same
+// window, and anything else is INVALID_ARGUMENT naming both windows, because
+// a model run on another window sees a picture it was never trained on.
+absl::StatusOr<double> ModelWindow(const HapticNet& net, double flag_window_s,
+                                   const std::string& source);
+
 // The familiarity model `flag` asks for, null for none:
 //   "none"  no score;
 //   a path  that file (missing or malformed: an error naming it);

@@ -25,8 +25,10 @@
 #include "gmock/gmock.h"
 #include "google/protobuf/util/json_util.h"
 #include "gtest/gtest.h"
+#include "onnx/onnx_pb.h"
 #include "services/common/channel.h"
 #include "services/haptic/converters.h"
+#include "services/haptic/core/haptic_net.h"
 #include "tests/common/child_process.h"
 #include "tests/haptic/haptic_test_traces.h"
 
@@ -319,6 +321,37 @@ TEST(HapticBinaryTest, MissingModelFileStopsTheStart) {
   HapticProcess process("missing");
   ASSERT_NO_FATAL_FAILURE(process.Spawn({"--model=" + path}));
   ExpectStartFails(process, "cannot open HapticNet model file " + path);
+}
+
+// A model records the window it was trained on; the service runs it on
+// that window, and a --window_s that contradicts it stops the start.
+std::string ModelFileWithWindow(const std::string& name,
+                                const std::string& window_s) {
+  onnx::ModelProto model;
+  EXPECT_TRUE(model.ParseFromString(ReadFile(BITEWISE_HAPTIC_MODEL_FILE)));
+  for (auto& entry : *model.mutable_metadata_props()) {
+    if (entry.key() == kHapticNetWindowKey) entry.set_value(window_s);
+  }
+  const std::string path = ::testing::TempDir() + "/" + name;
+  std::ofstream(path, std::ios::binary) << model.SerializeAsString();
+  return path;
+}
+
+TEST(HapticBinaryTest, ServesAModelOnItsOwnWindow) {
+  const std::string path = ModelFileWithWindow("window_100ms.onnx", "0.1");
+  HapticProcess process("own_window");
+  ASSERT_NO_FATAL_FAILURE(process.Spawn({"--model=" + path}));
+  ExpectServesAndStops(process);
+  EXPECT_THAT(process.log(), HasSubstr("window 0.1 s"));
+}
+
+TEST(HapticBinaryTest, AWindowFlagThatContradictsTheModelStopsTheStart) {
+  const std::string path = ModelFileWithWindow("window_100ms_flag.onnx", "0.1");
+  HapticProcess process("window_mismatch");
+  ASSERT_NO_FATAL_FAILURE(
+      process.Spawn({"--model=" + path, "--window_s=0.05"}));
+  ExpectStartFails(process, "was trained on a 0.1 s window");
+  EXPECT_THAT(process.log(), HasSubstr(path));
 }
 
 TEST(HapticBinaryTest, BadPipelineFlagStopsTheStart) {

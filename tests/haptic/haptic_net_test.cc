@@ -14,6 +14,7 @@
 #include "gtest/gtest.h"
 #include "onnx/onnx_pb.h"
 #include "services/haptic/default_model.h"
+#include "services/haptic/model_loading.h"
 #include "services/haptic/training/haptic_net_weights.h"
 #include "services/haptic/training/haptic_trainer.h"
 #include "services/haptic/training/labelled_traces.h"
@@ -182,6 +183,73 @@ TEST(HapticNetTest, RejectsAModelThatBreaksTheGraphContract) {
       HapticNet::FromOnnxBytes(model.SerializeAsString(), "renamed.onnx");
   ASSERT_EQ(net.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(net.status().message(), HasSubstr("graph contract"));
+}
+
+// The shipped model's bytes with its "bitewise.window_s" entry set to
+// `value`, or removed when `value` is empty.
+std::string ShippedModelWithWindow(const std::string& value) {
+  onnx::ModelProto model;
+  EXPECT_TRUE(model.ParseFromString(std::string(DefaultHapticNetOnnx())));
+  auto* props = model.mutable_metadata_props();
+  for (int i = props->size() - 1; i >= 0; --i) {
+    if (props->Get(i).key() == kHapticNetWindowKey) props->DeleteSubrange(i, 1);
+  }
+  if (!value.empty()) {
+    onnx::StringStringEntryProto* entry = model.add_metadata_props();
+    entry->set_key(kHapticNetWindowKey);
+    entry->set_value(value);
+  }
+  return model.SerializeAsString();
+}
+
+TEST(HapticNetTest, ReadsTheWindowTheModelWasTrainedOn) {
+  absl::StatusOr<std::unique_ptr<HapticNet>> shipped =
+      HapticNet::FromOnnxBytes(DefaultHapticNetOnnx(), kDefaultHapticNetSource);
+  ASSERT_TRUE(shipped.ok()) << shipped.status();
+  EXPECT_EQ((*shipped)->window_s(), std::optional<double>(0.05));
+
+  absl::StatusOr<std::unique_ptr<HapticNet>> longer =
+      HapticNet::FromOnnxBytes(ShippedModelWithWindow("0.1"), "w100.onnx");
+  ASSERT_TRUE(longer.ok()) << longer.status();
+  EXPECT_EQ((*longer)->window_s(), std::optional<double>(0.1));
+
+  absl::StatusOr<std::unique_ptr<HapticNet>> none =
+      HapticNet::FromOnnxBytes(ShippedModelWithWindow(""), "old.onnx");
+  ASSERT_TRUE(none.ok()) << none.status();
+  EXPECT_EQ((*none)->window_s(), std::nullopt);
+}
+
+TEST(HapticNetTest, RejectsAWindowThatIsNotSeconds) {
+  for (const std::string value : {"fifty", "0", "-0.05", "nan", "2"}) {
+    absl::StatusOr<std::unique_ptr<HapticNet>> net =
+        HapticNet::FromOnnxBytes(ShippedModelWithWindow(value), "bad.onnx");
+    ASSERT_EQ(net.status().code(), absl::StatusCode::kInvalidArgument)
+        << value;
+    EXPECT_THAT(net.status().message(), HasSubstr("bad.onnx")) << value;
+    EXPECT_THAT(net.status().message(), HasSubstr("bitewise.window_s"))
+        << value;
+  }
+}
+
+// The service and the evaluator run a model on its own window; a flag may
+// only repeat it, and a model that records none runs on the flag or 0.05 s.
+TEST(HapticNetTest, ModelWindowIsTheModelsOwn) {
+  auto longer =
+      HapticNet::FromOnnxBytes(ShippedModelWithWindow("0.1"), "w100.onnx");
+  auto none = HapticNet::FromOnnxBytes(ShippedModelWithWindow(""), "old.onnx");
+  ASSERT_TRUE(longer.ok() && none.ok());
+  EXPECT_EQ(ModelWindow(**longer, 0.0, "w100.onnx").value(), 0.1);
+  EXPECT_EQ(ModelWindow(**longer, 0.1, "w100.onnx").value(), 0.1);
+  EXPECT_EQ(ModelWindow(**none, 0.0, "old.onnx").value(), 0.05);
+  EXPECT_EQ(ModelWindow(**none, 0.08, "old.onnx").value(), 0.08);
+
+  absl::StatusOr<double> mismatch = ModelWindow(**longer, 0.05, "w100.onnx");
+  ASSERT_EQ(mismatch.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(mismatch.status().message(), HasSubstr("w100.onnx"));
+  EXPECT_THAT(mismatch.status().message(), HasSubstr("0.1 s window"));
+  EXPECT_THAT(mismatch.status().message(), HasSubstr("--window_s=0.05"));
+  EXPECT_EQ(ModelWindow(**none, -1.0, "old.onnx").status().code(),
+            absl::StatusCode::kInvalidArgument);
 }
 
 TEST(HapticNetTest, MissingFileIsNotFound) {

@@ -7,8 +7,10 @@
 #include <utility>
 #include <vector>
 
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "onnx/onnx_pb.h"
 
 namespace bitewise::haptic {
 namespace {
@@ -74,6 +76,29 @@ absl::StatusOr<HapticNetOutput> Forward(
   return out;
 }
 
+// The model's "bitewise.window_s" metadata entry, if any.
+absl::StatusOr<std::optional<double>> DeclaredWindow(
+    absl::string_view bytes, const std::string& source) {
+  onnx::ModelProto model;
+  if (!model.ParseFromArray(bytes.data(), static_cast<int>(bytes.size()))) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "HapticNet model ", source, " is not a parsable ONNX ModelProto"));
+  }
+  for (const onnx::StringStringEntryProto& entry : model.metadata_props()) {
+    if (entry.key() != kHapticNetWindowKey) continue;
+    double window_s = 0.0;
+    if (!absl::SimpleAtod(entry.value(), &window_s) ||
+        !std::isfinite(window_s) || window_s <= 0.0 || window_s > 1.0) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("HapticNet model ", source, ": metadata ",
+                       kHapticNetWindowKey, " is \"", entry.value(),
+                       "\", not a window of seconds in (0, 1]"));
+    }
+    return window_s;
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 absl::StatusOr<std::unique_ptr<HapticNet>> HapticNet::FromOnnxBytes(
@@ -108,8 +133,11 @@ absl::StatusOr<std::unique_ptr<HapticNet>> HapticNet::FromOnnxBytes(
         "\", \"", kHapticNetProbabilitiesName, "\" [1, ", kHapticClasses,
         "]): ", probe.status().message()));
   }
+  absl::StatusOr<std::optional<double>> window_s =
+      DeclaredWindow(bytes, source);
+  if (!window_s.ok()) return window_s.status();
   return std::unique_ptr<HapticNet>(
-      new HapticNet(std::move(net), Fingerprint(bytes)));
+      new HapticNet(std::move(net), Fingerprint(bytes), *window_s));
 }
 
 absl::StatusOr<std::unique_ptr<HapticNet>> HapticNet::FromOnnxFile(

@@ -9,6 +9,7 @@
 
 #include <array>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "absl/base/thread_annotations.h"
@@ -24,6 +25,8 @@ namespace bitewise::haptic {
 constexpr char kHapticNetInputName[] = "wrench_window";
 constexpr char kHapticNetLogitsName[] = "logits";
 constexpr char kHapticNetProbabilitiesName[] = "probabilities";
+// metadata_props key under which a model records its window (s).
+constexpr char kHapticNetWindowKey[] = "bitewise.window_s";
 
 struct HapticNetOutput {
   // Softmax of the network, in class order hard, medium, soft, hard-skin,
@@ -43,7 +46,8 @@ class HapticNet {
   // Parses an ONNX model held in memory and checks it against the graph
   // contract with one run on a zero input. `source` names the model in
   // error messages. Errors: INVALID_ARGUMENT when the bytes are not a
-  // loadable ONNX model or the graph breaks the contract.
+  // loadable ONNX model, the graph breaks the contract, or its
+  // "bitewise.window_s" is not a number of seconds in (0, 1].
   static absl::StatusOr<std::unique_ptr<HapticNet>> FromOnnxBytes(
       absl::string_view bytes, const std::string& source);
   // As FromOnnxBytes, from a file. NOT_FOUND when the file cannot be read.
@@ -61,13 +65,23 @@ class HapticNet {
   // "fnv1a64:<16 hex digits>" of the model bytes: which model answered.
   const std::string& fingerprint() const { return fingerprint_; }
 
+  // The window after contact (s) the model was trained on, from its
+  // metadata_props entry "bitewise.window_s"; nullopt for a model that
+  // records none (then it is the original 0.05 s). A window runs the
+  // network on a different picture, so the service must use this one.
+  std::optional<double> window_s() const { return window_s_; }
+
  private:
-  HapticNet(cv::dnn::Net net, std::string fingerprint)
-      : net_(std::move(net)), fingerprint_(std::move(fingerprint)) {}
+  HapticNet(cv::dnn::Net net, std::string fingerprint,
+            std::optional<double> window_s)
+      : net_(std::move(net)),
+        fingerprint_(std::move(fingerprint)),
+        window_s_(window_s) {}
 
   mutable absl::Mutex mu_;
   mutable cv::dnn::Net net_ ABSL_GUARDED_BY(mu_);
   const std::string fingerprint_;
+  const std::optional<double> window_s_;
 };
 
 }  // namespace bitewise::haptic

@@ -102,6 +102,15 @@ int main(int argc, char** argv) {
                  net.status().ToString().c_str());
     return 1;
   }
+  HapticPipelineOptions pipeline;
+  absl::StatusOr<double> window_s = ModelWindow(
+      **net, 0.0, path.empty() ? kDefaultHapticNetSource : path);
+  if (!window_s.ok()) {
+    std::fprintf(stderr, "bitewise-haptic-eval: %s\n",
+                 window_s.status().ToString().c_str());
+    return 1;
+  }
+  pipeline.window.window_s = *window_s;
   std::string familiarity_described;
   absl::StatusOr<std::unique_ptr<FamiliarityModel>> familiarity =
       LoadFamiliarity(absl::GetFlag(FLAGS_familiarity), path,
@@ -112,13 +121,13 @@ int main(int argc, char** argv) {
     return 1;
   }
   std::printf(
-      "model %s (%s), %s, %d traces per class and condition, seed %lu\n",
+      "model %s (%s, window %g s), %s, %d traces per class and condition, "
+      "seed %lu\n",
       path.empty() ? kDefaultHapticNetSource : path.c_str(),
-      (*net)->fingerprint().c_str(), familiarity_described.c_str(),
+      (*net)->fingerprint().c_str(), *window_s, familiarity_described.c_str(),
       absl::GetFlag(FLAGS_traces_per_class),
       static_cast<unsigned long>(absl::GetFlag(FLAGS_seed)));
-  const HapticClassifier classifier(std::move(net).value(),
-                                    HapticPipelineOptions(),
+  const HapticClassifier classifier(std::move(net).value(), pipeline,
                                     std::move(familiarity).value());
   std::printf(
       "\nlog-probability columns: the smallest log-probability of each trace "

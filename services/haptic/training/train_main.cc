@@ -102,6 +102,9 @@ ABSL_FLAG(double, familiarity_threshold, 0.05,
 ABSL_FLAG(double, familiarity_shrinkage, 0.1,
           "Shrinkage of each class's feature covariance towards its "
           "diagonal.");
+ABSL_FLAG(double, window_s, 0.05,
+          "HapticNet window after contact (s), recorded in the model as "
+          "bitewise.window_s, which the service and the evaluator then use.");
 ABSL_FLAG(int, patience, 8,
           "Stop after this many epochs without a better validation loss.");
 
@@ -168,6 +171,14 @@ int AssembleEnsemble() {
     absl::StatusOr<std::unique_ptr<HapticNet>> net =
         HapticNet::FromOnnxBytes(*bytes, std::string(path));
     if (!net.ok()) return Die(net.status().ToString());
+    const double member_window_s =
+        (*net)->window_s().value_or(WindowOptions().window_s);
+    if (member_window_s != absl::GetFlag(FLAGS_window_s)) {
+      return Die(absl::StrCat(path, " was trained on a ", member_window_s,
+                              " s window, but --window_s=",
+                              absl::GetFlag(FLAGS_window_s),
+                              ": an ensemble's members share one window"));
+    }
     absl::StatusOr<HapticNetWeights> weights =
         HapticNetWeightsFromOnnx(*bytes, std::string(path));
     if (!weights.ok()) return Die(weights.status().ToString());
@@ -178,6 +189,7 @@ int AssembleEnsemble() {
   const std::map<std::string, std::string> metadata = {
       {"bitewise.classes", "hard,medium,soft,hard_skin"},
       {"bitewise.ensemble", absl::StrJoin(names, "; ")},
+      {kHapticNetWindowKey, absl::StrCat(absl::GetFlag(FLAGS_window_s))},
   };
   const std::string bytes = HapticEnsembleToOnnx(members, metadata);
   const std::string out = absl::GetFlag(FLAGS_out);
@@ -186,7 +198,8 @@ int AssembleEnsemble() {
   if (!net.ok()) return Die(net.status().ToString());
   std::printf("ensemble of %zu members:\n  %s\n", members.size(),
               absl::StrJoin(names, "\n  ").c_str());
-  const HapticPipelineOptions pipeline;
+  HapticPipelineOptions pipeline;
+  pipeline.window.window_s = absl::GetFlag(FLAGS_window_s);
   double max_difference = 0.0;
   for (int i = 0; i < kTraceStories; ++i) {
     const auto story = static_cast<TraceStory>(i);
@@ -490,7 +503,11 @@ int main(int argc, char** argv) {
     recorded_test.clear();
   }
 
-  const HapticPipelineOptions pipeline;
+  HapticPipelineOptions pipeline;
+  pipeline.window.window_s = absl::GetFlag(FLAGS_window_s);
+  if (absl::Status valid = ValidatePipelineOptions(pipeline); !valid.ok()) {
+    return Die(absl::StrCat("--window_s: ", valid.message()));
+  }
   int skipped_train = 0, skipped_validation = 0, skipped_test = 0;
   const LabelledWindows train_windows =
       WindowsFromTraces(train, pipeline, &skipped_train);
@@ -627,7 +644,7 @@ int main(int argc, char** argv) {
       {"bitewise.input",
        "tared fx,fy,fz (N), tx,ty,tz (N m) from first contact, each "
        "resampled to 64 points over the window; channel-major"},
-      {"bitewise.window_s", absl::StrCat(pipeline.window.window_s)},
+      {kHapticNetWindowKey, absl::StrCat(pipeline.window.window_s)},
       {"bitewise.traces", source},
       {"bitewise.seed", absl::StrCat(seed)},
       {"bitewise.best_epoch", absl::StrCat(result->best_epoch)},
