@@ -23,9 +23,9 @@ absl::StatusOr<std::unique_ptr<HapticNet>> LoadHapticNet(
 absl::StatusOr<double> ModelWindow(const HapticNet& net, double flag_window_s,
                                    const std::string& source) {
   if (!std::isfinite(flag_window_s) || flag_window_s < 0.0) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "--window_s must be 0 (the model's own) or positive, not ",
-        flag_window_s));
+    return absl::InvalidArgumentError(
+        absl::StrCat("--window_s must be 0 (the model's own) or positive, not ",
+                     flag_window_s));
   }
   const std::optional<double> declared = net.window_s();
   if (flag_window_s == 0.0) return declared.value_or(WindowOptions().window_s);

@@ -223,8 +223,7 @@ TEST(HapticNetTest, RejectsAWindowThatIsNotSeconds) {
   for (const std::string value : {"fifty", "0", "-0.05", "nan", "2"}) {
     absl::StatusOr<std::unique_ptr<HapticNet>> net =
         HapticNet::FromOnnxBytes(ShippedModelWithWindow(value), "bad.onnx");
-    ASSERT_EQ(net.status().code(), absl::StatusCode::kInvalidArgument)
-        << value;
+    ASSERT_EQ(net.status().code(), absl::StatusCode::kInvalidArgument) << value;
     EXPECT_THAT(net.status().message(), HasSubstr("bad.onnx")) << value;
     EXPECT_THAT(net.status().message(), HasSubstr("bitewise.window_s"))
         << value;

@@ -89,10 +89,9 @@ absl::StatusOr<std::optional<double>> DeclaredWindow(
     double window_s = 0.0;
     if (!absl::SimpleAtod(entry.value(), &window_s) ||
         !std::isfinite(window_s) || window_s <= 0.0 || window_s > 1.0) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("HapticNet model ", source, ": metadata ",
-                       kHapticNetWindowKey, " is \"", entry.value(),
-                       "\", not a window of seconds in (0, 1]"));
+      return absl::InvalidArgumentError(absl::StrCat(
+          "HapticNet model ", source, ": metadata ", kHapticNetWindowKey,
+          " is \"", entry.value(), "\", not a window of seconds in (0, 1]"));
     }
     return window_s;
   }

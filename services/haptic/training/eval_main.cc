@@ -103,8 +103,8 @@ int main(int argc, char** argv) {
     return 1;
   }
   HapticPipelineOptions pipeline;
-  absl::StatusOr<double> window_s = ModelWindow(
-      **net, 0.0, path.empty() ? kDefaultHapticNetSource : path);
+  absl::StatusOr<double> window_s =
+      ModelWindow(**net, 0.0, path.empty() ? kDefaultHapticNetSource : path);
   if (!window_s.ok()) {
     std::fprintf(stderr, "bitewise-haptic-eval: %s\n",
                  window_s.status().ToString().c_str());

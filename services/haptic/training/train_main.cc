@@ -174,10 +174,10 @@ int AssembleEnsemble() {
     const double member_window_s =
         (*net)->window_s().value_or(WindowOptions().window_s);
     if (member_window_s != absl::GetFlag(FLAGS_window_s)) {
-      return Die(absl::StrCat(path, " was trained on a ", member_window_s,
-                              " s window, but --window_s=",
-                              absl::GetFlag(FLAGS_window_s),
-                              ": an ensemble's members share one window"));
+      return Die(absl::StrCat(
+          path, " was trained on a ", member_window_s,
+          " s window, but --window_s=", absl::GetFlag(FLAGS_window_s),
+          ": an ensemble's members share one window"));
     }
     absl::StatusOr<HapticNetWeights> weights =
         HapticNetWeightsFromOnnx(*bytes, std::string(path));
