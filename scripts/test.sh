@@ -45,6 +45,9 @@ if [ "$mode" = "sanitize" ]; then
   printf '\n==> Building the whole tree with ASan + UBSan (build-sanitize/)\n'
   cmake --build build-sanitize -j "$JOBS"
   printf '\n==> Running every test under the sanitizers\n'
+  export TEST_TMPDIR="$PWD/build-sanitize/test-tmp"
+  rm -rf "$TEST_TMPDIR"
+  mkdir -p -m 1777 "$TEST_TMPDIR"
   cd build-sanitize
   ctest --output-on-failure -j "$JOBS" --timeout 900
   exit 0
@@ -70,6 +73,14 @@ fi
 
 # The layering (core libraries include no gRPC, API protos or clients) is
 # checked by the build itself: cmake/layering.cmake, docs/architecture.md.
+
+# Tests keep their temporary files under build/test-tmp (gtest's TempDir()
+# and the docs test honour TEST_TMPDIR), emptied at the start of each run,
+# so a run leaves nothing behind in /tmp and the last run's files are there
+# to read after a failure.
+export TEST_TMPDIR="$PWD/build/test-tmp"
+rm -rf "$TEST_TMPDIR"
+mkdir -p -m 1777 "$TEST_TMPDIR"
 
 printf '\n==> Running tests\n'
 (cd build && ctest --output-on-failure -j "$JOBS" --timeout 300)

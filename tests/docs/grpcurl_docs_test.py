@@ -57,7 +57,9 @@ class Services:
 
     def __init__(self, build):
         self.build = build
-        self.tmp = tempfile.mkdtemp(prefix="grpcurl_docs_")
+        # Under scripts/test.sh, inside the build tree (TEST_TMPDIR).
+        self.tmp = tempfile.mkdtemp(prefix="grpcurl_docs_",
+                                    dir=os.environ.get("TEST_TMPDIR") or None)
         self.ports = {}
         self.processes = []
 
