@@ -59,8 +59,8 @@ BENCHMARK(BM_DetectFood)->Unit(benchmark::kMillisecond);
 
 // DetectFood's stages one at a time (range(0): 0 MeasureHeight, 1
 // FindPlate, 2 FindEvidence, 3 PlantSeeds, 4 GrowRegions, 5 MergeSplitItems,
-// 6 DescribeItems), each on its inputs from the stages before it, computed
-// once outside the timing.
+// 6 SplitAtWaists, 7 DescribeItems), each on its inputs from the stages before
+// it, computed once outside the timing.
 void BM_DetectStage(benchmark::State& state) {
   using namespace detection;  // NOLINT: the stages, in order
   const Scene& scene = RenderedScene();
@@ -87,9 +87,12 @@ void BM_DetectStage(benchmark::State& state) {
   Regions merged = grown;
   merged.markers = grown.markers.clone();
   MergeSplitItems(evidence, height_mm, valid, options, merged);
+  Regions split = merged;
+  split.markers = merged.markers.clone();
+  SplitAtWaists(options, split);
   static constexpr const char* kNames[] = {
-      "MeasureHeight", "FindPlate",       "FindEvidence", "PlantSeeds",
-      "GrowRegions",   "MergeSplitItems", "DescribeItems"};
+      "MeasureHeight", "FindPlate",       "FindEvidence",  "PlantSeeds",
+      "GrowRegions",   "MergeSplitItems", "SplitAtWaists", "DescribeItems"};
   const int stage = static_cast<int>(state.range(0));
   for (auto _ : state) {
     switch (stage) {
@@ -121,15 +124,22 @@ void BM_DetectStage(benchmark::State& state) {
         benchmark::DoNotOptimize(regions);
         break;
       }
+      case 6: {
+        Regions regions = merged;
+        regions.markers = merged.markers.clone();
+        SplitAtWaists(options, regions);
+        benchmark::DoNotOptimize(regions);
+        break;
+      }
       default:
         benchmark::DoNotOptimize(
-            DescribeItems(merged, evidence, frame.depth_mm(roi), roi,
+            DescribeItems(split, evidence, frame.depth_mm(roi), roi,
                           heights->plane, frame.intrinsics, options));
     }
   }
   state.SetLabel(kNames[stage]);
 }
-BENCHMARK(BM_DetectStage)->DenseRange(0, 6)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DetectStage)->DenseRange(0, 7)->Unit(benchmark::kMillisecond);
 
 void BM_FeaturizeDefault(benchmark::State& state) {
   const Scene& scene = RenderedScene();

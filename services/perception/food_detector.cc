@@ -36,6 +36,7 @@ absl::StatusOr<std::vector<DetectedFood>> FoodDetector::Detect(
   if (!regions) return std::vector<DetectedFood>();
   GrowRegions(rgb, evidence, plate->plate, *regions);
   MergeSplitItems(evidence, height_mm, valid, options_, *regions);
+  SplitAtWaists(options_, *regions);
   return DescribeItems(*regions, evidence, frame.depth_mm(roi), roi,
                        heights->plane, frame.intrinsics, options_);
 }

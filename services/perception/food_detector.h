@@ -73,6 +73,16 @@ struct FoodDetectorOptions {
   // joined.
   double min_join_fill = 0.75;
   double min_join_elongation = 1.3;
+  // Two touching convex items that no seed told apart grow into one
+  // region with a waist. A region whose solidity (area over its convex
+  // hull's) is below max_waist_solidity is cut along the segment between
+  // two of its hull's concavities at least min_waist_depth_px deep, when
+  // that leaves two parts, each at least min_waist_part_share of the region
+  // and at least min_waist_solidity solid. 0: never cut.
+  double max_waist_solidity = 0.97;
+  double min_waist_solidity = 0.92;
+  double min_waist_depth_px = 3.0;
+  double min_waist_part_share = 0.2;
   // RANSAC plane fit: iterations and seed (fixed, so detection repeats).
   int ransac_iterations = 150;
   uint64_t ransac_seed = 1;

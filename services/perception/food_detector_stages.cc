@@ -851,6 +851,125 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   }
 }
 
+namespace {
+
+// Area over the area of the convex hull of the largest outline of `mask`
+// (CV_8UC1, 0/255); `contour` receives that outline. 1 for an empty mask.
+double Solidity(const cv::Mat& mask, std::vector<cv::Point>* contour) {
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  if (contours.empty()) return 1.0;
+  size_t largest = 0;
+  for (size_t i = 1; i < contours.size(); ++i) {
+    if (contours[i].size() > contours[largest].size()) largest = i;
+  }
+  std::vector<cv::Point> hull;
+  cv::convexHull(contours[largest], hull);
+  const double hull_area = cv::contourArea(hull);
+  const double area = cv::contourArea(contours[largest]);
+  if (contour != nullptr) *contour = std::move(contours[largest]);
+  if (hull_area <= 0.0) return 1.0;
+  return std::min(1.0, area / hull_area);
+}
+
+}  // namespace
+
+void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
+  if (options.max_waist_solidity <= 0.0) return;
+  cv::Mat& markers = regions.markers;
+  const int n_items = regions.background;
+  for (int label = 1; label < n_items; ++label) {
+    const cv::Mat mask = markers == label;
+    const cv::Rect box = cv::boundingRect(mask);
+    if (box.area() == 0) continue;
+    // Work in the item's box, with a 1 px margin so outlines close.
+    const cv::Rect frame = (box + cv::Size(2, 2) - cv::Point(1, 1)) &
+                           cv::Rect(0, 0, markers.cols, markers.rows);
+    const cv::Mat item = mask(frame).clone();
+    const int area = cv::countNonZero(item);
+    std::vector<cv::Point> outline;
+    if (Solidity(item, &outline) >= options.max_waist_solidity) continue;
+    if (outline.size() < 8) continue;
+    std::vector<int> hull;
+    cv::convexHull(outline, hull, /*clockwise=*/false, /*returnPoints=*/false);
+    std::vector<cv::Vec4i> defects;
+    try {
+      cv::convexityDefects(outline, hull, defects);
+    } catch (const cv::Exception&) {
+      continue;  // a self-touching outline: leave the region whole
+    }
+    std::vector<cv::Point> deep;
+    for (const cv::Vec4i& d : defects) {
+      if (d[3] / 256.0 >= options.min_waist_depth_px) {
+        deep.push_back(outline[d[2]]);
+      }
+    }
+    // The cut between two concavities that leaves the most convex parts.
+    double best = options.min_waist_solidity;
+    cv::Mat best_parts;
+    int best_second = 0;
+    for (size_t i = 0; i < deep.size(); ++i) {
+      for (size_t j = i + 1; j < deep.size(); ++j) {
+        cv::Mat cut = item.clone();
+        cv::line(cut, deep[i], deep[j], cv::Scalar(0), 2);
+        cv::Mat parts;
+        const int n = cv::connectedComponents(cut, parts, 4, CV_32S);
+        std::vector<int> sizes(n, 0);
+        for (int v = 0; v < parts.rows; ++v) {
+          const int* p = parts.ptr<int>(v);
+          for (int u = 0; u < parts.cols; ++u) ++sizes[p[u]];
+        }
+        // The two largest parts besides the outside (label 0).
+        int first = 0, second = 0;
+        for (int c = 1; c < n; ++c) {
+          if (first == 0 || sizes[c] > sizes[first]) {
+            second = first;
+            first = c;
+          } else if (second == 0 || sizes[c] > sizes[second]) {
+            second = c;
+          }
+        }
+        if (second == 0 ||
+            sizes[second] < options.min_waist_part_share * area) {
+          continue;
+        }
+        const double worst = std::min(Solidity(parts == first, nullptr),
+                                      Solidity(parts == second, nullptr));
+        if (worst > best) {
+          best = worst;
+          best_parts = parts;
+          best_second = second;
+        }
+      }
+    }
+    if (best_parts.empty()) continue;
+    // The second part takes the background's label, the background the
+    // next; the cut and any crumbs left by it become ridge pixels.
+    const int new_label = regions.background;
+    const int new_background = regions.background + 1;
+    for (int v = 0; v < markers.rows; ++v) {
+      int* m = markers.ptr<int>(v);
+      for (int u = 0; u < markers.cols; ++u) {
+        if (m[u] == regions.background) m[u] = new_background;
+      }
+    }
+    for (int v = 0; v < frame.height; ++v) {
+      const int* p = best_parts.ptr<int>(v);
+      const uint8_t* inside = item.ptr<uint8_t>(v);
+      int* m = markers.ptr<int>(frame.y + v) + frame.x;
+      for (int u = 0; u < frame.width; ++u) {
+        if (!inside[u]) continue;
+        if (p[u] == best_second) {
+          m[u] = new_label;
+        } else if (p[u] == 0) {
+          m[u] = -1;
+        }
+      }
+    }
+    regions.background = new_background;
+  }
+}
+
 std::vector<DetectedFood> DescribeItems(const Regions& regions,
                                         const FoodEvidence& evidence,
                                         const cv::Mat& raw_depth,

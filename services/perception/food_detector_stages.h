@@ -9,6 +9,8 @@
 //                   and terraces (an item's part showing beside one on it)
 //   GrowRegions     watershed on the RGB image from the seeds
 //   MergeSplitItems neighbours that are one item cut in two become one
+//   SplitAtWaists   one region that is two convex items with a waist
+//                   between them becomes two
 //   DescribeItems   each region -> a DetectedFood (box, centre, depth, ...)
 //
 // Images after FindPlate are the plate's bounding box (roi) of the frame.
@@ -115,6 +117,12 @@ void GrowRegions(const cv::Mat& rgb, const FoodEvidence& evidence,
 void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
                      const cv::Mat& valid, const FoodDetectorOptions& options,
                      Regions& regions);
+
+// Cuts each region with a waist in two (see max_waist_solidity in
+// FoodDetectorOptions): two touching convex items that grew as one. The
+// cut is a ridge (-1); the new part takes the next label, and the
+// background's label moves up by one per cut.
+void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions);
 
 // One DetectedFood per region of at least min_item_area_m2 on the plate
 // (ridge pixels that look like food join a neighbour), in frame pixels,

@@ -3,7 +3,9 @@
 // food_detector_test.cc).
 #include "services/perception/food_detector_stages.h"
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <set>
 
 #include "gtest/gtest.h"
@@ -437,6 +439,74 @@ TEST(DetectorStagesTest, MergeKeepsTwoRoundSlicesEitherSideOfAnItemApart) {
   round_too.min_join_elongation = 0;
   regions = GrowAndMerge(scene, seeds, round_too);
   EXPECT_EQ(ItemLabels(regions), 2);
+}
+
+// One region (label 1) drawn by `draw` on a 160x120 background (label 2).
+Regions OneRegion(const std::function<void(cv::Mat&)>& draw) {
+  cv::Mat mask(120, 160, CV_8UC1, cv::Scalar(0));
+  draw(mask);
+  Regions regions;
+  regions.background = 2;
+  regions.markers = cv::Mat(mask.size(), CV_32SC1, cv::Scalar(2));
+  regions.markers.setTo(1, mask);
+  return regions;
+}
+
+TEST(DetectorStagesTest, SplitAtWaistsCutsTwoTouchingDiscsApart) {
+  // Two round slices of one food, one partly on the other, that grew as one
+  // region: a waist between two convex lobes.
+  const auto discs = [](cv::Mat& mask) {
+    cv::circle(mask, {60, 60}, 22, cv::Scalar(255), cv::FILLED);
+    cv::circle(mask, {96, 60}, 18, cv::Scalar(255), cv::FILLED);
+  };
+  Regions regions = OneRegion(discs);
+  SplitAtWaists(FoodDetectorOptions(), regions);
+  ASSERT_EQ(ItemLabels(regions), 2);
+  EXPECT_EQ(regions.background, 3);
+  const int left = regions.markers.at<int>(60, 50);
+  const int right = regions.markers.at<int>(60, 105);
+  EXPECT_NE(left, right);
+  EXPECT_GT(left, 0);
+  EXPECT_GT(right, 0);
+  EXPECT_LT(std::max(left, right), regions.background);
+  EXPECT_EQ(regions.markers.at<int>(5, 5), regions.background);
+  // The cut runs across the waist, about where the two circles meet.
+  int cut_u = -1;
+  for (int u = 60; u < 96; ++u) {
+    if (regions.markers.at<int>(60, u) == -1) cut_u = u;
+  }
+  EXPECT_NEAR(cut_u, 79, 3);
+
+  FoodDetectorOptions off;
+  off.max_waist_solidity = 0;
+  regions = OneRegion(discs);
+  SplitAtWaists(off, regions);
+  EXPECT_EQ(ItemLabels(regions), 1);
+}
+
+TEST(DetectorStagesTest, SplitAtWaistsLeavesConvexItemsAndCrescentsWhole) {
+  // An oval slice, a stick, and what shows of a slice half under another
+  // (a crescent: one concavity, no waist) are one item each.
+  const std::vector<std::function<void(cv::Mat&)>> shapes = {
+      [](cv::Mat& m) {
+        cv::ellipse(m, {80, 60}, {35, 18}, 30, 0, 360, cv::Scalar(255),
+                    cv::FILLED);
+      },
+      [](cv::Mat& m) {
+        cv::rectangle(m, cv::Rect(20, 52, 120, 16), cv::Scalar(255),
+                      cv::FILLED);
+      },
+      [](cv::Mat& m) {
+        cv::circle(m, {80, 60}, 25, cv::Scalar(255), cv::FILLED);
+        cv::circle(m, {80, 35}, 22, cv::Scalar(0), cv::FILLED);
+      },
+  };
+  for (size_t i = 0; i < shapes.size(); ++i) {
+    Regions regions = OneRegion(shapes[i]);
+    SplitAtWaists(FoodDetectorOptions(), regions);
+    EXPECT_EQ(ItemLabels(regions), 1) << "shape " << i;
+    EXPECT_EQ(regions.background, 2) << "shape " << i;
+  }
 }
 
 TEST(DetectorStagesTest, DescribeItemsGivesBoxCentreAndDepth) {
