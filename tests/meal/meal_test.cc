@@ -10,6 +10,7 @@
 #include <fstream>
 #include <memory>
 #include <optional>
+#include <ostream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -566,6 +567,10 @@ struct StepFault {
   const char* outcome;
   const char* told;  // part of what the person reads
 };
+
+// Names the case in test output and in CTest's test names (the default
+// prints the struct's bytes, pointers included, which change every build).
+void PrintTo(const StepFault& fault, std::ostream* os) { *os << fault.name; }
 
 class MealFaultTest : public MealTest,
                       public ::testing::WithParamInterface<StepFault> {};
