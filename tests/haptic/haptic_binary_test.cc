@@ -306,6 +306,42 @@ TEST(HapticTrainerBinaryTest, SlowApproachIsCheckedAndReported) {
   EXPECT_THAT(log, HasSubstr("slow approach up to x2 (--slow_approach)"));
 }
 
+// The trainer's --window_s: out of range stops it naming the flag; a valid
+// one is recorded in the model, which then loads with that window.
+TEST(HapticTrainerBinaryTest, WindowIsCheckedAndRecordedInTheModel) {
+  const auto train = [](const std::string& name, const std::string& window,
+                        std::string* log) {
+    const std::string log_path = ::testing::TempDir() + "/" + name + ".log";
+    bitewise::testing::ChildProcess child;
+    const absl::Status started = child.Start(
+        {BITEWISE_HAPTIC_TRAIN_BINARY, "--window_s=" + window,
+         "--stories=world", "--traces_per_class=20", "--familiarity=false",
+         "--max_epochs=1", "--held_out_per_class=0",
+         "--out=" + ::testing::TempDir() + "/" + name + ".onnx"},
+        log_path);
+    EXPECT_TRUE(started.ok()) << started;
+    absl::StatusOr<int> status = child.Wait(kTimeout);
+    EXPECT_TRUE(status.ok()) << status.status();
+    *log = ReadFile(log_path);
+    return status.ok() ? *status : -1;
+  };
+  std::string log;
+  int status = train("window_bad", "0", &log);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  EXPECT_THAT(log, HasSubstr("--window_s must be in (0, 1] s; got 0"));
+
+  status = train("window_100ms", "0.1", &log);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  absl::StatusOr<std::unique_ptr<HapticNet>> net =
+      HapticNet::FromOnnxFile(::testing::TempDir() + "/window_100ms.onnx");
+  ASSERT_TRUE(net.ok()) << net.status();
+  EXPECT_EQ((*net)->window_s(), std::optional<double>(0.1));
+}
+
 TEST(HapticBinaryTest, TruncatedModelFileStopsTheStart) {
   const std::string bytes = ReadFile(BITEWISE_HAPTIC_MODEL_FILE);
   ASSERT_GT(bytes.size(), 1000u);

@@ -445,6 +445,11 @@ int main(int argc, char** argv) {
       !(slow >= 1.0 && slow <= 10.0)) {
     return Die(absl::StrCat("--slow_approach must be in [1, 10]; got ", slow));
   }
+  if (const double window = absl::GetFlag(FLAGS_window_s);
+      !(window > 0.0 && window <= 1.0)) {
+    // The range HapticNet accepts in a model's bitewise.window_s.
+    return Die(absl::StrCat("--window_s must be in (0, 1] s; got ", window));
+  }
   // Shuffles `set` into test, validation and train parts (in that order of
   // the shuffled list), tagging each trace with `tags[i]` when given.
   std::vector<LabelledTrace> test, validation, train;
@@ -505,9 +510,6 @@ int main(int argc, char** argv) {
 
   HapticPipelineOptions pipeline;
   pipeline.window.window_s = absl::GetFlag(FLAGS_window_s);
-  if (absl::Status valid = ValidatePipelineOptions(pipeline); !valid.ok()) {
-    return Die(absl::StrCat("--window_s: ", valid.message()));
-  }
   int skipped_train = 0, skipped_validation = 0, skipped_test = 0;
   const LabelledWindows train_windows =
       WindowsFromTraces(train, pipeline, &skipped_train);
