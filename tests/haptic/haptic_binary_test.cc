@@ -273,33 +273,37 @@ TEST_F(HapticEvalTest, AMalformedFamiliarityFileStopsIt) {
   EXPECT_THAT(log(), HasSubstr(model + ".familiarity"));
 }
 
+// A small, quick run of bitewise-haptic-train with one extra `flag`,
+// writing <TempDir>/<name>.onnx; its exit status (-1 if it never ended) and
+// its log in `log`.
+int TrainSmall(const std::string& name, const std::string& flag,
+               std::string* log) {
+  const std::string log_path = ::testing::TempDir() + "/" + name + ".log";
+  bitewise::testing::ChildProcess child;
+  const absl::Status started =
+      child.Start({BITEWISE_HAPTIC_TRAIN_BINARY, flag, "--stories=world",
+                   "--traces_per_class=20", "--familiarity=false",
+                   "--max_epochs=1", "--held_out_per_class=0",
+                   "--out=" + ::testing::TempDir() + "/" + name + ".onnx"},
+                  log_path);
+  EXPECT_TRUE(started.ok()) << started;
+  absl::StatusOr<int> status = child.Wait(kTimeout);
+  EXPECT_TRUE(status.ok()) << status.status();
+  *log = ReadFile(log_path);
+  return status.ok() ? *status : -1;
+}
+
 // bitewise-haptic-train's --slow_approach: a factor below 1 (a faster
 // approach is not what it means) stops it naming the flag; a valid one is
 // said in the trainer's account of its data.
 TEST(HapticTrainerBinaryTest, SlowApproachIsCheckedAndReported) {
-  const auto train = [](const std::string& name, const std::string& slow,
-                        std::string* log) {
-    const std::string log_path = ::testing::TempDir() + "/" + name + ".log";
-    bitewise::testing::ChildProcess child;
-    const absl::Status started = child.Start(
-        {BITEWISE_HAPTIC_TRAIN_BINARY, "--slow_approach=" + slow,
-         "--stories=world", "--traces_per_class=20", "--familiarity=false",
-         "--max_epochs=1", "--held_out_per_class=0",
-         "--out=" + ::testing::TempDir() + "/" + name + ".onnx"},
-        log_path);
-    EXPECT_TRUE(started.ok()) << started;
-    absl::StatusOr<int> status = child.Wait(kTimeout);
-    EXPECT_TRUE(status.ok()) << status.status();
-    *log = ReadFile(log_path);
-    return status.ok() ? *status : -1;
-  };
   std::string log;
-  int status = train("slow_bad", "0.5", &log);
+  int status = TrainSmall("slow_bad", "--slow_approach=0.5", &log);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
       << DescribeWaitStatus(status) << "\n"
       << log;
   EXPECT_THAT(log, HasSubstr("--slow_approach must be in [1, 10]; got 0.5"));
-  status = train("slow_good", "2", &log);
+  status = TrainSmall("slow_good", "--slow_approach=2", &log);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
       << DescribeWaitStatus(status) << "\n"
       << log;
@@ -309,30 +313,14 @@ TEST(HapticTrainerBinaryTest, SlowApproachIsCheckedAndReported) {
 // The trainer's --window_s: out of range stops it naming the flag; a valid
 // one is recorded in the model, which then loads with that window.
 TEST(HapticTrainerBinaryTest, WindowIsCheckedAndRecordedInTheModel) {
-  const auto train = [](const std::string& name, const std::string& window,
-                        std::string* log) {
-    const std::string log_path = ::testing::TempDir() + "/" + name + ".log";
-    bitewise::testing::ChildProcess child;
-    const absl::Status started = child.Start(
-        {BITEWISE_HAPTIC_TRAIN_BINARY, "--window_s=" + window,
-         "--stories=world", "--traces_per_class=20", "--familiarity=false",
-         "--max_epochs=1", "--held_out_per_class=0",
-         "--out=" + ::testing::TempDir() + "/" + name + ".onnx"},
-        log_path);
-    EXPECT_TRUE(started.ok()) << started;
-    absl::StatusOr<int> status = child.Wait(kTimeout);
-    EXPECT_TRUE(status.ok()) << status.status();
-    *log = ReadFile(log_path);
-    return status.ok() ? *status : -1;
-  };
   std::string log;
-  int status = train("window_bad", "0", &log);
+  int status = TrainSmall("window_bad", "--window_s=0", &log);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
       << DescribeWaitStatus(status) << "\n"
       << log;
   EXPECT_THAT(log, HasSubstr("--window_s must be in (0, 1] s; got 0"));
 
-  status = train("window_100ms", "0.1", &log);
+  status = TrainSmall("window_100ms", "--window_s=0.1", &log);
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
       << DescribeWaitStatus(status) << "\n"
       << log;
