@@ -27,6 +27,11 @@ struct FoodDetectorOptions {
   // CIELAB distance from the plate colour beyond which a pixel looks like
   // food rather than plate (shadows on a white plate stay below it).
   double min_colour_distance = 14.0;
+  // Bare plate: a pixel with depth at most this high above the plate and
+  // the plate's colour is plate, however close to food. The flood that
+  // outlines the items stops there instead of running along a neighbour's
+  // shadow. 0: off (only plate well away from food is background).
+  double max_bare_plate_mm = 1.5;
   // Colour gradient (CIELAB units per pixel) that separates two touching
   // items; texture within one item stays below it.
   double min_edge_strength = 10.0;

@@ -256,6 +256,12 @@ FoodEvidence FindEvidence(const cv::Mat& rgb, const cv::Mat& height_mm,
   cv::morphologyEx(colour, colour, cv::MORPH_OPEN,
                    cv::getStructuringElement(cv::MORPH_ELLIPSE, {3, 3}));
 
+  // Bare plate: depth on the plate and the plate's colour.
+  evidence.bare = cv::Mat(h, w, CV_8UC1, cv::Scalar(0));
+  if (options.max_bare_plate_mm > 0.0) {
+    evidence.bare = valid & (height_mm <= options.max_bare_plate_mm) & plate &
+                    ~colour & ~above;
+  }
   return evidence;
 }
 
@@ -575,8 +581,8 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
 
 void GrowRegions(const cv::Mat& rgb, const FoodEvidence& evidence,
                  const cv::Mat& plate, Regions& regions) {
-  // Background seed: plate well away from anything food-like, and all that
-  // is off the plate.
+  // Background seed: plate well away from anything food-like, bare plate
+  // however close to food, and all that is off the plate.
   cv::Mat& markers = regions.markers;
   const int background = regions.background;
   cv::Mat food_like = evidence.above | evidence.colour;
@@ -584,6 +590,12 @@ void GrowRegions(const cv::Mat& rgb, const FoodEvidence& evidence,
   cv::dilate(food_like, near_food,
              cv::getStructuringElement(cv::MORPH_ELLIPSE, {15, 15}));
   markers.setTo(background, ~near_food | ~plate);
+  // Near food, the flood would otherwise take bare plate for whichever item
+  // reaches it first: a pale item's edge against a neighbour's shadow is a
+  // weaker colour edge than the shadow's own, so the item ran along it.
+  if (!evidence.bare.empty()) {
+    markers.setTo(background, evidence.bare & (markers == 0));
+  }
   // The outlines come from colour edges: flooding the RGB image from the
   // seeds stops where item meets plate or item meets item.
   cv::Mat rgb_copy = rgb.clone();  // watershed wants continuous data
@@ -989,6 +1001,7 @@ std::vector<DetectedFood> DescribeItems(const Regions& regions,
     std::vector<cv::Point> points;
     std::vector<double> depths_mm;
     double evidence = 0.0;
+    int ridge_px = 0;  // ridge pixels joined
   };
   std::vector<Accumulator> acc(n_cores);
   for (int v = 0; v < h; ++v) {
@@ -1013,6 +1026,7 @@ std::vector<DetectedFood> DescribeItems(const Regions& regions,
       if (label <= 0 || label >= background) continue;
       Accumulator& item = acc[label];
       item.points.emplace_back(u, v);
+      item.ridge_px += m[u] == -1;
       if (raw[u] > 0) item.depths_mm.push_back(raw[u]);
       item.evidence += ((a[u] ? 1.0 : 0.0) + (c[u] ? 1.0 : 0.0)) / 2.0;
     }
@@ -1042,7 +1056,12 @@ std::vector<DetectedFood> DescribeItems(const Regions& regions,
     }
     food.depth_m = z_mm / 1000.0;
     const double pixel_area_m2 = (food.depth_m / k.fx) * (food.depth_m / k.fy);
-    if (food.area_px * pixel_area_m2 < options.min_item_area_m2) continue;
+    // Sized by the pixels its seed grew, not the ridge it was handed: a
+    // sliver's ridge can be a third of it.
+    if ((food.area_px - item.ridge_px) * pixel_area_m2 <
+        options.min_item_area_m2) {
+      continue;
+    }
     const cv::Vec3d centre =
         Deproject(k, food.center_u_px, food.center_v_px, z_mm) / 1000.0;
     food.center_x_m = centre[0];

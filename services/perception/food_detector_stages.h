@@ -68,10 +68,11 @@ struct FoodEvidence {
   cv::Mat above;   // CV_8UC1: higher than min_height_mm, holes filled
   cv::Mat colour;  // CV_8UC1: farther than min_colour_distance from the
                    // plate's median colour
+  cv::Mat bare;    // CV_8UC1: plainly plate (see max_bare_plate_mm)
 };
 
-// Food by depth and by colour, inside the plate. `rgb`, `height_mm` and
-// `valid` are the roi's.
+// Food by depth and by colour, inside the plate, and the bare plate between.
+// `rgb`, `height_mm` and `valid` are the roi's.
 FoodEvidence FindEvidence(const cv::Mat& rgb, const cv::Mat& height_mm,
                           const cv::Mat& valid, const PlateRegion& plate,
                           const FoodDetectorOptions& options);
@@ -106,8 +107,8 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
                                   const cv::Mat& height_mm,
                                   const FoodDetectorOptions& options);
 
-// Marks the background (plate well away from food-like pixels, and all
-// that is off the plate) and floods the RGB image from the seeds.
+// Marks the background (plate well away from food-like pixels, bare plate,
+// and all that is off the plate) and floods the RGB image from the seeds.
 void GrowRegions(const cv::Mat& rgb, const FoodEvidence& evidence,
                  const cv::Mat& plate, Regions& regions);
 

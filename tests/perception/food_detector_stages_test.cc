@@ -222,6 +222,41 @@ TEST(DetectorStagesTest, GrowAndMergeJoinOneItemSeededTwice) {
   EXPECT_EQ(ItemLabels(regions), 1);
 }
 
+TEST(DetectorStagesTest, GrowStopsAtBarePlateInAShadow) {
+  // A pale item, found by its height, its colour within a few units of the
+  // plate's; beside it a shadow 6 px wide: plate, darker, and closer in
+  // colour to the item than to the lit plate beyond. Flooded from the
+  // item's seed, the shadow joins the item unless bare plate (depth on the
+  // plate, the plate's colour) is background.
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  const cv::Rect item(260, 220, 60, 40);
+  height(item).setTo(12.0f);
+  Scene scene = MakeScene(height, height > 0.0f);
+  scene.rgb.setTo(cv::Scalar(200, 200, 195), height > 0.0f);
+  const cv::Rect shadow(item.br().x, item.y, 6, item.height);
+  scene.rgb(shadow).setTo(cv::Scalar(200, 200, 200));
+  const auto grown_box = [&scene](const FoodDetectorOptions& options) {
+    scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                  scene.plate, options);
+    Regions regions;
+    regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(0));
+    regions.markers(cv::Rect(280, 230, 20, 20)).setTo(1);
+    regions.background = 2;
+    regions.valley_mm = cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0));
+    GrowRegions(scene.rgb, scene.evidence, scene.plate.plate, regions);
+    return cv::boundingRect(regions.markers == 1);
+  };
+  FoodDetectorOptions off;
+  off.max_bare_plate_mm = 0;
+  const cv::Rect without = grown_box(off);
+  EXPECT_GE(without.br().x, shadow.br().x - 1) << "the shadow joined";
+  const cv::Rect with = grown_box(FoodDetectorOptions());
+  EXPECT_LE(with.br().x, item.br().x);
+  EXPECT_GE(with.br().x, item.br().x - 2);
+  EXPECT_GE(with.width, item.width - 3);
+  EXPECT_GE(with.height, item.height - 3);
+}
+
 // Two flat items of one colour, the second partly lying on the first: the
 // lower one shows as a strip [240, 240 + shown) x [220, 260) of
 // `lower_mm`, the upper one [240 + shown, 340) x [220, 260) stands
@@ -547,6 +582,45 @@ TEST(DetectorStagesTest, DescribeItemsGivesBoxCentreAndDepth) {
   EXPECT_TRUE(DescribeItems(regions, scene.evidence, raw_depth, scene.plate.roi,
                             plane, k, FoodDetectorOptions())
                   .empty());
+}
+
+TEST(DetectorStagesTest, DescribeItemsSizesAnItemByItsOwnPixels) {
+  // A square region just below min_item_area_m2, ringed by watershed ridge
+  // pixels that look like food and so join it: with the ring it would be
+  // large enough. The size test counts the region's own pixels only.
+  const cv::Rect food(300, 200, 60, 60);
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  height(food).setTo(20.0f);
+  const Scene scene = MakeScene(height, height > 0.0f);
+  cv::Mat raw_depth(kH, kW, CV_16UC1, cv::Scalar(400));
+  raw_depth(food).setTo(380);
+  Plane plane;
+  plane.n = cv::Vec3d(0, 0, -1);
+  plane.d = 400.0;
+  const CameraIntrinsics k;
+  const FoodDetectorOptions options;
+  const double pixel_m2 = (0.38 / k.fx) * (0.38 / k.fy);
+  const int threshold_px =
+      static_cast<int>(std::ceil(options.min_item_area_m2 / pixel_m2));
+  const auto describe = [&](int side) {
+    Regions regions;
+    regions.background = 2;
+    regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(2));
+    regions.markers(cv::Rect(310, 210, side + 2, side + 2)).setTo(-1);
+    regions.markers(cv::Rect(311, 211, side, side)).setTo(1);
+    return DescribeItems(regions, scene.evidence, raw_depth, scene.plate.roi,
+                         plane, k, options);
+  };
+  const int below = static_cast<int>(std::sqrt(threshold_px - 1.0));
+  ASSERT_LT(below * below, threshold_px);
+  // The ring's corners touch the square only diagonally and stay out.
+  ASSERT_GE(below * below + 4 * below, threshold_px);
+  ASSERT_LE(below + 2, 48);  // inside the food
+  EXPECT_TRUE(describe(below).empty());
+  const std::vector<DetectedFood> kept = describe(below + 1);
+  ASSERT_EQ(kept.size(), 1u);
+  const int side = below + 1;
+  EXPECT_EQ(kept[0].area_px, side * side + 4 * side);  // with its ridge
 }
 
 }  // namespace
