@@ -27,7 +27,8 @@
 ABSL_FLAG(int, plates, 200, "Plates to render.");
 ABSL_FLAG(uint64_t, seed, 9001, "Seeds the plates.");
 ABSL_FLAG(int, max_items, 8, "Items per plate: 2 to this.");
-ABSL_FLAG(bool, verbose, false, "Name the foods of every merge on stderr.");
+ABSL_FLAG(bool, verbose, false,
+          "Name the foods of every merge and missed item on stderr.");
 ABSL_FLAG(double, overlap, 0.0,
           "Crowded plates (sim::CrowdedPlate): chance that a flat item lies "
           "partly on a flat neighbour (a slice partly under another). With "
@@ -42,7 +43,7 @@ ABSL_FLAG(double, min_visible, 0.2,
           "count (the target: every such item found with IoU >= 0.5).");
 ABSL_FLAG(std::string, dump, "",
           "Directory for plate<N>.png (truth green, detections red) of every "
-          "plate with a merge.");
+          "plate with a merge or a missed item.");
 
 namespace {
 
@@ -160,6 +161,19 @@ int main(int argc, char** argv) {
     // Merges: a detection covering at least half of the boxes of two or
     // more items, one of which found no detection of its own (a long
     // diagonal stick's box may cover a small neighbour and still be right).
+    const auto dump = [&] {
+      const std::string dir = absl::GetFlag(FLAGS_dump);
+      if (dir.empty()) return;
+      cv::Mat bgr;
+      cv::cvtColor(frame.rgb, bgr, cv::COLOR_RGB2BGR);
+      for (const Box& b : truth) {
+        cv::rectangle(bgr, cv::Rect(b.x, b.y, b.w, b.h), {0, 255, 0});
+      }
+      for (const Box& b : boxes) {
+        cv::rectangle(bgr, cv::Rect(b.x, b.y, b.w, b.h), {0, 0, 255});
+      }
+      cv::imwrite(dir + "/plate" + std::to_string(p) + ".png", bgr);
+    };
     std::vector<bool> is_merged(truth.size(), false);
     for (const Box& d : boxes) {
       std::vector<size_t> covered;
@@ -178,17 +192,7 @@ int main(int argc, char** argv) {
           }
           std::fprintf(stderr, "\n");
         }
-        if (const std::string dir = absl::GetFlag(FLAGS_dump); !dir.empty()) {
-          cv::Mat bgr;
-          cv::cvtColor(frame.rgb, bgr, cv::COLOR_RGB2BGR);
-          for (const Box& b : truth) {
-            cv::rectangle(bgr, cv::Rect(b.x, b.y, b.w, b.h), {0, 255, 0});
-          }
-          for (const Box& b : boxes) {
-            cv::rectangle(bgr, cv::Rect(b.x, b.y, b.w, b.h), {0, 0, 255});
-          }
-          cv::imwrite(dir + "/plate" + std::to_string(p) + ".png", bgr);
-        }
+        dump();
       }
     }
     for (size_t t = 0; t < truth.size(); ++t) {
@@ -205,6 +209,11 @@ int main(int argc, char** argv) {
         worst = std::min(worst, best[t]);
       } else {
         ++missed;
+        if (absl::GetFlag(FLAGS_verbose)) {
+          std::fprintf(stderr, "plate %d missed: %s (best IoU %.2f)\n", p,
+                       truth_food[t]->name.c_str(), best[t]);
+        }
+        dump();
       }
     }
     for (size_t d = 0; d < boxes.size(); ++d) extra += !d_used[d];
