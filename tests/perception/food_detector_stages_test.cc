@@ -544,20 +544,36 @@ TEST(DetectorStagesTest, SplitAtWaistsLeavesConvexItemsAndCrescentsWhole) {
   }
 }
 
+// What DescribeItems reads: a 20 mm item `food` on a plate 400 mm from the
+// camera, square on (its top at 380 mm).
+struct FlatPlate {
+  Scene scene;
+  cv::Mat raw_depth;
+  Plane plane;
+};
+
+FlatPlate ItemOnAFlatPlate(const cv::Rect& food) {
+  FlatPlate flat;
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  height(food).setTo(20.0f);
+  flat.scene = MakeScene(height, height > 0.0f);
+  flat.raw_depth = cv::Mat(kH, kW, CV_16UC1, cv::Scalar(400));
+  flat.raw_depth(food).setTo(380);
+  flat.plane.n = cv::Vec3d(0, 0, -1);
+  flat.plane.d = 400.0;
+  return flat;
+}
+
 TEST(DetectorStagesTest, DescribeItemsGivesBoxCentreAndDepth) {
   const cv::Rect item(300, 220, 40, 20);
-  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
-  height(item).setTo(20.0f);
-  const Scene scene = MakeScene(height, height > 0.0f);
+  const FlatPlate flat = ItemOnAFlatPlate(item);
+  const Scene& scene = flat.scene;
+  const cv::Mat& raw_depth = flat.raw_depth;
+  const Plane& plane = flat.plane;
   Regions regions;
   regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(2));
   regions.markers(item).setTo(1);
   regions.background = 2;
-  cv::Mat raw_depth(kH, kW, CV_16UC1, cv::Scalar(400));
-  raw_depth(item).setTo(380);
-  Plane plane;
-  plane.n = cv::Vec3d(0, 0, -1);
-  plane.d = 400.0;
   const CameraIntrinsics k;
   const std::vector<DetectedFood> foods =
       DescribeItems(regions, scene.evidence, raw_depth, scene.plate.roi, plane,
@@ -588,15 +604,7 @@ TEST(DetectorStagesTest, DescribeItemsSizesAnItemByItsOwnPixels) {
   // A square region just below min_item_area_m2, ringed by watershed ridge
   // pixels that look like food and so join it: with the ring it would be
   // large enough. The size test counts the region's own pixels only.
-  const cv::Rect food(300, 200, 60, 60);
-  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
-  height(food).setTo(20.0f);
-  const Scene scene = MakeScene(height, height > 0.0f);
-  cv::Mat raw_depth(kH, kW, CV_16UC1, cv::Scalar(400));
-  raw_depth(food).setTo(380);
-  Plane plane;
-  plane.n = cv::Vec3d(0, 0, -1);
-  plane.d = 400.0;
+  const FlatPlate flat = ItemOnAFlatPlate(cv::Rect(300, 200, 60, 60));
   const CameraIntrinsics k;
   const FoodDetectorOptions options;
   const double pixel_m2 = (0.38 / k.fx) * (0.38 / k.fy);
@@ -608,8 +616,8 @@ TEST(DetectorStagesTest, DescribeItemsSizesAnItemByItsOwnPixels) {
     regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(2));
     regions.markers(cv::Rect(310, 210, side + 2, side + 2)).setTo(-1);
     regions.markers(cv::Rect(311, 211, side, side)).setTo(1);
-    return DescribeItems(regions, scene.evidence, raw_depth, scene.plate.roi,
-                         plane, k, options);
+    return DescribeItems(regions, flat.scene.evidence, flat.raw_depth,
+                         flat.scene.plate.roi, flat.plane, k, options);
   };
   const int below = static_cast<int>(std::sqrt(threshold_px - 1.0));
   ASSERT_LT(below * below, threshold_px);
