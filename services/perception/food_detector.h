@@ -78,6 +78,10 @@ struct FoodDetectorOptions {
   // joined.
   double min_join_fill = 0.75;
   double min_join_elongation = 1.3;
+  // A part's top in that join: this quantile of its heights. Lower than the
+  // merge's 0.9, because the highest pixels of a small stub are the flank of
+  // the item lying on it.
+  double join_top_quantile = 0.8;
   // Two touching convex items that no seed told apart grow into one
   // region with a waist. A region whose solidity (area over its convex
   // hull's) is below max_waist_solidity is cut along the segment between

@@ -748,7 +748,10 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       const cv::Vec6d& mo = p.moments;
       if (mo[0] < 1) continue;
       if (!p.heights.empty()) {
-        const size_t q = p.heights.size() * 9 / 10;
+        const size_t q =
+            std::min(p.heights.size() - 1,
+                     static_cast<size_t>(static_cast<double>(p.heights.size()) *
+                                         options.join_top_quantile));
         std::nth_element(p.heights.begin(), p.heights.begin() + q,
                          p.heights.end());
         p.top_mm = p.heights[q];

@@ -444,6 +444,28 @@ TEST(DetectorStagesTest, MergeJoinsTheShortStubsOfAStickUnderAnItem) {
   EXPECT_EQ(ItemLabels(regions), 3);  // the left stub's pieces are one
 }
 
+TEST(DetectorStagesTest, MergeJoinsAStubWhoseHighestPixelsAreTheItemsFlank) {
+  // The stick's right stub (10 mm) has the flank of the item on it (18 mm)
+  // along its inner 4 px, 13 % of it: its 90th percentile is the flank, so
+  // by that the item (24 mm) would not stand 1.5 times above it.
+  Scene scene = PartsUnderAnItem(
+      {cv::Rect(250, 230, 50, 20), cv::Rect(340, 230, 30, 20)}, {});
+  scene.height_mm(cv::Rect(340, 230, 4, 20)).setTo(18.0f);
+  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                scene.plate, FoodDetectorOptions());
+  const std::vector<cv::Rect> seeds = {cv::Rect(260, 235, 20, 10),
+                                       cv::Rect(350, 235, 10, 10),
+                                       cv::Rect(310, 220, 20, 40)};
+  Regions regions = GrowAndMerge(scene, seeds, FoodDetectorOptions());
+  EXPECT_EQ(ItemLabels(regions), 2);
+  EXPECT_EQ(regions.markers.at<int>(240, 255),
+            regions.markers.at<int>(240, 365));
+  FoodDetectorOptions highest;
+  highest.join_top_quantile = 0.9;
+  regions = GrowAndMerge(scene, seeds, highest);
+  EXPECT_EQ(ItemLabels(regions), 3);
+}
+
 TEST(DetectorStagesTest, MergeKeepsARoundSliceApartFromAStickUnderAnItem) {
   // A stick on the left of the item and a round slice partly under its
   // right side, in line: the rectangle around both holds plate above and
