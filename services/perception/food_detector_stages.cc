@@ -257,11 +257,11 @@ FoodEvidence FindEvidence(const cv::Mat& rgb, const cv::Mat& height_mm,
                    cv::getStructuringElement(cv::MORPH_ELLIPSE, {3, 3}));
 
   // Bare plate: depth on the plate and the plate's colour.
-  evidence.bare = cv::Mat(h, w, CV_8UC1, cv::Scalar(0));
-  if (options.max_bare_plate_mm > 0.0) {
-    evidence.bare = valid & (height_mm <= options.max_bare_plate_mm) & plate &
-                    ~colour & ~above;
-  }
+  evidence.bare =
+      options.max_bare_plate_mm > 0.0
+          ? cv::Mat(valid & (height_mm <= options.max_bare_plate_mm) & plate &
+                    ~colour & ~above)
+          : cv::Mat(h, w, CV_8UC1, cv::Scalar(0));
   return evidence;
 }
 
