@@ -273,19 +273,24 @@ TEST_F(HapticEvalTest, AMalformedFamiliarityFileStopsIt) {
   EXPECT_THAT(log(), HasSubstr(model + ".familiarity"));
 }
 
-// A small, quick run of bitewise-haptic-train with one extra `flag`,
+// A small, quick run of bitewise-haptic-train with extra `flags`,
 // writing <TempDir>/<name>.onnx; its exit status (-1 if it never ended) and
 // its log in `log`.
-int TrainSmall(const std::string& name, const std::string& flag,
+int TrainSmall(const std::string& name, const std::vector<std::string>& flags,
                std::string* log) {
   const std::string log_path = ::testing::TempDir() + "/" + name + ".log";
+  std::vector<std::string> args = {
+      BITEWISE_HAPTIC_TRAIN_BINARY,
+      "--stories=world",
+      "--traces_per_class=20",
+      "--familiarity=false",
+      "--max_epochs=1",
+      "--held_out_per_class=0",
+      "--out=" + ::testing::TempDir() + "/" + name + ".onnx"};
+  // Last, so that they win over the defaults above.
+  args.insert(args.end(), flags.begin(), flags.end());
   bitewise::testing::ChildProcess child;
-  const absl::Status started =
-      child.Start({BITEWISE_HAPTIC_TRAIN_BINARY, flag, "--stories=world",
-                   "--traces_per_class=20", "--familiarity=false",
-                   "--max_epochs=1", "--held_out_per_class=0",
-                   "--out=" + ::testing::TempDir() + "/" + name + ".onnx"},
-                  log_path);
+  const absl::Status started = child.Start(args, log_path);
   EXPECT_TRUE(started.ok()) << started;
   absl::StatusOr<int> status = child.Wait(kTimeout);
   EXPECT_TRUE(status.ok()) << status.status();
@@ -298,12 +303,12 @@ int TrainSmall(const std::string& name, const std::string& flag,
 // said in the trainer's account of its data.
 TEST(HapticTrainerBinaryTest, SlowApproachIsCheckedAndReported) {
   std::string log;
-  int status = TrainSmall("slow_bad", "--slow_approach=0.5", &log);
+  int status = TrainSmall("slow_bad", {"--slow_approach=0.5"}, &log);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
       << DescribeWaitStatus(status) << "\n"
       << log;
   EXPECT_THAT(log, HasSubstr("--slow_approach must be in [1, 10]; got 0.5"));
-  status = TrainSmall("slow_good", "--slow_approach=2", &log);
+  status = TrainSmall("slow_good", {"--slow_approach=2"}, &log);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
       << DescribeWaitStatus(status) << "\n"
       << log;
@@ -314,13 +319,13 @@ TEST(HapticTrainerBinaryTest, SlowApproachIsCheckedAndReported) {
 // one is recorded in the model, which then loads with that window.
 TEST(HapticTrainerBinaryTest, WindowIsCheckedAndRecordedInTheModel) {
   std::string log;
-  int status = TrainSmall("window_bad", "--window_s=0", &log);
+  int status = TrainSmall("window_bad", {"--window_s=0"}, &log);
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
       << DescribeWaitStatus(status) << "\n"
       << log;
   EXPECT_THAT(log, HasSubstr("--window_s must be in (0, 1] s; got 0"));
 
-  status = TrainSmall("window_100ms", "--window_s=0.1", &log);
+  status = TrainSmall("window_100ms", {"--window_s=0.1"}, &log);
   ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
       << DescribeWaitStatus(status) << "\n"
       << log;
@@ -328,6 +333,49 @@ TEST(HapticTrainerBinaryTest, WindowIsCheckedAndRecordedInTheModel) {
       HapticNet::FromOnnxFile(::testing::TempDir() + "/window_100ms.onnx");
   ASSERT_TRUE(net.ok()) << net.status();
   EXPECT_EQ((*net)->window_s(), std::optional<double>(0.1));
+}
+
+// --ensemble_of: two members become one model of the same graph contract,
+// which loads with their window and agrees with the trainer's reference;
+// a member trained on another window stops it, naming that member.
+TEST(HapticTrainerBinaryTest, EnsembleOfMembersOnOneWindow) {
+  std::string log;
+  for (const char* name : {"member_a", "member_b"}) {
+    const int status = TrainSmall(
+        name, {absl::StrCat("--seed=", name[7] == 'a' ? 1 : 2)}, &log);
+    ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+        << DescribeWaitStatus(status) << "\n"
+        << log;
+  }
+  const std::string dir = ::testing::TempDir();
+  const std::string members = dir + "/member_a.onnx," + dir + "/member_b.onnx";
+  int status = TrainSmall(
+      "ensemble", {"--ensemble_of=" + members, "--held_out_per_class=5"}, &log);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  EXPECT_THAT(log, HasSubstr("ensemble of 2 members"));
+  // Scored on fresh items of every story, where OpenCV's run of the file
+  // is checked against the trainer's reference (the run fails otherwise).
+  EXPECT_THAT(log, HasSubstr("story mechanics (fresh items: 5 per class"));
+  absl::StatusOr<std::unique_ptr<HapticNet>> net =
+      HapticNet::FromOnnxFile(dir + "/ensemble.onnx");
+  ASSERT_TRUE(net.ok()) << net.status();
+  EXPECT_EQ((*net)->window_s(), std::optional<double>(0.05));
+
+  status = TrainSmall("member_100ms", {"--window_s=0.1"}, &log);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  status = TrainSmall(
+      "ensemble_mixed",
+      {"--ensemble_of=" + members + "," + dir + "/member_100ms.onnx"}, &log);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  EXPECT_THAT(log, HasSubstr(dir + "/member_100ms.onnx was trained on a 0.1 "
+                                   "s window, but --window_s=0.05"));
+  EXPECT_FALSE(std::ifstream(dir + "/ensemble_mixed.onnx").good());
 }
 
 TEST(HapticBinaryTest, TruncatedModelFileStopsTheStart) {

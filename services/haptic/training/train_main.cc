@@ -24,6 +24,7 @@
 #include "services/common/flags_usage.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/core/haptic_net.h"
+#include "services/haptic/model_loading.h"
 #include "services/haptic/training/haptic_net_weights.h"
 #include "services/haptic/training/haptic_trainer.h"
 #include "services/haptic/training/labelled_traces.h"
@@ -171,11 +172,13 @@ int AssembleEnsemble() {
     absl::StatusOr<std::unique_ptr<HapticNet>> net =
         HapticNet::FromOnnxBytes(*bytes, std::string(path));
     if (!net.ok()) return Die(net.status().ToString());
-    const double member_window_s =
-        (*net)->window_s().value_or(WindowOptions().window_s);
-    if (member_window_s != absl::GetFlag(FLAGS_window_s)) {
+    // The window the service would run this member on by default.
+    absl::StatusOr<double> member_window_s =
+        ModelWindow(**net, 0.0, std::string(path));
+    if (!member_window_s.ok()) return Die(member_window_s.status().ToString());
+    if (std::abs(*member_window_s - absl::GetFlag(FLAGS_window_s)) > 1e-9) {
       return Die(absl::StrCat(
-          path, " was trained on a ", member_window_s,
+          path, " was trained on a ", *member_window_s,
           " s window, but --window_s=", absl::GetFlag(FLAGS_window_s),
           ": an ensemble's members share one window"));
     }
