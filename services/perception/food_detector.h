@@ -48,7 +48,7 @@ struct FoodDetectorOptions {
   // Seeds stop at height steps too (an item lying partly on another): a
   // pixel whose cliff_window_px neighbourhood rises above it by more than
   // max(min_cliff_mm, cliff_fraction x its height). 0 or 1: no step cut.
-  int cliff_window_px = 5;
+  int cliff_window_px = 7;
   double min_cliff_mm = 3.0;
   double cliff_fraction = 0.25;
   // A cut seed counts as a part when it keeps at least this many pixels.

@@ -260,11 +260,16 @@ TEST(DetectorStagesTest, GrowStopsAtBarePlateInAShadow) {
 // Two flat items of one colour, the second partly lying on the first: the
 // lower one shows as a strip [240, 240 + shown) x [220, 260) of
 // `lower_mm`, the upper one [240 + shown, 340) x [220, 260) stands
-// `upper_mm` high.
-Scene Overlapping(int shown, float lower_mm, float upper_mm) {
+// `upper_mm` high. A rounded rim of `rim_px` rises from the one to the
+// other over the upper item's first columns.
+Scene Overlapping(int shown, float lower_mm, float upper_mm, int rim_px = 0) {
   cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
   height(cv::Rect(240, 220, shown, 40)).setTo(lower_mm);
   height(cv::Rect(240 + shown, 220, 100 - shown, 40)).setTo(upper_mm);
+  for (int i = 0; i < rim_px; ++i) {
+    height(cv::Rect(240 + shown + i, 220, 1, 40))
+        .setTo(lower_mm + (upper_mm - lower_mm) * (i + 1) / (rim_px + 1));
+  }
   return MakeScene(height, height > 0.0f);
 }
 
@@ -280,6 +285,23 @@ TEST(DetectorStagesTest, PlantSeedsCutsAtTheStepOfAnItemLyingOnAnother) {
   FoodDetectorOptions no_step;
   no_step.cliff_window_px = 0;
   seeds = PlantSeeds(scene.evidence, scene.height_mm, no_step);
+  ASSERT_TRUE(seeds.has_value());
+  EXPECT_EQ(seeds->background, 2);
+}
+
+TEST(DetectorStagesTest, PlantSeedsCutsAtTheRoundedRimOfAnItemLyingOnAnother) {
+  // A slice's rounded rim spreads its 11 mm step over 8 px (1.4 mm per px):
+  // a 5 px window sees 2.7 mm of it, under the 3.25 mm a 13 mm strip needs;
+  // the 7 px window sees 4.1 mm.
+  const Scene scene = Overlapping(30, 13.0f, 24.0f, 7);
+  std::optional<Regions> seeds =
+      PlantSeeds(scene.evidence, scene.height_mm, FoodDetectorOptions());
+  ASSERT_TRUE(seeds.has_value());
+  EXPECT_EQ(seeds->background, 3);
+  EXPECT_NE(seeds->markers.at<int>(240, 250), seeds->markers.at<int>(240, 320));
+  FoodDetectorOptions narrow;
+  narrow.cliff_window_px = 5;
+  seeds = PlantSeeds(scene.evidence, scene.height_mm, narrow);
   ASSERT_TRUE(seeds.has_value());
   EXPECT_EQ(seeds->background, 2);
 }
