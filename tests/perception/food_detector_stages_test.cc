@@ -273,37 +273,36 @@ Scene Overlapping(int shown, float lower_mm, float upper_mm, int rim_px = 0) {
   return MakeScene(height, height > 0.0f);
 }
 
-TEST(DetectorStagesTest, PlantSeedsCutsAtTheStepOfAnItemLyingOnAnother) {
-  // The lower item's strip (10 mm) is above half the upper one's top
-  // (16 mm), so it joins the upper seed; only the step cut parts them.
-  const Scene scene = Overlapping(30, 10.0f, 16.0f);
+// PlantSeeds on an Overlapping scene: with the default options the strip
+// (x 250) and the item on it (x 320) get a seed each; with `without`, the
+// rule under test switched off or narrowed, one seed covers both.
+void ExpectTheStripCutOnlyByDefault(const Scene& scene,
+                                    const FoodDetectorOptions& without) {
   std::optional<Regions> seeds =
       PlantSeeds(scene.evidence, scene.height_mm, FoodDetectorOptions());
   ASSERT_TRUE(seeds.has_value());
   EXPECT_EQ(seeds->background, 3);
   EXPECT_NE(seeds->markers.at<int>(240, 250), seeds->markers.at<int>(240, 320));
-  FoodDetectorOptions no_step;
-  no_step.cliff_window_px = 0;
-  seeds = PlantSeeds(scene.evidence, scene.height_mm, no_step);
+  seeds = PlantSeeds(scene.evidence, scene.height_mm, without);
   ASSERT_TRUE(seeds.has_value());
   EXPECT_EQ(seeds->background, 2);
+}
+
+TEST(DetectorStagesTest, PlantSeedsCutsAtTheStepOfAnItemLyingOnAnother) {
+  // The lower item's strip (10 mm) is above half the upper one's top
+  // (16 mm), so it joins the upper seed; only the step cut parts them.
+  FoodDetectorOptions no_step;
+  no_step.cliff_window_px = 0;
+  ExpectTheStripCutOnlyByDefault(Overlapping(30, 10.0f, 16.0f), no_step);
 }
 
 TEST(DetectorStagesTest, PlantSeedsCutsAtTheRoundedRimOfAnItemLyingOnAnother) {
   // A slice's rounded rim spreads its 11 mm step over 8 px (1.4 mm per px):
   // a 5 px window sees 2.7 mm of it, under the 3.25 mm a 13 mm strip needs;
   // the 7 px window sees 4.1 mm.
-  const Scene scene = Overlapping(30, 13.0f, 24.0f, 7);
-  std::optional<Regions> seeds =
-      PlantSeeds(scene.evidence, scene.height_mm, FoodDetectorOptions());
-  ASSERT_TRUE(seeds.has_value());
-  EXPECT_EQ(seeds->background, 3);
-  EXPECT_NE(seeds->markers.at<int>(240, 250), seeds->markers.at<int>(240, 320));
   FoodDetectorOptions narrow;
   narrow.cliff_window_px = 5;
-  seeds = PlantSeeds(scene.evidence, scene.height_mm, narrow);
-  ASSERT_TRUE(seeds.has_value());
-  EXPECT_EQ(seeds->background, 2);
+  ExpectTheStripCutOnlyByDefault(Overlapping(30, 13.0f, 24.0f, 7), narrow);
 }
 
 TEST(DetectorStagesTest, PlantSeedsSeedsATerraceBelowHalfTheItemOnIt) {
