@@ -5,6 +5,7 @@
 // classifier reports the score only when it has a model.
 #include "services/haptic/core/familiarity.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <string>
@@ -86,6 +87,26 @@ TEST(FamiliarityTest, FreshItemsOfTheTrainingStoryAreFamiliar) {
   // 5% by construction on the calibration items; fresh ones may differ a
   // little.
   EXPECT_LT(flagged, 0.15 * fresh.inputs.size());
+}
+
+TEST(FamiliarityTest,
+     EachClassDistanceIsToItsOwnClassAndTheNearestIsTheDistance) {
+  const FamiliarityModel model = FitWorld();
+  const LabelledWindows fresh = Windows(TraceStory::kWorld, 50, 3);
+  int nearest_is_true = 0;
+  for (size_t i = 0; i < fresh.inputs.size(); ++i) {
+    const FamiliarityScore score =
+        model.Score(FamiliarityFeatures(fresh.inputs[i]));
+    const auto nearest = std::min_element(score.class_distances.begin(),
+                                          score.class_distances.end());
+    EXPECT_EQ(*nearest, score.distance);
+    nearest_is_true +=
+        (nearest - score.class_distances.begin()) == fresh.labels[i];
+  }
+  // The world story's classes are far apart in the summaries (peak force,
+  // drop), so the nearest Gaussian is mostly the item's own class: the
+  // distances are in class order.
+  EXPECT_GT(nearest_is_true, 0.9 * fresh.inputs.size());
 }
 
 TEST(FamiliarityTest, ATraceUnlikeAnyFoodIsUnfamiliar) {

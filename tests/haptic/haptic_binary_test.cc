@@ -7,10 +7,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -231,18 +233,27 @@ TEST_F(HapticEvalTest, ReportsTheFamiliarityOfEveryTrace) {
   ASSERT_TRUE(std::getline(in, line));
   EXPECT_EQ(line,
             "condition,label,p_hard,p_medium,p_soft,p_hard_skin,familiarity,"
-            "distance");
+            "distance,d_hard,d_medium,d_soft,d_hard_skin");
   int rows = 0;
   while (std::getline(in, line)) {
     ++rows;
     const std::vector<std::string> fields = absl::StrSplit(line, ',');
-    ASSERT_EQ(fields.size(), 8u) << line;
+    ASSERT_EQ(fields.size(), 12u) << line;
     double familiarity = -1.0, distance = -1.0;
     ASSERT_TRUE(absl::SimpleAtod(fields[6], &familiarity)) << line;
     ASSERT_TRUE(absl::SimpleAtod(fields[7], &distance)) << line;
     EXPECT_GE(familiarity, 0.0);
     EXPECT_LE(familiarity, 1.0);
     EXPECT_GT(distance, 0.0);
+    // The distance is the nearest class's (printed to six digits).
+    double nearest = std::numeric_limits<double>::infinity();
+    for (int c = 8; c < 12; ++c) {
+      double d = -1.0;
+      ASSERT_TRUE(absl::SimpleAtod(fields[c], &d)) << line;
+      EXPECT_GE(d, distance * (1 - 1e-5)) << line;
+      nearest = std::min(nearest, d);
+    }
+    EXPECT_NEAR(nearest, distance, 1e-5 * distance) << line;
   }
   EXPECT_GE(rows, 36);  // 40 traces; a weak soft item may be rejected
 }

@@ -267,7 +267,11 @@ double FamiliarityModel::Distance(const FamiliarityVector& features) const {
 FamiliarityScore FamiliarityModel::Score(
     const FamiliarityVector& features) const {
   FamiliarityScore score;
-  score.distance = Distance(features);
+  for (int c = 0; c < kHapticClasses; ++c) {
+    score.class_distances[c] = SquaredMahalanobis(classes_[c], features);
+  }
+  score.distance = *std::min_element(score.class_distances.begin(),
+                                     score.class_distances.end());
   const size_t nearer =
       static_cast<size_t>(std::lower_bound(calibration_.begin(),
                                            calibration_.end(), score.distance) -

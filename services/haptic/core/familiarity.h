@@ -42,7 +42,11 @@ struct FamiliarityClass {
 };
 
 struct FamiliarityScore {
-  // Smallest squared Mahalanobis distance to a class.
+  // Squared Mahalanobis distance to each class's Gaussian, in HapticClass
+  // order (what the summaries alone say the trace is: a second opinion
+  // beside the network's).
+  std::array<double, kHapticClasses> class_distances{};
+  // The smallest of them.
   double distance = 0.0;
   // Share of the calibration windows at least that far out, in [0, 1].
   double familiarity = 0.0;

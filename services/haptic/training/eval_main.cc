@@ -20,6 +20,7 @@
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_join.h"
 #include "services/common/flags_usage.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/core/haptic_net.h"
@@ -45,9 +46,10 @@ ABSL_FLAG(bool, confusion, true, "Print a confusion matrix per condition.");
 ABSL_FLAG(std::string, probabilities_csv, "",
           "Also write every classified trace's true label and probabilities "
           "(condition,label,p_hard,p_medium,p_soft,p_hard_skin,familiarity,"
-          "distance; the last two empty without a familiarity model) to this "
-          "CSV, "
-          "for calibration studies.");
+          "distance,d_hard,d_medium,d_soft,d_hard_skin: the familiarity, its "
+          "distance and the squared distance to each class's Gaussian, empty "
+          "without a familiarity model) to this CSV, for calibration "
+          "studies.");
 ABSL_FLAG(std::string, stories, "",
           "Evaluate only these trace stories (comma-separated; empty: the "
           "world conditions and every story).");
@@ -152,7 +154,7 @@ int main(int argc, char** argv) {
     }
     std::fprintf(dump,
                  "condition,label,p_hard,p_medium,p_soft,p_hard_skin,"
-                 "familiarity,distance\n");
+                 "familiarity,distance,d_hard,d_medium,d_soft,d_hard_skin\n");
   }
   auto evaluate = [&](const std::string& name,
                       const std::vector<LabelledTrace>& traces) {
@@ -176,11 +178,12 @@ int main(int argc, char** argv) {
         if (result->familiarity.unfamiliar) ++unfamiliar;
       }
       if (dump != nullptr) {
+        const FamiliarityScore& score = result->familiarity;
         const std::string familiarity_fields =
             result->has_familiarity
-                ? absl::StrCat(result->familiarity.familiarity, ",",
-                               result->familiarity.distance)
-                : ",";
+                ? absl::StrCat(score.familiarity, ",", score.distance, ",",
+                               absl::StrJoin(score.class_distances, ","))
+                : ",,,,,";
         std::fprintf(dump, "%s,%s,%.9g,%.9g,%.9g,%.9g,%s\n", name.c_str(),
                      HapticClassName(trace.label), result->probabilities[0],
                      result->probabilities[1], result->probabilities[2],
