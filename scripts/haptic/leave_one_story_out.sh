@@ -57,3 +57,6 @@ if [ -x /usr/bin/python3 ]; then PYTHON=/usr/bin/python3; fi
 # The familiarity-dependent flattening, chosen the same way (docs/haptic.md,
 # "Confidence that falls with familiarity").
 "$PYTHON" scripts/haptic/unfamiliar_calibration.py "$OUT" "${STORIES[@]}"
+# The summaries' Gaussians as a second opinion mixed in, chosen the same way
+# ("A second opinion from the summaries").
+"$PYTHON" scripts/haptic/second_opinion_calibration.py "$OUT" "${STORIES[@]}"
