@@ -5,12 +5,16 @@
 # items, seed 20261123), then chooses each fold's softmax temperature from
 # the OTHER folds' tuning items and prints the tables of docs/haptic.md.
 #
-#   scripts/haptic/leave_one_story_out.sh OUT_DIR [--ensemble] [trainer flags...]
+#   scripts/haptic/leave_one_story_out.sh OUT_DIR [--ensemble|--seed_ensemble]
+#                                          [trainer flags...]
 #   e.g. scripts/haptic/leave_one_story_out.sh /tmp/loso --augment
 #
 # --ensemble: each fold's model is the ensemble of the models trained on
-# every pair of its three training stories (the shipped form, docs/haptic.md);
-# the six pair models are trained once into OUT_DIR/pairs.
+# every pair of its three training stories (docs/haptic.md, "An ensemble
+# over stories"); the six pair models are trained once into OUT_DIR/pairs.
+# --seed_ensemble: each fold's model is the ensemble of three models trained
+# on its three training stories with seeds 1, 2 and 3 (traces, split, initial
+# weights, batch order), trained into OUT_DIR/seeds.
 #
 # About 5 minutes per story on one core. Needs a build (scripts/setup.sh).
 set -euo pipefail
@@ -18,7 +22,9 @@ cd "$(dirname "$0")/../.."
 OUT="${1:?usage: scripts/haptic/leave_one_story_out.sh OUT_DIR [trainer flags...]}"
 shift
 ENSEMBLE=0
+SEED_ENSEMBLE=0
 if [ "${1:-}" = "--ensemble" ]; then ENSEMBLE=1; shift; fi
+if [ "${1:-}" = "--seed_ensemble" ]; then SEED_ENSEMBLE=1; shift; fi
 BUILD_DIR="${BUILD_DIR:-build}"
 TRAIN="$BUILD_DIR/services/haptic/bitewise-haptic-train"
 STORIES=(world piecewise mechanics compliant)
@@ -38,6 +44,21 @@ for held in "${STORIES[@]}"; do
       members+=("$OUT/pairs/$pair.onnx")
     done
     echo "==> the ensemble of the pairs of $others (holding out $held)"
+    "$TRAIN" --ensemble_of="$(IFS=,; echo "${members[*]}")" --out="$OUT/$held.onnx" \
+      >"$OUT/$held.train.log"
+  elif [ ! -f "$OUT/$held.onnx" ] && [ "$SEED_ENSEMBLE" = 1 ]; then
+    mkdir -p "$OUT/seeds"
+    members=()
+    for seed in 1 2 3; do
+      member="$OUT/seeds/$held-seed$seed.onnx"
+      if [ ! -f "$member" ]; then
+        echo "==> training on $others with seed $seed (holding out $held)"
+        "$TRAIN" --stories="$others" --seed="$seed" "$@" --out="$member" \
+          >"$OUT/seeds/$held-seed$seed.log"
+      fi
+      members+=("$member")
+    done
+    echo "==> the ensemble of seeds 1-3 on $others (holding out $held)"
     "$TRAIN" --ensemble_of="$(IFS=,; echo "${members[*]}")" --out="$OUT/$held.onnx" \
       >"$OUT/$held.train.log"
   elif [ ! -f "$OUT/$held.onnx" ]; then
