@@ -82,6 +82,14 @@ def has_class_distances(directory, h):
     return r is not None and bool(r.get("d_hard"))
 
 
+def pooled_others(tune, stories, h):
+    """Labels, probabilities and log-likelihoods of every story's tuning
+    items but h's, pooled."""
+    others = [g for g in stories if g != h]
+    return tuple(np.concatenate([tune[g][i] for g in others])
+                 for i in range(3))
+
+
 def main():
     directory, stories = sys.argv[1], sys.argv[2:]
     if not all(has_class_distances(directory, h) for h in stories):
@@ -109,10 +117,7 @@ def main():
           "soft | hard-skin | log loss |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for h in stories:
-        others = [g for g in stories if g != h]
-        ty = np.concatenate([tune[g][0] for g in others])
-        tp = np.concatenate([tune[g][1] for g in others])
-        tl = np.concatenate([tune[g][2] for g in others])
+        ty, tp, tl = pooled_others(tune, stories, h)
         losses = {(w, tau): nll(ty, mix(tp, tl, w, tau))
                   for w in W_GRID for tau in TAU_GRID}
         w, tau = min(losses, key=losses.get)
@@ -124,10 +129,7 @@ def main():
     print("Tuning log loss of the other stories pooled, per fold, for each w "
           "at its best tau:")
     for h in stories:
-        others = [g for g in stories if g != h]
-        ty = np.concatenate([tune[g][0] for g in others])
-        tp = np.concatenate([tune[g][1] for g in others])
-        tl = np.concatenate([tune[g][2] for g in others])
+        ty, tp, tl = pooled_others(tune, stories, h)
         cells = []
         for w in W_GRID:
             best = min(TAU_GRID, key=lambda t: nll(ty, mix(tp, tl, w, t)))
