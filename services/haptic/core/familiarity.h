@@ -42,16 +42,16 @@ struct FamiliarityClass {
 };
 
 struct FamiliarityScore {
-  // Squared Mahalanobis distance to each class's Gaussian, in HapticClass
-  // order (what the summaries alone say the trace is: a second opinion
-  // beside the network's).
-  std::array<double, kHapticClasses> class_distances{};
-  // The smallest of them.
+  // Smallest squared Mahalanobis distance to a class (of class_distances).
   double distance = 0.0;
   // Share of the calibration windows at least that far out, in [0, 1].
   double familiarity = 0.0;
   // familiarity < the model's threshold.
   bool unfamiliar = false;
+  // Squared Mahalanobis distance to each class's Gaussian, in HapticClass
+  // order (what the summaries alone say the trace is: a second opinion
+  // beside the network's).
+  std::array<double, kHapticClasses> class_distances{};
 };
 
 // The fitted density, its calibration and threshold. Immutable, so
