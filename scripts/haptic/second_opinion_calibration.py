@@ -27,7 +27,7 @@ import sys
 import numpy as np
 
 from story_calibration import CLASSES, scores
-from unfamiliar_calibration import nll, row
+from unfamiliar_calibration import nll, pooled, row
 
 W_GRID = [0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6]
 TAU_GRID = [1.0, 2.0, 4.0, 8.0, 16.0, 32.0]
@@ -82,14 +82,6 @@ def has_class_distances(directory, h):
     return r is not None and bool(r.get("d_hard"))
 
 
-def pooled_others(tune, stories, h):
-    """Labels, probabilities and log-likelihoods of every story's tuning
-    items but h's, pooled."""
-    others = [g for g in stories if g != h]
-    return tuple(np.concatenate([tune[g][i] for g in others])
-                 for i in range(3))
-
-
 def main():
     directory, stories = sys.argv[1], sys.argv[2:]
     if not all(has_class_distances(directory, h) for h in stories):
@@ -117,7 +109,7 @@ def main():
           "soft | hard-skin | log loss |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for h in stories:
-        ty, tp, tl = pooled_others(tune, stories, h)
+        ty, tp, tl = pooled(tune, [g for g in stories if g != h])
         losses = {(w, tau): nll(ty, mix(tp, tl, w, tau))
                   for w in W_GRID for tau in TAU_GRID}
         w, tau = min(losses, key=losses.get)
@@ -129,7 +121,7 @@ def main():
     print("Tuning log loss of the other stories pooled, per fold, for each w "
           "at its best tau:")
     for h in stories:
-        ty, tp, tl = pooled_others(tune, stories, h)
+        ty, tp, tl = pooled(tune, [g for g in stories if g != h])
         cells = []
         for w in W_GRID:
             best = min(TAU_GRID, key=lambda t: nll(ty, mix(tp, tl, w, t)))

@@ -42,6 +42,12 @@ def load(path):
             np.log(np.maximum(np.array(distances), 1e-12)))
 
 
+def pooled(tune, stories):
+    """The three arrays of every story's tuning items in `stories`, pooled."""
+    return tuple(np.concatenate([tune[g][i] for g in stories])
+                 for i in range(3))
+
+
 def flatten(p, log_d, a, b):
     u = 1.0 / (1.0 + np.exp(-(a + b * log_d)))
     return (1.0 - u)[:, None] * p + (u / 4.0)[:, None]
@@ -116,15 +122,11 @@ def main():
         print(row(f"{h}: as is", scores(y, p)))
         t = float(np.median([own_t[g] for g in others]))
         print(row(f"{h}: temper (T {t:.2f})", scores(y, temper(p, t))))
-        ty = np.concatenate([tune[g][0] for g in others])
-        tp = np.concatenate([tune[g][1] for g in others])
-        tl = np.concatenate([tune[g][2] for g in others])
+        ty, tp, tl = pooled(tune, others)
         a, b = best_flatten(ty, tp, tl)
         print(row(f"{h}: flatten (a {a:.2f}, b {b:.2f})",
                   scores(y, flatten(p, log_d, a, b))))
-    ty = np.concatenate([tune[g][0] for g in stories])
-    tp = np.concatenate([tune[g][1] for g in stories])
-    tl = np.concatenate([tune[g][2] for g in stories])
+    ty, tp, tl = pooled(tune, stories)
     a, b = best_flatten(ty, tp, tl)
     print()
     print(f"flatten chosen on every story's tuning items: a {a:.2f}, "

@@ -256,20 +256,24 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::Fit(
   return model;
 }
 
-double FamiliarityModel::Distance(const FamiliarityVector& features) const {
-  double best = SquaredMahalanobis(classes_[0], features);
-  for (int c = 1; c < kHapticClasses; ++c) {
-    best = std::min(best, SquaredMahalanobis(classes_[c], features));
+std::array<double, kHapticClasses> FamiliarityModel::ClassDistances(
+    const FamiliarityVector& features) const {
+  std::array<double, kHapticClasses> distances{};
+  for (int c = 0; c < kHapticClasses; ++c) {
+    distances[c] = SquaredMahalanobis(classes_[c], features);
   }
-  return best;
+  return distances;
+}
+
+double FamiliarityModel::Distance(const FamiliarityVector& features) const {
+  const std::array<double, kHapticClasses> distances = ClassDistances(features);
+  return *std::min_element(distances.begin(), distances.end());
 }
 
 FamiliarityScore FamiliarityModel::Score(
     const FamiliarityVector& features) const {
   FamiliarityScore score;
-  for (int c = 0; c < kHapticClasses; ++c) {
-    score.class_distances[c] = SquaredMahalanobis(classes_[c], features);
-  }
+  score.class_distances = ClassDistances(features);
   score.distance = *std::min_element(score.class_distances.begin(),
                                      score.class_distances.end());
   const size_t nearer =

@@ -82,6 +82,10 @@ class FamiliarityModel {
   // The file's text ("bitewise-haptic-familiarity 1" and one field a line).
   std::string ToText() const;
 
+  // Squared Mahalanobis distance to each class's Gaussian; Distance is the
+  // smallest.
+  std::array<double, kHapticClasses> ClassDistances(
+      const FamiliarityVector& features) const;
   double Distance(const FamiliarityVector& features) const;
   FamiliarityScore Score(const FamiliarityVector& features) const;
 
