@@ -326,6 +326,23 @@ TEST(HapticTrainerBinaryTest, SlowApproachIsCheckedAndReported) {
   EXPECT_THAT(log, HasSubstr("slow approach up to x2 (--slow_approach)"));
 }
 
+// bitewise-haptic-train's --compliant_arm: a share outside [0, 1] stops it
+// naming the flag; a valid one is said in the trainer's account of its data.
+TEST(HapticTrainerBinaryTest, CompliantArmIsCheckedAndReported) {
+  std::string log;
+  int status = TrainSmall("arm_bad", {"--compliant_arm=1.5"}, &log);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  EXPECT_THAT(log, HasSubstr("--compliant_arm must be in [0, 1]; got 1.5"));
+  status = TrainSmall("arm_good", {"--compliant_arm=0.5"}, &log);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  EXPECT_THAT(
+      log, HasSubstr("0.5 of them through a compliant arm (--compliant_arm)"));
+}
+
 // The trainer's --window_s: out of range stops it naming the flag; a valid
 // one is recorded in the model, which then loads with that window.
 TEST(HapticTrainerBinaryTest, WindowIsCheckedAndRecordedInTheModel) {

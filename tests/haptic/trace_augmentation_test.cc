@@ -116,6 +116,109 @@ TEST(TraceAugmentationTest, ASlowApproachStretchesTheClockAndNothingElse) {
   }
 }
 
+// A 1 kHz trace of free motion until 0.2 s, then Fz(t) of a rigid arm.
+template <typename Force>
+std::vector<TimedWrench> RigidTrace(Force fz) {
+  std::vector<TimedWrench> trace;
+  for (int i = 0; i <= 400; ++i) {
+    TimedWrench s;
+    s.t_s = 1e-3 * i;
+    s.wrench.force_n[2] = s.t_s < 0.2 ? 0.0 : fz(s.t_s - 0.2);
+    trace.push_back(s);
+  }
+  return trace;
+}
+
+// A wrist of 4 N/mm at 5 cm/s carries at most 200 N/s.
+ArmCompliance Wrist4NPerMm() {
+  ArmCompliance arm;
+  arm.probability = 1.0;
+  arm.min_stiffness_n_per_m = arm.max_stiffness_n_per_m = 4000.0;
+  return arm;
+}
+
+TEST(CompliantArmTest, ARampRisesAtTheSeriesStiffnessOfFoodAndWrist) {
+  // A hard item's 800 N/s through a 200 N/s wrist: 1 / (1/800 + 1/200) =
+  // 160 N/s, on the same clock; the free motion before it is untouched.
+  const std::vector<TimedWrench> rigid =
+      RigidTrace([](double t) { return 800.0 * t; });
+  std::mt19937_64 rng(1);
+  const std::vector<TimedWrench> out = CompliantArm(rigid, Wrist4NPerMm(), rng);
+  ASSERT_EQ(out.size(), rigid.size());
+  for (size_t i = 0; i < out.size(); ++i) {
+    ASSERT_EQ(out[i].t_s, rigid[i].t_s);
+    const double t = out[i].t_s;
+    const double expected = t < 0.2 ? 0.0 : 160.0 * (t - 0.2);
+    ASSERT_NEAR(out[i].wrench.force_n[2], expected, 1e-9) << "at " << t;
+  }
+  // A soft item's 60 N/s is slowed far less: 1 / (1/60 + 1/200) = 46 N/s.
+  const std::vector<TimedWrench> soft = CompliantArm(
+      RigidTrace([](double t) { return 60.0 * t; }), Wrist4NPerMm(), rng);
+  EXPECT_NEAR(soft[300].wrench.force_n[2], 0.1 * 60.0 / 1.3, 1e-9);
+}
+
+TEST(CompliantArmTest, ADropComesLaterByThePeakOverTheRateAndStaysSudden) {
+  // 1,000 N/s to 10 N at 0.21 s, then the item yields to 4 N. Through the
+  // wrist the peak is felt at 0.21 + 10 / 200 = 0.26 s, and the tip then
+  // jumps to where the spring carries 4 N: the fall takes a sample or two.
+  const std::vector<TimedWrench> rigid =
+      RigidTrace([](double t) { return t <= 0.0100001 ? 1000.0 * t : 4.0; });
+  std::mt19937_64 rng(2);
+  const std::vector<TimedWrench> out = CompliantArm(rigid, Wrist4NPerMm(), rng);
+  size_t peak = 0;
+  for (size_t i = 0; i < out.size(); ++i) {
+    if (out[i].wrench.force_n[2] > out[peak].wrench.force_n[2]) peak = i;
+  }
+  // On the 1 ms clock the peak and the jump share the sample at 0.26 s.
+  EXPECT_NEAR(out[peak].t_s, 0.26, 1.001e-3);
+  EXPECT_GT(out[peak].wrench.force_n[2], 9.5);
+  EXPECT_LT(out[peak + 2].wrench.force_n[2], 4.5);
+  for (size_t i = peak + 3; i < out.size(); ++i) {
+    ASSERT_NEAR(out[i].wrench.force_n[2], 4.0, 1e-9) << "at " << out[i].t_s;
+  }
+}
+
+TEST(CompliantArmTest, ItsShareIsItsProbabilityAndStoriesStayServiceable) {
+  const std::vector<TimedWrench> rigid =
+      RigidTrace([](double t) { return 800.0 * t; });
+  ArmCompliance off;
+  off.probability = 0.0;
+  std::mt19937_64 rng(3);
+  const std::vector<TimedWrench> same = CompliantArm(rigid, off, rng);
+  for (size_t i = 0; i < rigid.size(); ++i) {
+    EXPECT_EQ(same[i].wrench.force_n[2], rigid[i].wrench.force_n[2]);
+  }
+  const ArmCompliance half;  // the default: half the traces
+  int changed = 0;
+  for (int draw = 0; draw < 400; ++draw) {
+    changed += CompliantArm(rigid, half, rng)[300].wrench.force_n[2] !=
+               rigid[300].wrench.force_n[2];
+  }
+  EXPECT_GT(changed, 160);
+  EXPECT_LT(changed, 240);
+
+  // Every story's traces, each through an arm: finite, on their own clock,
+  // and mostly still a trace the service classifies.
+  ArmCompliance always;
+  always.probability = 1.0;
+  int accepted = 0, total = 0;
+  for (TraceStory story :
+       {TraceStory::kWorld, TraceStory::kPiecewise, TraceStory::kMechanics}) {
+    for (const LabelledTrace& trace : StoryTraces(story, 10, 5)) {
+      const std::vector<TimedWrench> out =
+          CompliantArm(trace.samples, always, rng);
+      ASSERT_EQ(out.size(), trace.samples.size());
+      for (size_t i = 0; i < out.size(); ++i) {
+        ASSERT_EQ(out[i].t_s, trace.samples[i].t_s);
+        for (double v : Channels(out[i].wrench)) ASSERT_TRUE(std::isfinite(v));
+      }
+      accepted += ExtractHapticFeatures(out, HapticPipelineOptions()).ok();
+      ++total;
+    }
+  }
+  EXPECT_GE(accepted, total - 2) << "of " << total;
+}
+
 TEST(ScorePredictionsTest,
      OverconfidenceIsTopProbabilityMinusAccuracyPerClass) {
   // Class 0: two traces, sure (0.9) and right once: 0.9 - 0.5 = +0.4.

@@ -333,6 +333,76 @@ std::vector<TimedWrench> SlowApproach(const std::vector<TimedWrench>& samples,
   return out;
 }
 
+std::vector<TimedWrench> CompliantArm(const std::vector<TimedWrench>& samples,
+                                      const ArmCompliance& arm,
+                                      std::mt19937_64& rng) {
+  const bool compliant = Uniform(rng, 0.0, 1.0) < arm.probability;
+  const double stiffness =
+      std::exp(Uniform(rng, std::log(arm.min_stiffness_n_per_m),
+                       std::log(arm.max_stiffness_n_per_m)));
+  if (!compliant || samples.size() < 2) return samples;
+  const double rate_n_per_s = stiffness * arm.speed_mps;
+  const size_t n = samples.size();
+  // The tare: each force channel's median over the first 50 ms.
+  std::array<double, 3> tare{};
+  for (int k = 0; k < 3; ++k) {
+    std::vector<double> first;
+    for (const TimedWrench& s : samples) {
+      if (s.t_s > samples.front().t_s + 0.05) break;
+      first.push_back(s.wrench.force_n[k]);
+    }
+    std::nth_element(first.begin(), first.begin() + first.size() / 2,
+                     first.end());
+    tare[k] = first[first.size() / 2];
+  }
+  std::vector<double> force(n);
+  for (size_t i = 0; i < n; ++i) {
+    double sum = 0.0;
+    for (int k = 0; k < 3; ++k) {
+      const double f = samples[i].wrench.force_n[k] - tare[k];
+      sum += f * f;
+    }
+    force[i] = std::sqrt(sum);
+  }
+  // Each sample's time through the spring, from the force smoothed over
+  // +-0.5 ms; only the samples that come later than every one before them
+  // are felt (the others are passed during a snap-through).
+  std::vector<double> felt_t;
+  std::vector<size_t> felt;
+  size_t lo = 0, hi = 0;
+  double window_sum = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    const double t = samples[i].t_s;
+    while (hi < n && samples[hi].t_s <= t + 0.5e-3) window_sum += force[hi++];
+    while (samples[lo].t_s < t - 0.5e-3) window_sum -= force[lo++];
+    const double smoothed = window_sum / static_cast<double>(hi - lo);
+    const double moved = t + smoothed / rate_n_per_s;
+    if (felt_t.empty() || moved > felt_t.back()) {
+      felt_t.push_back(moved);
+      felt.push_back(i);
+    }
+  }
+  // Resampled on the trace's own clock by linear interpolation between the
+  // felt samples; the rigid trace's last F / (k v) seconds fall off its end.
+  std::vector<TimedWrench> out = samples;
+  size_t j = 0;
+  for (TimedWrench& sample : out) {
+    while (j + 1 < felt_t.size() && felt_t[j + 1] <= sample.t_s) ++j;
+    const TimedWrench& a = samples[felt[j]];
+    if (sample.t_s <= felt_t[j] || j + 1 == felt_t.size()) {
+      sample.wrench = a.wrench;
+      continue;
+    }
+    const TimedWrench& b = samples[felt[j + 1]];
+    const double w = (sample.t_s - felt_t[j]) / (felt_t[j + 1] - felt_t[j]);
+    for (int k = 0; k < kWrenchChannels; ++k) {
+      Channel(sample.wrench, k) =
+          (1.0 - w) * Channel(a.wrench, k) + w * Channel(b.wrench, k);
+    }
+  }
+  return out;
+}
+
 absl::Status WriteTraceCsv(const std::string& path,
                            const std::vector<LabelledTrace>& traces) {
   std::FILE* file = std::fopen(path.c_str(), "w");

@@ -185,6 +185,38 @@ struct RecordedTrace {
 std::vector<TimedWrench> SlowApproach(const std::vector<TimedWrench>& samples,
                                       double max_factor, std::mt19937_64& rng);
 
+// The arm's compliance in series with the food, quasi-statically. A trace of
+// the stories is felt through a rigid arm descending at `speed_mps`: the tip
+// is at depth v t when the food pushes back with F(t). Through a wrist that is
+// a spring of stiffness k, the controller's commanded position must run
+// ahead of the tip by F / k before the spring carries F, so the tip reaches
+// that depth, and the sensor (between the spring and the fork) reads that
+// force, at t + F / (k v). Stiff items are slowed most (the series stiffness
+// is below k whatever the food's), soft ones little. Where the food yields,
+// the spring throws the tip ahead (snap-through): the samples it passes
+// during the jump are never felt, so a drop stays as fast as it was.
+//  - probability: the share of traces felt through a compliant arm (the
+//    others stay as they are, a rigid arm);
+//  - stiffness: log-uniform in [min, max] N/m, from a lightweight
+//    flexible-joint arm (1 N/mm) to a stiff holder (20 N/mm);
+//  - speed_mps: the robot's descend speed (RobotOptions, 5 cm/s).
+// Mass, damping and ringing are not modelled (quasi-static).
+struct ArmCompliance {
+  double probability = 0.5;
+  double min_stiffness_n_per_m = 1000.0;
+  double max_stiffness_n_per_m = 20000.0;
+  double speed_mps = 0.05;
+};
+
+// `samples` felt through a compliant arm (see ArmCompliance), on its own
+// clock: the same sample times, the force of each moved later by F / (k v),
+// where F is the norm of the force tared by the median of its first 50 ms
+// (the service's tare), smoothed over 1 ms so that noise does not reorder
+// the clock. Returned unchanged with probability 1 - `probability`.
+std::vector<TimedWrench> CompliantArm(const std::vector<TimedWrench>& samples,
+                                      const ArmCompliance& arm,
+                                      std::mt19937_64& rng);
+
 // Reads the CSV format above, accepting the label "unknown". Errors as
 // ReadTraceCsv.
 absl::StatusOr<std::vector<RecordedTrace>> ReadRecordedTraces(

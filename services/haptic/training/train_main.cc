@@ -63,6 +63,12 @@ ABSL_FLAG(double, slow_approach, 1.0,
           "this]: the fork meeting the food more slowly (a slower "
           "controller or a compliant wrist), so the force rises more slowly "
           "and less of it fits the window. 1 (the default) is off.");
+ABSL_FLAG(double, compliant_arm, 0.0,
+          "Share of training and validation traces (of every story and "
+          "recording) felt through a compliant arm (ArmCompliance, "
+          "labelled_traces.h: the wrist a spring of 1-20 N/mm in series "
+          "with the food at 5 cm/s, so each force arrives F / (k v) later and "
+          "stiff items rise slowly). 0 (the default) is off.");
 ABSL_FLAG(std::string, ensemble_of, "",
           "Instead of training: assemble these HapticNet files (comma-"
           "separated, each written by this trainer) into one ensemble model "
@@ -448,6 +454,10 @@ int main(int argc, char** argv) {
       !(slow >= 1.0 && slow <= 10.0)) {
     return Die(absl::StrCat("--slow_approach must be in [1, 10]; got ", slow));
   }
+  if (const double share = absl::GetFlag(FLAGS_compliant_arm);
+      !(share >= 0.0 && share <= 1.0)) {
+    return Die(absl::StrCat("--compliant_arm must be in [0, 1]; got ", share));
+  }
   if (const double window = absl::GetFlag(FLAGS_window_s);
       !(window > 0.0 && window <= 1.0)) {
     // The range HapticNet accepts in a model's bitewise.window_s.
@@ -505,6 +515,18 @@ int main(int argc, char** argv) {
     }
     absl::StrAppend(&source, "; slow approach up to x", slow,
                     " (--slow_approach)");
+  }
+  if (const double share = absl::GetFlag(FLAGS_compliant_arm); share > 0.0) {
+    ArmCompliance arm;
+    arm.probability = share;
+    std::mt19937_64 arm_rng(seed ^ 0xa4a4c0a1a4a4c0a1ull);
+    for (auto* set : {&train, &validation}) {
+      for (LabelledTrace& trace : *set) {
+        trace.samples = CompliantArm(trace.samples, arm, arm_rng);
+      }
+    }
+    absl::StrAppend(&source, "; ", share,
+                    " of them through a compliant arm (--compliant_arm)");
   }
   if (test.empty()) {  // trained on recordings alone
     test = std::move(recorded_test);
