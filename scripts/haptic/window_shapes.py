@@ -15,6 +15,11 @@ measures:
 Prints the 10th, 50th and 90th percentiles per class.
 
 usage: window_shapes.py NAME=TRACES.csv [NAME=TRACES.csv ...]
+       window_shapes.py --by_drop TRACES.csv PROBABILITIES.csv CLASS OTHER
+The second form takes a model's probabilities on the same traces
+(bitewise-haptic-eval --stories=S --seed=7 --traces_per_class=N
+--probabilities_csv=FILE, in the same order) and prints, for the traces of
+CLASS in bins of their drop, the share the model calls OTHER.
 """
 import csv
 import sys
@@ -54,7 +59,33 @@ def window_shape(samples, window_s=0.05):
     return fw[top], rate, drop
 
 
+def by_drop(traces_csv, probabilities_csv, label, other):
+    with open(probabilities_csv) as f:
+        rows = list(csv.DictReader(f))
+    drops, called = [], []
+    for (true, samples), row in zip(traces(traces_csv), rows):
+        if true != row["label"]:
+            sys.exit("the probabilities are not of these traces, in this order")
+        shape = window_shape(samples)
+        if true != label or shape is None:
+            continue
+        p = [float(row["p_" + c]) for c in CLASSES]
+        drops.append(shape[2])
+        called.append(CLASSES[int(np.argmax(p))] == other)
+    drops, called = np.array(drops), np.array(called)
+    print(f"| drop of a {label} item | items | called {other} |")
+    print("|---|---:|---:|")
+    edges = [0.0, 0.2, 0.25, 0.3, 0.35, 0.4, 1.01]
+    for lo, hi in zip(edges, edges[1:]):
+        inside = (drops >= lo) & (drops < hi)
+        share = 100 * called[inside].mean() if inside.any() else 0.0
+        print(f"| {lo:.2f}-{min(hi, 1.0):.2f} | {inside.sum()} | {share:.0f} % |")
+
+
 def main():
+    if sys.argv[1] == "--by_drop":
+        by_drop(*sys.argv[2:6])
+        return
     print("| story | class | peak (N) 10 / 50 / 90 % | rise rate (N/s) | "
           "drop after the peak |")
     print("|---|---|---|---|---|")
