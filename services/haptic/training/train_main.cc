@@ -496,35 +496,39 @@ int main(int argc, char** argv) {
   split(traces, &story_of, seed ^ 0x5eed5eed5eed5eedull, &test, 1);
   split(recorded, nullptr, seed ^ 0x7ecd7ecd7ecd7ecdull, &recorded_test,
         std::max(1, absl::GetFlag(FLAGS_traces_repeat)));
-  if (absl::GetFlag(FLAGS_augment)) {
-    const TraceAugmentation augmentation;
-    std::mt19937_64 augment_rng(seed ^ 0xa095e47a095e47aull);
+  // Each training and validation trace, changed by `change` with a random
+  // stream of its own; the test split is never changed.
+  auto change_training_traces = [&](uint64_t stream, const auto& change) {
+    std::mt19937_64 rng(seed ^ stream);
     for (auto* set : {&train, &validation}) {
       for (LabelledTrace& trace : *set) {
-        trace.samples = AugmentTrace(trace.samples, augmentation, augment_rng);
+        trace.samples = change(trace.samples, rng);
       }
     }
+  };
+  if (absl::GetFlag(FLAGS_augment)) {
+    const TraceAugmentation augmentation;
+    change_training_traces(0xa095e47a095e47aull,
+                           [&](const auto& samples, std::mt19937_64& rng) {
+                             return AugmentTrace(samples, augmentation, rng);
+                           });
     absl::StrAppend(&source, "; augmented (--augment)");
   }
   if (const double slow = absl::GetFlag(FLAGS_slow_approach); slow != 1.0) {
-    std::mt19937_64 slow_rng(seed ^ 0x510a510a510a510aull);
-    for (auto* set : {&train, &validation}) {
-      for (LabelledTrace& trace : *set) {
-        trace.samples = SlowApproach(trace.samples, slow, slow_rng);
-      }
-    }
+    change_training_traces(0x510a510a510a510aull,
+                           [&](const auto& samples, std::mt19937_64& rng) {
+                             return SlowApproach(samples, slow, rng);
+                           });
     absl::StrAppend(&source, "; slow approach up to x", slow,
                     " (--slow_approach)");
   }
   if (const double share = absl::GetFlag(FLAGS_compliant_arm); share > 0.0) {
     ArmCompliance arm;
     arm.probability = share;
-    std::mt19937_64 arm_rng(seed ^ 0xa4a4c0a1a4a4c0a1ull);
-    for (auto* set : {&train, &validation}) {
-      for (LabelledTrace& trace : *set) {
-        trace.samples = CompliantArm(trace.samples, arm, arm_rng);
-      }
-    }
+    change_training_traces(0xa4a4c0a1a4a4c0a1ull,
+                           [&](const auto& samples, std::mt19937_64& rng) {
+                             return CompliantArm(samples, arm, rng);
+                           });
     absl::StrAppend(&source, "; ", share,
                     " of them through a compliant arm (--compliant_arm)");
   }
