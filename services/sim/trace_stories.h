@@ -24,6 +24,23 @@
 //    collapsing cells, a viscoplastic paste); another sensor: tilted tines,
 //    a second-order anti-alias filter, 250 Hz-4 kHz host-stamped samples,
 //    coloured noise and drift.
+//  - Puncture (puncture_story.cc): the fork as four texture-analyser punches
+//    in the terms of food-texture science. Each tine indents the tissue
+//    (Sneddon's punch over its taper) until the bioyield given by Bourne's
+//    puncture equation (compression over the tine's area, shear over its
+//    perimeter), then fails in its own way: brittle cracks that it wedges
+//    and reloads (hard, with the piece sometimes splitting), bursting cells
+//    and crushing (medium), a smooth passage into flow with no bioyield
+//    (soft), or a turgid skin whose first break splits it round the berry
+//    onto soft flesh (hard-skin); shaft friction grows with depth. The
+//    tines land at different depths (a curved top, an off-centre item, a
+//    rolled fork) and fail out of step; the item's body and a stiff arm
+//    share the travel in series; the tissue relaxes (quasi-linear
+//    viscoelasticity). A guarded, position-controlled descent at
+//    25-60 mm/s, sometimes tilted to the tines. The sensor: forces at the
+//    tine tips and along the shafts, 55-90 mm below it; the fork's mode at
+//    1.2-3 kHz; the Net F/T's 7 kHz gauges with its selectable low-pass and
+//    every n-th sample streamed (100 Hz-7 kHz), offset and slow drift.
 //
 // Thread-compatible; deterministic in the generator's state.
 #ifndef BITEWISE_SERVICES_SIM_TRACE_STORIES_H_
@@ -51,6 +68,12 @@ std::vector<TimedWrench> MechanicsStoryTrace(HapticCategory category,
 // contact 0.1-0.3 s into the trace, 0.25 s after it, at 250 Hz to 4 kHz.
 std::vector<TimedWrench> CompliantStoryTrace(HapticCategory category,
                                              std::mt19937_64& rng);
+
+// One trace of a new item of `category` from the puncture story: contact
+// 0.1-0.3 s into the trace, 0.3 s after it, at 7 kHz / n for n = 1, 2, 4,
+// 7, 14, 28 or 70 (7 kHz down to 100 Hz).
+std::vector<TimedWrench> PunctureStoryTrace(HapticCategory category,
+                                            std::mt19937_64& rng);
 
 }  // namespace bitewise::sim
 

@@ -104,6 +104,11 @@ TEST_P(TraceStoryTest, IsSeededAndKeepsTheClassSignatures) {
   EXPECT_LT(Median(drops[soft]), 0.2);
 }
 
+// The puncture story is not among them: by its own account its medium items'
+// force keeps rising as the tines go in (each tine's burst is taken up by
+// the others and the descending fork), so their median drop within 60 ms of
+// touching is 0.00, where these four stories promise at least 8 %. Its own
+// tests (puncture_story_test.cc) check its own account.
 INSTANTIATE_TEST_SUITE_P(Stories, TraceStoryTest,
                          ::testing::Values(TraceStory::kWorld,
                                            TraceStory::kPiecewise,

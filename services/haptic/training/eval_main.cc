@@ -223,7 +223,8 @@ int main(int argc, char** argv) {
     matrices += "\n" + name + "\n" + score.confusion.ToString();
   };
   std::vector<TraceStory> stories = {
-      TraceStory::kPiecewise, TraceStory::kMechanics, TraceStory::kCompliant};
+      TraceStory::kPiecewise, TraceStory::kMechanics, TraceStory::kCompliant,
+      TraceStory::kPuncture};
   if (!absl::GetFlag(FLAGS_stories).empty()) {
     absl::StatusOr<std::vector<TraceStory>> parsed =
         ParseTraceStories(absl::GetFlag(FLAGS_stories));

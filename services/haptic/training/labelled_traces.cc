@@ -149,6 +149,8 @@ const char* TraceStoryName(TraceStory story) {
       return "mechanics";
     case TraceStory::kCompliant:
       return "compliant";
+    case TraceStory::kPuncture:
+      return "puncture";
   }
   return "unknown";
 }
@@ -170,9 +172,9 @@ absl::StatusOr<std::vector<TraceStory>> ParseTraceStories(
       stories.push_back(story);
     }
     if (!known) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("unknown trace story \"", name,
-                       "\" (world, piecewise, mechanics, compliant)"));
+      return absl::InvalidArgumentError(absl::StrCat(
+          "unknown trace story \"", name,
+          "\" (world, piecewise, mechanics, compliant, puncture)"));
     }
   }
   if (stories.empty()) {
@@ -187,14 +189,15 @@ std::vector<LabelledTrace> StoryTraces(TraceStory story, int per_class,
     return SimulateLabelledTraces(per_class, TrainingConditions(), seed);
   }
   // Each story its own stream of the seed.
-  const uint64_t stream = story == TraceStory::kPiecewise ? 0x00d00d00d00d00dull
-                          : story == TraceStory::kMechanics
-                              ? 0x3ec4a41c53ec4a41ull
-                              : 0xc0111a9700c0111aull;
-  const auto draw = story == TraceStory::kPiecewise ? sim::PiecewiseStoryTrace
-                    : story == TraceStory::kMechanics
-                        ? sim::MechanicsStoryTrace
-                        : sim::CompliantStoryTrace;
+  const uint64_t stream =
+      story == TraceStory::kPiecewise   ? 0x00d00d00d00d00dull
+      : story == TraceStory::kMechanics ? 0x3ec4a41c53ec4a41ull
+      : story == TraceStory::kCompliant ? 0xc0111a9700c0111aull
+                                        : 0x9c7c9c7c9c7c9c7cull;
+  const auto draw = story == TraceStory::kPiecewise   ? sim::PiecewiseStoryTrace
+                    : story == TraceStory::kMechanics ? sim::MechanicsStoryTrace
+                    : story == TraceStory::kCompliant ? sim::CompliantStoryTrace
+                                                      : sim::PunctureStoryTrace;
   std::mt19937_64 rng(seed ^ stream);
   std::vector<LabelledTrace> traces;
   traces.reserve(static_cast<size_t>(per_class) * kHapticClasses);

@@ -101,11 +101,12 @@ enum class TraceStory {
   kWorld = 0,
   kPiecewise = 1,
   kMechanics = 2,
-  kCompliant = 3
+  kCompliant = 3,
+  kPuncture = 4
 };
-inline constexpr int kTraceStories = 4;
+inline constexpr int kTraceStories = 5;
 
-// "world", "piecewise", "mechanics", "compliant".
+// "world", "piecewise", "mechanics", "compliant", "puncture".
 const char* TraceStoryName(TraceStory story);
 
 // A comma-separated list of story names, each at most once. INVALID_ARGUMENT
