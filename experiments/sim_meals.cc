@@ -17,7 +17,6 @@
 #include "services/perception/spanet_featurizer.h"
 #include "services/sim/force_trace.h"
 #include "services/sim/scene.h"
-#include "services/sim/trace_stories.h"
 
 namespace bitewise::experiments {
 namespace {
@@ -138,11 +137,12 @@ absl::Status ValidateSimMealsConfig(const SimMealsConfig& config) {
         "haptic_accuracy must be in [0, 1) and thompson_v positive, got ",
         config.haptic_accuracy, " and ", config.thompson_v));
   }
-  if (config.trace_story != "world" && config.trace_story != "piecewise" &&
-      config.trace_story != "mechanics" && config.trace_story != "compliant") {
-    return absl::InvalidArgumentError(
-        absl::StrCat("unknown trace story \"", config.trace_story,
-                     "\" (world, piecewise, mechanics, compliant)"));
+  const auto stories = haptic::ParseTraceStories(config.trace_story);
+  if (!stories.ok() || stories->size() != 1) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "trace_story must be one of world, piecewise, mechanics, compliant, "
+        "puncture; got \"",
+        config.trace_story, "\""));
   }
   if (config.lambda_c < 0.0 || !(config.rho_c > 0.0)) {
     return absl::InvalidArgumentError(
@@ -316,10 +316,8 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
       classified = classifier_->Classify(sim::SimulateTrace(
           profiles[attempt.plate][food], trace_options, trace_rng));
     } else {
-      const auto story =
-          config.trace_story == "piecewise"   ? sim::PiecewiseStoryTrace
-          : config.trace_story == "mechanics" ? sim::MechanicsStoryTrace
-                                              : sim::CompliantStoryTrace;
+      const haptic::StoryTraceFunction story = haptic::StoryTraceDraw(
+          haptic::ParseTraceStories(config.trace_story)->front());
       for (int draw = 0; draw < kMaxStoryDraws; ++draw) {
         classified =
             classifier_->Classify(story(foods[food]->category, trace_rng));

@@ -115,10 +115,10 @@ struct SimMealsConfig {
   // Where the attempts' force/torque traces come from: "world" (the
   // simulated world's force-trace model, as the simulated robot streams it:
   // one force profile per item), or an independent trace story that
-  // HapticNet may never have seen ("piecewise", "mechanics", "compliant";
-  // services/sim/trace_stories.h: a new item of the food's category per
-  // attempt). A story trace the haptic pipeline rejects (a soft item too
-  // weak to register contact) is drawn again.
+  // HapticNet may never have seen ("piecewise", "mechanics", "compliant",
+  // "puncture"; services/sim/trace_stories.h: a new item of the food's
+  // category per attempt). A story trace the haptic pipeline rejects (a soft
+  // item too weak to register contact) is drawn again.
   std::string trace_story = "world";
   // What the post hoc learners are given for an attempt whose trace the
   // familiarity model calls unfamiliar (as the orchestrator:

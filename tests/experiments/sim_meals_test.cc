@@ -240,6 +240,40 @@ TEST_F(SimMealsTest, AttemptsCarryTheShippedFamiliarityScore) {
             domain::kDefaultUnfamiliarPosthoc);
 }
 
+// Every independent trace story can stand in for the world's traces; a
+// name that is not one story is refused, naming the choices.
+TEST_F(SimMealsTest, DrawsAttemptsFromEveryTraceStory) {
+  for (const char* story :
+       {"piecewise", "mechanics", "compliant", "puncture"}) {
+    SimMealsConfig config = TinyConfig();
+    config.trace_story = story;
+    ASSERT_TRUE(ValidateSimMealsConfig(config).ok()) << story;
+    auto world = simulator_->DrawWorld(config, 11);
+    ASSERT_TRUE(world.ok()) << story << ": " << world.status();
+    EXPECT_EQ(world->attempts.size(),
+              sim::UnseenFoods().size() * config.attempts_per_food);
+  }
+  // Another story draws other traces for the same attempts.
+  SimMealsConfig config = TinyConfig();
+  auto world = simulator_->DrawWorld(config, 11);
+  config.trace_story = "puncture";
+  auto puncture = simulator_->DrawWorld(config, 11);
+  ASSERT_TRUE(world.ok() && puncture.ok());
+  int differ = 0;
+  for (size_t i = 0; i < world->attempts.size(); ++i) {
+    differ += world->attempts[i].haptic.probabilities !=
+              puncture->attempts[i].haptic.probabilities;
+  }
+  EXPECT_GT(differ, 0);
+  for (const char* bad : {"recorded", "world,puncture", ""}) {
+    config.trace_story = bad;
+    const absl::Status status = ValidateSimMealsConfig(config);
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << bad;
+    EXPECT_NE(status.message().find("puncture"), std::string::npos)
+        << status.message();
+  }
+}
+
 TEST(SimMealsConfigTest, RejectsNonPositiveCounts) {
   SimMealsConfig config;
   config.attempts_per_food = 0;

@@ -87,6 +87,29 @@ TEST(ContactDetectorTest, SpikeDuringTareDoesNotShiftOffset) {
   EXPECT_DOUBLE_EQ(contact->offset[2], 2.0);
 }
 
+// The tare window is [t0, t0 + tare_s): a sample exactly tare_s after the
+// first is outside it. An even count takes the mean of the two middle values.
+TEST(ContactDetectorTest, SensorOffsetIsTheMedianOfTheTareWindow) {
+  std::vector<TimedWrench> trace(6);
+  const double fx[] = {4.0, 1.0, 3.0, 2.0, 100.0, 100.0};
+  for (int i = 0; i < 6; ++i) {
+    trace[i].t_s = 0.25 + i / 64.0;  // exact in binary
+    Channel(trace[i].wrench, 0) = fx[i];
+    Channel(trace[i].wrench, 2) = -fx[i];
+  }
+  // 1/16 s holds samples 0-3; sample 4 is exactly 1/16 s after the first.
+  const auto offset = SensorOffset(trace, 1.0 / 16.0);
+  EXPECT_DOUBLE_EQ(offset[0], 2.5);
+  EXPECT_DOUBLE_EQ(offset[2], -2.5);
+  EXPECT_DOUBLE_EQ(offset[1], 0.0);
+  // Three samples: the middle one. A zero window keeps the first sample.
+  EXPECT_DOUBLE_EQ(SensorOffset(trace, 0.04)[0], 3.0);
+  EXPECT_DOUBLE_EQ(SensorOffset(trace, 0.0)[0], 4.0);
+  // The tared norm of sample 4: (97.5, 0, -97.5).
+  EXPECT_NEAR(TaredForceMagnitude(trace[4], offset), 97.5 * std::sqrt(2.0),
+              1e-12);
+}
+
 TEST(ContactDetectorTest, ThresholdIsConfigurable) {
   // 0.8 N of force: contact at a 0.5 N threshold, none at the default 1 N.
   auto trace = Ramp(0.2, 0.0, 1000.0, 0.4, {});

@@ -13,8 +13,10 @@ namespace {
 // Half-width of the smoothing used to find where the rising edge starts.
 constexpr double kSmoothingS = 0.002;
 
-double ForceMagnitude(const TimedWrench& sample,
-                      const std::array<double, kWrenchChannels>& offset) {
+}  // namespace
+
+double TaredForceMagnitude(const TimedWrench& sample,
+                           const std::array<double, kWrenchChannels>& offset) {
   double sum = 0.0;
   for (int c = 0; c < 3; ++c) {
     const double f = Channel(sample.wrench, c) - offset[c];
@@ -23,9 +25,7 @@ double ForceMagnitude(const TimedWrench& sample,
   return std::sqrt(sum);
 }
 
-// Median rather than mean so that one spike during free motion does not
-// shift the offset of the whole trace.
-std::array<double, kWrenchChannels> MedianOffset(
+std::array<double, kWrenchChannels> SensorOffset(
     absl::Span<const TimedWrench> trace, double tare_s) {
   size_t n = 1;
   while (n < trace.size() && trace[n].t_s - trace[0].t_s < tare_s) ++n;
@@ -39,8 +39,6 @@ std::array<double, kWrenchChannels> MedianOffset(
   }
   return offset;
 }
-
-}  // namespace
 
 absl::Status ValidateContactOptions(const ContactDetectorOptions& options) {
   if (!(options.tare_s >= 0.0) || !std::isfinite(options.tare_s)) {
@@ -71,12 +69,12 @@ absl::StatusOr<ContactResult> ContactDetector::Detect(
     return absl::InvalidArgumentError("samples: the trace is empty");
   }
   ContactResult result;
-  result.offset = MedianOffset(trace, options_.tare_s);
+  result.offset = SensorOffset(trace, options_.tare_s);
   const int n = static_cast<int>(trace.size());
   std::vector<double> magnitude(n);
   int peak_index = 0;
   for (int i = 0; i < n; ++i) {
-    magnitude[i] = ForceMagnitude(trace[i], result.offset);
+    magnitude[i] = TaredForceMagnitude(trace[i], result.offset);
     if (magnitude[i] > magnitude[peak_index]) peak_index = i;
   }
   result.peak_force_n = magnitude[peak_index];

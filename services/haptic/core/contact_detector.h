@@ -46,6 +46,18 @@ struct ContactResult {
   double peak_force_n = 0.0;
 };
 
+// The sensor offset (bias) of `trace`: each channel's median over the samples
+// less than `tare_s` seconds after the first (at least the first sample; the
+// mean of the two middle values for an even count). A median rather than a
+// mean, so that one spike during free motion does not shift the offset of
+// the whole trace. `trace` must not be empty.
+std::array<double, kWrenchChannels> SensorOffset(
+    absl::Span<const TimedWrench> trace, double tare_s);
+
+// The norm of `sample`'s force with `offset` (from SensorOffset) removed (N).
+double TaredForceMagnitude(const TimedWrench& sample,
+                           const std::array<double, kWrenchChannels>& offset);
+
 // Stateless and thread-safe.
 class ContactDetector {
  public:

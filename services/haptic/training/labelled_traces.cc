@@ -14,6 +14,7 @@
 #include "absl/strings/str_split.h"
 #include "services/domain/random.h"
 #include "services/domain/trace_csv.h"
+#include "services/haptic/core/contact_detector.h"
 #include "services/sim/force_trace.h"
 #include "services/sim/trace_stories.h"
 
@@ -183,6 +184,22 @@ absl::StatusOr<std::vector<TraceStory>> ParseTraceStories(
   return stories;
 }
 
+StoryTraceFunction StoryTraceDraw(TraceStory story) {
+  switch (story) {
+    case TraceStory::kPiecewise:
+      return sim::PiecewiseStoryTrace;
+    case TraceStory::kMechanics:
+      return sim::MechanicsStoryTrace;
+    case TraceStory::kCompliant:
+      return sim::CompliantStoryTrace;
+    case TraceStory::kPuncture:
+      return sim::PunctureStoryTrace;
+    case TraceStory::kWorld:
+      break;
+  }
+  return nullptr;
+}
+
 std::vector<LabelledTrace> StoryTraces(TraceStory story, int per_class,
                                        uint64_t seed) {
   if (story == TraceStory::kWorld) {
@@ -194,10 +211,7 @@ std::vector<LabelledTrace> StoryTraces(TraceStory story, int per_class,
       : story == TraceStory::kMechanics ? 0x3ec4a41c53ec4a41ull
       : story == TraceStory::kCompliant ? 0xc0111a9700c0111aull
                                         : 0x9c7c9c7c9c7c9c7cull;
-  const auto draw = story == TraceStory::kPiecewise   ? sim::PiecewiseStoryTrace
-                    : story == TraceStory::kMechanics ? sim::MechanicsStoryTrace
-                    : story == TraceStory::kCompliant ? sim::CompliantStoryTrace
-                                                      : sim::PunctureStoryTrace;
+  const StoryTraceFunction draw = StoryTraceDraw(story);
   std::mt19937_64 rng(seed ^ stream);
   std::vector<LabelledTrace> traces;
   traces.reserve(static_cast<size_t>(per_class) * kHapticClasses);
@@ -346,26 +360,12 @@ std::vector<TimedWrench> CompliantArm(const std::vector<TimedWrench>& samples,
   if (!compliant || samples.size() < 2) return samples;
   const double rate_n_per_s = stiffness * arm.speed_mps;
   const size_t n = samples.size();
-  // The tare: each force channel's median over the first 50 ms.
-  std::array<double, 3> tare{};
-  for (int k = 0; k < 3; ++k) {
-    std::vector<double> first;
-    for (const TimedWrench& s : samples) {
-      if (s.t_s > samples.front().t_s + 0.05) break;
-      first.push_back(s.wrench.force_n[k]);
-    }
-    std::nth_element(first.begin(), first.begin() + first.size() / 2,
-                     first.end());
-    tare[k] = first[first.size() / 2];
-  }
+  // The service's tare (ContactDetector's), and the tared force norm.
+  const std::array<double, kWrenchChannels> offset =
+      SensorOffset(samples, ContactDetectorOptions{}.tare_s);
   std::vector<double> force(n);
   for (size_t i = 0; i < n; ++i) {
-    double sum = 0.0;
-    for (int k = 0; k < 3; ++k) {
-      const double f = samples[i].wrench.force_n[k] - tare[k];
-      sum += f * f;
-    }
-    force[i] = std::sqrt(sum);
+    force[i] = TaredForceMagnitude(samples[i], offset);
   }
   // Each sample's time through the spring, from the force smoothed over
   // +-0.5 ms; only the samples that come later than every one before them

@@ -20,6 +20,7 @@
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/core/wrench_trace.h"
 #include "services/haptic/training/haptic_trainer.h"
+#include "services/sim/food_catalog.h"
 #include "services/sim/force_trace.h"
 
 namespace bitewise::haptic {
@@ -113,6 +114,15 @@ const char* TraceStoryName(TraceStory story);
 // naming an unknown or repeated name, or an empty list.
 absl::StatusOr<std::vector<TraceStory>> ParseTraceStories(
     absl::string_view names);
+
+// One trace of a new item of a category, as the independent stories of
+// services/sim/trace_stories.h draw it.
+using StoryTraceFunction = std::vector<TimedWrench> (*)(sim::HapticCategory,
+                                                        std::mt19937_64&);
+
+// The draw of an independent story; nullptr for kWorld, whose traces come
+// from per-food profiles (SimulateLabelledTraces, sim::SimulateTrace).
+StoryTraceFunction StoryTraceDraw(TraceStory story);
 
 // `per_class` traces of each class from `story`, interleaved hard, medium,
 // soft, hard_skin, each a new item. Deterministic in `seed`; different
@@ -211,9 +221,10 @@ struct ArmCompliance {
 
 // `samples` felt through a compliant arm (see ArmCompliance), on its own
 // clock: the same sample times, the force of each moved later by F / (k v),
-// where F is the norm of the force tared by the median of its first 50 ms
-// (the service's tare), smoothed over 1 ms so that noise does not reorder
-// the clock. Returned unchanged with probability 1 - `probability`.
+// where F is the norm of the force tared as the service tares it
+// (SensorOffset over ContactDetectorOptions' tare_s), smoothed over 1 ms so
+// that noise does not reorder the clock. Returned unchanged with probability 1
+// - `probability`.
 std::vector<TimedWrench> CompliantArm(const std::vector<TimedWrench>& samples,
                                       const ArmCompliance& arm,
                                       std::mt19937_64& rng);
