@@ -306,18 +306,20 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
   std::vector<int> attempts_so_far(num_foods, 0);
   world.attempts.reserve(order.size());
   const sim::TraceOptions trace_options;  // 1 kHz, as the simulated Net F/T
+  // An independent story's draw, or nullptr for the world's own traces
+  // (the config was validated above, so the name parses).
+  const haptic::StoryTraceFunction story = haptic::StoryTraceDraw(
+      haptic::ParseTraceStories(config.trace_story)->front());
   for (int food : order) {
     SimAttempt attempt;
     attempt.food = food;
     attempt.plate = attempts_so_far[food]++ % plates_per_trial;
     attempt.context = contexts[attempt.plate][food];
     absl::StatusOr<haptic::HapticClassification> classified;
-    if (config.trace_story == "world") {
+    if (story == nullptr) {
       classified = classifier_->Classify(sim::SimulateTrace(
           profiles[attempt.plate][food], trace_options, trace_rng));
     } else {
-      const haptic::StoryTraceFunction story = haptic::StoryTraceDraw(
-          haptic::ParseTraceStories(config.trace_story)->front());
       for (int draw = 0; draw < kMaxStoryDraws; ++draw) {
         classified =
             classifier_->Classify(story(foods[food]->category, trace_rng));
