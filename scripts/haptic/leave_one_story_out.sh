@@ -6,7 +6,7 @@
 # the OTHER folds' tuning items and prints the tables of docs/haptic.md.
 #
 #   scripts/haptic/leave_one_story_out.sh OUT_DIR [--ensemble|--seed_ensemble]
-#                                          [trainer flags...]
+#                                          [--train_also=LIST] [trainer flags...]
 #   e.g. scripts/haptic/leave_one_story_out.sh /tmp/loso --augment
 #
 # --ensemble: each fold's model is the ensemble of the models trained on
@@ -15,6 +15,8 @@
 # --seed_ensemble: each fold's model is the ensemble of three models trained
 # on its three training stories with seeds 1, 2 and 3 (traces, split, initial
 # weights, batch order), trained into OUT_DIR/seeds.
+# --train_also=LIST: stories every fold also trains on and none holds out
+# (e.g. puncture; docs/haptic.md, "A fourth training story").
 #
 # About 5 minutes per story on one core. Needs a build (scripts/setup.sh).
 set -euo pipefail
@@ -25,12 +27,21 @@ ENSEMBLE=0
 SEED_ENSEMBLE=0
 if [ "${1:-}" = "--ensemble" ]; then ENSEMBLE=1; shift; fi
 if [ "${1:-}" = "--seed_ensemble" ]; then SEED_ENSEMBLE=1; shift; fi
+ALSO=""
+if [[ "${1:-}" == --train_also=* ]]; then ALSO="${1#--train_also=}"; shift; fi
 BUILD_DIR="${BUILD_DIR:-build}"
 TRAIN="$BUILD_DIR/services/haptic/bitewise-haptic-train"
 STORIES=(world piecewise mechanics compliant)
 mkdir -p "$OUT"
 for held in "${STORIES[@]}"; do
   others=$(printf '%s\n' "${STORIES[@]}" | grep -vx "$held" | paste -sd,)
+  if [ -n "$ALSO" ]; then
+    if [ "$ENSEMBLE" = 1 ]; then
+      echo "--train_also does not combine with --ensemble" >&2
+      exit 2
+    fi
+    others="$others,$ALSO"
+  fi
   if [ ! -f "$OUT/$held.onnx" ] && [ "$ENSEMBLE" = 1 ]; then
     mkdir -p "$OUT/pairs"
     IFS=, read -r -a three <<<"$others"
