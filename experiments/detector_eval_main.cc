@@ -6,17 +6,21 @@
 // mean and worst IoU of matched items, and Detect's latency. (Merges are
 // judged on boxes: one detection covering at least half of two items'
 // boxes while one of them has no detection of its own.) The numbers
-// in docs/perception.md come from `--plates=200 --seed=9001`.
+// in docs/perception.md come from `--plates=200 --seed=9001`; with
+// --renderer=blind the plates come from a renderer written blind, as a test
+// only (experiments/blind_plates.h).
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
+#include "experiments/blind_plates.h"
 #include "opencv2/imgcodecs.hpp"
 #include "opencv2/imgproc.hpp"
 #include "services/common/flags_usage.h"
@@ -41,6 +45,12 @@ ABSL_FLAG(double, touch, 0.5, "Crowded plates: chance of touching any item.");
 ABSL_FLAG(double, min_visible, 0.2,
           "Crowded plates: the share of its footprint an item must show to "
           "count (the target: every such item found with IoU >= 0.5).");
+ABSL_FLAG(std::string, renderer, "sim",
+          "sim: the project's renderer (services/sim, RandomPlate or "
+          "CrowdedPlate); blind: the renderer written blind as a test only "
+          "(experiments/blind_plates.h), arranged by --overlap, "
+          "--same_food_touch and --touch, with every item showing at least "
+          "--min_visible required.");
 ABSL_FLAG(std::string, dump, "",
           "Directory for plate<N>.png (truth green, detections red) of every "
           "plate with a merge or a missed item.");
@@ -66,6 +76,47 @@ double IoU(const Box& a, const Box& b) {
          (static_cast<double>(a.w) * a.h + static_cast<double>(b.w) * b.h - i);
 }
 
+// One rendered plate with, by truth index, each item's food and whether it
+// lies partly on another.
+struct Plate {
+  bitewise::sim::RenderedFrame rendered;
+  std::vector<std::string> food;
+  std::vector<bool> lies_on_another;
+};
+
+// A plate of the project's renderer: 2 to `max_items` unseen foods.
+Plate SimPlate(const std::vector<const bitewise::sim::FoodType*>& unseen,
+               int max_items, bool crowded,
+               const bitewise::sim::PlateCrowding& crowding,
+               std::mt19937_64& rng) {
+  const int n = 2 + static_cast<int>(rng() % (max_items - 1));
+  std::vector<const bitewise::sim::FoodType*> foods;
+  for (int i = 0; i < n; ++i) foods.push_back(unseen[rng() % unseen.size()]);
+  const bitewise::sim::PlateScene scene =
+      crowded ? bitewise::sim::CrowdedPlate(foods, crowding, rng)
+              : bitewise::sim::RandomPlate(foods, /*allow_touching=*/true, rng);
+  Plate plate;
+  plate.rendered =
+      bitewise::sim::RenderPlate(scene, bitewise::sim::D415Intrinsics(), rng());
+  for (const bitewise::sim::ItemTruth& t : plate.rendered.truth) {
+    for (const bitewise::sim::SceneItem& item : scene.items) {
+      if (item.id != t.id) continue;
+      plate.food.push_back(item.food->name);
+      plate.lies_on_another.push_back(item.base_m > 0.0);
+    }
+  }
+  return plate;
+}
+
+// A plate of the blind renderer.
+Plate BlindPlate(uint64_t seed,
+                 const bitewise::experiments::BlindPlateOptions& options) {
+  bitewise::experiments::BlindPlate blind =
+      bitewise::experiments::RenderBlindPlate(seed, options);
+  return {std::move(blind.frame), std::move(blind.food),
+          std::move(blind.lies_on_another)};
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -83,24 +134,32 @@ int main(int argc, char** argv) {
   crowding.overlap_probability = absl::GetFlag(FLAGS_overlap);
   crowding.same_food_touch_probability = absl::GetFlag(FLAGS_same_food_touch);
   crowding.touch_probability = absl::GetFlag(FLAGS_touch);
-  const bool crowded = crowding.overlap_probability > 0.0 ||
-                       crowding.same_food_touch_probability > 0.0;
+  bool crowded = crowding.overlap_probability > 0.0 ||
+                 crowding.same_food_touch_probability > 0.0;
   const double min_visible = absl::GetFlag(FLAGS_min_visible);
+  const std::string renderer = absl::GetFlag(FLAGS_renderer);
+  if (renderer != "sim" && renderer != "blind") {
+    std::fprintf(stderr, "--renderer must be sim or blind, not \"%s\"\n",
+                 renderer.c_str());
+    return 2;
+  }
+  const bool blind = renderer == "blind";
+  bitewise::experiments::BlindPlateOptions blind_options;
+  blind_options.max_items = max_items;
+  blind_options.overlap_probability = crowding.overlap_probability;
+  blind_options.same_food_touch_probability =
+      crowding.same_food_touch_probability;
+  blind_options.touch_probability = crowding.touch_probability;
+  if (blind) crowded = true;  // the blind plates always count by --min_visible
   int lying_on = 0, hidden = 0;  // items on a neighbour; below min_visible
   int items = 0, found = 0, merged = 0, missed = 0, extra = 0;
   int touching_items = 0, repeated_items = 0;
   double iou_sum = 0.0, worst = 1.0;
   std::vector<double> latency_ms;
   for (int p = 0; p < plates; ++p) {
-    const int n = 2 + static_cast<int>(rng() % (max_items - 1));
-    std::vector<const bitewise::sim::FoodType*> foods;
-    for (int i = 0; i < n; ++i) foods.push_back(unseen[rng() % unseen.size()]);
-    const bitewise::sim::PlateScene scene =
-        crowded
-            ? bitewise::sim::CrowdedPlate(foods, crowding, rng)
-            : bitewise::sim::RandomPlate(foods, /*allow_touching=*/true, rng);
-    bitewise::sim::RenderedFrame rendered = bitewise::sim::RenderPlate(
-        scene, bitewise::sim::D415Intrinsics(), rng());
+    Plate plate = blind ? BlindPlate(rng(), blind_options)
+                        : SimPlate(unseen, max_items, crowded, crowding, rng);
+    bitewise::sim::RenderedFrame& rendered = plate.rendered;
     const bitewise::perception::DecodedFrame frame =
         bitewise::perception::ViewFrame(rendered.intrinsics, rendered.rgb,
                                         rendered.depth_mm);
@@ -115,16 +174,14 @@ int main(int argc, char** argv) {
       return 1;
     }
     std::vector<Box> truth, boxes;
-    std::vector<const bitewise::sim::FoodType*> truth_food;  // by truth index
-    std::vector<bool> required;  // by truth index: must be found
-    for (const auto& t : rendered.truth) {
+    std::vector<std::string> truth_food;  // by truth index
+    std::vector<bool> required;           // by truth index: must be found
+    for (size_t i = 0; i < rendered.truth.size(); ++i) {
+      const bitewise::sim::ItemTruth& t = rendered.truth[i];
       if (t.visible_pixels == 0) continue;
       truth.push_back({t.x, t.y, t.width, t.height});
-      for (const auto& item : scene.items) {
-        if (item.id != t.id) continue;
-        truth_food.push_back(item.food);
-        lying_on += item.base_m > 0.0;
-      }
+      truth_food.push_back(plate.food[i]);
+      lying_on += plate.lies_on_another[i];
       required.push_back(!crowded ||
                          t.visible_pixels >= min_visible * t.footprint_pixels);
     }
@@ -188,7 +245,7 @@ int main(int argc, char** argv) {
         if (absl::GetFlag(FLAGS_verbose)) {
           std::fprintf(stderr, "plate %d merged:", p);
           for (size_t t : covered) {
-            std::fprintf(stderr, " %s", truth_food[t]->name.c_str());
+            std::fprintf(stderr, " %s", truth_food[t].c_str());
           }
           std::fprintf(stderr, "\n");
         }
@@ -211,7 +268,7 @@ int main(int argc, char** argv) {
         ++missed;
         if (absl::GetFlag(FLAGS_verbose)) {
           std::fprintf(stderr, "plate %d missed: %s (best IoU %.2f)\n", p,
-                       truth_food[t]->name.c_str(), best[t]);
+                       truth_food[t].c_str(), best[t]);
         }
         dump();
       }
