@@ -53,7 +53,7 @@ ABSL_FLAG(std::string, renderer, "sim",
           "--min_visible required.");
 ABSL_FLAG(std::string, dump, "",
           "Directory for plate<N>.png (truth green, detections red) of every "
-          "plate with a merge or a missed item.");
+          "plate with a merge, a missed item or an extra detection.");
 
 namespace {
 
@@ -273,7 +273,25 @@ int main(int argc, char** argv) {
         dump();
       }
     }
-    for (size_t d = 0; d < boxes.size(); ++d) extra += !d_used[d];
+    for (size_t d = 0; d < boxes.size(); ++d) {
+      if (d_used[d]) continue;
+      ++extra;
+      dump();
+      if (!absl::GetFlag(FLAGS_verbose)) continue;
+      // Name the item whose box holds most of the extra detection's.
+      const double area = static_cast<double>(boxes[d].w) * boxes[d].h;
+      std::string inside = "the plate";
+      double most = 0.5 * area;
+      for (size_t t = 0; t < truth.size(); ++t) {
+        const double share = Intersection(boxes[d], truth[t]);
+        if (share > most) {
+          most = share;
+          inside = truth_food[t];
+        }
+      }
+      std::fprintf(stderr, "plate %d extra: %dx%d px on %s\n", p, boxes[d].w,
+                   boxes[d].h, inside.c_str());
+    }
   }
   std::sort(latency_ms.begin(), latency_ms.end());
   const auto pct = [&](double q) {

@@ -32,6 +32,11 @@ struct FoodDetectorOptions {
   // outlines the items stops there instead of running along a neighbour's
   // shadow. 0: off (only plate well away from food is background).
   double max_bare_plate_mm = 1.5;
+  // Shadow on the plate: a pixel with depth on the plate (as above), darker
+  // than the plate but within this many CIELAB units of its chroma (a*, b*),
+  // is the plate in a shadow, not food, whatever its lightness: a shadow
+  // dims the light, it does not change the plate's colour. 0: off.
+  double max_shadow_chroma = 8.0;
   // Colour gradient (CIELAB units per pixel) that separates two touching
   // items; texture within one item stays below it.
   double min_edge_strength = 10.0;
@@ -68,6 +73,12 @@ struct FoodDetectorOptions {
   // the higher one's top is at most this many times the lower one's: a
   // slice lying on another stands about twice as high as the one under it.
   double max_merge_top_ratio = 1.5;
+  // A region whose watershed boundary is at least this share one larger
+  // neighbour's, with no valley between them and not standing on it (the
+  // top ratio above), is part of that neighbour whatever its colour: a
+  // kiwi slice's pale core inside its green flesh, the pale inside of a
+  // celery stick's U. Above 1: off.
+  double min_enclosed_share = 0.9;
   // A stick with an item lying across it shows as two parts; they are
   // joined when the item on them borders both and the line between them
   // runs under that item, they and that item cover at least min_join_fill

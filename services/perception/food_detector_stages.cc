@@ -243,14 +243,22 @@ FoodEvidence FindEvidence(const cv::Mat& rgb, const cv::Mat& height_mm,
   colour = cv::Mat(h, w, CV_8UC1, cv::Scalar(0));
   const float min_de2 = static_cast<float>(options.min_colour_distance *
                                            options.min_colour_distance);
+  const float max_shadow_c2 =
+      static_cast<float>(options.max_shadow_chroma * options.max_shadow_chroma);
   for (int v = 0; v < h; ++v) {
     const auto* px = lab.ptr<cv::Vec3f>(v);
     const auto* in = plate.ptr<uint8_t>(v);
+    const auto* ok = valid.ptr<uint8_t>(v);
+    const auto* hv = height_mm.ptr<float>(v);
     auto* out = colour.ptr<uint8_t>(v);
     for (int u = 0; u < w; ++u) {
       if (!in[u]) continue;
       const cv::Vec3f diff = px[u] - plate_lab;
-      if (diff.dot(diff) > min_de2) out[u] = 255;
+      if (diff.dot(diff) <= min_de2) continue;
+      const bool shadow =
+          ok[u] && hv[u] <= options.max_bare_plate_mm && diff[0] < 0.0f &&
+          diff[1] * diff[1] + diff[2] * diff[2] <= max_shadow_c2;
+      if (!shadow) out[u] = 255;
     }
   }
   cv::morphologyEx(colour, colour, cv::MORPH_OPEN,
@@ -641,9 +649,13 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   struct Seam {
     double height_sum = 0.0;
     double dip_sum = 0.0;
-    int count = 0;
+    int count = 0;      // with valid depth
+    int all_count = 0;  // every ridge pixel between the two
   };
   std::map<std::pair<int, int>, Seam> boundary;
+  // Per region: the ridge pixels beside it, and those of them that also
+  // border the background.
+  std::vector<int> ridge_beside(n_cores, 0), open_beside(n_cores, 0);
   for (int v = 1; v + 1 < h; ++v) {
     const auto* m = markers.ptr<int>(v);
     const auto* hv = height_mm.ptr<float>(v);
@@ -653,16 +665,23 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       if (m[u] != -1) continue;
       int found[4];
       int n_found = 0;
+      bool open = false;
       for (const int n : {m[u - 1], m[u + 1], markers.at<int>(v - 1, u),
                           markers.at<int>(v + 1, u)}) {
+        open |= n == background;
         if (n > 0 && n < background &&
             std::find(found, found + n_found, n) == found + n_found) {
           found[n_found++] = n;
         }
       }
       for (int a = 0; a < n_found; ++a) {
+        ++ridge_beside[found[a]];
+        open_beside[found[a]] += open;
+      }
+      for (int a = 0; a < n_found; ++a) {
         for (int b = a + 1; b < n_found; ++b) {
           auto& entry = boundary[std::minmax(found[a], found[b])];
+          ++entry.all_count;
           if (ok[u]) {
             entry.height_sum += hv[u];
             entry.dip_sum += dip[u];
@@ -671,6 +690,14 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         }
       }
     }
+  }
+  // Each region's longest seam with another region.
+  std::vector<int> longest_seam(n_cores, 0);
+  for (const auto& [pair, seam] : boundary) {
+    longest_seam[pair.first] =
+        std::max(longest_seam[pair.first], seam.all_count);
+    longest_seam[pair.second] =
+        std::max(longest_seam[pair.second], seam.all_count);
   }
   std::vector<int> parent(n_cores);
   for (int i = 0; i < n_cores; ++i) parent[i] = i;
@@ -693,11 +720,20 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       continue;
     }
     // No valley between them, by height and by the closing's lift.
-    if (cv::norm(diff) < options.min_colour_distance &&
-        seam_mm > 0.8 * lower_top &&
-        seam.dip_sum / seam.count <=
-            std::max(options.min_valley_mm,
-                     options.valley_fraction * lower_top)) {
+    const bool no_valley = seam_mm > 0.8 * lower_top &&
+                           seam.dip_sum / seam.count <=
+                               std::max(options.min_valley_mm,
+                                        options.valley_fraction * lower_top);
+    // Or the smaller lies inside food, hardly touching the background,
+    // and this is its longest seam: a part of the item of another colour
+    // (a kiwi's core or its ring of seeds), not an item of its own.
+    const int smaller = lab_count[a] < lab_count[b] ? a : b;
+    const bool enclosed =
+        open_beside[smaller] <=
+            (1.0 - options.min_enclosed_share) * ridge_beside[smaller] &&
+        seam.all_count == longest_seam[smaller];
+    if (no_valley &&
+        (cv::norm(diff) < options.min_colour_distance || enclosed)) {
       parent[root(a)] = root(b);
     }
   }

@@ -257,6 +257,71 @@ TEST(DetectorStagesTest, GrowStopsAtBarePlateInAShadow) {
   EXPECT_GE(with.height, item.height - 3);
 }
 
+TEST(DetectorStagesTest, FindEvidenceTakesAShadowOnThePlateForPlate) {
+  // A red item, and beside it on the plate a band in its shadow: the
+  // plate's grey at half the light (about 24 CIELAB units darker, the same
+  // chroma). Beside that, a flat stain of the same lightness but another
+  // chroma (a smear of sauce) stays food-like.
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  height(cv::Rect(260, 220, 60, 40)).setTo(12.0f);
+  Scene scene = MakeScene(height, height > 0.0f);
+  const cv::Rect shadow(320, 220, 30, 40), stain(360, 220, 30, 40);
+  scene.rgb(shadow).setTo(cv::Scalar(160, 160, 160));
+  scene.rgb(stain).setTo(cv::Scalar(175, 150, 120));
+  const auto evidence = [&scene](const FoodDetectorOptions& options) {
+    return FindEvidence(scene.rgb, scene.height_mm, scene.valid, scene.plate,
+                        options);
+  };
+  FoodDetectorOptions off;
+  off.max_shadow_chroma = 0.0;
+  const FoodEvidence without = evidence(off);
+  EXPECT_EQ(without.colour.at<uint8_t>(240, 335), 255) << "darker than 14";
+  const FoodEvidence with = evidence(FoodDetectorOptions());
+  EXPECT_EQ(with.colour.at<uint8_t>(240, 335), 0);
+  EXPECT_EQ(with.bare.at<uint8_t>(240, 335), 255);
+  EXPECT_EQ(with.colour.at<uint8_t>(240, 375), 255);
+  EXPECT_EQ(with.colour.at<uint8_t>(240, 290), 255);
+  // Raised, the same dark grey is an item, not a shadow.
+  scene.height_mm(shadow).setTo(8.0f);
+  EXPECT_EQ(evidence(FoodDetectorOptions()).colour.at<uint8_t>(240, 335), 255);
+}
+
+TEST(DetectorStagesTest, MergeJoinsAPartOfAnotherColourInsideAnItem) {
+  // A flat green slice (10 mm) with a pale core of its own colour seeded
+  // apart (a kiwi slice's core), and a red slice touching it outside. The
+  // core is joined to the slice; the red slice, whose boundary is mostly
+  // with the plate, stays apart.
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  cv::circle(height, {300, 240}, 40, cv::Scalar(10.0), cv::FILLED);
+  cv::circle(height, {370, 240}, 30, cv::Scalar(10.0), cv::FILLED);
+  Scene scene = MakeScene(height, height > 0.0f);
+  cv::circle(scene.rgb, {300, 240}, 40, cv::Scalar(90, 170, 60), cv::FILLED);
+  cv::circle(scene.rgb, {300, 240}, 12, cv::Scalar(230, 225, 170), cv::FILLED);
+  const auto items = [&scene](const FoodDetectorOptions& options) {
+    Regions regions;
+    regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(0));
+    regions.markers(cv::Rect(270, 230, 8, 20)).setTo(1);   // flesh
+    regions.markers(cv::Rect(296, 236, 8, 8)).setTo(2);    // core
+    regions.markers(cv::Rect(370, 230, 10, 20)).setTo(3);  // the red slice
+    regions.background = 4;
+    regions.valley_mm = cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0));
+    scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                  scene.plate, options);
+    GrowRegions(scene.rgb, scene.evidence, scene.plate.plate, regions);
+    EXPECT_EQ(ItemLabels(regions), 3);
+    MergeSplitItems(scene.evidence, scene.height_mm, scene.valid, options,
+                    regions);
+    return regions;
+  };
+  FoodDetectorOptions off;
+  off.min_enclosed_share = 2.0;
+  EXPECT_EQ(ItemLabels(items(off)), 3) << "the core is an item of its own";
+  const Regions with = items(FoodDetectorOptions());
+  EXPECT_EQ(ItemLabels(with), 2);
+  EXPECT_EQ(with.markers.at<int>(240, 300), with.markers.at<int>(240, 275));
+  EXPECT_NE(with.markers.at<int>(240, 375), with.markers.at<int>(240, 275));
+}
+
 // Two flat items of one colour, the second partly lying on the first: the
 // lower one shows as a strip [240, 240 + shown) x [220, 260) of
 // `lower_mm`, the upper one [240 + shown, 340) x [220, 260) stands
