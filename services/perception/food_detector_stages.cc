@@ -724,14 +724,15 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
                            seam.dip_sum / seam.count <=
                                std::max(options.min_valley_mm,
                                         options.valley_fraction * lower_top);
-    // Or the smaller lies inside food, hardly touching the background,
-    // and this is its longest seam: a part of the item of another colour
-    // (a kiwi's core or its ring of seeds), not an item of its own.
-    const int smaller = lab_count[a] < lab_count[b] ? a : b;
-    const bool enclosed =
-        open_beside[smaller] <=
-            (1.0 - options.min_enclosed_share) * ridge_beside[smaller] &&
-        seam.all_count == longest_seam[smaller];
+    // Or one lies inside food, hardly touching the background, and this is
+    // its longest seam: a part of the item of another colour (a kiwi's core
+    // or its ring of seeds), not an item of its own.
+    const auto inside = [&](int r) {
+      return open_beside[r] <=
+                 (1.0 - options.min_enclosed_share) * ridge_beside[r] &&
+             seam.all_count == longest_seam[r];
+    };
+    const bool enclosed = inside(a) || inside(b);
     if (no_valley &&
         (cv::norm(diff) < options.min_colour_distance || enclosed)) {
       parent[root(a)] = root(b);
