@@ -73,11 +73,12 @@ struct FoodDetectorOptions {
   // the higher one's top is at most this many times the lower one's: a
   // slice lying on another stands about twice as high as the one under it.
   double max_merge_top_ratio = 1.5;
-  // A region whose watershed boundary is at least this share one larger
-  // neighbour's, with no valley between them and not standing on it (the
-  // top ratio above), is part of that neighbour whatever its colour: a
-  // kiwi slice's pale core inside its green flesh, the pale inside of a
-  // celery stick's U. Above 1: off.
+  // A region inside food (at least this share of the watershed ridge
+  // beside it borders other regions, not the background) is part of the
+  // neighbour it shares its longest seam with, whatever its colour, when
+  // there is no valley between them and neither stands on the other (the
+  // top ratio above): a kiwi slice's pale core and seed ring inside its
+  // green flesh. Above 1: off.
   double min_enclosed_share = 0.9;
   // A stick with an item lying across it shows as two parts; they are
   // joined when the item on them borders both and the line between them
