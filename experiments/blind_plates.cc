@@ -1155,39 +1155,47 @@ double TouchDistance(const Item& a, const Pose& rest, const Item& b, V3 dir) {
   return hi;
 }
 
-bool PlaceApart(Item& a, const std::vector<Item>& items, double well_radius,
-                Draw& rng) {
-  for (int attempt = 0; attempt < 120; ++attempt) {
-    Pose pose = RestPose(a, rng.U(0.0, 2.0 * kPi));
-    const double r = (well_radius - 4.0) * std::sqrt(rng.U());
-    const double th = rng.U(0.0, 2.0 * kPi);
-    pose.t.x = r * std::cos(th);
-    pose.t.y = r * std::sin(th);
+// Up to `attempts` poses from `draw`: the first inside the well and clear
+// of every other item by `clearance` mm is taken.
+template <typename DrawPose>
+bool PlaceFirstClear(Item& a, const std::vector<Item>& items,
+                     double well_radius, double clearance, int attempts,
+                     DrawPose draw) {
+  for (int attempt = 0; attempt < attempts; ++attempt) {
+    const Pose pose = draw();
     if (!InWell(a, pose, well_radius)) continue;
-    if (!ClearOfAll(a, pose, items, 2.5)) continue;
+    if (!ClearOfAll(a, pose, items, clearance)) continue;
     a.pose = pose;
     return true;
   }
   return false;
 }
 
+bool PlaceApart(Item& a, const std::vector<Item>& items, double well_radius,
+                Draw& rng) {
+  return PlaceFirstClear(a, items, well_radius, 2.5, 120, [&] {
+    Pose pose = RestPose(a, rng.U(0.0, 2.0 * kPi));
+    const double r = (well_radius - 4.0) * std::sqrt(rng.U());
+    const double th = rng.U(0.0, 2.0 * kPi);
+    pose.t.x = r * std::cos(th);
+    pose.t.y = r * std::sin(th);
+    return pose;
+  });
+}
+
 bool PlaceTouching(Item& a, const std::vector<int>& targets,
                    const std::vector<Item>& items, double well_radius,
                    Draw& rng) {
   if (targets.empty()) return false;
-  for (int attempt = 0; attempt < 30; ++attempt) {
+  return PlaceFirstClear(a, items, well_radius, -kTolerance, 30, [&] {
     const Item& b = items[targets[rng.Index(static_cast<int>(targets.size()))]];
     Pose pose = RestPose(a, rng.U(0.0, 2.0 * kPi));
     const double psi = rng.U(0.0, 2.0 * kPi);
     const V3 dir{std::cos(psi), std::sin(psi), 0.0};
     const double d = TouchDistance(a, pose, b, dir) + 0.1;
     pose.t = {b.pose.t.x + dir.x * d, b.pose.t.y + dir.y * d, pose.t.z};
-    if (!InWell(a, pose, well_radius)) continue;
-    if (!ClearOfAll(a, pose, items, -kTolerance)) continue;
-    a.pose = pose;
-    return true;
-  }
-  return false;
+    return pose;
+  });
 }
 
 // A flat piece partly on a flat item: centre 40-80 % of the touching
