@@ -727,10 +727,11 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     // Or one lies inside food, hardly touching the background, and this is
     // its longest seam: a part of the item of another colour (a kiwi's core
     // or its ring of seeds), not an item of its own.
+    const int seam_px = seam.all_count;  // (a lambda may not capture `seam`)
     const auto inside = [&](int r) {
       return open_beside[r] <=
                  (1.0 - options.min_enclosed_share) * ridge_beside[r] &&
-             seam.all_count == longest_seam[r];
+             seam_px == longest_seam[r];
     };
     const bool enclosed = inside(a) || inside(b);
     if (no_valley &&
