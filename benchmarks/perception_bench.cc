@@ -60,7 +60,7 @@ BENCHMARK(BM_DetectFood)->Unit(benchmark::kMillisecond);
 // DetectFood's stages one at a time (range(0): 0 MeasureHeight, 1
 // FindPlate, 2 FindEvidence, 3 PlantSeeds, 4 GrowRegions, 5 MergeSplitItems,
 // 6 SplitAtWaists, 7 DescribeItems), each on its inputs from the stages before
-// it, computed once outside the timing.
+// it, computed once outside the timing; 3-7 on the food's box, as in Detect.
 void BM_DetectStage(benchmark::State& state) {
   using namespace detection;  // NOLINT: the stages, in order
   const Scene& scene = RenderedScene();
@@ -80,13 +80,21 @@ void BM_DetectStage(benchmark::State& state) {
   const cv::Mat valid = heights->valid(roi);
   const FoodEvidence evidence =
       FindEvidence(rgb, height_mm, valid, *plate, options);
-  const std::optional<Regions> seeds = PlantSeeds(evidence, height_mm, options);
+  // The later stages on the food's box, as Detect runs them.
+  const cv::Rect box = FoodBox(evidence, options);
+  const FoodEvidence food = CropEvidence(evidence, box);
+  const cv::Mat food_rgb = rgb(box);
+  const cv::Mat food_height = height_mm(box);
+  const cv::Mat food_valid = valid(box);
+  const cv::Mat food_plate = plate->plate(box);
+  const cv::Rect in_frame = box + roi.tl();
+  const std::optional<Regions> seeds = PlantSeeds(food, food_height, options);
   Regions grown = *seeds;
   grown.markers = seeds->markers.clone();
-  GrowRegions(rgb, evidence, plate->plate, grown);
+  GrowRegions(food_rgb, food, food_plate, grown);
   Regions merged = grown;
   merged.markers = grown.markers.clone();
-  MergeSplitItems(evidence, height_mm, valid, options, merged);
+  MergeSplitItems(food, food_height, food_valid, options, merged);
   Regions split = merged;
   split.markers = merged.markers.clone();
   SplitAtWaists(options, split);
@@ -108,19 +116,19 @@ void BM_DetectStage(benchmark::State& state) {
             FindEvidence(rgb, height_mm, valid, *plate, options));
         break;
       case 3:
-        benchmark::DoNotOptimize(PlantSeeds(evidence, height_mm, options));
+        benchmark::DoNotOptimize(PlantSeeds(food, food_height, options));
         break;
       case 4: {
         Regions regions = *seeds;
         regions.markers = seeds->markers.clone();
-        GrowRegions(rgb, evidence, plate->plate, regions);
+        GrowRegions(food_rgb, food, food_plate, regions);
         benchmark::DoNotOptimize(regions);
         break;
       }
       case 5: {
         Regions regions = grown;
         regions.markers = grown.markers.clone();
-        MergeSplitItems(evidence, height_mm, valid, options, regions);
+        MergeSplitItems(food, food_height, food_valid, options, regions);
         benchmark::DoNotOptimize(regions);
         break;
       }
@@ -133,7 +141,7 @@ void BM_DetectStage(benchmark::State& state) {
       }
       default:
         benchmark::DoNotOptimize(
-            DescribeItems(split, evidence, frame.depth_mm(roi), roi,
+            DescribeItems(split, food, frame.depth_mm(in_frame), in_frame,
                           heights->plane, frame.intrinsics, options));
     }
   }

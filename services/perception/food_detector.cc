@@ -32,12 +32,20 @@ absl::StatusOr<std::vector<DetectedFood>> FoodDetector::Detect(
   const cv::Mat valid = heights->valid(roi);
   const FoodEvidence evidence =
       FindEvidence(rgb, height_mm, valid, *plate, options_);
-  std::optional<Regions> regions = PlantSeeds(evidence, height_mm, options_);
+  // The later stages look only at the food's bounding box, widened by
+  // FoodMargin, which leaves every result as it would be over the whole
+  // plate box (tested) at 60-90 % of its pixels.
+  const cv::Rect box = FoodBox(evidence, options_);
+  if (box.empty()) return std::vector<DetectedFood>();
+  const FoodEvidence food = CropEvidence(evidence, box);
+  const cv::Mat food_height = height_mm(box);
+  std::optional<Regions> regions = PlantSeeds(food, food_height, options_);
   if (!regions) return std::vector<DetectedFood>();
-  GrowRegions(rgb, evidence, plate->plate, *regions);
-  MergeSplitItems(evidence, height_mm, valid, options_, *regions);
+  GrowRegions(rgb(box), food, plate->plate(box), *regions);
+  MergeSplitItems(food, food_height, valid(box), options_, *regions);
   SplitAtWaists(options_, *regions);
-  return DescribeItems(*regions, evidence, frame.depth_mm(roi), roi,
+  const cv::Rect in_frame = box + roi.tl();
+  return DescribeItems(*regions, food, frame.depth_mm(in_frame), in_frame,
                        heights->plane, frame.intrinsics, options_);
 }
 

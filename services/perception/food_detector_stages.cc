@@ -273,6 +273,30 @@ FoodEvidence FindEvidence(const cv::Mat& rgb, const cv::Mat& height_mm,
   return evidence;
 }
 
+int FoodMargin(const FoodDetectorOptions& options) {
+  return std::max(options.valley_width_px, options.cliff_window_px) + 7 + 10 +
+         4;
+}
+
+cv::Rect FoodBox(const FoodEvidence& evidence,
+                 const FoodDetectorOptions& options) {
+  const cv::Mat food_like = evidence.above | evidence.colour;
+  const cv::Rect food = cv::boundingRect(food_like);
+  if (food.empty()) return cv::Rect();
+  const int margin = FoodMargin(options);
+  return (food - cv::Point(margin, margin) + cv::Size(2 * margin, 2 * margin)) &
+         cv::Rect(0, 0, food_like.cols, food_like.rows);
+}
+
+FoodEvidence CropEvidence(const FoodEvidence& evidence, const cv::Rect& box) {
+  FoodEvidence crop;
+  crop.lab = evidence.lab(box);
+  crop.above = evidence.above(box);
+  crop.colour = evidence.colour(box);
+  if (!evidence.bare.empty()) crop.bare = evidence.bare(box);
+  return crop;
+}
+
 namespace {
 
 // Dilation (max) or erosion (min) by `element`: per row of the element a

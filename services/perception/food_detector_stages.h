@@ -77,6 +77,21 @@ FoodEvidence FindEvidence(const cv::Mat& rgb, const cv::Mat& height_mm,
                           const cv::Mat& valid, const PlateRegion& plate,
                           const FoodDetectorOptions& options);
 
+// How far from a pixel the stages after FindEvidence look, at most: the
+// valley closing's two passes (valley_width_px - 1), the flood's reach
+// beyond the food (the 15 px dilation, 7 px), the 21 px local top
+// (10 px), and a few pixels for the gradients and openings.
+int FoodMargin(const FoodDetectorOptions& options);
+
+// The bounding box of the food-like pixels (`above` or `colour`), widened
+// by FoodMargin and clipped to the roi; empty when there are none. The
+// stages after FindEvidence give the same items on it as on the whole roi.
+cv::Rect FoodBox(const FoodEvidence& evidence,
+                 const FoodDetectorOptions& options);
+
+// `evidence` restricted to `box` (views, no copies).
+FoodEvidence CropEvidence(const FoodEvidence& evidence, const cv::Rect& box);
+
 struct Regions {
   // CV_32SC1 labels: 1..background-1 items; background; 0 unlabelled
   // before GrowRegions, -1 on watershed ridges after it.

@@ -10,6 +10,7 @@
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/perception/food_detector_stages.h"
 #include "services/sim/food_catalog.h"
 #include "tests/perception/test_frames.h"
 
@@ -162,6 +163,78 @@ TEST(FoodDetectorTest, CentreAngleAndDepthMatchTheScene) {
     EXPECT_GT(food.major_axis_angle_rad, -kPi / 2 - 1e-9);
     EXPECT_LE(food.major_axis_angle_rad, kPi / 2 + 1e-9);
   }
+}
+
+// The stages after FindEvidence on the whole plate box, uncropped: what
+// Detect did before it cropped to the food.
+std::vector<DetectedFood> DetectOnThePlateBox(const DecodedFrame& frame) {
+  using namespace detection;  // NOLINT: the stages, in order
+  const FoodDetectorOptions options;
+  const std::optional<HeightMap> heights =
+      MeasureHeight(frame.depth_mm, frame.intrinsics, options);
+  if (!heights) return {};
+  const std::optional<PlateRegion> plate = FindPlate(*heights, options);
+  if (!plate) return {};
+  const cv::Rect& roi = plate->roi;
+  const cv::Mat rgb = frame.rgb(roi);
+  const cv::Mat height_mm = heights->height_mm(roi);
+  const cv::Mat valid = heights->valid(roi);
+  const FoodEvidence evidence =
+      FindEvidence(rgb, height_mm, valid, *plate, options);
+  std::optional<Regions> regions = PlantSeeds(evidence, height_mm, options);
+  if (!regions) return {};
+  GrowRegions(rgb, evidence, plate->plate, *regions);
+  MergeSplitItems(evidence, height_mm, valid, options, *regions);
+  SplitAtWaists(options, *regions);
+  return DescribeItems(*regions, evidence, frame.depth_mm(roi), roi,
+                       heights->plane, frame.intrinsics, options);
+}
+
+TEST(FoodDetectorTest, CroppingToTheFoodChangesNothing) {
+  // Detect runs the later stages on the food's box widened by FoodMargin;
+  // every item must come out as it does on the whole plate box, to the bit.
+  const FoodDetector detector;
+  int cropped = 0, items = 0;
+  for (uint64_t seed = 100; seed < 124; ++seed) {
+    const int n_items = 1 + static_cast<int>(seed % 8);
+    testing::TestScene scene =
+        testing::RenderTestScene(seed, n_items, /*touching=*/true);
+    const DecodedFrame frame = testing::ToDecoded(scene.rendered);
+    absl::StatusOr<std::vector<DetectedFood>> detected = detector.Detect(frame);
+    ASSERT_TRUE(detected.ok()) << detected.status();
+    const std::vector<DetectedFood> whole = DetectOnThePlateBox(frame);
+    ASSERT_EQ(detected->size(), whole.size()) << "seed " << seed;
+    for (size_t i = 0; i < whole.size(); ++i) {
+      const DetectedFood& a = (*detected)[i];
+      const DetectedFood& b = whole[i];
+      EXPECT_EQ(a.bbox.x, b.bbox.x) << "seed " << seed << " item " << i;
+      EXPECT_EQ(a.bbox.y, b.bbox.y) << "seed " << seed << " item " << i;
+      EXPECT_EQ(a.bbox.width, b.bbox.width) << "seed " << seed;
+      EXPECT_EQ(a.bbox.height, b.bbox.height) << "seed " << seed;
+      EXPECT_EQ(a.area_px, b.area_px) << "seed " << seed;
+      EXPECT_EQ(a.center_u_px, b.center_u_px) << "seed " << seed;
+      EXPECT_EQ(a.center_v_px, b.center_v_px) << "seed " << seed;
+      EXPECT_EQ(a.major_axis_angle_rad, b.major_axis_angle_rad);
+      EXPECT_EQ(a.depth_m, b.depth_m) << "seed " << seed;
+      EXPECT_EQ(a.score, b.score) << "seed " << seed;
+    }
+    items += static_cast<int>(whole.size());
+    // How often the crop is smaller than the plate box (else the test
+    // shows nothing).
+    const FoodDetectorOptions options;
+    const auto heights =
+        detection::MeasureHeight(frame.depth_mm, frame.intrinsics, options);
+    ASSERT_TRUE(heights.has_value());
+    const auto plate = detection::FindPlate(*heights, options);
+    ASSERT_TRUE(plate.has_value());
+    const cv::Rect& roi = plate->roi;
+    const detection::FoodEvidence evidence =
+        detection::FindEvidence(frame.rgb(roi), heights->height_mm(roi),
+                                heights->valid(roi), *plate, options);
+    cropped += detection::FoodBox(evidence, options).area() < roi.area();
+  }
+  EXPECT_GE(cropped, 12) << "the food's box should be smaller on most plates";
+  EXPECT_GE(items, 80);
 }
 
 TEST(FoodDetectorTest, EmptyPlateHasNoItems) {
