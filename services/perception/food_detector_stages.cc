@@ -274,8 +274,9 @@ FoodEvidence FindEvidence(const cv::Mat& rgb, const cv::Mat& height_mm,
 }
 
 int FoodMargin(const FoodDetectorOptions& options) {
-  return std::max(options.valley_width_px, options.cliff_window_px) + 7 + 10 +
-         4;
+  const int widest = std::max({options.valley_width_px, options.cliff_window_px,
+                               options.terrace_window_px});
+  return widest + 7 + 10 + 4;
 }
 
 cv::Rect FoodBox(const FoodEvidence& evidence,

@@ -78,9 +78,11 @@ FoodEvidence FindEvidence(const cv::Mat& rgb, const cv::Mat& height_mm,
                           const FoodDetectorOptions& options);
 
 // How far from a pixel the stages after FindEvidence look, at most: the
-// valley closing's two passes (valley_width_px - 1), the flood's reach
+// widest window among the options (the valley closing's two passes,
+// valley_width_px - 1; the step and terrace windows), the flood's reach
 // beyond the food (the 15 px dilation, 7 px), the 21 px local top
-// (10 px), and a few pixels for the gradients and openings.
+// (10 px), and a few pixels for the gradients and openings. 52 px with
+// the defaults.
 int FoodMargin(const FoodDetectorOptions& options);
 
 // The bounding box of the food-like pixels (`above` or `colour`), widened

@@ -234,6 +234,7 @@ TEST(FoodDetectorTest, CroppingToTheFoodChangesNothing) {
     cropped += detection::FoodBox(evidence, options).area() < roi.area();
   }
   EXPECT_GE(cropped, 12) << "the food's box should be smaller on most plates";
+  EXPECT_EQ(detection::FoodMargin(FoodDetectorOptions()), 52);  // the docs'
   EXPECT_GE(items, 80);
 }
 
