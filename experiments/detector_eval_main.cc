@@ -8,7 +8,9 @@
 // boxes while one of them has no detection of its own.) The numbers
 // in docs/perception.md come from `--plates=200 --seed=9001`; with
 // --renderer=blind the plates come from a renderer written blind, as a test
-// only (experiments/blind_plates.h).
+// only (experiments/blind_plates.h). Detect runs as in bitewise-perception:
+// the colour tables prepared first, and freed memory kept for the next plate
+// (--retain_freed_memory, the service's flag).
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -24,6 +26,7 @@
 #include "opencv2/imgcodecs.hpp"
 #include "opencv2/imgproc.hpp"
 #include "services/common/flags_usage.h"
+#include "services/common/process_memory.h"
 #include "services/perception/food_detector.h"
 #include "services/sim/food_catalog.h"
 #include "services/sim/scene.h"
@@ -54,6 +57,9 @@ ABSL_FLAG(std::string, renderer, "sim",
 ABSL_FLAG(std::string, dump, "",
           "Directory for plate<N>.png (truth green, detections red) of every "
           "plate with a merge, a missed item or an extra detection.");
+ABSL_FLAG(bool, retain_freed_memory, true,
+          "As bitewise-perception's flag: keep freed memory for the next "
+          "plate (false: glibc's default, which returns it).");
 
 namespace {
 
@@ -129,6 +135,15 @@ int main(int argc, char** argv) {
   std::mt19937_64 rng(absl::GetFlag(FLAGS_seed));
   const std::vector<const bitewise::sim::FoodType*> unseen =
       bitewise::sim::UnseenFoods();
+  if (absl::GetFlag(FLAGS_retain_freed_memory)) {
+    const absl::Status retained = bitewise::RetainFreedMemory();
+    if (!retained.ok()) {
+      std::fprintf(stderr, "--retain_freed_memory: %s\n",
+                   retained.ToString().c_str());
+      return 2;
+    }
+  }
+  bitewise::perception::PrepareColourConversions();
   const bitewise::perception::FoodDetector detector;
   bitewise::sim::PlateCrowding crowding;
   crowding.overlap_probability = absl::GetFlag(FLAGS_overlap);

@@ -4,9 +4,19 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "opencv2/core.hpp"
+#include "opencv2/imgproc.hpp"
 #include "services/perception/food_detector_stages.h"
 
 namespace bitewise::perception {
+
+void PrepareColourConversions() {
+  // The conversions DetectFood and the default featurizer make: float RGB
+  // to CIELAB (the tables are built on the first call).
+  const cv::Mat pixel(1, 1, CV_32FC3, cv::Scalar(0.5, 0.5, 0.5));
+  cv::Mat lab;
+  cv::cvtColor(pixel, lab, cv::COLOR_RGB2Lab);
+}
 
 FoodDetector::FoodDetector(const FoodDetectorOptions& options)
     : options_(options) {}

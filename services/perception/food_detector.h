@@ -130,6 +130,12 @@ struct DetectedFood {
   int area_px = 0;
 };
 
+// OpenCV builds its CIELAB tables on the first colour conversion (about
+// 90 ms on the development machine), so the first DetectFood, and the
+// default featurizer's first Featurize, would pay for them. A service calls
+// this once before it reports SERVING.
+void PrepareColourConversions();
+
 // Thread-compatible and stateless after construction: Detect is const and
 // may run concurrently.
 class FoodDetector {
