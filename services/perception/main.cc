@@ -43,7 +43,8 @@ ABSL_FLAG(bool, retain_freed_memory, true,
           "Keep the memory each request frees for the next one (glibc "
           "malloc: no mmap below 32 MB, no heap trimming), so DetectFood "
           "does not page-fault its buffers in afresh; the process keeps its "
-          "largest working set (tens of MB).");
+          "largest working set (about 37 MiB more resident memory with the "
+          "default featurizer).");
 
 namespace {
 
