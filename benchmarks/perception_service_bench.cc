@@ -22,6 +22,7 @@
 #include <filesystem>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/flags/flag.h"
@@ -31,6 +32,8 @@
 #include "absl/time/time.h"
 #include "bitewise/v1/perception.grpc.pb.h"
 #include "experiments/blind_plates.h"
+#include "services/camera/frame_proto.h"
+#include "services/sim/scene.h"
 #include "tests/common/child_process.h"
 
 ABSL_FLAG(std::string, server, BITEWISE_PERCEPTION_BINARY,
@@ -53,20 +56,11 @@ std::vector<v1::DetectFoodRequest> RenderRequests(int plates, uint64_t seed) {
   options.touch_probability = 0.3;
   std::vector<v1::DetectFoodRequest> requests(plates);
   for (v1::DetectFoodRequest& request : requests) {
-    const bitewise::experiments::BlindPlate plate =
+    bitewise::experiments::BlindPlate plate =
         bitewise::experiments::RenderBlindPlate(rng(), options);
-    const auto& f = plate.frame;
-    v1::Frame* frame = request.mutable_frame();
-    frame->set_width(f.intrinsics.width);
-    frame->set_height(f.intrinsics.height);
-    frame->set_rgb_encoding(v1::IMAGE_ENCODING_RGB8);
-    frame->set_rgb(f.rgb.data(), f.rgb.size());
-    frame->set_depth_mm(f.depth_mm.data(), 2 * f.depth_mm.size());
-    v1::CameraIntrinsics* k = frame->mutable_intrinsics();
-    k->set_fx(f.intrinsics.fx);
-    k->set_fy(f.intrinsics.fy);
-    k->set_cx(f.intrinsics.cx);
-    k->set_cy(f.intrinsics.cy);
+    bitewise::camera::FrameToProto(
+        bitewise::sim::ToRgbdFrame(std::move(plate.frame), 0, 0.0), 0.0,
+        "bench", request.mutable_frame());
   }
   return requests;
 }
