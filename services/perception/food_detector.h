@@ -80,6 +80,21 @@ struct FoodDetectorOptions {
   // top ratio above): a kiwi slice's pale core and seed ring inside its
   // green flesh. Above 1: off.
   double min_enclosed_share = 0.9;
+  // A highlight is part of the item it lies on. A glossy skin (a
+  // strawberry's, a tomato's) reflects the lamp or the window, which adds
+  // white light to the item's own colour: lighter, less chromatic, the same
+  // hue. Two neighbours with no valley between them (by the closing's lift;
+  // the highlight runs along the item's crest, so the seams run down its
+  // flanks) and neither standing on the other are joined when the lighter
+  // one's mean colour is at most max_highlight_below_plate_l darker than the
+  // plate (a highlight is about as light as white ceramic), at most
+  // max_highlight_chroma_share as chromatic as the darker one (at least half
+  // the light there is the reflection), and of its hue within
+  // max_highlight_hue_deg (both at least 8 units of chroma, below which a
+  // hue is noise). 0: never joined.
+  double max_highlight_hue_deg = 10.0;
+  double max_highlight_chroma_share = 0.5;
+  double max_highlight_below_plate_l = 15.0;
   // A stick with an item lying across it shows as two parts; they are
   // joined when the item on them borders both and the line between them
   // runs under that item, they and that item cover at least min_join_fill

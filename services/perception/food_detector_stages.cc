@@ -239,6 +239,7 @@ FoodEvidence FindEvidence(const cv::Mat& rgb, const cv::Mat& height_mm,
   const cv::Vec3f plate_lab(static_cast<float>(Median(ls)),
                             static_cast<float>(Median(as)),
                             static_cast<float>(Median(bs)));
+  evidence.plate_lab = plate_lab;
   cv::Mat& colour = evidence.colour;
   colour = cv::Mat(h, w, CV_8UC1, cv::Scalar(0));
   const float min_de2 = static_cast<float>(options.min_colour_distance *
@@ -295,6 +296,7 @@ FoodEvidence CropEvidence(const FoodEvidence& evidence, const cv::Rect& box) {
   crop.above = evidence.above(box);
   crop.colour = evidence.colour(box);
   if (!evidence.bare.empty()) crop.bare = evidence.bare(box);
+  crop.plate_lab = evidence.plate_lab;
   return crop;
 }
 
@@ -635,6 +637,32 @@ void GrowRegions(const cv::Mat& rgb, const FoodEvidence& evidence,
   cv::watershed(rgb_copy, markers);
 }
 
+namespace {
+
+// Whether one of two mean colours (CIELAB) is a highlight on a surface of
+// the other (FoodDetectorOptions::max_highlight_hue_deg).
+bool IsHighlightOn(const cv::Vec3d& a, const cv::Vec3d& b,
+                   const cv::Vec3f& plate, const FoodDetectorOptions& options) {
+  if (options.max_highlight_hue_deg <= 0.0) return false;
+  constexpr double kMinHueChroma = 8.0;
+  const cv::Vec3d& light = a[0] >= b[0] ? a : b;
+  const cv::Vec3d& dark = a[0] >= b[0] ? b : a;
+  const double light_chroma = std::hypot(light[1], light[2]);
+  const double dark_chroma = std::hypot(dark[1], dark[2]);
+  if (std::min(light_chroma, dark_chroma) < kMinHueChroma ||
+      light_chroma > options.max_highlight_chroma_share * dark_chroma ||
+      light[0] < plate[0] - options.max_highlight_below_plate_l) {
+    return false;
+  }
+  double hue_deg =
+      std::abs(std::atan2(light[2], light[1]) - std::atan2(dark[2], dark[1])) *
+      180.0 / kPi;
+  if (hue_deg > 180.0) hue_deg = 360.0 - hue_deg;
+  return hue_deg <= options.max_highlight_hue_deg;
+}
+
+}  // namespace
+
 void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
                      const cv::Mat& valid, const FoodDetectorOptions& options,
                      Regions& regions) {
@@ -744,11 +772,11 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         options.max_merge_top_ratio * lower_top) {
       continue;
     }
-    // No valley between them, by height and by the closing's lift.
-    const bool no_valley = seam_mm > 0.8 * lower_top &&
-                           seam.dip_sum / seam.count <=
-                               std::max(options.min_valley_mm,
-                                        options.valley_fraction * lower_top);
+    // No valley between them, by the closing's lift and by height.
+    const bool no_dip =
+        seam.dip_sum / seam.count <=
+        std::max(options.min_valley_mm, options.valley_fraction * lower_top);
+    const bool no_valley = seam_mm > 0.8 * lower_top && no_dip;
     // Or one lies inside food, hardly touching the background, and this is
     // its longest seam: a part of the item of another colour (a kiwi's core
     // or its ring of seeds), not an item of its own.
@@ -759,8 +787,11 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
              seam_px == longest_seam[r];
     };
     const bool enclosed = inside(a) || inside(b);
-    if (no_valley &&
-        (cv::norm(diff) < options.min_colour_distance || enclosed)) {
+    if ((no_valley &&
+         (cv::norm(diff) < options.min_colour_distance || enclosed)) ||
+        (no_dip &&
+         IsHighlightOn(lab_sum[a] / lab_count[a], lab_sum[b] / lab_count[b],
+                       evidence.plate_lab, options))) {
       parent[root(a)] = root(b);
     }
   }

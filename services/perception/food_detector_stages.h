@@ -64,11 +64,12 @@ std::optional<PlateRegion> FindPlate(const HeightMap& heights,
                                      const FoodDetectorOptions& options);
 
 struct FoodEvidence {
-  cv::Mat lab;     // CV_32FC3: CIELAB of the roi
-  cv::Mat above;   // CV_8UC1: higher than min_height_mm, holes filled
-  cv::Mat colour;  // CV_8UC1: farther than min_colour_distance from the
-                   // plate's median colour
-  cv::Mat bare;    // CV_8UC1: plainly plate (see max_bare_plate_mm)
+  cv::Mat lab;          // CV_32FC3: CIELAB of the roi
+  cv::Mat above;        // CV_8UC1: higher than min_height_mm, holes filled
+  cv::Mat colour;       // CV_8UC1: farther than min_colour_distance from the
+                        // plate's median colour
+  cv::Mat bare;         // CV_8UC1: plainly plate (see max_bare_plate_mm)
+  cv::Vec3f plate_lab;  // the plate's median colour (CIELAB)
 };
 
 // Food by depth and by colour, inside the plate, and the bare plate between.

@@ -322,6 +322,62 @@ TEST(DetectorStagesTest, MergeJoinsAPartOfAnotherColourInsideAnItem) {
   EXPECT_NE(with.markers.at<int>(240, 375), with.markers.at<int>(240, 275));
 }
 
+TEST(DetectorStagesTest, MergeJoinsAHighlightToTheItemItLiesOn) {
+  // A red cone (a whole strawberry, 20 mm high) whose side towards the lamp
+  // shines, seeded in two halves: the skin and the shining side. Where the
+  // shining side's colour is a highlight (the lamp's white added to the red:
+  // lighter, about as light as the plate, the same hue, a quarter of the
+  // chroma) the two are one item. Their seam runs over the cone's tip and
+  // down to the plate, lower on average than 0.8 of either half's top, with
+  // no valley: the merge's height test would keep them apart, the closing's
+  // lift joins them. A side of another hue, of more than half the skin's
+  // chroma or much darker than the plate stays apart.
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  for (int v = 210; v < 270; ++v) {
+    for (int u = 290; u < 350; ++u) {
+      const double r2 = (u - 320) * (u - 320) + (v - 240) * (v - 240);
+      if (r2 < 900.0) {
+        height.at<float>(v, u) =
+            static_cast<float>(20.0 * (1.0 - std::sqrt(r2) / 30.0));
+      }
+    }
+  }
+  const cv::Mat mask = height > 0.0f;
+  const auto items = [&](const cv::Scalar& side,
+                         const FoodDetectorOptions& options) {
+    Scene scene = MakeScene(height, mask);
+    cv::Mat lit(kH, kW, CV_8UC1, cv::Scalar(0));
+    lit(cv::Rect(320, 0, kW - 320, kH)).setTo(255);
+    scene.rgb.setTo(side, lit & mask);
+    Regions regions;
+    regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(0));
+    regions.markers(cv::Rect(300, 236, 8, 8)).setTo(1);  // skin
+    regions.markers(cv::Rect(332, 236, 8, 8)).setTo(2);  // shining side
+    regions.background = 3;
+    regions.valley_mm = cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0));
+    scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                  scene.plate, options);
+    GrowRegions(scene.rgb, scene.evidence, scene.plate.plate, regions);
+    EXPECT_EQ(ItemLabels(regions), 2);
+    MergeSplitItems(scene.evidence, scene.height_mm, scene.valid, options,
+                    regions);
+    return ItemLabels(regions);
+  };
+  // CIELAB: the skin (200, 60, 50) is L 47, chroma 67, hue 35 degrees; the
+  // plate L 91.
+  const cv::Scalar highlight(240, 200, 195);  // L 84, chroma 16, hue 30
+  EXPECT_EQ(items(highlight, FoodDetectorOptions()), 1);
+  FoodDetectorOptions off;
+  off.max_highlight_hue_deg = 0.0;
+  EXPECT_EQ(items(highlight, off), 2) << "the rule is what joins them";
+  EXPECT_EQ(items(cv::Scalar(240, 235, 190), FoodDetectorOptions()), 2)
+      << "pale yellow: L 92, chroma 23, but hue 104 degrees";
+  EXPECT_EQ(items(cv::Scalar(255, 170, 150), FoodDetectorOptions()), 2)
+      << "L 77, hue 39 degrees, but chroma 37, more than half the skin's";
+  EXPECT_EQ(items(cv::Scalar(150, 110, 105), FoodDetectorOptions()), 2)
+      << "chroma 18, hue 31 degrees, but L 50, far darker than the plate";
+}
+
 // Two flat items of one colour, the second partly lying on the first: the
 // lower one shows as a strip [240, 240 + shown) x [220, 260) of
 // `lower_mm`, the upper one [240 + shown, 340) x [220, 260) stands
