@@ -286,6 +286,22 @@ TEST(DetectorStagesTest, FindEvidenceTakesAShadowOnThePlateForPlate) {
   EXPECT_EQ(evidence(FoodDetectorOptions()).colour.at<uint8_t>(240, 335), 255);
 }
 
+// Grows and merges regions from seeds 1..n (the boxes, in order).
+Regions GrowAndMerge(const Scene& scene, const std::vector<cv::Rect>& seeds,
+                     const FoodDetectorOptions& options) {
+  Regions regions;
+  regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(0));
+  for (size_t i = 0; i < seeds.size(); ++i) {
+    regions.markers(seeds[i]).setTo(static_cast<int>(i) + 1);
+  }
+  regions.background = static_cast<int>(seeds.size()) + 1;
+  regions.valley_mm = cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0));
+  GrowRegions(scene.rgb, scene.evidence, scene.plate.plate, regions);
+  MergeSplitItems(scene.evidence, scene.height_mm, scene.valid, options,
+                  regions);
+  return regions;
+}
+
 TEST(DetectorStagesTest, MergeJoinsAPartOfAnotherColourInsideAnItem) {
   // A flat green slice (10 mm) with a pale core of its own colour seeded
   // apart (a kiwi slice's core), and a red slice touching it outside. The
@@ -297,21 +313,14 @@ TEST(DetectorStagesTest, MergeJoinsAPartOfAnotherColourInsideAnItem) {
   Scene scene = MakeScene(height, height > 0.0f);
   cv::circle(scene.rgb, {300, 240}, 40, cv::Scalar(90, 170, 60), cv::FILLED);
   cv::circle(scene.rgb, {300, 240}, 12, cv::Scalar(230, 225, 170), cv::FILLED);
+  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                scene.plate, FoodDetectorOptions());
   const auto items = [&scene](const FoodDetectorOptions& options) {
-    Regions regions;
-    regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(0));
-    regions.markers(cv::Rect(270, 230, 8, 20)).setTo(1);   // flesh
-    regions.markers(cv::Rect(296, 236, 8, 8)).setTo(2);    // core
-    regions.markers(cv::Rect(370, 230, 10, 20)).setTo(3);  // the red slice
-    regions.background = 4;
-    regions.valley_mm = cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0));
-    scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
-                                  scene.plate, options);
-    GrowRegions(scene.rgb, scene.evidence, scene.plate.plate, regions);
-    EXPECT_EQ(ItemLabels(regions), 3);
-    MergeSplitItems(scene.evidence, scene.height_mm, scene.valid, options,
-                    regions);
-    return regions;
+    return GrowAndMerge(scene,
+                        {cv::Rect(270, 230, 8, 20),    // flesh
+                         cv::Rect(296, 236, 8, 8),     // core
+                         cv::Rect(370, 230, 10, 20)},  // the red slice
+                        options);
   };
   FoodDetectorOptions off;
   off.min_enclosed_share = 2.0;
@@ -349,19 +358,12 @@ TEST(DetectorStagesTest, MergeJoinsAHighlightToTheItemItLiesOn) {
     cv::Mat lit(kH, kW, CV_8UC1, cv::Scalar(0));
     lit(cv::Rect(320, 0, kW - 320, kH)).setTo(255);
     scene.rgb.setTo(side, lit & mask);
-    Regions regions;
-    regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(0));
-    regions.markers(cv::Rect(300, 236, 8, 8)).setTo(1);  // skin
-    regions.markers(cv::Rect(332, 236, 8, 8)).setTo(2);  // shining side
-    regions.background = 3;
-    regions.valley_mm = cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0));
     scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
-                                  scene.plate, options);
-    GrowRegions(scene.rgb, scene.evidence, scene.plate.plate, regions);
-    EXPECT_EQ(ItemLabels(regions), 2);
-    MergeSplitItems(scene.evidence, scene.height_mm, scene.valid, options,
-                    regions);
-    return ItemLabels(regions);
+                                  scene.plate, FoodDetectorOptions());
+    return ItemLabels(GrowAndMerge(scene,
+                                   {cv::Rect(300, 236, 8, 8),   // skin
+                                    cv::Rect(332, 236, 8, 8)},  // shining
+                                   options));
   };
   // CIELAB: the skin (200, 60, 50) is L 47, chroma 67, hue 35 degrees; the
   // plate L 91.
@@ -547,22 +549,6 @@ Scene PartsUnderAnItem(const std::vector<cv::Rect>& rects,
   scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
                                 scene.plate, FoodDetectorOptions());
   return scene;
-}
-
-// Grows and merges regions from seeds 1..n (the boxes, in order).
-Regions GrowAndMerge(const Scene& scene, const std::vector<cv::Rect>& seeds,
-                     const FoodDetectorOptions& options) {
-  Regions regions;
-  regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(0));
-  for (size_t i = 0; i < seeds.size(); ++i) {
-    regions.markers(seeds[i]).setTo(static_cast<int>(i) + 1);
-  }
-  regions.background = static_cast<int>(seeds.size()) + 1;
-  regions.valley_mm = cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0));
-  GrowRegions(scene.rgb, scene.evidence, scene.plate.plate, regions);
-  MergeSplitItems(scene.evidence, scene.height_mm, scene.valid, options,
-                  regions);
-  return regions;
 }
 
 TEST(DetectorStagesTest, MergeJoinsTheShortStubsOfAStickUnderAnItem) {
