@@ -761,8 +761,9 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   for (const auto& [pair, seam] : boundary) {
     const auto [a, b] = pair;
     if (seam.count < 3 || lab_count[a] == 0 || lab_count[b] == 0) continue;
-    const cv::Vec3d diff =
-        lab_sum[a] / lab_count[a] - lab_sum[b] / lab_count[b];
+    const cv::Vec3d colour_a = lab_sum[a] / lab_count[a];
+    const cv::Vec3d colour_b = lab_sum[b] / lab_count[b];
+    const cv::Vec3d diff = colour_a - colour_b;
     const double seam_mm = seam.height_sum / seam.count;
     const double lower_top = std::min(top_mm[a], top_mm[b]);
     // One item lying on the other: the upper one's top stands well above
@@ -790,8 +791,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     if ((no_valley &&
          (cv::norm(diff) < options.min_colour_distance || enclosed)) ||
         (no_dip &&
-         IsHighlightOn(lab_sum[a] / lab_count[a], lab_sum[b] / lab_count[b],
-                       evidence.plate_lab, options))) {
+         IsHighlightOn(colour_a, colour_b, evidence.plate_lab, options))) {
       parent[root(a)] = root(b);
     }
   }
