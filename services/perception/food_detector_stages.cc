@@ -702,8 +702,9 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   struct Seam {
     double height_sum = 0.0;
     double dip_sum = 0.0;
-    int count = 0;      // with valid depth
-    int all_count = 0;  // every ridge pixel between the two
+    int count = 0;       // with valid depth
+    int all_count = 0;   // every ridge pixel between the two
+    double l_sum = 0.0;  // CIELAB L over all_count
   };
   std::map<std::pair<int, int>, Seam> boundary;
   // Per region: the ridge pixels beside it, and those of them that also
@@ -714,6 +715,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     const auto* hv = height_mm.ptr<float>(v);
     const auto* ok = valid.ptr<uint8_t>(v);
     const auto* dip = valley.ptr<float>(v);
+    const auto* px = lab.ptr<cv::Vec3f>(v);
     for (int u = 1; u + 1 < w; ++u) {
       if (m[u] != -1) continue;
       int found[4];
@@ -735,6 +737,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         for (int b = a + 1; b < n_found; ++b) {
           auto& entry = boundary[std::minmax(found[a], found[b])];
           ++entry.all_count;
+          entry.l_sum += px[u][0];
           if (ok[u]) {
             entry.height_sum += hv[u];
             entry.dip_sum += dip[u];
@@ -764,6 +767,13 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     const cv::Vec3d colour_a = lab_sum[a] / lab_count[a];
     const cv::Vec3d colour_b = lab_sum[b] / lab_count[b];
     const cv::Vec3d diff = colour_a - colour_b;
+    // A crease between two bodies is shaded: no merge across it, whatever
+    // their colour and height (FoodDetectorOptions::min_crease_shade_l).
+    if (options.min_crease_shade_l > 0.0 &&
+        seam.l_sum / seam.all_count <
+            std::min(colour_a[0], colour_b[0]) - options.min_crease_shade_l) {
+      continue;
+    }
     const double seam_mm = seam.height_sum / seam.count;
     const double lower_top = std::min(top_mm[a], top_mm[b]);
     // One item lying on the other: the upper one's top stands well above

@@ -380,6 +380,34 @@ TEST(DetectorStagesTest, MergeJoinsAHighlightToTheItemItLiesOn) {
       << "chroma 18, hue 31 degrees, but L 50, far darker than the plate";
 }
 
+TEST(DetectorStagesTest, MergeKeepsApartTwoItemsWithAShadedCreaseBetween) {
+  // Two red slabs (15 mm) side by side, seeded at their far ends: nothing in
+  // height or colour tells them from one slab seeded twice. Where two items
+  // touch, each hides part of the light from the crease between them, so a
+  // dark line 4 px wide marks it: the two stay apart. A line about as dark as
+  // the slabs (a seam inside one item) does not keep them apart.
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  height(cv::Rect(260, 220, 120, 40)).setTo(15.0f);
+  Scene scene = MakeScene(height, height > 0.0f);
+  const auto items = [&scene](const cv::Scalar& crease,
+                              const FoodDetectorOptions& options) {
+    scene.rgb(cv::Rect(318, 220, 4, 40)).setTo(crease);
+    scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                  scene.plate, FoodDetectorOptions());
+    return ItemLabels(GrowAndMerge(
+        scene, {cv::Rect(270, 230, 10, 20), cv::Rect(360, 230, 10, 20)},
+        options));
+  };
+  // CIELAB L: the slabs (200, 60, 50) 47, the shaded crease 32, the faint one
+  // 45.
+  const cv::Scalar shaded(140, 40, 35), faint(192, 57, 48);
+  EXPECT_EQ(items(shaded, FoodDetectorOptions()), 2);
+  FoodDetectorOptions off;
+  off.min_crease_shade_l = 0.0;
+  EXPECT_EQ(items(shaded, off), 1) << "the rule is what keeps them apart";
+  EXPECT_EQ(items(faint, FoodDetectorOptions()), 1);
+}
+
 // Two flat items of one colour, the second partly lying on the first: the
 // lower one shows as a strip [240, 240 + shown) x [220, 260) of
 // `lower_mm`, the upper one [240 + shown, 340) x [220, 260) stands
