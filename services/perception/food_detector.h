@@ -96,14 +96,14 @@ struct FoodDetectorOptions {
   double max_highlight_chroma_share = 0.5;
   double max_highlight_below_plate_l = 15.0;
   // Two bodies that touch shade the crease between them: each hides part of
-  // the room's light from it. (On blind tuning plates, seams between two
-  // items that the merge joined were a median 8.3 L darker than the darker
-  // item; seams inside one item, a median 5.3 L lighter.) Two neighbours
-  // whose seam is on average more than min_crease_shade_l (CIELAB L) darker
-  // than the darker of the two are not merged by the colour, inside or
-  // highlight test, whatever their colour and height. (They can still end
-  // up one region through a third, and the stick join does not look at
-  // seams.) 0: off.
+  // the room's light from it. (On blind tuning plates, over the pairs the
+  // merge joined, seams between two items were a median 8.3 L darker than
+  // the darker region; seams inside one item, a median 5.3 L lighter.) Two
+  // neighbours whose seam is on average more than min_crease_shade_l
+  // (CIELAB L) darker than the darker of the two are not merged by the
+  // colour, inside or highlight test, whatever their colour and height.
+  // (They can still end up one region through a third, and the stick join
+  // does not look at seams.) 0: off.
   double min_crease_shade_l = 4.0;
   // A stick with an item lying across it shows as two parts; they are
   // joined when the item on them borders both and the line between them
