@@ -105,6 +105,19 @@ struct FoodDetectorOptions {
   // (They can still end up one region through a third, and the stick join
   // does not look at seams.) 0: off.
   double min_crease_shade_l = 4.0;
+  // A valley that runs across a seam is not a valley between the two
+  // regions. A celery stick is a U-shaped channel: its floor lies below its
+  // walls, so the closing lifts the whole floor, and a seam that cuts the
+  // stick crosswise crosses that valley instead of following it. Where two
+  // items touch, the lift peaks on the seam and falls off to either side.
+  // So the lift is also sampled valley_flank_px to either side of each seam
+  // pixel, across the seam and inside the two regions; when a seam with a
+  // dip is lifted there on average at least min_valley_flank_share as much
+  // as on the seam, the dip does not keep two regions of similar colour
+  // apart (the colour test of the merge; the shaded-crease and top-ratio
+  // tests still apply). 0: off.
+  int valley_flank_px = 5;
+  double min_valley_flank_share = 0.8;
   // A stick with an item lying across it shows as two parts; they are
   // joined when the item on them borders both and the line between them
   // runs under that item, they and that item cover at least min_join_fill

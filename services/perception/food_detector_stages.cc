@@ -705,8 +705,40 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     int count = 0;       // with valid depth
     int all_count = 0;   // every ridge pixel between the two
     double l_sum = 0.0;  // CIELAB L over all_count
+    // The lift on the seam and valley_flank_px to either side of it, over
+    // the seam pixels whose two flanks lie in the two regions.
+    double seam_lift_sum = 0.0, flank_lift_sum = 0.0;
+    int flank_count = 0;
   };
   std::map<std::pair<int, int>, Seam> boundary;
+  // The seam pixel (u, v) between regions a and b: its lift, and the mean
+  // lift valley_flank_px away on either side, across the seam (from b's
+  // neighbours of the pixel towards a's), when those two points lie in a
+  // and in b.
+  const int flank = options.valley_flank_px;
+  const auto add_flank_lift = [&](int u, int v, int a, int b, Seam& seam) {
+    if (options.min_valley_flank_share <= 0.0) return;
+    int du = 0, dv = 0;
+    for (const auto& [ou, ov] : {std::pair{-1, 0}, {1, 0}, {0, -1}, {0, 1}}) {
+      const int n = markers.at<int>(v + ov, u + ou);
+      const int sign = n == a ? 1 : n == b ? -1 : 0;
+      du += sign * ou;
+      dv += sign * ov;
+    }
+    const double norm = std::hypot(du, dv);
+    if (norm == 0.0) return;
+    const int u1 = cvRound(u + flank * du / norm);
+    const int v1 = cvRound(v + flank * dv / norm);
+    const int u2 = cvRound(u - flank * du / norm);
+    const int v2 = cvRound(v - flank * dv / norm);
+    const cv::Rect image(0, 0, w, h);
+    if (!image.contains({u1, v1}) || !image.contains({u2, v2})) return;
+    if (markers.at<int>(v1, u1) != a || markers.at<int>(v2, u2) != b) return;
+    seam.seam_lift_sum += valley.at<float>(v, u);
+    seam.flank_lift_sum +=
+        0.5 * (valley.at<float>(v1, u1) + valley.at<float>(v2, u2));
+    ++seam.flank_count;
+  };
   // Per region: the ridge pixels beside it, and those of them that also
   // border the background.
   std::vector<int> ridge_beside(n_cores, 0), open_beside(n_cores, 0);
@@ -738,6 +770,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
           auto& entry = boundary[std::minmax(found[a], found[b])];
           ++entry.all_count;
           entry.l_sum += px[u][0];
+          add_flank_lift(u, v, found[a], found[b], entry);
           if (ok[u]) {
             entry.height_sum += hv[u];
             entry.dip_sum += dip[u];
@@ -788,6 +821,13 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         seam.dip_sum / seam.count <=
         std::max(options.min_valley_mm, options.valley_fraction * lower_top);
     const bool no_valley = seam_mm > 0.8 * lower_top && no_dip;
+    // Or the dip is a valley running across the seam, lifted as much beside
+    // it as on it (a celery stick's channel, cut crosswise).
+    const bool valley_across =
+        options.min_valley_flank_share > 0.0 && !no_dip &&
+        seam.flank_count >= 3 &&
+        seam.flank_lift_sum >=
+            options.min_valley_flank_share * seam.seam_lift_sum;
     // Or one lies inside food, hardly touching the background, and this is
     // its longest seam: a part of the item of another colour (a kiwi's core
     // or its ring of seeds), not an item of its own.
@@ -798,8 +838,9 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
              seam_px == longest_seam[r];
     };
     const bool enclosed = inside(a) || inside(b);
-    if ((no_valley &&
-         (cv::norm(diff) < options.min_colour_distance || enclosed)) ||
+    if (((no_valley || valley_across) &&
+         cv::norm(diff) < options.min_colour_distance) ||
+        (no_valley && enclosed) ||
         (no_dip &&
          IsHighlightOn(colour_a, colour_b, evidence.plate_lab, options))) {
       parent[root(a)] = root(b);

@@ -287,15 +287,19 @@ TEST(DetectorStagesTest, FindEvidenceTakesAShadowOnThePlateForPlate) {
 }
 
 // Grows and merges regions from seeds 1..n (the boxes, in order).
+// Grows the seeds (label i + 1 for seeds[i]) and merges them; the closing's
+// lift is `valley_mm` (none when empty).
 Regions GrowAndMerge(const Scene& scene, const std::vector<cv::Rect>& seeds,
-                     const FoodDetectorOptions& options) {
+                     const FoodDetectorOptions& options,
+                     const cv::Mat& valley_mm = cv::Mat()) {
   Regions regions;
   regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(0));
   for (size_t i = 0; i < seeds.size(); ++i) {
     regions.markers(seeds[i]).setTo(static_cast<int>(i) + 1);
   }
   regions.background = static_cast<int>(seeds.size()) + 1;
-  regions.valley_mm = cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0));
+  regions.valley_mm =
+      valley_mm.empty() ? cv::Mat(kH, kW, CV_32FC1, cv::Scalar(0)) : valley_mm;
   GrowRegions(scene.rgb, scene.evidence, scene.plate.plate, regions);
   MergeSplitItems(scene.evidence, scene.height_mm, scene.valid, options,
                   regions);
@@ -406,6 +410,48 @@ TEST(DetectorStagesTest, MergeKeepsApartTwoItemsWithAShadedCreaseBetween) {
   off.min_crease_shade_l = 0.0;
   EXPECT_EQ(items(shaded, off), 1) << "the rule is what keeps them apart";
   EXPECT_EQ(items(faint, FoodDetectorOptions()), 1);
+}
+
+TEST(DetectorStagesTest, MergeJoinsAChannelCutCrosswiseNotTwoTouchingRods) {
+  // A celery-like stick: a U channel 160 px long, walls 8 px wide and 12 mm
+  // high either side of a floor 24 px wide at 6 mm, seeded at its two ends.
+  // The seam between the two halves crosses the floor, which the closing
+  // lifts all along the channel: the valley runs across the seam, so the
+  // halves are one item. Two round rods touching side by side, seeded one
+  // each, meet in a crease that the lift follows: they stay two.
+  const auto merged_items = [](const cv::Mat& height,
+                               const std::vector<cv::Rect>& seeds,
+                               const FoodDetectorOptions& options) {
+    const Scene scene = MakeScene(height, height > 0.0f);
+    const std::optional<Regions> planted =
+        PlantSeeds(scene.evidence, scene.height_mm, options);
+    EXPECT_TRUE(planted.has_value());
+    return ItemLabels(GrowAndMerge(scene, seeds, options, planted->valley_mm));
+  };
+  cv::Mat channel(kH, kW, CV_32FC1, cv::Scalar(0));
+  channel(cv::Rect(240, 220, 160, 40)).setTo(12.0f);
+  channel(cv::Rect(240, 228, 160, 24)).setTo(6.0f);
+  const std::vector<cv::Rect> ends = {cv::Rect(245, 222, 10, 36),
+                                      cv::Rect(385, 222, 10, 36)};
+  EXPECT_EQ(merged_items(channel, ends, FoodDetectorOptions()), 1);
+  FoodDetectorOptions off;
+  off.min_valley_flank_share = 0.0;
+  EXPECT_EQ(merged_items(channel, ends, off), 2)
+      << "the floor's dip keeps the halves apart without the rule";
+  // Two rods of radius 20 px (12 mm high) along x, touching at v = 240.
+  cv::Mat rods(kH, kW, CV_32FC1, cv::Scalar(0));
+  for (int v = 200; v < 280; ++v) {
+    const double across = std::fabs((v < 240 ? 220.5 : 259.5) - v) / 20.0;
+    if (across < 1.0) {
+      rods(cv::Rect(240, v, 160, 1))
+          .setTo(static_cast<float>(12.0 * std::sqrt(1.0 - across * across)));
+    }
+  }
+  EXPECT_EQ(
+      merged_items(rods,
+                   {cv::Rect(250, 215, 140, 10), cv::Rect(250, 255, 140, 10)},
+                   FoodDetectorOptions()),
+      2);
 }
 
 // Two flat items of one colour, the second partly lying on the first: the
