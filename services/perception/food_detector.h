@@ -118,18 +118,6 @@ struct FoodDetectorOptions {
   // tests still apply). 0: off.
   int valley_flank_px = 5;
   double min_valley_flank_share = 0.8;
-  // A colour boundary on one surface is not where two items meet. A halved
-  // strawberry's cut face (a pale core in red flesh) changes colour where
-  // its surface goes on unbroken; two items meet at a crease, a step or
-  // their rounded edges. Two neighbours with no valley between them and
-  // neither standing on the other are merged whatever their colour when,
-  // read valley_flank_px to either side of the seam (inside the two
-  // regions, where depth is valid on the seam and both sides), the two
-  // sides differ in height on average by at most max_flush_share of the
-  // lower top, and their mean height is within that of the seam's. Two
-  // flat items of one thickness with square edges, touching, are joined
-  // too. 0: off.
-  double max_flush_share = 0.06;
   // A stick with an item lying across it shows as two parts; they are
   // joined when the item on them borders both and the line between them
   // runs under that item, they and that item cover at least min_join_fill

@@ -709,22 +709,15 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     // the seam pixels whose two flanks lie in the two regions.
     double seam_lift_sum = 0.0, flank_lift_sum = 0.0;
     int flank_count = 0;
-    // Over those of them with valid depth on the seam and both flanks: the
-    // seam's height, the flanks' mean height and their difference.
-    double flush_seam_mm = 0.0, flush_flank_mm = 0.0, flush_step_mm = 0.0;
-    int flush_count = 0;
   };
   std::map<std::pair<int, int>, Seam> boundary;
-  // The seam pixel (u, v) between regions a and b, against the two points
-  // valley_flank_px away on either side, across the seam (from b's
-  // neighbours of the pixel towards a's), when those lie in a and in b:
-  // their lift, and where depth is valid on all three, their heights.
+  // The seam pixel (u, v) between regions a and b: its lift, and the mean
+  // lift valley_flank_px away on either side, across the seam (from b's
+  // neighbours of the pixel towards a's), when those two points lie in a
+  // and in b.
   const int flank = options.valley_flank_px;
-  const auto add_flanks = [&](int u, int v, int a, int b, Seam& seam) {
-    if (options.min_valley_flank_share <= 0.0 &&
-        options.max_flush_share <= 0.0) {
-      return;
-    }
+  const auto add_flank_lift = [&](int u, int v, int a, int b, Seam& seam) {
+    if (options.min_valley_flank_share <= 0.0) return;
     int du = 0, dv = 0;
     for (const auto& [ou, ov] : {std::pair{-1, 0}, {1, 0}, {0, -1}, {0, 1}}) {
       const int n = markers.at<int>(v + ov, u + ou);
@@ -745,15 +738,6 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     seam.flank_lift_sum +=
         0.5 * (valley.at<float>(v1, u1) + valley.at<float>(v2, u2));
     ++seam.flank_count;
-    if (valid.at<uint8_t>(v, u) && valid.at<uint8_t>(v1, u1) &&
-        valid.at<uint8_t>(v2, u2)) {
-      const float h1 = height_mm.at<float>(v1, u1);
-      const float h2 = height_mm.at<float>(v2, u2);
-      seam.flush_seam_mm += height_mm.at<float>(v, u);
-      seam.flush_flank_mm += 0.5 * (h1 + h2);
-      seam.flush_step_mm += std::fabs(h1 - h2);
-      ++seam.flush_count;
-    }
   };
   // Per region: the ridge pixels beside it, and those of them that also
   // border the background.
@@ -786,7 +770,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
           auto& entry = boundary[std::minmax(found[a], found[b])];
           ++entry.all_count;
           entry.l_sum += px[u][0];
-          add_flanks(u, v, found[a], found[b], entry);
+          add_flank_lift(u, v, found[a], found[b], entry);
           if (ok[u]) {
             entry.height_sum += hv[u];
             entry.dip_sum += dip[u];
@@ -854,16 +838,9 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
              seam_px == longest_seam[r];
     };
     const bool enclosed = inside(a) || inside(b);
-    // Or the surface goes on across the seam, flush: a colour boundary on
-    // one surface (FoodDetectorOptions::max_flush_share).
-    const double flush_mm = options.max_flush_share * lower_top;
-    const bool flush = options.max_flush_share > 0.0 && seam.flush_count >= 5 &&
-                       seam.flush_step_mm <= flush_mm * seam.flush_count &&
-                       std::fabs(seam.flush_flank_mm - seam.flush_seam_mm) <=
-                           flush_mm * seam.flush_count;
     if (((no_valley || valley_across) &&
          cv::norm(diff) < options.min_colour_distance) ||
-        (no_valley && (enclosed || flush)) ||
+        (no_valley && enclosed) ||
         (no_dip &&
          IsHighlightOn(colour_a, colour_b, evidence.plate_lab, options))) {
       parent[root(a)] = root(b);

@@ -310,10 +310,7 @@ TEST(DetectorStagesTest, MergeJoinsAPartOfAnotherColourInsideAnItem) {
   // A flat green slice (10 mm) with a pale core of its own colour seeded
   // apart (a kiwi slice's core), and a red slice touching it outside. The
   // core is joined to the slice; the red slice, whose boundary is mostly
-  // with the plate, stays apart. (Both slices are 10 mm with square edges,
-  // flush where they touch, which the flush test would join whatever their
-  // colour; it is off here and tested in
-  // MergeJoinsAColourBoundaryOnOneFlushSurface.)
+  // with the plate, stays apart.
   cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
   cv::circle(height, {300, 240}, 40, cv::Scalar(10.0), cv::FILLED);
   cv::circle(height, {370, 240}, 30, cv::Scalar(10.0), cv::FILLED);
@@ -329,40 +326,13 @@ TEST(DetectorStagesTest, MergeJoinsAPartOfAnotherColourInsideAnItem) {
                          cv::Rect(370, 230, 10, 20)},  // the red slice
                         options);
   };
-  FoodDetectorOptions on;
-  on.max_flush_share = 0.0;
-  FoodDetectorOptions off = on;
+  FoodDetectorOptions off;
   off.min_enclosed_share = 2.0;
   EXPECT_EQ(ItemLabels(items(off)), 3) << "the core is an item of its own";
-  const Regions with = items(on);
+  const Regions with = items(FoodDetectorOptions());
   EXPECT_EQ(ItemLabels(with), 2);
   EXPECT_EQ(with.markers.at<int>(240, 300), with.markers.at<int>(240, 275));
   EXPECT_NE(with.markers.at<int>(240, 375), with.markers.at<int>(240, 275));
-}
-
-TEST(DetectorStagesTest, MergeJoinsAColourBoundaryOnOneFlushSurface) {
-  // A flat slab (10 mm), red on the left and pale pink on the right (a
-  // halved strawberry's cut face: red flesh, pale core), seeded once on
-  // each colour. The surface goes on flush across the colour boundary: one
-  // item, and two with the rule off. A red slab of 10 mm touching a pink one
-  // of 8 mm meets it at a step: two items.
-  const auto items = [](float right_mm, const FoodDetectorOptions& options) {
-    cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
-    height(cv::Rect(260, 220, 60, 40)).setTo(10.0f);
-    height(cv::Rect(320, 220, 60, 40)).setTo(right_mm);
-    Scene scene = MakeScene(height, height > 0.0f);
-    scene.rgb(cv::Rect(320, 220, 60, 40)).setTo(cv::Scalar(235, 170, 170));
-    scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
-                                  scene.plate, FoodDetectorOptions());
-    return ItemLabels(GrowAndMerge(
-        scene, {cv::Rect(270, 230, 10, 20), cv::Rect(360, 230, 10, 20)},
-        options));
-  };
-  EXPECT_EQ(items(10.0f, FoodDetectorOptions()), 1);
-  FoodDetectorOptions off;
-  off.max_flush_share = 0.0;
-  EXPECT_EQ(items(10.0f, off), 2) << "the colours differ by more than 14";
-  EXPECT_EQ(items(8.0f, FoodDetectorOptions()), 2);
 }
 
 TEST(DetectorStagesTest, MergeJoinsAHighlightToTheItemItLiesOn) {
