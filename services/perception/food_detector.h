@@ -112,10 +112,11 @@ struct FoodDetectorOptions {
   // items touch, the lift peaks on the seam and falls off to either side.
   // So the lift is also sampled valley_flank_px to either side of each seam
   // pixel, across the seam and inside the two regions; when a seam with a
-  // dip is lifted there on average at least min_valley_flank_share as much
-  // as on the seam, the dip does not keep two regions of similar colour
-  // apart (the colour test of the merge; the shaded-crease and top-ratio
-  // tests still apply). 0: off.
+  // dip has at least 3 such readings and is lifted there on average at
+  // least min_valley_flank_share as much as on the seam, neither the dip
+  // nor the seam's height (low on a channel's floor) keeps two regions of
+  // similar colour apart (the colour test of the merge; the shaded-crease
+  // and top-ratio tests still apply). 0: off.
   int valley_flank_px = 5;
   double min_valley_flank_share = 0.8;
   // A stick with an item lying across it shows as two parts; they are

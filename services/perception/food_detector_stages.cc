@@ -821,8 +821,9 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         seam.dip_sum / seam.count <=
         std::max(options.min_valley_mm, options.valley_fraction * lower_top);
     const bool no_valley = seam_mm > 0.8 * lower_top && no_dip;
-    // Or the dip is a valley running across the seam, lifted as much beside
-    // it as on it (a celery stick's channel, cut crosswise).
+    // Or the dip is a valley running across the seam, lifted nearly as much
+    // beside it as on it (a celery stick's channel, cut crosswise); then
+    // neither the dip nor the seam's height keeps the two apart.
     const bool valley_across =
         options.min_valley_flank_share > 0.0 && !no_dip &&
         seam.flank_count >= 3 &&
