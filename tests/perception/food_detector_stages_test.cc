@@ -286,9 +286,8 @@ TEST(DetectorStagesTest, FindEvidenceTakesAShadowOnThePlateForPlate) {
   EXPECT_EQ(evidence(FoodDetectorOptions()).colour.at<uint8_t>(240, 335), 255);
 }
 
-// Grows and merges regions from seeds 1..n (the boxes, in order).
-// Grows the seeds (label i + 1 for seeds[i]) and merges them; the closing's
-// lift is `valley_mm` (none when empty).
+// Grows and merges regions from seeds 1..n (the boxes, in order); the
+// closing's lift is `valley_mm` (none when empty).
 Regions GrowAndMerge(const Scene& scene, const std::vector<cv::Rect>& seeds,
                      const FoodDetectorOptions& options,
                      const cv::Mat& valley_mm = cv::Mat()) {
