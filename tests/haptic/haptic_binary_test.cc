@@ -454,6 +454,41 @@ TEST(HapticBinaryTest, AWindowFlagThatContradictsTheModelStopsTheStart) {
   EXPECT_THAT(process.log(), HasSubstr(path));
 }
 
+// The trainer's --conv_channels: a layer of no channels stops it naming the
+// flag; a front end trains, is recorded in the model, and the service loads
+// and serves that file like any other.
+TEST(HapticTrainerBinaryTest, ConvolutionalFrontEndIsCheckedAndServed) {
+  std::string log;
+  int status = TrainSmall("conv_bad", {"--conv_channels=16,0"}, &log);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  EXPECT_THAT(log, HasSubstr("--conv_channels: a convolutional layer of 0 "
+                             "channels: need >= 1"));
+  status = TrainSmall(
+      "conv_good",
+      {"--conv_channels=4,8", "--traces_per_class=100", "--max_epochs=10"},
+      &log);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  // The trainer checks OpenCV's run of the file against its own pass.
+  EXPECT_THAT(log, HasSubstr("OpenCV DNN vs reference"));
+  const std::string path = ::testing::TempDir() + "/conv_good.onnx";
+  onnx::ModelProto model;
+  ASSERT_TRUE(model.ParseFromString(ReadFile(path)));
+  bool recorded = false;
+  for (const auto& entry : model.metadata_props()) {
+    recorded |=
+        entry.key() == "bitewise.conv_channels" && entry.value() == "4,8";
+  }
+  EXPECT_TRUE(recorded);
+  // Trained enough to call the test trace right, which the check expects.
+  HapticProcess process("conv_served");
+  ASSERT_NO_FATAL_FAILURE(process.Spawn({"--model=" + path}));
+  ExpectServesAndStops(process);
+}
+
 TEST(HapticBinaryTest, BadPipelineFlagStopsTheStart) {
   HapticProcess process("bad_flag");
   ASSERT_NO_FATAL_FAILURE(

@@ -53,6 +53,28 @@ HapticNetWeights RandomWeights(uint64_t seed) {
   return w;
 }
 
+// RandomWeights behind a seeded convolutional front end of `channels`.
+HapticNetWeights RandomConvWeights(uint64_t seed,
+                                   const std::vector<int>& channels) {
+  HapticNetWeights w = RandomWeights(seed);
+  absl::StatusOr<HapticNetWeights> shaped = WeightsWithFrontEnd(channels);
+  EXPECT_TRUE(shaped.ok()) << shaped.status();
+  w.conv = shaped->conv;
+  std::mt19937_64 rng(seed + 1000);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (ConvLayer& layer : w.conv) {
+    const double scale = std::sqrt(2.0 / (layer.in_channels * kConvKernel));
+    for (double& v : layer.weight) v = scale * normal(rng);
+    for (double& v : layer.bias) v = 0.1 * normal(rng);
+  }
+  w.w1 = RowMatrix(FrontEndOutputs(w.conv), kHapticHidden);
+  for (Eigen::Index i = 0; i < w.w1.size(); ++i) {
+    w.w1.data()[i] = std::sqrt(2.0 / w.w1.rows()) * normal(rng);
+  }
+  RoundToFloat(w);
+  return w;
+}
+
 std::array<float, kHapticInputs> RandomInput(std::mt19937_64& rng) {
   std::normal_distribution<double> normal(0.0, 3.0);
   std::array<float, kHapticInputs> x;
@@ -105,6 +127,116 @@ TEST(HapticNetTest, OnnxRoundTripOfTrainedWeightsOnRealWindows) {
       HapticNet::FromOnnxBytes(HapticNetToOnnx(result->weights, {}), "test");
   ASSERT_TRUE(net.ok()) << net.status();
   ExpectSameOutputs(result->weights, **net, validation.inputs);
+}
+
+// The front end written out from its definition, one multiply at a time
+// (zero padding, ReLU, the larger of each pair), independent of
+// ConvForward's loop order.
+std::array<double, kHapticClasses> DenseConvLogits(
+    const HapticNetWeights& w, const std::array<float, kHapticInputs>& x) {
+  std::vector<double> a(kHapticInputs);
+  for (int i = 0; i < kHapticInputs; ++i) {
+    a[i] = (x[i] - w.input_mean[i]) / w.input_stddev[i];
+  }
+  int length = kWindowPoints;
+  for (const ConvLayer& layer : w.conv) {
+    std::vector<double> pooled(layer.out_channels * (length / 2));
+    for (int co = 0; co < layer.out_channels; ++co) {
+      auto at = [&](int l) {
+        double z = layer.bias[co];
+        for (int ci = 0; ci < layer.in_channels; ++ci) {
+          for (int t = 0; t < kConvKernel; ++t) {
+            const int m = l + t - kConvKernel / 2;
+            if (m < 0 || m >= length) continue;
+            z +=
+                layer.weight[(ci * kConvKernel + t) * layer.out_channels + co] *
+                a[ci * length + m];
+          }
+        }
+        return std::max(z, 0.0);
+      };
+      for (int j = 0; j < length / 2; ++j) {
+        pooled[co * (length / 2) + j] = std::max(at(2 * j), at(2 * j + 1));
+      }
+    }
+    a = pooled;
+    length /= 2;
+  }
+  auto dense = [](const std::vector<double>& in, const RowMatrix& m,
+                  const Eigen::RowVectorXd& b, bool relu) {
+    std::vector<double> out(m.cols());
+    for (Eigen::Index o = 0; o < m.cols(); ++o) {
+      double z = b[o];
+      for (Eigen::Index i = 0; i < m.rows(); ++i) z += in[i] * m(i, o);
+      out[o] = relu ? std::max(z, 0.0) : z;
+    }
+    return out;
+  };
+  const std::vector<double> logits = dense(
+      dense(dense(a, w.w1, w.b1, true), w.w2, w.b2, true), w.w3, w.b3, false);
+  return {logits[0], logits[1], logits[2], logits[3]};
+}
+
+TEST(HapticNetTest, ConvolutionalFrontEndMatchesItsDefinitionAndOpenCv) {
+  for (const std::vector<int>& channels :
+       std::vector<std::vector<int>>{{16, 32}, {8}, {4, 6, 5}}) {
+    const HapticNetWeights weights = RandomConvWeights(41, channels);
+    ASSERT_EQ(weights.w1.rows(), FrontEndOutputs(weights.conv));
+    absl::StatusOr<std::unique_ptr<HapticNet>> net =
+        HapticNet::FromOnnxBytes(HapticNetToOnnx(weights, {}), "conv.onnx");
+    ASSERT_TRUE(net.ok()) << net.status();
+    std::mt19937_64 rng(42);
+    std::vector<std::array<float, kHapticInputs>> inputs;
+    for (int i = 0; i < 30; ++i) inputs.push_back(RandomInput(rng));
+    for (const auto& x : inputs) {
+      const auto reference = ReferenceLogits(weights, x);
+      const auto dense = DenseConvLogits(weights, x);
+      for (int k = 0; k < kHapticClasses; ++k) {
+        EXPECT_NEAR(reference[k], dense[k], 1e-10 * (1.0 + std::abs(dense[k])))
+            << channels.size() << " layers";
+      }
+    }
+    ExpectSameOutputs(weights, **net, inputs);
+  }
+}
+
+TEST(HapticNetTest, ConvolutionalWeightsReadBackFromTheFileExactly) {
+  const HapticNetWeights weights = RandomConvWeights(51, {16, 32});
+  absl::StatusOr<HapticNetWeights> read =
+      HapticNetWeightsFromOnnx(HapticNetToOnnx(weights, {}), "conv.onnx");
+  ASSERT_TRUE(read.ok()) << read.status();
+  ASSERT_EQ(read->conv.size(), 2u);
+  for (size_t i = 0; i < 2; ++i) {
+    EXPECT_EQ(read->conv[i].in_channels, weights.conv[i].in_channels);
+    EXPECT_EQ(read->conv[i].out_channels, weights.conv[i].out_channels);
+    EXPECT_EQ(read->conv[i].weight, weights.conv[i].weight);
+    EXPECT_EQ(read->conv[i].bias, weights.conv[i].bias);
+  }
+  EXPECT_EQ(read->w1, weights.w1);
+  EXPECT_EQ(read->w3, weights.w3);
+  // An ensemble of such members keeps the contract.
+  const std::vector<HapticNetWeights> members = {
+      weights, RandomConvWeights(52, {16, 32}), RandomWeights(53)};
+  absl::StatusOr<std::unique_ptr<HapticNet>> net = HapticNet::FromOnnxBytes(
+      HapticEnsembleToOnnx(members, {}), "conv-ensemble.onnx");
+  ASSERT_TRUE(net.ok()) << net.status();
+  std::mt19937_64 rng(54);
+  const auto x = RandomInput(rng);
+  absl::StatusOr<HapticNetOutput> out = (*net)->Run(x);
+  ASSERT_TRUE(out.ok()) << out.status();
+  const auto mean = ReferenceEnsembleProbabilities(members, x);
+  for (int k = 0; k < kHapticClasses; ++k) {
+    EXPECT_NEAR(out->probabilities[k], mean[k], 1e-5);
+  }
+}
+
+TEST(HapticNetTest, RejectsAFrontEndItCannotBuild) {
+  EXPECT_EQ(WeightsWithFrontEnd({16, 0}).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  const absl::Status too_deep =
+      WeightsWithFrontEnd({2, 2, 2, 2, 2, 2, 2}).status();
+  EXPECT_EQ(too_deep.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(too_deep.message(), HasSubstr("at most 6"));
 }
 
 TEST(HapticNetTest, WeightsReadBackFromTheFileExactly) {

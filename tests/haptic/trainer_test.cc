@@ -80,6 +80,112 @@ TEST(TrainerTest, LearnsTheSimulatedCategories) {
   EXPECT_GE(result->temperature, TrainerOptions().min_temperature);
 }
 
+TEST(TrainerTest, ConvolutionalFrontEndLearnsDeterministically) {
+  const SmallData data = MakeData(200);
+  TrainerOptions options;
+  options.max_epochs = 15;
+  options.conv_channels = {8, 16};
+  auto result = TrainHapticNet(data.train, data.validation, options);
+  ASSERT_TRUE(result.ok()) << result.status();
+  ASSERT_EQ(result->weights.conv.size(), 2u);
+  EXPECT_EQ(result->weights.w1.rows(), 16 * 16);
+  EXPECT_LT(result->epochs[result->best_epoch - 1].validation_loss,
+            result->epochs[0].validation_loss);
+  std::vector<std::array<double, kHapticClasses>> probabilities;
+  for (const auto& x : data.test.inputs) {
+    probabilities.push_back(ReferenceProbabilities(result->weights, x));
+  }
+  const ProbabilisticScore score =
+      ScorePredictions(probabilities, data.test.labels);
+  EXPECT_GT(score.confusion.Accuracy(), 0.9) << score.confusion.ToString();
+  options.max_epochs = 2;
+  auto a = TrainHapticNet(data.train, data.validation, options);
+  auto b = TrainHapticNet(data.train, data.validation, options);
+  ASSERT_TRUE(a.ok() && b.ok());
+  EXPECT_TRUE(HapticNetToOnnx(a->weights, {}) ==
+              HapticNetToOnnx(b->weights, {}));
+  options.conv_channels = {8, 0};
+  EXPECT_EQ(
+      TrainHapticNet(data.train, data.validation, options).status().code(),
+      absl::StatusCode::kInvalidArgument);
+}
+
+// The smoothed cross-entropy from the reference pass, written out here.
+double ReferenceLoss(const HapticNetWeights& w, const LabelledWindows& data,
+                     double smoothing) {
+  double sum = 0.0;
+  for (size_t i = 0; i < data.inputs.size(); ++i) {
+    const auto logits = ReferenceLogits(w, data.inputs[i]);
+    double normaliser = 0.0;
+    for (double v : logits) normaliser += std::exp(v);
+    for (int k = 0; k < kHapticClasses; ++k) {
+      const double target = (k == data.labels[i] ? 1.0 - smoothing : 0.0) +
+                            smoothing / kHapticClasses;
+      sum -= target * (logits[k] - std::log(normaliser));
+    }
+  }
+  return sum / data.inputs.size();
+}
+
+TEST(TrainerTest, BackPropagationMatchesFiniteDifferences) {
+  const SmallData data = MakeData(8);
+  for (const std::vector<int>& channels :
+       std::vector<std::vector<int>>{{}, {3, 4}}) {
+    // Start from a briefly trained model so that the losses are not flat.
+    TrainerOptions options;
+    options.max_epochs = 1;
+    options.conv_channels = channels;
+    auto trained = TrainHapticNet(data.train, data.validation, options);
+    ASSERT_TRUE(trained.ok()) << trained.status();
+    HapticNetWeights w = trained->weights;
+    auto analytic = SmoothedLossGradient(w, data.train, 0.04);
+    ASSERT_TRUE(analytic.ok()) << analytic.status();
+    EXPECT_NEAR(analytic->loss, ReferenceLoss(w, data.train, 0.04), 1e-10);
+    // Central differences on parameters of every kind.
+    std::vector<std::pair<double*, double>> probes;
+    for (size_t i = 0; i < w.conv.size(); ++i) {
+      for (size_t j = 0; j < w.conv[i].weight.size(); j += 7) {
+        probes.push_back(
+            {&w.conv[i].weight[j], analytic->gradient.conv[i].weight[j]});
+      }
+      for (size_t j = 0; j < w.conv[i].bias.size(); ++j) {
+        probes.push_back(
+            {&w.conv[i].bias[j], analytic->gradient.conv[i].bias[j]});
+      }
+    }
+    for (Eigen::Index j = 0; j < w.w1.size(); j += 997) {
+      probes.push_back({w.w1.data() + j, analytic->gradient.w1.data()[j]});
+    }
+    for (Eigen::Index j = 0; j < w.b1.size(); j += 13) {
+      probes.push_back({w.b1.data() + j, analytic->gradient.b1.data()[j]});
+    }
+    for (Eigen::Index j = 0; j < w.w2.size(); j += 1009) {
+      probes.push_back({w.w2.data() + j, analytic->gradient.w2.data()[j]});
+    }
+    for (Eigen::Index j = 0; j < w.w3.size(); j += 17) {
+      probes.push_back({w.w3.data() + j, analytic->gradient.w3.data()[j]});
+    }
+    for (Eigen::Index j = 0; j < w.b3.size(); ++j) {
+      probes.push_back({w.b3.data() + j, analytic->gradient.b3.data()[j]});
+    }
+    int checked = 0;
+    for (auto& [parameter, expected] : probes) {
+      const double saved = *parameter;
+      constexpr double kStep = 1e-6;
+      *parameter = saved + kStep;
+      const double up = ReferenceLoss(w, data.train, 0.04);
+      *parameter = saved - kStep;
+      const double down = ReferenceLoss(w, data.train, 0.04);
+      *parameter = saved;
+      const double numeric = (up - down) / (2 * kStep);
+      EXPECT_NEAR(expected, numeric, 1e-6 + 1e-4 * std::abs(numeric))
+          << channels.size() << " front-end layers, probe " << checked;
+      ++checked;
+    }
+    EXPECT_GT(checked, channels.empty() ? 30 : 60);
+  }
+}
+
 // Mean over windows of the smallest log-probability (the least likely
 // class) of a model trained with `label_smoothing`.
 double MeanSmallestLogProbability(const SmallData& data,

@@ -1,5 +1,6 @@
 #include "services/haptic/training/haptic_net_weights.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -73,9 +74,106 @@ void SetFloatShape(onnx::ValueInfoProto* value, const std::string& name,
   tensor->mutable_shape()->add_dim()->set_dim_value(cols);
 }
 
+void AddInt64Tensor(onnx::GraphProto* graph, const std::string& name,
+                    const std::vector<int64_t>& values) {
+  onnx::TensorProto* tensor = graph->add_initializer();
+  tensor->set_name(name);
+  tensor->set_data_type(onnx::TensorProto::INT64);
+  tensor->add_dims(static_cast<int64_t>(values.size()));
+  for (int64_t v : values) tensor->add_int64_data(v);
+}
+
+void SetIntsAttribute(onnx::NodeProto* node, const char* name,
+                      const std::vector<int64_t>& values) {
+  onnx::AttributeProto* attribute = node->add_attribute();
+  attribute->set_name(name);
+  attribute->set_type(onnx::AttributeProto::INTS);
+  for (int64_t v : values) attribute->add_ints(v);
+}
+
+void RoundVector(std::vector<double>& v) {
+  for (double& x : v) x = static_cast<double>(static_cast<float>(x));
+}
+
 }  // namespace
 
+int FrontEndOutputs(const std::vector<ConvLayer>& conv) {
+  if (conv.empty()) return kHapticInputs;
+  return conv.back().out_channels * (kWindowPoints >> conv.size());
+}
+
+absl::StatusOr<HapticNetWeights> WeightsWithFrontEnd(
+    const std::vector<int>& conv_channels) {
+  // 64 points halve to 1 after six layers.
+  if (conv_channels.size() > 6) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("a convolutional front end of ", conv_channels.size(),
+                     " layers: at most 6 (each halves the 64 points)"));
+  }
+  HapticNetWeights weights;
+  int in_channels = kWrenchChannels;
+  for (int out_channels : conv_channels) {
+    if (out_channels < 1) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "a convolutional layer of ", out_channels, " channels: need >= 1"));
+    }
+    ConvLayer layer;
+    layer.in_channels = in_channels;
+    layer.out_channels = out_channels;
+    layer.weight.assign(
+        static_cast<size_t>(in_channels) * kConvKernel * out_channels, 0.0);
+    layer.bias.assign(out_channels, 0.0);
+    weights.conv.push_back(std::move(layer));
+    in_channels = out_channels;
+  }
+  weights.w1 = RowMatrix::Zero(FrontEndOutputs(weights.conv), kHapticHidden);
+  return weights;
+}
+
+void ConvForward(const ConvLayer& layer, const double* in, int length,
+                 double* pre_activation, double* out, int* argmax) {
+  const int outs = layer.out_channels;
+  constexpr int kHalf = kConvKernel / 2;
+  for (int co = 0; co < outs; ++co) {
+    std::fill(pre_activation + static_cast<size_t>(co) * length,
+              pre_activation + static_cast<size_t>(co + 1) * length,
+              layer.bias[co]);
+  }
+  for (int ci = 0; ci < layer.in_channels; ++ci) {
+    const double* x = in + static_cast<size_t>(ci) * length;
+    for (int t = 0; t < kConvKernel; ++t) {
+      const int shift = t - kHalf;
+      const int begin = std::max(0, -shift);
+      const int end = std::min(length, length - shift);
+      const double* w = layer.weight.data() +
+                        static_cast<size_t>(ci * kConvKernel + t) * outs;
+      for (int co = 0; co < outs; ++co) {
+        const double w_co = w[co];
+        double* z = pre_activation + static_cast<size_t>(co) * length;
+        for (int l = begin; l < end; ++l) z[l] += w_co * x[l + shift];
+      }
+    }
+  }
+  const int half = length / 2;
+  for (int co = 0; co < outs; ++co) {
+    const double* z = pre_activation + static_cast<size_t>(co) * length;
+    for (int j = 0; j < half; ++j) {
+      const double a = std::max(z[2 * j], 0.0);
+      const double b = std::max(z[2 * j + 1], 0.0);
+      const int from = b > a ? 2 * j + 1 : 2 * j;
+      out[static_cast<size_t>(co) * half + j] = std::max(a, b);
+      if (argmax != nullptr) {
+        argmax[static_cast<size_t>(co) * half + j] = co * length + from;
+      }
+    }
+  }
+}
+
 void RoundToFloat(HapticNetWeights& weights) {
+  for (ConvLayer& layer : weights.conv) {
+    RoundVector(layer.weight);
+    RoundVector(layer.bias);
+  }
   RoundMatrix(weights.input_mean);
   RoundMatrix(weights.input_stddev);
   RoundMatrix(weights.w1);
@@ -91,10 +189,19 @@ std::array<double, kHapticClasses> ReferenceLogits(
     const std::array<float, kHapticInputs>& inputs) {
   Eigen::RowVectorXd x(kHapticInputs);
   for (int i = 0; i < kHapticInputs; ++i) x[i] = inputs[i];
-  const Eigen::RowVectorXd normalised =
+  Eigen::RowVectorXd features =
       (x - weights.input_mean).cwiseQuotient(weights.input_stddev);
+  int length = kWindowPoints;
+  for (const ConvLayer& layer : weights.conv) {
+    std::vector<double> pre(static_cast<size_t>(layer.out_channels) * length);
+    Eigen::RowVectorXd pooled(layer.out_channels * (length / 2));
+    ConvForward(layer, features.data(), length, pre.data(), pooled.data(),
+                nullptr);
+    features = std::move(pooled);
+    length /= 2;
+  }
   const Eigen::RowVectorXd h1 =
-      (normalised * weights.w1 + weights.b1).cwiseMax(0.0);
+      (features * weights.w1 + weights.b1).cwiseMax(0.0);
   const Eigen::RowVectorXd h2 = (h1 * weights.w2 + weights.b2).cwiseMax(0.0);
   const Eigen::RowVectorXd logits = h2 * weights.w3 + weights.b3;
   std::array<double, kHapticClasses> out;
@@ -144,7 +251,55 @@ void AddMember(onnx::GraphProto* graph, const HapticNetWeights& weights,
           prefix + "centred");
   AddNode(graph, "Div", {prefix + "centred", prefix + "input_stddev"},
           prefix + "normalised");
-  AddGemm(graph, prefix + "normalised", prefix + "fc1", prefix + "fc1");
+  std::string fc1_input = prefix + "normalised";
+  if (!weights.conv.empty()) {
+    // The window as an image of 6 channels, 1 row and 64 columns, so that
+    // Conv and MaxPool are the 2-D operators every importer knows.
+    AddInt64Tensor(graph, prefix + "window_shape",
+                   {1, kWrenchChannels, 1, kWindowPoints});
+    AddNode(graph, "Reshape", {fc1_input, prefix + "window_shape"},
+            prefix + "window");
+    std::string input = prefix + "window";
+    for (size_t i = 0; i < weights.conv.size(); ++i) {
+      const ConvLayer& layer = weights.conv[i];
+      const std::string name = absl::StrCat(prefix, "conv", i + 1);
+      // ONNX holds the kernel [out, in, 1, kConvKernel].
+      std::vector<double> kernel(layer.weight.size());
+      for (int co = 0; co < layer.out_channels; ++co) {
+        for (int ci = 0; ci < layer.in_channels; ++ci) {
+          for (int t = 0; t < kConvKernel; ++t) {
+            kernel[(static_cast<size_t>(co) * layer.in_channels + ci) *
+                       kConvKernel +
+                   t] = layer.weight[static_cast<size_t>(ci * kConvKernel + t) *
+                                         layer.out_channels +
+                                     co];
+          }
+        }
+      }
+      AddFloatTensor(graph, name + ".weight",
+                     {layer.out_channels, layer.in_channels, 1, kConvKernel},
+                     kernel.data(), static_cast<int64_t>(kernel.size()));
+      AddFloatTensor(graph, name + ".bias", {layer.out_channels},
+                     layer.bias.data(), layer.out_channels);
+      onnx::NodeProto* conv = AddNode(
+          graph, "Conv", {input, name + ".weight", name + ".bias"}, name);
+      SetIntsAttribute(conv, "kernel_shape", {1, kConvKernel});
+      SetIntsAttribute(conv, "pads", {0, kConvKernel / 2, 0, kConvKernel / 2});
+      SetIntsAttribute(conv, "strides", {1, 1});
+      AddNode(graph, "Relu", {name}, name + ".relu");
+      onnx::NodeProto* pool =
+          AddNode(graph, "MaxPool", {name + ".relu"}, name + ".pool");
+      SetIntsAttribute(pool, "kernel_shape", {1, 2});
+      SetIntsAttribute(pool, "strides", {1, 2});
+      input = name + ".pool";
+    }
+    AddInt64Tensor(graph, prefix + "features_shape",
+                   {1, FrontEndOutputs(weights.conv)});
+    AddNode(graph, "Reshape", {input, prefix + "features_shape"},
+            prefix + "features");
+    fc1_input = prefix + "features";
+  }
+  AddGemm(graph, fc1_input, prefix + "fc1", prefix + "fc1");
   AddNode(graph, "Relu", {prefix + "fc1"}, prefix + "relu1");
   AddGemm(graph, prefix + "relu1", prefix + "fc2", prefix + "fc2");
   AddNode(graph, "Relu", {prefix + "fc2"}, prefix + "relu2");
@@ -208,6 +363,43 @@ absl::StatusOr<HapticNetWeights> HapticNetWeightsFromOnnx(
   status = read("input_stddev", kHapticInputs, &v);
   if (!status.ok()) return status;
   for (int i = 0; i < kHapticInputs; ++i) weights.input_stddev[i] = v[i];
+  // The front end, if any: conv1, conv2, ... as long as they exist.
+  int in_channels = kWrenchChannels;
+  for (int i = 1; tensors.count(absl::StrCat("conv", i, ".weight")) > 0; ++i) {
+    const std::string name = absl::StrCat("conv", i);
+    const onnx::TensorProto& kernel = *tensors[name + ".weight"];
+    if (kernel.dims_size() != 4 || kernel.dims(1) != in_channels ||
+        kernel.dims(2) != 1 || kernel.dims(3) != kConvKernel ||
+        kernel.dims(0) < 1 || i > 6) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          source, ": initializer \"", name, ".weight\" is not a kernel [out, ",
+          in_channels, ", 1, ", kConvKernel, "] of HapticNet's front end"));
+    }
+    ConvLayer layer;
+    layer.in_channels = in_channels;
+    layer.out_channels = static_cast<int>(kernel.dims(0));
+    status = read(
+        name + ".weight",
+        static_cast<int64_t>(layer.out_channels) * in_channels * kConvKernel,
+        &v);
+    if (!status.ok()) return status;
+    layer.weight.resize(v.size());
+    for (int co = 0; co < layer.out_channels; ++co) {
+      for (int ci = 0; ci < in_channels; ++ci) {
+        for (int t = 0; t < kConvKernel; ++t) {
+          layer.weight[static_cast<size_t>(ci * kConvKernel + t) *
+                           layer.out_channels +
+                       co] =
+              v[(static_cast<size_t>(co) * in_channels + ci) * kConvKernel + t];
+        }
+      }
+    }
+    status = read(name + ".bias", layer.out_channels, &layer.bias);
+    if (!status.ok()) return status;
+    in_channels = layer.out_channels;
+    weights.conv.push_back(std::move(layer));
+  }
+  weights.w1 = RowMatrix::Zero(FrontEndOutputs(weights.conv), kHapticHidden);
   struct Layer {
     const char* name;
     RowMatrix* w;
@@ -254,10 +446,15 @@ std::string HapticEnsembleToOnnx(
   model.set_model_version(1);
   model.set_doc_string(
       members.size() == 1
-          ? "HapticNet: tared force/torque window (6 channels fx fy fz tx ty "
-            "tz, each resampled to 64 points, channel-major) -> 4 classes "
-            "hard, medium, soft, hard_skin. Normalisation (x - input_mean) / "
-            "input_stddev is part of the graph."
+          ? absl::StrCat(
+                "HapticNet: tared force/torque window (6 channels fx fy fz tx "
+                "ty tz, each resampled to 64 points, channel-major) -> 4 "
+                "classes hard, medium, soft, hard_skin. Normalisation (x - "
+                "input_mean) / input_stddev is part of the graph.",
+                members[0].conv.empty()
+                    ? ""
+                    : " A convolutional front end (Conv of kernel 5, Relu, "
+                      "MaxPool by 2, per layer) feeds fc1.")
           : "HapticNet ensemble: members m0, m1, ... each a HapticNet "
             "(normalisation and three Gemm layers); logits = log of the mean "
             "of the members' softmax, probabilities = softmax(logits), the "

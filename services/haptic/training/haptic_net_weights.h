@@ -23,6 +23,23 @@ using RowMatrix =
 
 constexpr int kHapticHidden = 128;
 
+// The convolutional front end's kernel: 5 points of the 64-point window
+// (about 4 ms of the 50 ms), zero-padded at both ends so that a layer keeps
+// the length it is given ("same" padding).
+constexpr int kConvKernel = 5;
+
+// One layer of the optional convolutional front end: a 1-D convolution along
+// the window's time axis, then ReLU, then max-pooling of neighbouring pairs,
+// so a layer of length L gives L / 2 points per output channel.
+struct ConvLayer {
+  int in_channels = 0;
+  int out_channels = 0;
+  // Input-major like the fully connected layers: weight[(ci * kConvKernel +
+  // t) * out_channels + co] multiplies input channel ci at offset t - 2.
+  std::vector<double> weight;
+  std::vector<double> bias;  // out_channels
+};
+
 // Layer weights are stored input-major (fan_in x fan_out): y = x * w + b.
 // The ONNX file holds them transposed (see HapticNetToOnnx).
 struct HapticNetWeights {
@@ -36,7 +53,34 @@ struct HapticNetWeights {
   Eigen::RowVectorXd b2 = Eigen::RowVectorXd::Zero(kHapticHidden);
   RowMatrix w3 = RowMatrix::Zero(kHapticHidden, kHapticClasses);
   Eigen::RowVectorXd b3 = Eigen::RowVectorXd::Zero(kHapticClasses);
+  // Optional convolutional front end (`bitewise-haptic-train
+  // --conv_channels`): the normalised window, seen as 6 channels of 64
+  // points, goes through these layers in order, and their last output,
+  // flattened channel-major, is fc1's input (w1 then has
+  // FrontEndOutputs(conv) rows). Empty for the plain MLP, whose fc1 sees the
+  // normalised window itself.
+  std::vector<ConvLayer> conv;
 };
+
+// fc1's fan-in: kHapticInputs without a front end, else the last layer's
+// channels times the points left after halving once per layer.
+int FrontEndOutputs(const std::vector<ConvLayer>& conv);
+
+// A front end of layers with these output channels (e.g. {16, 32}), zero
+// weights, and w1 resized to match. INVALID_ARGUMENT when a count is below 1
+// or there are more layers than halvings of the 64 points allow (at most 6).
+absl::StatusOr<HapticNetWeights> WeightsWithFrontEnd(
+    const std::vector<int>& conv_channels);
+
+// One front-end layer on one window: `in` holds layer.in_channels rows of
+// `length` points (channel-major), `pre_activation` receives the convolution
+// (out_channels x length) and `out` the pooled ReLU (out_channels x length /
+// 2). `argmax`, if not null, receives for each pooled point the index in
+// `pre_activation` it came from (the first of a tie). Sums run in a fixed
+// order (input channel, then kernel offset), so the result does not depend
+// on the CPU; the trainer and the reference pass share this function.
+void ConvForward(const ConvLayer& layer, const double* in, int length,
+                 double* pre_activation, double* out, int* argmax);
 
 // Rounds every parameter to the nearest float, the precision of the ONNX
 // file, so that the reference pass and the exported model share weights.

@@ -72,30 +72,59 @@ void ColumnSums(const double* g, int n, int m, std::vector<double>& out) {
   }
 }
 
-// Parameters in the order w1, b1, w2, b2, w3, b3, each row-major
-// fan_in x fan_out (biases 1 x fan_out).
+// Parameters as blocks: each front-end layer's kernel and bias, then w1,
+// b1, w2, b2, w3, b3, each row-major fan_in x fan_out (biases 1 x fan_out;
+// kernels (in_channels * kConvKernel) x out_channels). Weights are the
+// even blocks.
 struct Parameters {
-  std::array<std::vector<double>, 6> blocks;
-  static constexpr std::array<int, 6> kRows = {
-      kHapticInputs, 1, kHapticHidden, 1, kHapticHidden, 1};
-  static constexpr std::array<int, 6> kCols = {kHapticHidden,  kHapticHidden,
-                                               kHapticHidden,  kHapticHidden,
-                                               kHapticClasses, kHapticClasses};
+  std::vector<std::vector<double>> blocks;
+  std::vector<int> rows, cols;
+  int conv_layers = 0;
 
-  Parameters() {
-    for (int b = 0; b < 6; ++b) {
-      blocks[b].assign(static_cast<size_t>(kRows[b]) * kCols[b], 0.0);
+  explicit Parameters(const std::vector<ConvLayer>& conv) {
+    conv_layers = static_cast<int>(conv.size());
+    for (const ConvLayer& layer : conv) {
+      Add(layer.in_channels * kConvKernel, layer.out_channels);
+      Add(1, layer.out_channels);
     }
+    const int fan_in = FrontEndOutputs(conv);
+    Add(fan_in, kHapticHidden);
+    Add(1, kHapticHidden);
+    Add(kHapticHidden, kHapticHidden);
+    Add(1, kHapticHidden);
+    Add(kHapticHidden, kHapticClasses);
+    Add(1, kHapticClasses);
+  }
+  void Add(int r, int c) {
+    rows.push_back(r);
+    cols.push_back(c);
+    blocks.emplace_back(static_cast<size_t>(r) * c, 0.0);
+  }
+  int Fc(int layer) const { return 2 * conv_layers + 2 * layer; }  // 0..2
+  int FanIn() const { return rows[Fc(0)]; }
+  // The front-end layer `i` as ConvForward takes it (a copy).
+  ConvLayer Conv(int i) const {
+    ConvLayer layer;
+    layer.in_channels = rows[2 * i] / kConvKernel;
+    layer.out_channels = cols[2 * i];
+    layer.weight = blocks[2 * i];
+    layer.bias = blocks[2 * i + 1];
+    return layer;
   }
 };
 
-// Activations of one batch.
+// Activations of one batch. x is the normalised window; for each front-end
+// layer, its convolution, pooled output and pooling argmax; `features` is
+// fc1's input (x itself without a front end).
 struct Activations {
   int n = 0;
-  std::vector<double> x, z1, h1, z2, h2, z3;
-  void Resize(int rows) {
+  std::vector<double> x, features, z1, h1, z2, h2, z3;
+  std::vector<std::vector<double>> conv_pre, conv_out;
+  std::vector<std::vector<int>> conv_argmax;
+  void Resize(int rows, int fan_in) {
     n = rows;
     x.resize(static_cast<size_t>(rows) * kHapticInputs);
+    features.resize(static_cast<size_t>(rows) * fan_in);
     z1.resize(static_cast<size_t>(rows) * kHapticHidden);
     h1.resize(z1.size());
     z2.resize(z1.size());
@@ -104,23 +133,123 @@ struct Activations {
   }
 };
 
-void Forward(const Parameters& params, Activations& act) {
+void Forward(const Parameters& params, const std::vector<ConvLayer>& conv,
+             Activations& act) {
   const int n = act.n;
-  MatMul(act.x.data(), params.blocks[0].data(), n, kHapticInputs, kHapticHidden,
-         act.z1.data());
-  AddBias(params.blocks[1], n, act.z1.data());
+  const int fan_in = params.FanIn();
+  const double* input = act.x.data();
+  if (!conv.empty()) {
+    act.conv_pre.resize(conv.size());
+    act.conv_out.resize(conv.size());
+    act.conv_argmax.resize(conv.size());
+    int length = kWindowPoints;
+    for (size_t i = 0; i < conv.size(); ++i) {
+      const ConvLayer& layer = conv[i];
+      const size_t in_size = static_cast<size_t>(layer.in_channels) * length;
+      const size_t pre_size = static_cast<size_t>(layer.out_channels) * length;
+      const size_t out_size = pre_size / 2;
+      act.conv_pre[i].resize(n * pre_size);
+      act.conv_out[i].resize(n * out_size);
+      act.conv_argmax[i].resize(n * out_size);
+      for (int r = 0; r < n; ++r) {
+        ConvForward(layer, input + r * in_size, length,
+                    act.conv_pre[i].data() + r * pre_size,
+                    act.conv_out[i].data() + r * out_size,
+                    act.conv_argmax[i].data() + r * out_size);
+      }
+      input = act.conv_out[i].data();
+      length /= 2;
+    }
+    std::copy(act.conv_out.back().begin(), act.conv_out.back().end(),
+              act.features.begin());
+  } else {
+    std::copy(act.x.begin(), act.x.end(), act.features.begin());
+  }
+  MatMul(act.features.data(), params.blocks[params.Fc(0)].data(), n, fan_in,
+         kHapticHidden, act.z1.data());
+  AddBias(params.blocks[params.Fc(0) + 1], n, act.z1.data());
   for (size_t i = 0; i < act.z1.size(); ++i) {
     act.h1[i] = std::max(act.z1[i], 0.0);
   }
-  MatMul(act.h1.data(), params.blocks[2].data(), n, kHapticHidden,
+  MatMul(act.h1.data(), params.blocks[params.Fc(1)].data(), n, kHapticHidden,
          kHapticHidden, act.z2.data());
-  AddBias(params.blocks[3], n, act.z2.data());
+  AddBias(params.blocks[params.Fc(1) + 1], n, act.z2.data());
   for (size_t i = 0; i < act.z2.size(); ++i) {
     act.h2[i] = std::max(act.z2[i], 0.0);
   }
-  MatMul(act.h2.data(), params.blocks[4].data(), n, kHapticHidden,
+  MatMul(act.h2.data(), params.blocks[params.Fc(2)].data(), n, kHapticHidden,
          kHapticClasses, act.z3.data());
-  AddBias(params.blocks[5], n, act.z3.data());
+  AddBias(params.blocks[params.Fc(2) + 1], n, act.z3.data());
+}
+
+// Back through front-end layer `i` of a batch: `d_out` is the gradient of
+// its pooled output; accumulates its kernel's and bias's gradients into
+// `d_weight` and `d_bias` and, if `d_in` is not null, writes the gradient of
+// its input. Every sum runs in a fixed order.
+void ConvBackward(const ConvLayer& layer, int length, int n,
+                  const double* input, const std::vector<double>& pre,
+                  const std::vector<int>& argmax, const double* d_out,
+                  std::vector<double>& d_weight, std::vector<double>& d_bias,
+                  double* d_in) {
+  const int outs = layer.out_channels, ins = layer.in_channels;
+  const size_t pre_size = static_cast<size_t>(outs) * length;
+  const size_t out_size = pre_size / 2;
+  const size_t in_size = static_cast<size_t>(ins) * length;
+  std::vector<double> d_pre(pre_size);
+  std::fill(d_weight.begin(), d_weight.end(), 0.0);
+  std::fill(d_bias.begin(), d_bias.end(), 0.0);
+  constexpr int kHalf = kConvKernel / 2;
+  for (int r = 0; r < n; ++r) {
+    // Through the pooling (to the point it took) and the ReLU.
+    std::fill(d_pre.begin(), d_pre.end(), 0.0);
+    const double* z = pre.data() + r * pre_size;
+    for (size_t j = 0; j < out_size; ++j) {
+      const int from = argmax[r * out_size + j];
+      if (z[from] > 0.0) d_pre[from] = d_out[r * out_size + j];
+    }
+    const double* x = input + r * in_size;
+    for (int co = 0; co < outs; ++co) {
+      const double* g = d_pre.data() + static_cast<size_t>(co) * length;
+      double sum = 0.0;
+      for (int l = 0; l < length; ++l) sum += g[l];
+      d_bias[co] += sum;
+    }
+    for (int ci = 0; ci < ins; ++ci) {
+      for (int t = 0; t < kConvKernel; ++t) {
+        const int shift = t - kHalf;
+        const int begin = std::max(0, -shift);
+        const int end = std::min(length, length - shift);
+        const double* xc = x + static_cast<size_t>(ci) * length;
+        double* dw =
+            d_weight.data() + static_cast<size_t>(ci * kConvKernel + t) * outs;
+        for (int co = 0; co < outs; ++co) {
+          const double* g = d_pre.data() + static_cast<size_t>(co) * length;
+          double sum = 0.0;
+          for (int l = begin; l < end; ++l) sum += g[l] * xc[l + shift];
+          dw[co] += sum;
+        }
+      }
+    }
+    if (d_in != nullptr) {
+      double* dx = d_in + r * in_size;
+      std::fill(dx, dx + in_size, 0.0);
+      for (int ci = 0; ci < ins; ++ci) {
+        for (int t = 0; t < kConvKernel; ++t) {
+          const int shift = t - kHalf;
+          const int begin = std::max(0, -shift);
+          const int end = std::min(length, length - shift);
+          const double* w = layer.weight.data() +
+                            static_cast<size_t>(ci * kConvKernel + t) * outs;
+          double* dxc = dx + static_cast<size_t>(ci) * length;
+          for (int co = 0; co < outs; ++co) {
+            const double w_co = w[co];
+            const double* g = d_pre.data() + static_cast<size_t>(co) * length;
+            for (int l = begin; l < end; ++l) dxc[l + shift] += w_co * g[l];
+          }
+        }
+      }
+    }
+  }
 }
 
 // log-softmax of one row of logits scaled by 1 / temperature.
@@ -139,11 +268,74 @@ std::array<double, kHapticClasses> LogSoftmax(const double* logits,
   return out;
 }
 
+// The gradient of the batch's mean smoothed cross-entropy (act holds the
+// batch after Forward; labels(r) is row r's class) with respect to every
+// block of `params`, into `gradient`. Returns the batch's summed loss.
+double Backward(const Parameters& params, const std::vector<ConvLayer>& conv,
+                const Activations& act, const std::function<int(int)>& labels,
+                double smoothing, Parameters& gradient) {
+  const int n = act.n;
+  const int fan_in = params.FanIn();
+  const int fc1 = params.Fc(0), fc2 = params.Fc(1), fc3 = params.Fc(2);
+  double loss = 0.0;
+  // dLoss/dz3 = (softmax - target) / n, the target being the smoothed
+  // one-hot vector.
+  std::vector<double> g3(static_cast<size_t>(n) * kHapticClasses, 0.0);
+  for (int r = 0; r < n; ++r) {
+    const int label = labels(r);
+    const auto log_p = LogSoftmax(&act.z3[r * kHapticClasses], 1.0);
+    for (int k = 0; k < kHapticClasses; ++k) {
+      const double target =
+          (k == label ? 1.0 - smoothing : 0.0) + smoothing / kHapticClasses;
+      loss -= target * log_p[k];
+      g3[r * kHapticClasses + k] = (std::exp(log_p[k]) - target) / n;
+    }
+  }
+  MatTMul(act.h2.data(), g3.data(), n, kHapticHidden, kHapticClasses,
+          gradient.blocks[fc3].data());
+  ColumnSums(g3.data(), n, kHapticClasses, gradient.blocks[fc3 + 1]);
+  std::vector<double> dh2(static_cast<size_t>(n) * kHapticHidden);
+  MatMulT(g3.data(), params.blocks[fc3].data(), n, kHapticClasses,
+          kHapticHidden, dh2.data());
+  for (size_t i = 0; i < dh2.size(); ++i) {
+    if (act.z2[i] <= 0.0) dh2[i] = 0.0;
+  }
+  MatTMul(act.h1.data(), dh2.data(), n, kHapticHidden, kHapticHidden,
+          gradient.blocks[fc2].data());
+  ColumnSums(dh2.data(), n, kHapticHidden, gradient.blocks[fc2 + 1]);
+  std::vector<double> dh1(dh2.size());
+  MatMulT(dh2.data(), params.blocks[fc2].data(), n, kHapticHidden,
+          kHapticHidden, dh1.data());
+  for (size_t i = 0; i < dh1.size(); ++i) {
+    if (act.z1[i] <= 0.0) dh1[i] = 0.0;
+  }
+  MatTMul(act.features.data(), dh1.data(), n, fan_in, kHapticHidden,
+          gradient.blocks[fc1].data());
+  ColumnSums(dh1.data(), n, kHapticHidden, gradient.blocks[fc1 + 1]);
+  if (params.conv_layers > 0) {
+    std::vector<double> d_out(static_cast<size_t>(n) * fan_in), d_in;
+    MatMulT(dh1.data(), params.blocks[fc1].data(), n, kHapticHidden, fan_in,
+            d_out.data());
+    for (int i = params.conv_layers - 1; i >= 0; --i) {
+      const int length = kWindowPoints >> i;
+      const double* input = i == 0 ? act.x.data() : act.conv_out[i - 1].data();
+      if (i > 0) {
+        d_in.resize(static_cast<size_t>(n) * conv[i].in_channels * length);
+      }
+      ConvBackward(conv[i], length, n, input, act.conv_pre[i],
+                   act.conv_argmax[i], d_out.data(), gradient.blocks[2 * i],
+                   gradient.blocks[2 * i + 1], i > 0 ? d_in.data() : nullptr);
+      if (i > 0) d_out.swap(d_in);
+    }
+  }
+  return loss;
+}
+
 // Normalised inputs of `rows` windows into act.x.
 void LoadBatch(const LabelledWindows& data, const std::vector<int>& order,
-               int begin, int rows, const HapticNetWeights& norm,
+               int begin, int rows, const HapticNetWeights& norm, int fan_in,
                Activations& act) {
-  act.Resize(rows);
+  act.Resize(rows, fan_in);
   for (int r = 0; r < rows; ++r) {
     const auto& window = data.inputs[order[begin + r]];
     double* x = act.x.data() + static_cast<size_t>(r) * kHapticInputs;
@@ -157,6 +349,8 @@ void LoadBatch(const LabelledWindows& data, const std::vector<int>& order,
 std::vector<double> AllLogits(const LabelledWindows& data,
                               const Parameters& params,
                               const HapticNetWeights& norm) {
+  std::vector<ConvLayer> conv;
+  for (int i = 0; i < params.conv_layers; ++i) conv.push_back(params.Conv(i));
   const int total = static_cast<int>(data.inputs.size());
   std::vector<int> order(total);
   std::iota(order.begin(), order.end(), 0);
@@ -165,8 +359,8 @@ std::vector<double> AllLogits(const LabelledWindows& data,
   constexpr int kChunk = 256;
   for (int begin = 0; begin < total; begin += kChunk) {
     const int rows = std::min(kChunk, total - begin);
-    LoadBatch(data, order, begin, rows, norm, act);
-    Forward(params, act);
+    LoadBatch(data, order, begin, rows, norm, params.FanIn(), act);
+    Forward(params, conv, act);
     std::copy(act.z3.begin(), act.z3.end(),
               logits.begin() + static_cast<size_t>(begin) * kHapticClasses);
   }
@@ -264,20 +458,28 @@ absl::StatusOr<TrainingResult> TrainHapticNet(
   }
 
   TrainingResult result;
+  absl::StatusOr<HapticNetWeights> shaped =
+      WeightsWithFrontEnd(options.conv_channels);
+  if (!shaped.ok()) return shaped.status();
+  result.weights = *std::move(shaped);
   HapticNetWeights& norm = result.weights;
   FitNormalisation(train, norm);
 
   std::mt19937_64 rng(options.seed);
-  Parameters params;
+  Parameters params(norm.conv);
   {
     // He initialisation for ReLU layers; biases start at zero.
     random::Normal normal;
-    for (int b = 0; b < 6; b += 2) {
-      const double scale = std::sqrt(2.0 / Parameters::kRows[b]);
+    for (size_t b = 0; b < params.blocks.size(); b += 2) {
+      const double scale = std::sqrt(2.0 / params.rows[b]);
       for (double& w : params.blocks[b]) w = scale * normal(rng);
     }
   }
-  Parameters first_moment, second_moment, gradient;
+  Parameters first_moment(norm.conv), second_moment(norm.conv),
+      gradient(norm.conv);
+  const int fan_in = params.FanIn();
+  const int fc1 = params.Fc(0), fc2 = params.Fc(1), fc3 = params.Fc(2);
+  std::vector<ConvLayer> conv(params.conv_layers);
   Parameters best = params;
   double best_loss = INFINITY;
   int since_best = 0;
@@ -286,7 +488,6 @@ absl::StatusOr<TrainingResult> TrainHapticNet(
   std::vector<int> order(total);
   std::iota(order.begin(), order.end(), 0);
   Activations act;
-  std::vector<double> g3, dh2, dh1;
   constexpr double kBeta1 = 0.9, kBeta2 = 0.999, kEpsilon = 1e-8;
   int64_t step = 0;
   const double smoothing = options.label_smoothing;
@@ -300,47 +501,17 @@ absl::StatusOr<TrainingResult> TrainHapticNet(
     double epoch_loss = 0.0;
     for (int begin = 0; begin < total; begin += options.batch_size) {
       const int n = std::min(options.batch_size, total - begin);
-      LoadBatch(train, order, begin, n, norm, act);
-      Forward(params, act);
-      // dLoss/dz3 = (softmax - target) / n, the target being the smoothed
-      // one-hot vector.
-      g3.assign(static_cast<size_t>(n) * kHapticClasses, 0.0);
-      for (int r = 0; r < n; ++r) {
-        const int label = train.labels[order[begin + r]];
-        const auto log_p = LogSoftmax(&act.z3[r * kHapticClasses], 1.0);
-        for (int k = 0; k < kHapticClasses; ++k) {
-          const double target =
-              (k == label ? 1.0 - smoothing : 0.0) + smoothing / kHapticClasses;
-          epoch_loss -= target * log_p[k];
-          g3[r * kHapticClasses + k] = (std::exp(log_p[k]) - target) / n;
-        }
-      }
-      MatTMul(act.h2.data(), g3.data(), n, kHapticHidden, kHapticClasses,
-              gradient.blocks[4].data());
-      ColumnSums(g3.data(), n, kHapticClasses, gradient.blocks[5]);
-      dh2.resize(static_cast<size_t>(n) * kHapticHidden);
-      MatMulT(g3.data(), params.blocks[4].data(), n, kHapticClasses,
-              kHapticHidden, dh2.data());
-      for (size_t i = 0; i < dh2.size(); ++i) {
-        if (act.z2[i] <= 0.0) dh2[i] = 0.0;
-      }
-      MatTMul(act.h1.data(), dh2.data(), n, kHapticHidden, kHapticHidden,
-              gradient.blocks[2].data());
-      ColumnSums(dh2.data(), n, kHapticHidden, gradient.blocks[3]);
-      dh1.resize(dh2.size());
-      MatMulT(dh2.data(), params.blocks[2].data(), n, kHapticHidden,
-              kHapticHidden, dh1.data());
-      for (size_t i = 0; i < dh1.size(); ++i) {
-        if (act.z1[i] <= 0.0) dh1[i] = 0.0;
-      }
-      MatTMul(act.x.data(), dh1.data(), n, kHapticInputs, kHapticHidden,
-              gradient.blocks[0].data());
-      ColumnSums(dh1.data(), n, kHapticHidden, gradient.blocks[1]);
-
+      LoadBatch(train, order, begin, n, norm, fan_in, act);
+      for (int i = 0; i < params.conv_layers; ++i) conv[i] = params.Conv(i);
+      Forward(params, conv, act);
+      const auto labels_at = [&](int r) {
+        return train.labels[order[begin + r]];
+      };
+      epoch_loss += Backward(params, conv, act, labels_at, smoothing, gradient);
       ++step;
       const double correction1 = 1.0 - std::pow(kBeta1, step);
       const double correction2 = 1.0 - std::pow(kBeta2, step);
-      for (int b = 0; b < 6; ++b) {
+      for (size_t b = 0; b < params.blocks.size(); ++b) {
         const bool is_weight = b % 2 == 0;
         std::vector<double>& w = params.blocks[b];
         std::vector<double>& g = gradient.blocks[b];
@@ -392,21 +563,74 @@ absl::StatusOr<TrainingResult> TrainHapticNet(
         result.temperature = temperature;
       }
     }
-    for (double& w : best.blocks[4]) w /= result.temperature;
-    for (double& w : best.blocks[5]) w /= result.temperature;
+    for (double& w : best.blocks[fc3]) w /= result.temperature;
+    for (double& w : best.blocks[fc3 + 1]) w /= result.temperature;
   }
 
   auto copy = [](const std::vector<double>& from, auto& to) {
     std::copy(from.begin(), from.end(), to.data());
   };
-  copy(best.blocks[0], result.weights.w1);
-  copy(best.blocks[1], result.weights.b1);
-  copy(best.blocks[2], result.weights.w2);
-  copy(best.blocks[3], result.weights.b2);
-  copy(best.blocks[4], result.weights.w3);
-  copy(best.blocks[5], result.weights.b3);
+  for (int i = 0; i < best.conv_layers; ++i) {
+    result.weights.conv[i].weight = best.blocks[2 * i];
+    result.weights.conv[i].bias = best.blocks[2 * i + 1];
+  }
+  copy(best.blocks[fc1], result.weights.w1);
+  copy(best.blocks[fc1 + 1], result.weights.b1);
+  copy(best.blocks[fc2], result.weights.w2);
+  copy(best.blocks[fc2 + 1], result.weights.b2);
+  copy(best.blocks[fc3], result.weights.w3);
+  copy(best.blocks[fc3 + 1], result.weights.b3);
   RoundToFloat(result.weights);
   return result;
+}
+
+absl::StatusOr<LossGradient> SmoothedLossGradient(
+    const HapticNetWeights& weights, const LabelledWindows& data,
+    double label_smoothing) {
+  if (absl::Status s = CheckSet(data, "data"); !s.ok()) return s;
+  if (weights.w1.rows() != FrontEndOutputs(weights.conv)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "w1 has ", weights.w1.rows(), " rows; the front end gives ",
+        FrontEndOutputs(weights.conv)));
+  }
+  Parameters params(weights.conv);
+  for (size_t i = 0; i < weights.conv.size(); ++i) {
+    params.blocks[2 * i] = weights.conv[i].weight;
+    params.blocks[2 * i + 1] = weights.conv[i].bias;
+  }
+  const std::array<const double*, 6> dense = {
+      weights.w1.data(), weights.b1.data(), weights.w2.data(),
+      weights.b2.data(), weights.w3.data(), weights.b3.data()};
+  for (int b = 0; b < 6; ++b) {
+    std::vector<double>& block = params.blocks[params.Fc(0) + b];
+    std::copy(dense[b], dense[b] + block.size(), block.begin());
+  }
+  const int n = static_cast<int>(data.inputs.size());
+  std::vector<int> order(n);
+  std::iota(order.begin(), order.end(), 0);
+  Activations act;
+  LoadBatch(data, order, 0, n, weights, params.FanIn(), act);
+  Forward(params, weights.conv, act);
+  Parameters gradient(weights.conv);
+  LossGradient out;
+  out.loss =
+      Backward(
+          params, weights.conv, act, [&](int r) { return data.labels[r]; },
+          label_smoothing, gradient) /
+      n;
+  out.gradient = weights;
+  for (size_t i = 0; i < weights.conv.size(); ++i) {
+    out.gradient.conv[i].weight = gradient.blocks[2 * i];
+    out.gradient.conv[i].bias = gradient.blocks[2 * i + 1];
+  }
+  const std::array<double*, 6> into = {
+      out.gradient.w1.data(), out.gradient.b1.data(), out.gradient.w2.data(),
+      out.gradient.b2.data(), out.gradient.w3.data(), out.gradient.b3.data()};
+  for (int b = 0; b < 6; ++b) {
+    const std::vector<double>& block = gradient.blocks[params.Fc(0) + b];
+    std::copy(block.begin(), block.end(), into[b]);
+  }
+  return out;
 }
 
 int ConfusionMatrix::Total() const {

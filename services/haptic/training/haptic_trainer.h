@@ -1,5 +1,6 @@
 // HapticNet's trainer: mini-batch Adam on the cross-entropy of the
-// 384-128-ReLU-128-ReLU-4 MLP, with per-channel normalisation fitted on the
+// 384-128-ReLU-128-ReLU-4 MLP (optionally behind a convolutional front end),
+// with per-channel normalisation fitted on the
 // training windows, early stopping on a validation split, and temperature
 // scaling fitted on that split so the probabilities are calibrated, not just
 // the argmax right. Label smoothing keeps implausible classes away from
@@ -50,6 +51,10 @@ struct TrainerOptions {
   // rewards confidence, but traces from other sources do not.
   double min_temperature = 1.0;
   double max_temperature = 5.0;
+  // Output channels of a convolutional front end before the MLP
+  // (HapticNetWeights::conv), e.g. {16, 32}; empty (the default) trains the
+  // plain MLP.
+  std::vector<int> conv_channels;
 };
 
 struct EpochLog {
@@ -75,6 +80,19 @@ absl::StatusOr<TrainingResult> TrainHapticNet(
     const LabelledWindows& train, const LabelledWindows& validation,
     const TrainerOptions& options,
     const std::function<void(const EpochLog&)>& on_epoch = nullptr);
+
+// The mean label-smoothed cross-entropy of `weights` over `data` (as one
+// batch) and its gradient with respect to every parameter: what each of the
+// trainer's Adam steps follows. Exposed so that tests can check the
+// back-propagation against finite differences of the reference pass.
+struct LossGradient {
+  double loss = 0.0;
+  // Shaped like the weights; its input_mean and input_stddev are unused.
+  HapticNetWeights gradient;
+};
+absl::StatusOr<LossGradient> SmoothedLossGradient(
+    const HapticNetWeights& weights, const LabelledWindows& data,
+    double label_smoothing);
 
 // Counts of (true class, predicted class).
 struct ConfusionMatrix {

@@ -17,6 +17,7 @@
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
@@ -112,6 +113,10 @@ ABSL_FLAG(double, familiarity_shrinkage, 0.1,
 ABSL_FLAG(double, window_s, 0.05,
           "HapticNet window after contact (s), recorded in the model as "
           "bitewise.window_s, which the service and the evaluator then use.");
+ABSL_FLAG(std::string, conv_channels, "",
+          "Output channels of a convolutional front end before the MLP, "
+          "comma-separated (e.g. 16,32: two layers of kernel 5, each with "
+          "ReLU and max-pooling by 2); empty: the plain MLP.");
 ABSL_FLAG(int, patience, 8,
           "Stop after this many epochs without a better validation loss.");
 
@@ -359,6 +364,20 @@ int main(int argc, char** argv) {
   absl::ParseCommandLine(argc, argv);
   if (!absl::GetFlag(FLAGS_ensemble_of).empty()) return AssembleEnsemble();
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
+  // Checked before any trace is drawn.
+  std::vector<int> conv_channels;
+  for (absl::string_view part : absl::StrSplit(
+           absl::GetFlag(FLAGS_conv_channels), ',', absl::SkipEmpty())) {
+    int channels = 0;
+    if (!absl::SimpleAtoi(part, &channels)) {
+      return Die(absl::StrCat("--conv_channels: \"", part,
+                              "\" is not a number of channels"));
+    }
+    conv_channels.push_back(channels);
+  }
+  if (absl::Status s = WeightsWithFrontEnd(conv_channels).status(); !s.ok()) {
+    return Die(absl::StrCat("--conv_channels: ", s.message()));
+  }
 
   std::vector<LabelledTrace> traces;
   std::vector<int> story_of;  // per simulated trace: its story
@@ -575,6 +594,7 @@ int main(int argc, char** argv) {
   options.patience = absl::GetFlag(FLAGS_patience);
   options.label_smoothing = absl::GetFlag(FLAGS_label_smoothing);
   options.min_temperature = absl::GetFlag(FLAGS_min_temperature);
+  options.conv_channels = conv_channels;
   absl::StatusOr<TrainingResult> result = TrainHapticNet(
       train_windows, validation_windows, options, [](const EpochLog& log) {
         std::printf(
@@ -687,6 +707,10 @@ int main(int argc, char** argv) {
       {"bitewise.held_out_accuracy",
        held_out_summary.empty() ? "none" : held_out_summary},
   };
+  if (!options.conv_channels.empty()) {
+    metadata["bitewise.conv_channels"] =
+        absl::StrJoin(options.conv_channels, ",");
+  }
   if (!recorded_summary.empty()) {
     metadata["bitewise.recorded_test_accuracy"] = recorded_summary;
   }
