@@ -38,6 +38,16 @@ SmallData MakeData(int per_class) {
   return data;
 }
 
+// The reference pass of `weights` on the test windows, scored.
+ProbabilisticScore ScoreOnTest(const HapticNetWeights& weights,
+                               const SmallData& data) {
+  std::vector<std::array<double, kHapticClasses>> probabilities;
+  for (const auto& x : data.test.inputs) {
+    probabilities.push_back(ReferenceProbabilities(weights, x));
+  }
+  return ScorePredictions(probabilities, data.test.labels);
+}
+
 TEST(TrainerTest, SameSeedGivesIdenticalModelBytes) {
   const SmallData data = MakeData(40);
   TrainerOptions options;
@@ -67,12 +77,7 @@ TEST(TrainerTest, LearnsTheSimulatedCategories) {
   EXPECT_LE(result->best_epoch, static_cast<int>(result->epochs.size()));
   EXPECT_LT(result->epochs[result->best_epoch - 1].validation_loss,
             result->epochs[0].validation_loss);
-  std::vector<std::array<double, kHapticClasses>> probabilities;
-  for (const auto& x : data.test.inputs) {
-    probabilities.push_back(ReferenceProbabilities(result->weights, x));
-  }
-  const ProbabilisticScore score =
-      ScorePredictions(probabilities, data.test.labels);
+  const ProbabilisticScore score = ScoreOnTest(result->weights, data);
   // A chance-level model would score 25 %.
   EXPECT_GT(score.confusion.Accuracy(), 0.9) << score.confusion.ToString();
   EXPECT_LT(score.mean_log_loss, 0.4);
@@ -91,12 +96,7 @@ TEST(TrainerTest, ConvolutionalFrontEndLearnsDeterministically) {
   EXPECT_EQ(result->weights.w1.rows(), 16 * 16);
   EXPECT_LT(result->epochs[result->best_epoch - 1].validation_loss,
             result->epochs[0].validation_loss);
-  std::vector<std::array<double, kHapticClasses>> probabilities;
-  for (const auto& x : data.test.inputs) {
-    probabilities.push_back(ReferenceProbabilities(result->weights, x));
-  }
-  const ProbabilisticScore score =
-      ScorePredictions(probabilities, data.test.labels);
+  const ProbabilisticScore score = ScoreOnTest(result->weights, data);
   EXPECT_GT(score.confusion.Accuracy(), 0.9) << score.confusion.ToString();
   options.max_epochs = 2;
   auto a = TrainHapticNet(data.train, data.validation, options);

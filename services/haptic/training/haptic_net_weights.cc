@@ -133,7 +133,6 @@ absl::StatusOr<HapticNetWeights> WeightsWithFrontEnd(
 void ConvForward(const ConvLayer& layer, const double* in, int length,
                  double* pre_activation, double* out, int* argmax) {
   const int outs = layer.out_channels;
-  constexpr int kHalf = kConvKernel / 2;
   for (int co = 0; co < outs; ++co) {
     std::fill(pre_activation + static_cast<size_t>(co) * length,
               pre_activation + static_cast<size_t>(co + 1) * length,
@@ -142,9 +141,7 @@ void ConvForward(const ConvLayer& layer, const double* in, int length,
   for (int ci = 0; ci < layer.in_channels; ++ci) {
     const double* x = in + static_cast<size_t>(ci) * length;
     for (int t = 0; t < kConvKernel; ++t) {
-      const int shift = t - kHalf;
-      const int begin = std::max(0, -shift);
-      const int end = std::min(length, length - shift);
+      const auto [shift, begin, end] = SpanOf(t, length);
       const double* w = layer.weight.data() +
                         static_cast<size_t>(ci * kConvKernel + t) * outs;
       for (int co = 0; co < outs; ++co) {

@@ -72,6 +72,17 @@ int FrontEndOutputs(const std::vector<ConvLayer>& conv);
 absl::StatusOr<HapticNetWeights> WeightsWithFrontEnd(
     const std::vector<int>& conv_channels);
 
+// Kernel offset t (0..kConvKernel - 1) of a layer of `length` points: output
+// point l reads input point l + shift, for l in [begin, end) (the others
+// read the zero padding).
+struct KernelSpan {
+  int shift, begin, end;
+};
+inline KernelSpan SpanOf(int t, int length) {
+  const int shift = t - kConvKernel / 2;
+  return {shift, shift < 0 ? -shift : 0, shift > 0 ? length - shift : length};
+}
+
 // One front-end layer on one window: `in` holds layer.in_channels rows of
 // `length` points (channel-major), `pre_activation` receives the convolution
 // (out_channels x length) and `out` the pooled ReLU (out_channels x length /

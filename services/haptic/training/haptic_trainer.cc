@@ -198,7 +198,6 @@ void ConvBackward(const ConvLayer& layer, int length, int n,
   std::vector<double> d_pre(pre_size);
   std::fill(d_weight.begin(), d_weight.end(), 0.0);
   std::fill(d_bias.begin(), d_bias.end(), 0.0);
-  constexpr int kHalf = kConvKernel / 2;
   for (int r = 0; r < n; ++r) {
     // Through the pooling (to the point it took) and the ReLU.
     std::fill(d_pre.begin(), d_pre.end(), 0.0);
@@ -216,9 +215,7 @@ void ConvBackward(const ConvLayer& layer, int length, int n,
     }
     for (int ci = 0; ci < ins; ++ci) {
       for (int t = 0; t < kConvKernel; ++t) {
-        const int shift = t - kHalf;
-        const int begin = std::max(0, -shift);
-        const int end = std::min(length, length - shift);
+        const auto [shift, begin, end] = SpanOf(t, length);
         const double* xc = x + static_cast<size_t>(ci) * length;
         double* dw =
             d_weight.data() + static_cast<size_t>(ci * kConvKernel + t) * outs;
@@ -235,9 +232,7 @@ void ConvBackward(const ConvLayer& layer, int length, int n,
       std::fill(dx, dx + in_size, 0.0);
       for (int ci = 0; ci < ins; ++ci) {
         for (int t = 0; t < kConvKernel; ++t) {
-          const int shift = t - kHalf;
-          const int begin = std::max(0, -shift);
-          const int end = std::min(length, length - shift);
+          const auto [shift, begin, end] = SpanOf(t, length);
           const double* w = layer.weight.data() +
                             static_cast<size_t>(ci * kConvKernel + t) * outs;
           double* dxc = dx + static_cast<size_t>(ci) * length;
