@@ -52,7 +52,8 @@ ABSL_FLAG(double, haptic_accuracy, 0.0,
 ABSL_FLAG(std::string, trace_story, "world",
           "Where the attempts' force/torque traces come from: world (the "
           "simulated robot's model) or a trace story HapticNet may never "
-          "have seen: piecewise, mechanics, compliant, puncture.");
+          "have seen: piecewise, mechanics, compliant, puncture, "
+          "poroelastic.");
 ABSL_FLAG(std::string, unfamiliar_posthoc,
           bitewise::domain::UnfamiliarPosthocName(
               bitewise::domain::kDefaultUnfamiliarPosthoc),

@@ -41,6 +41,16 @@
 //    tine tips and along the shafts, 55-90 mm below it; the fork's mode at
 //    1.2-3 kHz; the Net F/T's 7 kHz gauges with its selectable low-pass and
 //    every n-th sample streamed (100 Hz-7 kHz), offset and slow drift.
+//  - Poroelastic (poroelastic_story.cc): tissue as a fluid-saturated solid,
+//    a six-layer Biot column under each tapered tine whose undrained,
+//    turgid stiffness relaxes as juice flows out; cracks that run when the
+//    released energy meets the toughness (Griffith) and arrest below it
+//    (sawtooths in crisp tissue, a bioyield, smooth cutting and crushing in
+//    pastes), shafts rubbing on crack faces, a skin tensioned by the berry's
+//    pressure that bursts at its flaws' Griffith strength, the item squashing
+//    on the plate. An impedance-controlled arm at 15-40 mm/s with a fork that
+//    slips in the gripper; a wrist Mini40 16-24 cm above the tines over
+//    EtherCAT at 500 Hz-2 kHz (low-pass, counts, stale frames).
 //
 // Thread-compatible; deterministic in the generator's state.
 #ifndef BITEWISE_SERVICES_SIM_TRACE_STORIES_H_
@@ -74,6 +84,12 @@ std::vector<TimedWrench> CompliantStoryTrace(HapticCategory category,
 // 7, 14, 28 or 70 (7 kHz down to 100 Hz).
 std::vector<TimedWrench> PunctureStoryTrace(HapticCategory category,
                                             std::mt19937_64& rng);
+
+// One trace of a new item of `category` from the poroelastic story: contact
+// 0.1-0.3 s into the trace, 0.3-0.45 s after it, at 500 Hz, 1 kHz or 2 kHz
+// (EtherCAT cycles with +-2% jitter).
+std::vector<TimedWrench> PoroelasticStoryTrace(HapticCategory category,
+                                               std::mt19937_64& rng);
 
 }  // namespace bitewise::sim
 

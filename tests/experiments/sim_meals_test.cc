@@ -244,7 +244,7 @@ TEST_F(SimMealsTest, AttemptsCarryTheShippedFamiliarityScore) {
 // name that is not one story is refused, naming the choices.
 TEST_F(SimMealsTest, DrawsAttemptsFromEveryTraceStory) {
   for (const char* story :
-       {"piecewise", "mechanics", "compliant", "puncture"}) {
+       {"piecewise", "mechanics", "compliant", "puncture", "poroelastic"}) {
     SimMealsConfig config = TinyConfig();
     config.trace_story = story;
     ASSERT_TRUE(ValidateSimMealsConfig(config).ok()) << story;

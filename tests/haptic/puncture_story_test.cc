@@ -16,18 +16,10 @@
 #include "gtest/gtest.h"
 #include "services/domain/wrench.h"
 #include "services/sim/trace_stories.h"
+#include "tests/haptic/story_test_helpers.h"
 
 namespace bitewise::sim {
 namespace {
-
-constexpr std::array<HapticCategory, 4> kCategories = {
-    HapticCategory::kHard, HapticCategory::kMedium, HapticCategory::kSoft,
-    HapticCategory::kHardSkin};
-
-double Median(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
-  return v[v.size() / 2];
-}
 
 // A channel tared by its median over the first 50 ms (free motion) and
 // averaged over the trailing `window_s`.

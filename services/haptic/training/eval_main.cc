@@ -224,7 +224,7 @@ int main(int argc, char** argv) {
   };
   std::vector<TraceStory> stories = {
       TraceStory::kPiecewise, TraceStory::kMechanics, TraceStory::kCompliant,
-      TraceStory::kPuncture};
+      TraceStory::kPuncture, TraceStory::kPoroelastic};
   if (!absl::GetFlag(FLAGS_stories).empty()) {
     absl::StatusOr<std::vector<TraceStory>> parsed =
         ParseTraceStories(absl::GetFlag(FLAGS_stories));

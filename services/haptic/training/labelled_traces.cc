@@ -152,6 +152,8 @@ const char* TraceStoryName(TraceStory story) {
       return "compliant";
     case TraceStory::kPuncture:
       return "puncture";
+    case TraceStory::kPoroelastic:
+      return "poroelastic";
   }
   return "unknown";
 }
@@ -173,9 +175,10 @@ absl::StatusOr<std::vector<TraceStory>> ParseTraceStories(
       stories.push_back(story);
     }
     if (!known) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "unknown trace story \"", name,
-          "\" (world, piecewise, mechanics, compliant, puncture)"));
+      return absl::InvalidArgumentError(
+          absl::StrCat("unknown trace story \"", name,
+                       "\" (world, piecewise, mechanics, compliant, puncture, "
+                       "poroelastic)"));
     }
   }
   if (stories.empty()) {
@@ -194,6 +197,8 @@ StoryTraceFunction StoryTraceDraw(TraceStory story) {
       return sim::CompliantStoryTrace;
     case TraceStory::kPuncture:
       return sim::PunctureStoryTrace;
+    case TraceStory::kPoroelastic:
+      return sim::PoroelasticStoryTrace;
     case TraceStory::kWorld:
       break;
   }

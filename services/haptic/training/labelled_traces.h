@@ -103,11 +103,12 @@ enum class TraceStory {
   kPiecewise = 1,
   kMechanics = 2,
   kCompliant = 3,
-  kPuncture = 4
+  kPuncture = 4,
+  kPoroelastic = 5
 };
-inline constexpr int kTraceStories = 5;
+inline constexpr int kTraceStories = 6;
 
-// "world", "piecewise", "mechanics", "compliant", "puncture".
+// "world", "piecewise", "mechanics", "compliant", "puncture", "poroelastic".
 const char* TraceStoryName(TraceStory story);
 
 // A comma-separated list of story names, each at most once. INVALID_ARGUMENT
