@@ -40,12 +40,8 @@ constexpr double kStepS = 5e-5;     // physics step (20 kHz)
 constexpr double kControlS = 1e-3;  // impedance controller period
 constexpr double kMaxDepthM = 0.04;
 
-double Uni(Engine& rng, double lo, double hi) {
-  return random::Uniform(rng, lo, hi);
-}
-double LogUni(Engine& rng, double lo, double hi) {
-  return random::LogUniform(rng, lo, hi);
-}
+using random::LogUniform;
+using random::Uniform;
 
 struct Vec3 {
   double x = 0.0, y = 0.0, z = 0.0;
@@ -116,33 +112,33 @@ Tissue DrawTissue(HapticCategory category, Engine& rng) {
       // seconds), toughness 100-400 J/m^2, unstable cracks that arrest at
       // 10-40% of the critical energy; cells that collapse only when
       // squeezed by 80-120% of the bulb's depth (fracture comes first).
-      t.drained_pa = LogUni(rng, 2e6, 8e6);
-      t.fluid_pa = t.drained_pa * Uni(rng, 0.3, 1.5);
-      t.consolidation_s = LogUni(rng, 0.2, 2.0);
-      t.gc_init = LogUni(rng, 100.0, 400.0);
-      t.gc_prop = t.gc_init * Uni(rng, 0.6, 1.0);
-      t.arrest = Uni(rng, 0.1, 0.4);
-      t.toughness_cv = Uni(rng, 0.2, 0.4);
-      t.cell_m = Uni(rng, 0.2e-3, 0.6e-3);
-      t.friction = Uni(rng, 0.3, 0.6);
-      t.wedge_strain = Uni(rng, 0.02, 0.06);
-      t.crush_strain = Uni(rng, 0.8, 1.2);
+      t.drained_pa = LogUniform(rng, 2e6, 8e6);
+      t.fluid_pa = t.drained_pa * Uniform(rng, 0.3, 1.5);
+      t.consolidation_s = LogUniform(rng, 0.2, 2.0);
+      t.gc_init = LogUniform(rng, 100.0, 400.0);
+      t.gc_prop = t.gc_init * Uniform(rng, 0.6, 1.0);
+      t.arrest = Uniform(rng, 0.1, 0.4);
+      t.toughness_cv = Uniform(rng, 0.2, 0.4);
+      t.cell_m = Uniform(rng, 0.2e-3, 0.6e-3);
+      t.friction = Uniform(rng, 0.3, 0.6);
+      t.wedge_strain = Uniform(rng, 0.02, 0.06);
+      t.crush_strain = Uniform(rng, 0.8, 1.2);
       break;
     case HapticCategory::kMedium:
       // Juicy flesh (strawberry, cantaloupe, kiwi): 0.15-1 MPa, permeable
       // (30-300 ms), a tougher surface layer (40-200 J/m^2) over crushable
       // cells at 25-60% of it: one bioyield, then ragged, stable cutting.
-      t.drained_pa = LogUni(rng, 0.15e6, 1.0e6);
-      t.fluid_pa = t.drained_pa * Uni(rng, 0.5, 2.0);
-      t.consolidation_s = LogUni(rng, 0.03, 0.3);
-      t.gc_init = LogUni(rng, 40.0, 200.0);
-      t.gc_prop = t.gc_init * Uni(rng, 0.25, 0.6);
-      t.arrest = Uni(rng, 0.5, 0.85);
-      t.toughness_cv = Uni(rng, 0.15, 0.3);
-      t.cell_m = Uni(rng, 0.1e-3, 0.3e-3);
-      t.friction = Uni(rng, 0.2, 0.5);
-      t.wedge_strain = Uni(rng, 0.02, 0.06);
-      t.crush_strain = Uni(rng, 0.8, 1.2);
+      t.drained_pa = LogUniform(rng, 0.15e6, 1.0e6);
+      t.fluid_pa = t.drained_pa * Uniform(rng, 0.5, 2.0);
+      t.consolidation_s = LogUniform(rng, 0.03, 0.3);
+      t.gc_init = LogUniform(rng, 40.0, 200.0);
+      t.gc_prop = t.gc_init * Uniform(rng, 0.25, 0.6);
+      t.arrest = Uniform(rng, 0.5, 0.85);
+      t.toughness_cv = Uniform(rng, 0.15, 0.3);
+      t.cell_m = Uniform(rng, 0.1e-3, 0.3e-3);
+      t.friction = Uniform(rng, 0.2, 0.5);
+      t.wedge_strain = Uniform(rng, 0.02, 0.06);
+      t.crush_strain = Uniform(rng, 0.8, 1.2);
       break;
     case HapticCategory::kSoft:
       // Pastes (banana, avocado, ripe peach): 30-150 kPa, 10-60 J/m^2 and a
@@ -151,35 +147,35 @@ Tissue DrawTissue(HapticCategory category, Engine& rng) {
       // collapse at 60-100% strain and flow aside: no failure. The paste is
       // uniform at the tine's scale and closes round the shafts (wedging
       // 5-15%), dragging on them.
-      t.drained_pa = LogUni(rng, 0.03e6, 0.15e6);
-      t.fluid_pa = t.drained_pa * Uni(rng, 0.3, 1.5);
-      t.consolidation_s = LogUni(rng, 0.01, 0.1);
-      t.gc_init = LogUni(rng, 10.0, 60.0);
-      t.gc_prop = t.gc_init * Uni(rng, 0.85, 1.0);
-      t.arrest = Uni(rng, 0.92, 1.0);
-      t.toughness_cv = Uni(rng, 0.03, 0.08);
-      t.cell_m = Uni(rng, 0.05e-3, 0.2e-3);
-      t.friction = Uni(rng, 0.1, 0.4);
-      t.wedge_strain = Uni(rng, 0.05, 0.15);
-      t.crush_strain = Uni(rng, 0.6, 1.0);
+      t.drained_pa = LogUniform(rng, 0.03e6, 0.15e6);
+      t.fluid_pa = t.drained_pa * Uniform(rng, 0.3, 1.5);
+      t.consolidation_s = LogUniform(rng, 0.01, 0.1);
+      t.gc_init = LogUniform(rng, 10.0, 60.0);
+      t.gc_prop = t.gc_init * Uniform(rng, 0.85, 1.0);
+      t.arrest = Uniform(rng, 0.92, 1.0);
+      t.toughness_cv = Uniform(rng, 0.03, 0.08);
+      t.cell_m = Uniform(rng, 0.05e-3, 0.2e-3);
+      t.friction = Uniform(rng, 0.1, 0.4);
+      t.wedge_strain = Uniform(rng, 0.05, 0.15);
+      t.crush_strain = Uniform(rng, 0.6, 1.0);
       break;
     case HapticCategory::kHardSkin:
     default:
       // A berry's flesh (grape, cherry tomato pulp): soft and watery.
-      t.drained_pa = LogUni(rng, 0.02e6, 0.1e6);
-      t.fluid_pa = t.drained_pa * Uni(rng, 0.5, 2.0);
-      t.consolidation_s = LogUni(rng, 0.01, 0.08);
-      t.gc_init = LogUni(rng, 5.0, 25.0);
-      t.gc_prop = t.gc_init * Uni(rng, 0.8, 1.0);
-      t.arrest = Uni(rng, 0.7, 0.95);
-      t.toughness_cv = Uni(rng, 0.1, 0.2);
-      t.cell_m = Uni(rng, 0.1e-3, 0.3e-3);
-      t.friction = Uni(rng, 0.2, 0.4);
-      t.wedge_strain = Uni(rng, 0.02, 0.05);
-      t.crush_strain = Uni(rng, 0.6, 1.0);
+      t.drained_pa = LogUniform(rng, 0.02e6, 0.1e6);
+      t.fluid_pa = t.drained_pa * Uniform(rng, 0.5, 2.0);
+      t.consolidation_s = LogUniform(rng, 0.01, 0.08);
+      t.gc_init = LogUniform(rng, 5.0, 25.0);
+      t.gc_prop = t.gc_init * Uniform(rng, 0.8, 1.0);
+      t.arrest = Uniform(rng, 0.7, 0.95);
+      t.toughness_cv = Uniform(rng, 0.1, 0.2);
+      t.cell_m = Uniform(rng, 0.1e-3, 0.3e-3);
+      t.friction = Uniform(rng, 0.2, 0.4);
+      t.wedge_strain = Uniform(rng, 0.02, 0.05);
+      t.crush_strain = Uniform(rng, 0.6, 1.0);
       break;
   }
-  t.lateral_drain = Uni(rng, 1.0, 4.0);
+  t.lateral_drain = Uniform(rng, 1.0, 4.0);
   return t;
 }
 
@@ -195,35 +191,35 @@ Item DrawItem(HapticCategory category, Engine& rng) {
     // 50-120 um (a cell or two), skins of 60-150 um at 4-12 MPa with a
     // tearing energy of 150-500 J/m^2; the berry's pressure holds the skin
     // at 15-45% of that tension.
-    const double modulus = LogUni(rng, 4e6, 12e6);
-    const double thickness = Uni(rng, 60e-6, 150e-6);
-    const double tearing = LogUni(rng, 150.0, 500.0);
-    const double flaw = Uni(rng, 50e-6, 120e-6);
+    const double modulus = LogUniform(rng, 4e6, 12e6);
+    const double thickness = Uniform(rng, 60e-6, 150e-6);
+    const double tearing = LogUniform(rng, 150.0, 500.0);
+    const double flaw = Uniform(rng, 50e-6, 120e-6);
     s.fail_tension = thickness * std::sqrt(modulus * tearing / (kPi * flaw));
-    s.pre_tension = s.fail_tension * Uni(rng, 0.15, 0.45);
+    s.pre_tension = s.fail_tension * Uniform(rng, 0.15, 0.45);
     s.stiffness = modulus * thickness;
-    s.concentration = Uni(rng, 2.0, 4.0);
-    s.dimple_m = Uni(rng, 2e-3, 3.5e-3);
-    s.residual_tension = s.pre_tension * Uni(rng, 0.2, 0.5);
-    s.friction = Uni(rng, 0.3, 0.6);
-    s.softening = Uni(rng, 0.4, 0.7);
+    s.concentration = Uniform(rng, 2.0, 4.0);
+    s.dimple_m = Uniform(rng, 2e-3, 3.5e-3);
+    s.residual_tension = s.pre_tension * Uniform(rng, 0.2, 0.5);
+    s.friction = Uniform(rng, 0.3, 0.6);
+    s.softening = Uniform(rng, 0.4, 0.7);
     // The whole berry squashes like a pressurised shell: 5 N presses it by
     // 0.8-2 mm (Hertz-like, F ~ delta^1.5), creeping over 2-6 ms.
-    const double squash_at_5n = Uni(rng, 0.8e-3, 2e-3);
+    const double squash_at_5n = Uniform(rng, 0.8e-3, 2e-3);
     item.body.hertz = true;
     item.body.stiffness = 5.0 / std::pow(squash_at_5n, 1.5);
-    item.body.damping = Uni(rng, 2e-3, 6e-3) * 1.5 * 5.0 / squash_at_5n;
+    item.body.damping = Uniform(rng, 2e-3, 6e-3) * 1.5 * 5.0 / squash_at_5n;
   } else {
     // A cut piece on the plate: a block of E A / h ~ E L for a piece of
     // 8-30 mm, squashed undrained; creep over 0.5-20 ms.
     const double size = category == HapticCategory::kHard
-                            ? Uni(rng, 8e-3, 20e-3)
-                            : Uni(rng, 15e-3, 30e-3);
+                            ? Uniform(rng, 8e-3, 20e-3)
+                            : Uniform(rng, 15e-3, 30e-3);
     item.body.stiffness = undrained * size;
     const double creep_s =
-        category == HapticCategory::kHard     ? Uni(rng, 0.5e-3, 2e-3)
-        : category == HapticCategory::kMedium ? Uni(rng, 2e-3, 8e-3)
-                                              : Uni(rng, 5e-3, 20e-3);
+        category == HapticCategory::kHard     ? Uniform(rng, 0.5e-3, 2e-3)
+        : category == HapticCategory::kMedium ? Uniform(rng, 2e-3, 8e-3)
+                                              : Uniform(rng, 5e-3, 20e-3);
     item.body.damping = creep_s * item.body.stiffness;
   }
   const int cells = static_cast<int>(std::ceil(kMaxDepthM / t.cell_m)) + 1;
@@ -465,9 +461,9 @@ std::vector<TimedWrench> PoroelasticStoryTrace(HapticCategory category,
   // pi/2 (1 - nu^2) a ~ 1.4 a (Sneddon's flat punch on a column).
   Fork fork;
   fork.tines = random::Canonical(rng) < 0.25 ? 3 : 4;
-  fork.radius_m = Uni(rng, 0.6e-3, 0.9e-3);
-  fork.tip_radius_m = Uni(rng, 0.1e-3, 0.3e-3);
-  fork.taper_m = Uni(rng, 1e-3, 3e-3);
+  fork.radius_m = Uniform(rng, 0.6e-3, 0.9e-3);
+  fork.tip_radius_m = Uniform(rng, 0.1e-3, 0.3e-3);
+  fork.taper_m = Uniform(rng, 1e-3, 3e-3);
   fork.bulb_m = 1.43 * fork.radius_m;
 
   // The arm: Cartesian impedance control at 1 kHz, 2-5 kN/m, damping ratio
@@ -475,40 +471,40 @@ std::vector<TimedWrench> PoroelasticStoryTrace(HapticCategory category,
   // planned depth of 8-15 mm (at most 60 N of spring). The gripper holds the
   // fork by friction: it slips at 15-50 N and slides at 70-90% of that.
   // The reference eases to a stop there over 0.1-0.2 s (raised cosine).
-  const double arm_mass = Uni(rng, 2.0, 4.0);
-  const double stiffness = Uni(rng, 2000.0, 5000.0);
+  const double arm_mass = Uniform(rng, 2.0, 4.0);
+  const double stiffness = Uniform(rng, 2000.0, 5000.0);
   const double damping =
-      2.0 * Uni(rng, 0.7, 1.0) * std::sqrt(stiffness * arm_mass);
-  const double speed = Uni(rng, 0.015, 0.04);
-  const double plan_m = std::min(Uni(rng, 8e-3, 15e-3), 60.0 / stiffness);
-  const double brake_s = Uni(rng, 0.1, 0.2);
-  const double slip_static = LogUni(rng, 15.0, 50.0);
-  const double slip_kinetic = slip_static * Uni(rng, 0.7, 0.9);
-  const double tool_mass = Uni(rng, 0.6, 1.1);  // gripper and fork
+      2.0 * Uniform(rng, 0.7, 1.0) * std::sqrt(stiffness * arm_mass);
+  const double speed = Uniform(rng, 0.015, 0.04);
+  const double plan_m = std::min(Uniform(rng, 8e-3, 15e-3), 60.0 / stiffness);
+  const double brake_s = Uniform(rng, 0.1, 0.2);
+  const double slip_static = LogUniform(rng, 15.0, 50.0);
+  const double slip_kinetic = slip_static * Uniform(rng, 0.7, 0.9);
+  const double tool_mass = Uniform(rng, 0.6, 1.1);  // gripper and fork
 
   // Timing: first touch 0.1-0.3 s in, 0.3-0.45 s recorded after it.
-  const double contact_s = Uni(rng, 0.1, 0.3);
-  const double duration_s = contact_s + Uni(rng, 0.3, 0.45);
+  const double contact_s = Uniform(rng, 0.1, 0.3);
+  const double duration_s = contact_s + Uniform(rng, 0.3, 0.45);
 
   // Geometry in the sensor frame (z up the fork's nominal axis): the fork is
   // held tilted 0-12 deg and 0-12 mm off the sensor's axis; the tines are
   // 16-24 cm below the sensor, the tool's centre of mass 5-9 cm.
-  const double tilt = Uni(rng, 0.0, 12.0) * kPi / 180.0;
-  const double tilt_dir = Uni(rng, 0.0, 2.0 * kPi);
+  const double tilt = Uniform(rng, 0.0, 12.0) * kPi / 180.0;
+  const double tilt_dir = Uniform(rng, 0.0, 2.0 * kPi);
   const Vec3 axis = {std::sin(tilt) * std::cos(tilt_dir),
                      std::sin(tilt) * std::sin(tilt_dir), std::cos(tilt)};
   const Vec3 e1 = Normalized(Cross({0.0, 1.0, 0.0}, axis));
   const Vec3 e2 = Cross(axis, e1);
-  const double off_r = Uni(rng, 0.0, 12e-3);
-  const double off_dir = Uni(rng, 0.0, 2.0 * kPi);
+  const double off_r = Uniform(rng, 0.0, 12e-3);
+  const double off_dir = Uniform(rng, 0.0, 2.0 * kPi);
   const Vec3 offset = {off_r * std::cos(off_dir), off_r * std::sin(off_dir),
                        0.0};
-  const Vec3 tip_pos = offset + (-Uni(rng, 0.16, 0.24)) * axis;
-  const Vec3 com_pos = (-Uni(rng, 0.05, 0.09)) * axis;
+  const Vec3 tip_pos = offset + (-Uniform(rng, 0.16, 0.24)) * axis;
+  const Vec3 com_pos = (-Uniform(rng, 0.05, 0.09)) * axis;
   // The food pushes sideways too (a sloped top, off-axis cracks): 2-20% of
   // the axial force, in a random direction, kicked at every crack.
-  const double lateral_mag = Uni(rng, 0.02, 0.2);
-  const double lateral_dir = Uni(rng, 0.0, 2.0 * kPi);
+  const double lateral_mag = Uniform(rng, 0.02, 0.2);
+  const double lateral_dir = Uniform(rng, 0.0, 2.0 * kPi);
   double lambda1 = lateral_mag * std::cos(lateral_dir);
   double lambda2 = lateral_mag * std::sin(lateral_dir);
 
@@ -520,20 +516,21 @@ std::vector<TimedWrench> PoroelasticStoryTrace(HapticCategory category,
   };
   std::array<Tone, 2> tones;
   for (int i = 0; i < 2; ++i) {
-    tones[i].amp = LogUni(rng, 0.01, 0.1);
+    tones[i].amp = LogUniform(rng, 0.01, 0.1);
     tones[i].omega =
-        2.0 * kPi * (i == 0 ? Uni(rng, 8.0, 30.0) : Uni(rng, 40.0, 120.0));
-    tones[i].phase = Uni(rng, 0.0, 2.0 * kPi);
-    const double az = Uni(rng, 0.0, 2.0 * kPi);
-    const double el = Uni(rng, -0.5 * kPi, 0.5 * kPi);
+        2.0 * kPi *
+        (i == 0 ? Uniform(rng, 8.0, 30.0) : Uniform(rng, 40.0, 120.0));
+    tones[i].phase = Uniform(rng, 0.0, 2.0 * kPi);
+    const double az = Uniform(rng, 0.0, 2.0 * kPi);
+    const double el = Uniform(rng, -0.5 * kPi, 0.5 * kPi);
     tones[i].dir = {std::cos(el) * std::cos(az), std::cos(el) * std::sin(az),
                     std::sin(el)};
   }
   // The gripped fork's first bending mode (50-180 Hz, 3-10% damping), rung
   // sideways by 5-20% of every sudden loss of force.
-  const double ring_omega = 2.0 * kPi * Uni(rng, 50.0, 180.0);
-  const double ring_zeta = Uni(rng, 0.03, 0.1);
-  const double ring_gain = Uni(rng, 0.05, 0.2);
+  const double ring_omega = 2.0 * kPi * Uniform(rng, 50.0, 180.0);
+  const double ring_zeta = Uniform(rng, 0.03, 0.1);
+  const double ring_gain = Uniform(rng, 0.05, 0.2);
 
   // The sensor: Mini40 over EtherCAT, cycle 500 Hz, 1 kHz or 2 kHz, DC time
   // stamps with +-2% jitter, 0-1% stale frames, a two-pole low-pass at
@@ -543,22 +540,22 @@ std::vector<TimedWrench> PoroelasticStoryTrace(HapticCategory category,
   static constexpr std::array<double, 3> kRates = {500.0, 1000.0, 2000.0};
   const double rate_hz = kRates[random::UniformInt(rng, 0, 2)];
   const double period_s = 1.0 / rate_hz;
-  const double stale_p = Uni(rng, 0.0, 0.01);
-  LowPass filter(LogUni(rng, 100.0, 700.0), kStepS);
-  const double force_sd = LogUni(rng, 0.006, 0.03);
-  const double torque_sd = LogUni(rng, 1.5e-4, 6e-4);
+  const double stale_p = Uniform(rng, 0.0, 0.01);
+  LowPass filter(LogUniform(rng, 100.0, 700.0), kStepS);
+  const double force_sd = LogUniform(rng, 0.006, 0.03);
+  const double torque_sd = LogUniform(rng, 1.5e-4, 6e-4);
   static constexpr std::array<double, 6> kCounts = {0.01,   0.01,   0.02,
                                                     2.5e-4, 2.5e-4, 2.5e-4};
   std::array<double, 6> offset6{}, drift6{};
   for (int k = 0; k < 6; ++k) {
-    offset6[k] = k < 3 ? Uni(rng, -0.3, 0.3) : Uni(rng, -0.01, 0.01);
-    drift6[k] = k < 3 ? Uni(rng, -0.05, 0.05) : Uni(rng, -0.002, 0.002);
+    offset6[k] = k < 3 ? Uniform(rng, -0.3, 0.3) : Uniform(rng, -0.01, 0.01);
+    drift6[k] = k < 3 ? Uniform(rng, -0.05, 0.05) : Uniform(rng, -0.002, 0.002);
   }
   {
     // Gravity on the tool is -axis (down); a bias taken in a pose rotated by
     // a small angle leaves m g (omega x g_hat) behind.
-    const double angle = Uni(rng, 0.0, 8.0) * kPi / 180.0;
-    const Vec3 rot_axis = InPlane(e1, e2, Uni(rng, 0.0, 2.0 * kPi));
+    const double angle = Uniform(rng, 0.0, 8.0) * kPi / 180.0;
+    const Vec3 rot_axis = InPlane(e1, e2, Uniform(rng, 0.0, 2.0 * kPi));
     const Vec3 weight = (tool_mass * kGravity * angle) * Cross(rot_axis, axis);
     const Vec3 moment = Cross(com_pos, weight);
     offset6[0] += weight.x;
@@ -602,7 +599,7 @@ std::vector<TimedWrench> PoroelasticStoryTrace(HapticCategory category,
 
   std::vector<TimedWrench> trace;
   trace.reserve(static_cast<size_t>(duration_s * rate_hz) + 2);
-  const double first_sample = Uni(rng, 0.0, period_s);
+  const double first_sample = Uniform(rng, 0.0, period_s);
   int64_t sample_index = 0;
   double sample_t = first_sample;
   std::array<double, 6> last{};
@@ -653,7 +650,7 @@ std::vector<TimedWrench> PoroelasticStoryTrace(HapticCategory category,
       local = food.At(x - slip - squash);
       const double drop = before - local.force;
       if (drop > 0.0) {
-        const double dir = Uni(rng, 0.0, 2.0 * kPi);
+        const double dir = Uniform(rng, 0.0, 2.0 * kPi);
         ring_v[0] += ring_gain * drop * ring_omega * std::cos(dir);
         ring_v[1] += ring_gain * drop * ring_omega * std::sin(dir);
         lambda1 = std::clamp(lambda1 + 0.02 * normal(rng), -0.3, 0.3);
@@ -711,7 +708,7 @@ std::vector<TimedWrench> PoroelasticStoryTrace(HapticCategory category,
       trace.push_back(sample);
       ++sample_index;
       sample_t = first_sample + sample_index * period_s +
-                 Uni(rng, -0.02, 0.02) * period_s;
+                 Uniform(rng, -0.02, 0.02) * period_s;
     }
   }
   return trace;
