@@ -663,13 +663,57 @@ void Meal::Judge(const v1::AcquireResult& result) {
        ask ? mealpb::STEP_STATE_WAITING : mealpb::STEP_STATE_DONE, text);
 }
 
+std::string Meal::Felt(const v1::ClassifyResponse& haptic, mealpb::Bite* bite) {
+  const int category = static_cast<int>(haptic.category());
+  mealpb::HapticSummary* summary = bite->mutable_haptic();
+  summary->set_label(HapticLabel(haptic.category()));
+  summary->set_probability(category > 0 &&
+                                   haptic.probabilities_size() >= category
+                               ? haptic.probabilities(category - 1)
+                               : 0.0);
+  *summary->mutable_probabilities() = haptic.probabilities();
+  if (update_.has_value() && options_.posthoc != PosthocMode::kNone) {
+    const bool log_form = options_.posthoc == PosthocMode::kLogProbabilities;
+    const auto& answer =
+        log_form ? haptic.log_probabilities() : haptic.probabilities();
+    update_->posthoc = domain::PosthocContext(
+        std::vector<double>(answer.begin(), answer.end()), log_form,
+        haptic.unfamiliar(), options_.unfamiliar_posthoc);
+  }
+  std::string text =
+      absl::StrFormat("It felt %s (%.0f%% sure).", summary->label(),
+                      100.0 * summary->probability());
+  if (haptic.unfamiliar() && options_.posthoc != PosthocMode::kNone) {
+    const domain::UnfamiliarPosthoc rule = options_.unfamiliar_posthoc;
+    absl::StrAppendFormat(
+        &text,
+        " This bite felt unusual, unlike what HapticNet learned from "
+        "(familiarity %.3f); %s.",
+        haptic.familiarity(),
+        rule == domain::UnfamiliarPosthoc::kAsIs
+            ? "its answer is still used for learning"
+        : rule == domain::UnfamiliarPosthoc::kUniform
+            ? "learning treats how it felt as unknown (uniform)"
+            : "learning leaves out how it felt");
+  }
+  return text;
+}
+
 absl::Status Meal::Classify(const v1::AcquireResult& result) {
   Emit(mealpb::STEP_CLASSIFY, mealpb::STEP_STATE_STARTED,
        "Feeling what the food was like.");
   absl::StatusOr<v1::ClassifyResponse> haptic =
       clients_->haptic.Classify(result.trace());
   Record(result, haptic.ok() ? &*haptic : nullptr);
-  if (!haptic.ok()) {
+  // No contact: the force never held above the HapticService's contact
+  // threshold (the fork missed the food, or the food is softer than the
+  // threshold), so there is no haptic class, only a fact about the bite. It
+  // is learned with no post hoc context (p = 0: the post hoc part of the
+  // model learns nothing, the visual part does), not failed: failing it would
+  // leave every such bite unlearned and stop the meal at each one.
+  const bool no_contact =
+      !haptic.ok() && absl::IsFailedPrecondition(haptic.status());
+  if (!haptic.ok() && !no_contact) {
     if (options_.posthoc != PosthocMode::kNone) {
       // Without a haptic class the post hoc learner cannot use this bite.
       return Fail(mealpb::STEP_CLASSIFY, haptic.status(),
@@ -686,36 +730,19 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
   {
     absl::MutexLock lock(&mu_);
     mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
-    const int category = static_cast<int>(haptic->category());
-    mealpb::HapticSummary* summary = bite->mutable_haptic();
-    summary->set_label(HapticLabel(haptic->category()));
-    summary->set_probability(category > 0 &&
-                                     haptic->probabilities_size() >= category
-                                 ? haptic->probabilities(category - 1)
-                                 : 0.0);
-    *summary->mutable_probabilities() = haptic->probabilities();
-    if (update_.has_value() && options_.posthoc != PosthocMode::kNone) {
-      const bool log_form = options_.posthoc == PosthocMode::kLogProbabilities;
-      const auto& answer =
-          log_form ? haptic->log_probabilities() : haptic->probabilities();
-      update_->posthoc = domain::PosthocContext(
-          std::vector<double>(answer.begin(), answer.end()), log_form,
-          haptic->unfamiliar(), options_.unfamiliar_posthoc);
-    }
-    text = absl::StrFormat("It felt %s (%.0f%% sure).", summary->label(),
-                           100.0 * summary->probability());
-    if (haptic->unfamiliar() && options_.posthoc != PosthocMode::kNone) {
-      const domain::UnfamiliarPosthoc rule = options_.unfamiliar_posthoc;
-      absl::StrAppendFormat(
-          &text,
-          " This bite felt unusual, unlike what HapticNet learned from "
-          "(familiarity %.3f); %s.",
-          haptic->familiarity(),
-          rule == domain::UnfamiliarPosthoc::kAsIs
-              ? "its answer is still used for learning"
-          : rule == domain::UnfamiliarPosthoc::kUniform
-              ? "learning treats how it felt as unknown (uniform)"
-              : "learning leaves out how it felt");
+    if (no_contact) {
+      if (update_.has_value() && options_.posthoc != PosthocMode::kNone) {
+        update_->posthoc.assign(domain::kHapticClasses, 0.0);
+      }
+      text = absl::StrCat(
+          "The fork felt no contact, so there is no haptic class (",
+          haptic.status().message(), "); ",
+          options_.posthoc == PosthocMode::kNone
+              ? "vision only, so the bite is still learned."
+              : "the bite is learned from what the camera saw, with no post "
+                "hoc context.");
+    } else {
+      text = Felt(*haptic, bite);
     }
     // An answer given while the trace was being classified is saved now.
     if (!bite->answer().empty() && update_.has_value()) answered = *update_;
@@ -855,8 +882,8 @@ absl::Status Meal::Answer(const std::string& event_id, bool success) {
       update_->loss = success ? 0.0 : 1.0;
       // Saved once the trace is classified (the update needs its post hoc
       // context); before that, Classify saves it.
-      const bool classified = options_.posthoc == PosthocMode::kNone ||
-                              bite->haptic().probabilities_size() > 0;
+      const bool classified =
+          options_.posthoc == PosthocMode::kNone || !update_->posthoc.empty();
       if (classified) to_save = *update_;
     }
     bite->set_learned("answer saved");

@@ -24,6 +24,9 @@
 //  - classify fails while post hoc context is on: nothing is learned, the
 //    event stays pending (the post hoc learner cannot use a bite without
 //    its haptic class);
+//  - the fork felt no contact (Classify answers FAILED_PRECONDITION: the
+//    force never reached the contact threshold): not a failure; the bite
+//    is learned with no post hoc context (p = 0), from vision alone;
 //  - the Update fails: the update goes to the journal and is delivered
 //    later (the next answer, the next meal or the next run).
 //
@@ -183,6 +186,10 @@ class Meal {
                                             const std::string& action);
   void Judge(const v1::AcquireResult& result);
   absl::Status Classify(const v1::AcquireResult& result);
+  // What the person reads about how the bite felt; keeps HapticNet's
+  // answer in `bite` and the post hoc context it gives in update_.
+  std::string Felt(const v1::ClassifyResponse& haptic, mealpb::Bite* bite)
+      ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // Records the trace when options_.recording is set (`haptic` null when
   // the HapticService did not answer).
   void Record(const v1::AcquireResult& result,

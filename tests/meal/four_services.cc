@@ -156,6 +156,8 @@ FourServices::~FourServices() {
   }
 }
 
+int FourServices::ItemsLeft() const { return impl_->backend->items_left(); }
+
 absl::StatusOr<std::unique_ptr<FourServices>> FourServices::Start(
     const FourServicesOptions& options) {
   auto impl = std::make_unique<Impl>();

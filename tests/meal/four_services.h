@@ -67,6 +67,8 @@ class FourServices {
   std::string haptic_address() const;
   std::string robot_address() const;
   const std::string& dir() const { return dir_; }
+  // Items still on the simulated plate (an acquired item leaves it).
+  int ItemsLeft() const;
 
  private:
   struct Impl;

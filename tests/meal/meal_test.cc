@@ -219,6 +219,115 @@ TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
   EXPECT_EQ(row[15], "1") << line;  // the threshold 1 flags it
 }
 
+// A bite the fork never feels: the only item (a strawberry, taller than the
+// descent's depth limit, so the fork stops in the air where it was) has been
+// eaten, and the robot bites where it was seen. The HapticService finds no
+// contact (FAILED_PRECONDITION); the meal goes on and learns the failure
+// from what the camera saw, with no post hoc context (p = 0), the robot's
+// verdict or the operator's answer alike.
+class NoContactMealTest : public ::testing::TestWithParam<ConfirmBy> {};
+
+TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
+  FourServicesOptions service_options;
+  service_options.foods = {"strawberry"};
+  absl::StatusOr<std::unique_ptr<FourServices>> services =
+      FourServices::Start(service_options);
+  ASSERT_OK(services.status());
+  ServiceClients clients((*services)->channels(), CallDeadlines());
+  UpdateJournal journal(absl::StrCat((*services)->dir(), "/miss.journal"));
+  MealOptions options;
+  options.user_id = "miss-user";
+  options.meal_id = "lunch";
+  options.confirm = GetParam();
+  ASSERT_EQ(options.posthoc, PosthocMode::kLogProbabilities);
+  RecordingListener listener;
+  Meal meal(&clients, &journal, options, &listener);
+  ASSERT_OK(meal.LookAtPlate());
+  ASSERT_EQ(meal.state().items_size(), 1);
+  const auto answer_if_asked = [&](bool success) {
+    const mealpb::Bite bite = meal.state().current();
+    if (options.confirm == ConfirmBy::kOperator) {
+      ASSERT_OK(meal.Answer(bite.event_id(), success));
+    }
+  };
+  // Bite until the strawberry comes up (the operator tells the truth).
+  int bites = 0;
+  for (; bites < 12; ++bites) {
+    ASSERT_OK(meal.Bite(0));
+    const bool felt = meal.state().current().haptic().probabilities_size() > 0;
+    ASSERT_TRUE(felt) << meal.state().current().text();
+    bool came_up = false;
+    for (const mealpb::BiteEvent& e : listener.events()) {
+      came_up = came_up || (e.step() == mealpb::STEP_JUDGE &&
+                            e.bite() == meal.state().bite() &&
+                            absl::StrContains(e.text(), "came up"));
+    }
+    if (options.confirm == ConfirmBy::kOperator) {
+      // The robot's verdict is not shown; the world's is.
+      came_up = (*services)->ItemsLeft() == 0;
+    }
+    answer_if_asked(came_up);
+    if (came_up) break;
+  }
+  ASSERT_LT(bites, 12) << "the strawberry never came up";
+  ASSERT_EQ((*services)->ItemsLeft(), 0);
+
+  // The same item again: it is gone.
+  ASSERT_OK(meal.Bite(0));
+  answer_if_asked(false);
+  const mealpb::MealState state = meal.state();
+  EXPECT_NE(state.phase(), "failed") << state.error();
+  const mealpb::Bite& missed = state.current();
+  EXPECT_EQ(missed.outcome(), "failure");
+  EXPECT_EQ(missed.haptic().probabilities_size(), 0);
+  EXPECT_TRUE(missed.error().empty()) << missed.error();
+  bool told = false;
+  for (const mealpb::BiteEvent& e : listener.events()) {
+    told = told ||
+           (e.step() == mealpb::STEP_CLASSIFY &&
+            e.state() == mealpb::STEP_STATE_DONE && e.bite() == state.bite() &&
+            absl::StrContains(e.text(), "felt no contact") &&
+            absl::StrContains(e.text(), "peak force") &&
+            absl::StrContains(e.text(), "with no post hoc context"));
+  }
+  EXPECT_TRUE(told);
+  if (options.confirm == ConfirmBy::kOperator) {
+    // The answer is saved now, and learned when the next bite starts.
+    absl::StatusOr<std::vector<JournaledUpdate>> saved = journal.ReadAll();
+    ASSERT_OK(saved.status());
+    ASSERT_FALSE(saved->empty());
+    EXPECT_EQ(saved->back().event_id, missed.event_id());
+    EXPECT_EQ(saved->back().loss, 1.0);
+    EXPECT_THAT(saved->back().posthoc,
+                ::testing::ElementsAre(0.0, 0.0, 0.0, 0.0));
+    ASSERT_OK(meal.Bite(0));
+  } else {
+    EXPECT_EQ(missed.learned(), "learned");
+  }
+  v1::ListEventsRequest request;
+  request.set_user_id(options.user_id);
+  request.set_page_size(100);
+  absl::StatusOr<v1::ListEventsResponse> events =
+      clients.bandit.ListEvents(request);
+  ASSERT_OK(events.status());
+  const auto event = std::find_if(
+      events->events().begin(), events->events().end(),
+      [&](const v1::Event& e) { return e.event_id() == missed.event_id(); });
+  ASSERT_NE(event, events->events().end());
+  EXPECT_TRUE(event->completed());
+  EXPECT_EQ(event->loss(), 1.0);
+  EXPECT_THAT(event->posthoc(), ::testing::ElementsAre(0.0, 0.0, 0.0, 0.0));
+}
+
+INSTANTIATE_TEST_SUITE_P(RobotOrOperator, NoContactMealTest,
+                         ::testing::Values(ConfirmBy::kRobot,
+                                           ConfirmBy::kOperator),
+                         [](const ::testing::TestParamInfo<ConfirmBy>& info) {
+                           return info.param == ConfirmBy::kRobot
+                                      ? std::string("RobotJudges")
+                                      : std::string("OperatorAnswers");
+                         });
+
 TEST(MealWordsTest, SingularAndPlural) {
   EXPECT_EQ(SummaryText(1, 1), "1 attempt, 1 failure");
   EXPECT_EQ(SummaryText(2, 0), "2 attempts, 0 failures");
