@@ -124,6 +124,13 @@ std::vector<double> PosthocContext(
                                 unfamiliar);
 }
 
+std::vector<double> AttemptPosthoc(const SimAttempt& attempt,
+                                   HapticContext kind,
+                                   domain::UnfamiliarPosthoc unfamiliar) {
+  if (!attempt.contact) return std::vector<double>(haptic::kHapticClasses, 0.0);
+  return PosthocContext(attempt.haptic, kind, unfamiliar);
+}
+
 absl::Status ValidateSimMealsConfig(const SimMealsConfig& config) {
   if (config.attempts_per_food < 1) {
     return absl::InvalidArgumentError(absl::StrCat(
@@ -324,23 +331,28 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
       classified = classifier_->Classify(sim::SimulateTrace(
           profiles[attempt.plate][food], trace_options, trace_rng));
     } else {
-      for (int draw = 0; draw < kMaxStoryDraws; ++draw) {
+      const int draws = config.keep_no_contact ? 1 : kMaxStoryDraws;
+      for (int draw = 0; draw < draws; ++draw) {
         classified =
             classifier_->Classify(story(foods[food]->category, trace_rng));
         if (classified.ok() ||
             !absl::IsFailedPrecondition(classified.status())) {
           break;
         }
-        ++world.story_redraws;
+        if (draw + 1 < draws) ++world.story_redraws;
       }
     }
-    if (!classified.ok()) {
+    if (config.keep_no_contact &&
+        absl::IsFailedPrecondition(classified.status())) {
+      attempt.contact = false;
+      ++world.no_contact;
+    } else if (!classified.ok()) {
       return absl::InternalError(absl::StrCat(
           "classifying the trace of attempt ", world.attempts.size(), " (",
           foods[food]->name, "): ", classified.status().ToString()));
     }
-    attempt.haptic = *classified;
-    if (config.haptic_accuracy > 0.0 &&
+    if (attempt.contact) attempt.haptic = *classified;
+    if (attempt.contact && config.haptic_accuracy > 0.0 &&
         random::Uniform01(haptic_error_rng) >= config.haptic_accuracy) {
       // A confident wrong answer: the top probability moves to another
       // class, drawn uniformly.
@@ -406,7 +418,7 @@ absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
     round.action = choice.action;
     round.loss = failed ? 1.0 : 0.0;
     if (bandit::UsesPosthoc(bandit_config.learner)) {
-      round.posthoc = PosthocContext(attempt.haptic, kind, unfamiliar);
+      round.posthoc = AttemptPosthoc(attempt, kind, unfamiliar);
     }
     RETURN_IF_ERROR(model.ValidateRound(round));
     model.Update(round);

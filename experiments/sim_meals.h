@@ -118,8 +118,15 @@ struct SimMealsConfig {
   // HapticNet may never have seen ("piecewise", "mechanics", "compliant",
   // "puncture"; services/sim/trace_stories.h: a new item of the food's
   // category per attempt). A story trace the haptic pipeline rejects (a soft
-  // item too weak to register contact) is drawn again.
+  // item too weak to register contact) is drawn again, unless
+  // keep_no_contact.
   std::string trace_story = "world";
+  // Keep a story's contact-less attempt as it is, as the product meets it:
+  // no haptic class, and the post hoc learners get no post hoc context
+  // (p = 0), as the orchestrator's meal sends (clients/meal/meal.h). False:
+  // the trace is drawn again (up to 200 times), so every attempt has
+  // contact.
+  bool keep_no_contact = false;
   // What the post hoc learners are given for an attempt whose trace the
   // familiarity model calls unfamiliar (as the orchestrator:
   // domain::kDefaultUnfamiliarPosthoc). Without a familiarity model no
@@ -147,12 +154,20 @@ struct SimAttempt {
   // DefaultFeaturizer's 64 numbers for the item's ground-truth box on that
   // plate (location: isolated). Identical for all attempts on the same item.
   std::vector<double> context;
-  // HapticClassifier's answer for this attempt's simulated force trace.
+  // HapticClassifier's answer for this attempt's simulated force trace,
+  // when it found contact (otherwise `contact` is false and this is empty).
   haptic::HapticClassification haptic;
+  bool contact = true;
   // Outcome draw: the attempt succeeds iff coin < success[action], whatever
   // learner chose the action.
   double coin = 0.0;
 };
+
+// What the post hoc learners get for `attempt`: PosthocContext of its
+// classification, or no post hoc context (p = 0) when it had no contact.
+std::vector<double> AttemptPosthoc(
+    const SimAttempt& attempt, HapticContext kind,
+    domain::UnfamiliarPosthoc unfamiliar = domain::UnfamiliarPosthoc::kAsIs);
 
 struct SimMealWorld {
   // The meal's foods; SimAttempt::food indexes this.
@@ -162,6 +177,8 @@ struct SimMealWorld {
   int plate_redraws = 0;
   // Story traces drawn again because the pipeline found no contact.
   int story_redraws = 0;
+  // Attempts kept without contact (keep_no_contact).
+  int no_contact = 0;
 };
 
 // The project's components the experiment runs on. Thread-compatible (the

@@ -54,6 +54,10 @@ ABSL_FLAG(std::string, trace_story, "world",
           "simulated robot's model) or a trace story HapticNet may never "
           "have seen: piecewise, mechanics, compliant, puncture, "
           "poroelastic.");
+ABSL_FLAG(bool, keep_no_contact, false,
+          "Keep a story's attempt whose trace never reaches contact, as the "
+          "product meets it: no haptic class, no post hoc context (p = 0) "
+          "for the post hoc learners. False: such a trace is drawn again.");
 ABSL_FLAG(std::string, unfamiliar_posthoc,
           bitewise::domain::UnfamiliarPosthocName(
               bitewise::domain::kDefaultUnfamiliarPosthoc),
@@ -147,6 +151,7 @@ int Run() {
   config.phi_radius = absl::GetFlag(FLAGS_phi_radius);
   config.haptic_accuracy = absl::GetFlag(FLAGS_haptic_accuracy);
   config.trace_story = absl::GetFlag(FLAGS_trace_story);
+  config.keep_no_contact = absl::GetFlag(FLAGS_keep_no_contact);
   config.lambda_p = absl::GetFlag(FLAGS_lambda_p);
   {
     absl::StatusOr<domain::UnfamiliarPosthoc> rule =
@@ -222,6 +227,8 @@ int Run() {
   int64_t unfamiliar_total = 0, unfamiliar_correct = 0;
   bool scored = false;
   int plate_redraws = 0;
+  // Story traces drawn again for want of contact; attempts kept without.
+  int64_t story_redraws = 0, no_contact = 0;
   // Scale of what the learners see, against the ridges: mean squared norm
   // of the visual context and of each form of the haptic context.
   double context_norm2 = 0.0;
@@ -238,7 +245,17 @@ int Run() {
       return 1;
     }
     plate_redraws += world->plate_redraws;
+    story_redraws += world->story_redraws;
+    no_contact += world->no_contact;
     for (const SimAttempt& attempt : world->attempts) {
+      for (double v : attempt.context) context_norm2 += v * v;
+      for (size_t v = 0; v < kHapticContexts.size(); ++v) {
+        for (double x : AttemptPosthoc(attempt, kHapticContexts[v],
+                                       config.unfamiliar_posthoc)) {
+          posthoc_norm2[v] += x * x;
+        }
+      }
+      if (!attempt.contact) continue;
       const bool correct = static_cast<int>(attempt.haptic.category) ==
                            static_cast<int>(foods[attempt.food]->category);
       haptic_correct += correct;
@@ -248,13 +265,6 @@ int Run() {
           attempt.haptic.familiarity.unfamiliar) {
         ++unfamiliar_total;
         unfamiliar_correct += correct;
-      }
-      for (double v : attempt.context) context_norm2 += v * v;
-      for (size_t v = 0; v < kHapticContexts.size(); ++v) {
-        for (double x : PosthocContext(attempt.haptic, kHapticContexts[v],
-                                       config.unfamiliar_posthoc)) {
-          posthoc_norm2[v] += x * x;
-        }
       }
     }
     oracle.push_back(OracleExpectedFailures(*world));
@@ -364,6 +374,14 @@ int Run() {
       "plates drawn again because a food did not fit or was not visible: "
       "%d of %d\n",
       plate_redraws, plate_redraws + trials * ResolvedPlatesPerTrial(config));
+  const double all_attempts = static_cast<double>(haptic_total + no_contact);
+  if (config.trace_story != "world") {
+    absl::PrintF(
+        "story traces drawn again for want of contact: %d; attempts kept "
+        "without contact (--keep_no_contact; no post hoc context): %d of "
+        "%d\n",
+        story_redraws, no_contact, haptic_total + no_contact);
+  }
   absl::PrintF("HapticNet category accuracy on the attempts' traces: %.2f%%\n",
                100.0 * haptic_correct / haptic_total);
   if (scored) {
@@ -386,9 +404,9 @@ int Run() {
   absl::PrintF(
       "mean squared norm: visual context (d_c = %d) %.2f; haptic context "
       "logprob %.1f, prob %.3f, onehot %.3f\n",
-      (*simulator)->featurizer().dimension(), context_norm2 / haptic_total,
-      posthoc_norm2[0] / haptic_total, posthoc_norm2[1] / haptic_total,
-      posthoc_norm2[2] / haptic_total);
+      (*simulator)->featurizer().dimension(), context_norm2 / all_attempts,
+      posthoc_norm2[0] / all_attempts, posthoc_norm2[1] / all_attempts,
+      posthoc_norm2[2] / all_attempts);
   absl::PrintF(
       "expected failures over the meal: best action every time %.2f, uniform "
       "random %.2f\n",

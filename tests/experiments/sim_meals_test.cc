@@ -10,6 +10,7 @@
 #include <random>
 #include <vector>
 
+#include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/domain/skewering_actions.h"
 #include "services/perception/default_featurizer.h"
@@ -272,6 +273,43 @@ TEST_F(SimMealsTest, DrawsAttemptsFromEveryTraceStory) {
     EXPECT_NE(status.message().find("puncture"), std::string::npos)
         << status.message();
   }
+}
+
+// A contact-less story trace, kept as the product meets it: the attempt has
+// no classification, the post hoc learners get p = 0, and every learner
+// still plays it. Drawn again otherwise, every attempt has contact.
+TEST_F(SimMealsTest, KeepsContactlessAttemptsWithNoPosthocContext) {
+  SimMealsConfig config = TinyConfig();
+  config.trace_story = "poroelastic";  // most soft items stay under 1 N
+  auto redrawn = simulator_->DrawWorld(config, 11);
+  ASSERT_TRUE(redrawn.ok()) << redrawn.status();
+  EXPECT_EQ(redrawn->no_contact, 0);
+  EXPECT_GT(redrawn->story_redraws, 0);
+  for (const SimAttempt& a : redrawn->attempts) EXPECT_TRUE(a.contact);
+
+  config.keep_no_contact = true;
+  auto kept = simulator_->DrawWorld(config, 11);
+  ASSERT_TRUE(kept.ok()) << kept.status();
+  ASSERT_EQ(kept->attempts.size(), redrawn->attempts.size());
+  EXPECT_EQ(kept->story_redraws, 0);
+  int contactless = 0;
+  for (const SimAttempt& a : kept->attempts) {
+    if (a.contact) continue;
+    ++contactless;
+    EXPECT_THAT(a.haptic.probabilities, ::testing::Each(0.0));
+    EXPECT_FALSE(a.haptic.has_familiarity);
+    for (HapticContext kind :
+         {HapticContext::kLogProbabilities, HapticContext::kProbabilities,
+          HapticContext::kOneHot}) {
+      EXPECT_EQ(AttemptPosthoc(a, kind), std::vector<double>(4, 0.0));
+    }
+  }
+  EXPECT_GT(contactless, 0);
+  EXPECT_EQ(contactless, kept->no_contact);
+  auto run = RunSimMealTrial(config, *kept, bandit::Learner::kPostHoc,
+                             HapticContext::kLogProbabilities, 11);
+  ASSERT_TRUE(run.ok()) << run.status();
+  EXPECT_EQ(run->failed.size(), kept->attempts.size());
 }
 
 TEST(SimMealsConfigTest, RejectsNonPositiveCounts) {
