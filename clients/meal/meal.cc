@@ -731,6 +731,7 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
     absl::MutexLock lock(&mu_);
     mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
     if (no_contact) {
+      bite->mutable_haptic()->set_label("no contact");
       if (update_.has_value() && options_.posthoc != PosthocMode::kNone) {
         update_->posthoc.assign(domain::kHapticClasses, 0.0);
       }

@@ -138,8 +138,9 @@ void PrintBite(const mealpb::Bite& bite) {
                               : bite.outcome() == "pending" ? "?"
                                                             : bite.outcome();
   const std::string haptic =
-      bite.haptic().label().empty()
-          ? std::string("n/a")
+      bite.haptic().label().empty() ? std::string("n/a")
+      : bite.haptic().probabilities().empty()
+          ? bite.haptic().label()
           : absl::StrFormat("%s %.2f", bite.haptic().label(),
                             bite.haptic().probability());
   std::string learned = bite.learned();

@@ -279,6 +279,7 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
   EXPECT_NE(state.phase(), "failed") << state.error();
   const mealpb::Bite& missed = state.current();
   EXPECT_EQ(missed.outcome(), "failure");
+  EXPECT_EQ(missed.haptic().label(), "no contact");
   EXPECT_EQ(missed.haptic().probabilities_size(), 0);
   EXPECT_TRUE(missed.error().empty()) << missed.error();
   bool told = false;

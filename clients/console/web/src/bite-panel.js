@@ -170,7 +170,11 @@ export function createBitePanel() {
     setText(outcomeWord, word);
     setText(outcomeText, bite.error && !bite.text?.includes(bite.error) ? `${bite.text} ${bite.error}` : bite.text);
     const more = [];
-    if (bite.haptic?.label) more.push(`Felt ${bite.haptic.label} (${Math.round(bite.haptic.probability * 100)}% sure)`);
+    if (bite.haptic?.label && bite.haptic.probabilities?.length) {
+      more.push(`Felt ${bite.haptic.label} (${Math.round(bite.haptic.probability * 100)}% sure)`);
+    } else if (bite.haptic?.label) {
+      more.push(`Felt ${bite.haptic.label}`);
+    }
     if (bite.learned && bite.learned !== 'pending') more.push(`Learning: ${bite.learned}`);
     setText(outcomeMore, more.join('. '));
   }
