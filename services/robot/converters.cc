@@ -89,6 +89,9 @@ void StatusToProto(const RobotStatusInfo& info, bool simulated, int items_left,
   proto->set_ft_counter_rate_hz(info.ft_health.counter.rate_hz);
   proto->set_ft_counter_measured_hz(info.ft_health.counter.measured_rate_hz);
   proto->set_ft_counter_problem(info.ft_health.counter.problem);
+  proto->set_ft_readings_unchanged_s(info.ft_health.readings_unchanged_s);
+  proto->set_ft_readings_unchanged_records(
+      info.ft_health.readings_unchanged_records);
   proto->set_busy_with(info.busy_with == AcquirePhase::kIdle
                            ? ""
                            : AcquirePhaseName(info.busy_with));

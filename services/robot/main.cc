@@ -25,6 +25,7 @@
 #include "services/domain/steady_time.h"
 #include "services/robot/backend.h"
 #include "services/robot/camera_client.h"
+#include "services/robot/netft/netft_rdt_client.h"
 #include "services/robot/robot_service.h"
 #include "services/robot/sim/sim_netft_box.h"
 
@@ -64,6 +65,11 @@ ABSL_FLAG(double, counts_per_torque, 1e6,
 ABSL_FLAG(double, ft_silence_timeout_s, 0.0,
           "No F/T sample for this long: the sensor is silent and health "
           "reports NOT_SERVING. 0: 0.1 s on jaco2, 1 s in sim.");
+ABSL_FLAG(double, ft_frozen_after_s,
+          bitewise::netft::NetFtRdtClientOptions().frozen_after_s,
+          "All six F/T readings identical for this long (and at least 10 "
+          "records): the gauges are not being read, health reports "
+          "NOT_SERVING and the arm does not move. 0: off.");
 ABSL_FLAG(double, watchdog_s, 0.0,
           "The arm stops when the F/T stream is silent this long during an "
           "Acquire. 0: 0.1 s on jaco2, 1 s in sim.");
@@ -137,6 +143,7 @@ absl::StatusOr<bitewise::robot::RobotBackendOptions> OptionsFromFlags() {
   }
   options.ft.silence_timeout_s =
       silence_s > 0.0 ? silence_s : silence_default_s;
+  options.ft.frozen_after_s = absl::GetFlag(FLAGS_ft_frozen_after_s);
   options.acquisition.watchdog_timeout_s =
       watchdog_s > 0.0 ? watchdog_s : silence_default_s;
   options.acquisition.X_TaskCamera =

@@ -131,6 +131,8 @@ TEST(StatusToProtoTest, CarriesTheArmTheSensorAndItsCounterClock) {
   info.ft_health.counter.rate_hz = 7000.0;
   info.ft_health.counter.measured_rate_hz = 3500.0;
   info.ft_health.counter.problem = "counter runs at half the rate";
+  info.ft_health.readings_unchanged_s = 0.25;
+  info.ft_health.readings_unchanged_records = 1750;
   info.ft_stats.packets_lost = 11;
   info.ft_stats.samples_accepted = 123456;
   info.ft_stats.out_of_order = 3;
@@ -159,6 +161,8 @@ TEST(StatusToProtoTest, CarriesTheArmTheSensorAndItsCounterClock) {
   EXPECT_EQ(proto.ft_counter_rate_hz(), 7000.0);
   EXPECT_EQ(proto.ft_counter_measured_hz(), 3500.0);
   EXPECT_EQ(proto.ft_counter_problem(), "counter runs at half the rate");
+  EXPECT_EQ(proto.ft_readings_unchanged_s(), 0.25);
+  EXPECT_EQ(proto.ft_readings_unchanged_records(), 1750u);
   EXPECT_EQ(proto.busy_with(), "descend");
   EXPECT_EQ(proto.items_left(), -1);
 }

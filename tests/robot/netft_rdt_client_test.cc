@@ -23,6 +23,7 @@ namespace {
 
 using ::bitewise::testing::HandWrittenRecord;
 using ::bitewise::testing::UdpTestPeer;
+using ::testing::AllOf;
 using ::testing::ElementsAre;
 using ::testing::HasSubstr;
 
@@ -223,6 +224,11 @@ TEST(NetFtRdtClientOptionsTest, RejectsBadConfiguration) {
   EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(status.message(), HasSubstr("counts_per_force"));
   options.counts_per_force = 1e6;
+  options.frozen_after_s = -0.1;
+  status = NetFtRdtClient::Connect(options).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(status.message(), HasSubstr("frozen_after_s"));
+  options.frozen_after_s = 0.1;
   options.host = "no such host.invalid";
   status = NetFtRdtClient::Connect(options).status();
   EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
@@ -317,6 +323,37 @@ TEST_F(SimBoxTest, SilenceIsDetectedAndRecovers) {
   box_->SetFaults(sim::SimNetFtFaults());
   ASSERT_TRUE(WaitFor(
       [&] { return client_->Health().state == StreamState::kStreaming; }));
+  ASSERT_TRUE(WaitFor([&] { return client_->CheckLive().ok(); }));
+  EXPECT_EQ(client_->stats().packets_lost, 0u);
+}
+
+// Records that keep flowing with a sane counter and a clean status word but
+// repeat their readings exactly are not a live sensor: not live, naming the
+// sensor and how long; live again once the readings move. A noisy stream
+// is never called frozen.
+TEST_F(SimBoxTest, FrozenReadingsAreNotLiveAndRecover) {
+  Start(1000.0, sim::SimNetFtFaults());
+  ASSERT_TRUE(WaitFor([&] { return client_->CheckLive().ok(); }));
+  ASSERT_TRUE(
+      WaitFor([&] { return client_->stats().samples_accepted >= 300; }));
+  EXPECT_TRUE(client_->CheckLive().ok());
+  EXPECT_LE(client_->Health().readings_unchanged_records, 2u);
+  sim::SimNetFtFaults faults;
+  faults.readings_frozen = true;
+  box_->SetFaults(faults);
+  ASSERT_TRUE(WaitFor([&] { return !client_->CheckLive().ok(); }));
+  const absl::Status live = client_->CheckLive();
+  EXPECT_EQ(live.code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(live.message(), AllOf(HasSubstr("Net F/T sensor at 127.0.0.1:"),
+                                    HasSubstr("all six readings identical"),
+                                    HasSubstr("no force protection")));
+  EXPECT_EQ(client_->CheckDuringMotion().code(),
+            absl::StatusCode::kUnavailable);
+  const StreamHealth health = client_->Health();
+  EXPECT_EQ(health.state, StreamState::kStreaming);
+  EXPECT_GE(health.readings_unchanged_s, 0.1);
+  EXPECT_GE(health.readings_unchanged_records, 9u);
+  box_->SetFaults(sim::SimNetFtFaults());
   ASSERT_TRUE(WaitFor([&] { return client_->CheckLive().ok(); }));
   EXPECT_EQ(client_->stats().packets_lost, 0u);
 }

@@ -439,6 +439,43 @@ TEST_F(RobotTest, AFaultStatusWordMidDescentStopsTheArm) {
   EXPECT_FALSE(backend_->FtLive());
 }
 
+// Gauges that stop being read while the box streams on (clean status word,
+// advancing counter, the last readings repeated exactly) leave the arm with
+// no force protection: the descent stops, health drops and the message
+// names the sensor; health returns once the readings move again. Before
+// the fix a bite went on in this state, and the HapticService then only
+// found "no contact".
+TEST_F(RobotTest, FrozenReadingsMidDescentStopTheArm) {
+  Start({"banana"});
+  ASSERT_TRUE(backend_->FtLive());
+  std::atomic<bool> descending{false};
+  auto running =
+      AcquireAsync(TargetOfItem(0), "VS0", AcquirePhase::kDescend, &descending);
+  ASSERT_TRUE(WaitFor([&] { return descending.load(); }));
+  SetFault([](sim::SimNetFtFaults* f) { f->readings_frozen = true; });
+  absl::StatusOr<AcquireOutcome> outcome = running.get();
+  EXPECT_EQ(outcome.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(outcome.status().message(),
+              AllOf(HasSubstr("Net F/T sensor at 127.0.0.1"),
+                    HasSubstr("all six readings identical"),
+                    HasSubstr("no force protection"),
+                    HasSubstr("arm stopped during descend")));
+  EXPECT_GE(backend_->sim_arm()->halts(), 1);
+  EXPECT_TRUE(ArmFrozen());
+  EXPECT_FALSE(backend_->FtLive());
+  EXPECT_GE(backend_->robot().Status().ft_health.readings_unchanged_s, 0.1);
+  // Nothing moves while they stay frozen.
+  const int commands = backend_->sim_arm()->commands();
+  absl::StatusOr<AcquireOutcome> refused =
+      backend_->robot().Acquire(TargetOfItem(0), "VS0", nullptr);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(refused.status().message(), HasSubstr("all six readings"));
+  EXPECT_EQ(backend_->sim_arm()->commands(), commands);
+  SetFault([](sim::SimNetFtFaults* f) { f->readings_frozen = false; });
+  ASSERT_TRUE(WaitFor([&] { return backend_->FtLive(); }));
+  EXPECT_LT(backend_->robot().Status().ft_health.readings_unchanged_s, 0.1);
+}
+
 TEST_F(RobotTest, ACounterThatWrapsIsNotAFault) {
   RobotBackendOptions options = SimOptions({"banana", "kiwi"}, 3);
   // 2^32 is reached about a second after the box boots: mid-acquisition.

@@ -67,6 +67,11 @@ absl::StatusOr<std::unique_ptr<NetFtRdtClient>> NetFtRdtClient::Connect(
     return absl::InvalidArgumentError(
         "silence_timeout_s and history_capacity must be positive");
   }
+  if (!(options.frozen_after_s >= 0.0) ||
+      !std::isfinite(options.frozen_after_s)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "frozen_after_s must be >= 0 (0: off), got ", options.frozen_after_s));
+  }
   absl::StatusOr<sockaddr_in> addr = Resolve(options.host, options.port);
   if (!addr.ok()) return addr.status();
   const int fd = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0);
@@ -208,6 +213,13 @@ void NetFtRdtClient::HandleDatagram(const uint8_t* data, size_t size,
   }
   if (record->status != 0) ++stats_.status_errors;
   stats_.last_status = record->status;
+  if (stats_.samples_accepted > 0 && record->counts == last_counts_) {
+    ++unchanged_records_;
+  } else {
+    last_counts_ = record->counts;
+    counts_changed_s_ = now_s;
+    unchanged_records_ = 0;
+  }
 
   FtSample sample;
   sample.index = next_index_++;
@@ -260,6 +272,10 @@ StreamHealth NetFtRdtClient::Health() const {
   }
   health.rate_hz = in_window / kRateWindowS;
   health.counter = clock_.Report();
+  if (stats_.samples_accepted > 0) {
+    health.readings_unchanged_s = last_sample_time_s_ - counts_changed_s_;
+    health.readings_unchanged_records = unchanged_records_;
+  }
   return health;
 }
 
@@ -289,6 +305,16 @@ absl::Status NetFtRdtClient::CheckDuringMotion() const {
   const CounterClockReport counter = clock_.Report();
   if (counter.state != CounterClockState::kOk) {
     return absl::UnavailableError(absl::StrCat(name_, ": ", counter.problem));
+  }
+  const double unchanged_s = last_sample_time_s_ - counts_changed_s_;
+  if (options_.frozen_after_s > 0.0 &&
+      unchanged_records_ + 1 >= static_cast<uint64_t>(kMinFrozenRecords) &&
+      unchanged_s >= options_.frozen_after_s) {
+    return absl::UnavailableError(absl::StrFormat(
+        "%s: all six readings identical in the last %d records (%.0f ms): "
+        "the gauges are not being read (a frozen amplifier, or the "
+        "transducer cable at the box), so there is no force protection",
+        name_, unchanged_records_ + 1, 1e3 * unchanged_s));
   }
   return absl::OkStatus();
 }

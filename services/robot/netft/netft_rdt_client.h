@@ -72,12 +72,21 @@ struct NetFtRdtClientOptions {
   CounterClockOptions counter;
   // No accepted sample for this long means the sensor is silent.
   double silence_timeout_s = 0.05;
+  // All six raw readings identical for this long (by arrival time) and for
+  // at least kMinFrozenRecords records in a row means the gauges are not
+  // being read: a live transducer's noise moves the counts of every record
+  // (at the factory 1e6 counts per N, 0.01 N of noise is 10,000 counts).
+  // 0 turns the check off.
+  double frozen_after_s = 0.1;
   // While silent, the start request is sent again this often, so a box that
   // rebooted resumes streaming by itself.
   double restart_interval_s = 1.0;
   // Samples kept for SamplesSince(): at 7 kHz, 2^16 is about 9 s.
   size_t history_capacity = size_t{1} << 16;
 };
+
+// Fewer identical records in a row are never called frozen (a slow stream).
+inline constexpr int kMinFrozenRecords = 10;
 
 // Everything counted since Connect().
 struct RdtStats {
@@ -110,6 +119,10 @@ struct StreamHealth {
   double rate_hz = 0.0;
   // The ft_sequence counter checked against arrival times.
   CounterClockReport counter;
+  // How long (arrival times) and for how many records in a row the six
+  // readings have not changed: a live sensor's stay near 0.
+  double readings_unchanged_s = 0.0;
+  uint64_t readings_unchanged_records = 0;
 };
 
 class NetFtRdtClient {
@@ -142,13 +155,15 @@ class NetFtRdtClient {
 
   // OK while samples arrive with a trustworthy counter; UNAVAILABLE naming
   // the sensor when it is silent, has not sent anything yet, reports a
-  // non-zero status word, or its ft_sequence counter is still being
-  // verified or in fault (the message gives measured and expected rates).
+  // non-zero status word, its ft_sequence counter is still being verified
+  // or in fault (the message gives measured and expected rates), or its
+  // readings are frozen (frozen_after_s).
   absl::Status CheckLive() const;
 
   // CheckLive() without the silence checks, for the control loop, which
   // applies its own watchdog: UNAVAILABLE naming the sensor while the box
-  // reports a fault status word or the counter is not verified sane.
+  // reports a fault status word, the counter is not verified sane, or the
+  // readings are frozen.
   absl::Status CheckDuringMotion() const;
 
   StreamHealth Health() const;
@@ -196,6 +211,11 @@ class NetFtRdtClient {
   uint64_t first_index_of_stream_ ABSL_GUARDED_BY(mu_) = 0;
   double last_sample_time_s_ ABSL_GUARDED_BY(mu_) = 0.0;
   double last_restart_s_ ABSL_GUARDED_BY(mu_) = 0.0;
+  // The last accepted record's raw readings; when they last changed
+  // (arrival time) and how many records since repeated them exactly.
+  std::array<int32_t, 6> last_counts_ ABSL_GUARDED_BY(mu_){};
+  double counts_changed_s_ ABSL_GUARDED_BY(mu_) = 0.0;
+  uint64_t unchanged_records_ ABSL_GUARDED_BY(mu_) = 0;
 };
 
 }  // namespace bitewise::netft

@@ -228,6 +228,10 @@ void SimNetFtBox::Stream(double now_s) {
       record.counts[i] = ToCounts(f, options_.counts_per_force);
       record.counts[3 + i] = ToCounts(tq, options_.counts_per_torque);
     }
+    if (faults_.readings_frozen) {
+      for (int i = 0; i < 6; ++i) record.counts[i] = last_counts_[i];
+    }
+    for (int i = 0; i < 6; ++i) last_counts_[i] = record.counts[i];
     counters_.last_rdt_sequence = record.rdt_sequence;
     const auto bytes = netft::EncodeRdtRecord(record);
     if (faults_.loss_probability > 0.0 &&

@@ -10,6 +10,7 @@
 #ifndef BITEWISE_SERVICES_ROBOT_SIM_SIM_NETFT_BOX_H_
 #define BITEWISE_SERVICES_ROBOT_SIM_SIM_NETFT_BOX_H_
 
+#include <array>
 #include <atomic>
 #include <cstdint>
 #include <memory>
@@ -67,6 +68,10 @@ struct SimNetFtFaults {
   // Sent as every record's status word (non-zero: the box reports a
   // fault, e.g. a saturated gauge).
   uint32_t status_word = 0;
+  // The gauges are no longer read: records keep flowing with advancing
+  // counters and a clean status word, but repeat the last readings exactly
+  // (a frozen amplifier, a transducer cable pulled at the box).
+  bool readings_frozen = false;
   // A load on the fork (N, along the sensor's z) that the world does not
   // know of: someone pressing the fork, or an unexpected obstacle.
   double press_n = 0.0;
@@ -135,6 +140,7 @@ class SimNetFtBox {
   double boot_time_s_ = 0.0;  // ft_sequence counts from here
   double last_drift_s_ = 0.0;
   uint32_t last_ft_sequence_ = 0;
+  std::array<int32_t, 6> last_counts_{};  // of the last record made
   Wrench last_clean_;  // the last noise-free reading (for bias)
   Wrench bias_;
   std::vector<uint8_t> held_;  // a record held back for reordering
