@@ -25,7 +25,7 @@
 //    event stays pending (the post hoc learner cannot use a bite without
 //    its haptic class);
 //  - the fork felt no contact (Classify answers FAILED_PRECONDITION: the
-//    force never reached the contact threshold): not a failure; the bite
+//    force never held above the contact threshold): not a failure; the bite
 //    is learned with no post hoc context (p = 0), from vision alone;
 //  - the Update fails: the update goes to the journal and is delivered
 //    later (the next answer, the next meal or the next run).
