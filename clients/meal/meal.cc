@@ -704,7 +704,8 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
        "Feeling what the food was like.");
   absl::StatusOr<v1::ClassifyResponse> haptic =
       clients_->haptic.Classify(result.trace());
-  Record(result, haptic.ok() ? &*haptic : nullptr);
+  Record(result, haptic.ok() ? &*haptic : nullptr,
+         absl::IsFailedPrecondition(haptic.status()));
   // No contact: the force never held above the HapticService's contact
   // threshold (the fork missed the food, or the food is softer than the
   // threshold), so there is no haptic class, only a fact about the bite. It
@@ -761,7 +762,7 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
 }
 
 void Meal::Record(const v1::AcquireResult& result,
-                  const v1::ClassifyResponse* haptic) {
+                  const v1::ClassifyResponse* haptic, bool no_contact) {
   if (options_.recording == nullptr || result.trace().empty()) return;
   RecordedBite bite;
   bite.user_id = options_.user_id;
@@ -786,6 +787,7 @@ void Meal::Record(const v1::AcquireResult& result,
     bite.probabilities.assign(haptic->probabilities().begin(),
                               haptic->probabilities().end());
   }
+  bite.no_contact = no_contact;
   if (haptic != nullptr && haptic->has_familiarity()) {
     bite.familiarity = haptic->familiarity();
     bite.unfamiliar = haptic->unfamiliar();

@@ -191,9 +191,10 @@ class Meal {
   std::string Felt(const v1::ClassifyResponse& haptic, mealpb::Bite* bite)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // Records the trace when options_.recording is set (`haptic` null when
-  // the HapticService did not answer).
+  // the HapticService did not answer; `no_contact` when it answered that
+  // the trace has no contact).
   void Record(const v1::AcquireResult& result,
-              const v1::ClassifyResponse* haptic);
+              const v1::ClassifyResponse* haptic, bool no_contact);
   void Learn();
 
   void Emit(mealpb::Step step, mealpb::StepState state, std::string text,

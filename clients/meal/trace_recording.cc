@@ -226,7 +226,9 @@ absl::StatusOr<std::string> TraceRecording::Record(
       ",", Field(bite.user_id), ",", Field(bite.meal_id), ",",
       Field(bite.event_id), ",", Field(bite.food), ",", label, ",",
       Field(bite.action), ",", Field(bite.outcome), ",",
-      bite.haptic.has_value() ? domain::HapticClassName(*bite.haptic) : "none");
+      bite.haptic.has_value() ? domain::HapticClassName(*bite.haptic)
+      : bite.no_contact       ? "no contact"
+                              : "none");
   for (int k = 0; k < domain::kHapticClasses; ++k) {
     if (bite.haptic.has_value() &&
         static_cast<int>(bite.probabilities.size()) == domain::kHapticClasses) {

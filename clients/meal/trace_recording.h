@@ -54,8 +54,10 @@ struct RecordedBite {
   std::optional<domain::HapticClass> label;
   std::string action;   // "VS0", ...
   std::string outcome;  // success, failure, awaiting answer, ...
-  // HapticNet's answer; empty when the HapticService did not answer.
+  // HapticNet's answer; empty when the HapticService did not answer, or
+  // answered that the trace has no contact (`no_contact`).
   std::optional<domain::HapticClass> haptic;
+  bool no_contact = false;
   std::vector<double> probabilities;  // 4 when `haptic` is set
   // The HapticService's familiarity score and its verdict; empty when the
   // service did not answer or gave no score (no familiarity model).

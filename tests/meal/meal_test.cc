@@ -240,6 +240,11 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
   options.meal_id = "lunch";
   options.confirm = GetParam();
   ASSERT_EQ(options.posthoc, PosthocMode::kLogProbabilities);
+  const std::string recorded = absl::StrCat((*services)->dir(), "/recorded");
+  absl::StatusOr<std::unique_ptr<TraceRecording>> recording =
+      TraceRecording::Open(recorded);
+  ASSERT_OK(recording.status());
+  options.recording = recording->get();
   RecordingListener listener;
   Meal meal(&clients, &journal, options, &listener);
   ASSERT_OK(meal.LookAtPlate());
@@ -318,6 +323,15 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
   EXPECT_TRUE(event->completed());
   EXPECT_EQ(event->loss(), 1.0);
   EXPECT_THAT(event->posthoc(), ::testing::ElementsAre(0.0, 0.0, 0.0, 0.0));
+  // The lab's recording keeps the trace and says it had no contact.
+  std::ifstream bites_csv(absl::StrCat(recorded, "/bites.csv"));
+  std::string line, missed_row;
+  while (std::getline(bites_csv, line)) {
+    if (absl::StrContains(line, missed.event_id())) missed_row = line;
+  }
+  const std::vector<std::string> row = absl::StrSplit(missed_row, ',');
+  ASSERT_GE(row.size(), 10u) << missed_row;
+  EXPECT_EQ(row[9], "no contact") << missed_row;
 }
 
 INSTANTIATE_TEST_SUITE_P(RobotOrOperator, NoContactMealTest,
