@@ -87,6 +87,16 @@ class RecordingListener : public MealListener {
   std::function<void(const mealpb::BiteEvent&)> hook_;
 };
 
+// Opens a trace recording in `dir` and has the meal of `options` record
+// into it (the recording must outlive the meal).
+absl::StatusOr<std::unique_ptr<TraceRecording>> RecordInto(
+    const std::string& dir, MealOptions* options) {
+  absl::StatusOr<std::unique_ptr<TraceRecording>> recording =
+      TraceRecording::Open(dir);
+  if (recording.ok()) options->recording = recording->get();
+  return recording;
+}
+
 class MealTest : public SharedFourServicesTest<MealTest> {
  public:
   static FourServicesOptions Options() {
@@ -182,9 +192,8 @@ TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
   options.unfamiliar_posthoc = domain::UnfamiliarPosthoc::kUniform;
   const std::string recorded = absl::StrCat((*services)->dir(), "/recorded");
   absl::StatusOr<std::unique_ptr<TraceRecording>> recording =
-      TraceRecording::Open(recorded);
+      RecordInto(recorded, &options);
   ASSERT_OK(recording.status());
-  options.recording = recording->get();
   RecordingListener listener;
   Meal meal(&clients, &journal, options, &listener);
   ASSERT_OK(meal.LookAtPlate());
@@ -242,9 +251,8 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
   ASSERT_EQ(options.posthoc, PosthocMode::kLogProbabilities);
   const std::string recorded = absl::StrCat((*services)->dir(), "/recorded");
   absl::StatusOr<std::unique_ptr<TraceRecording>> recording =
-      TraceRecording::Open(recorded);
+      RecordInto(recorded, &options);
   ASSERT_OK(recording.status());
-  options.recording = recording->get();
   RecordingListener listener;
   Meal meal(&clients, &journal, options, &listener);
   ASSERT_OK(meal.LookAtPlate());
