@@ -144,6 +144,12 @@ absl::StatusOr<bitewise::robot::RobotBackendOptions> OptionsFromFlags() {
   options.ft.silence_timeout_s =
       silence_s > 0.0 ? silence_s : silence_default_s;
   options.ft.frozen_after_s = absl::GetFlag(FLAGS_ft_frozen_after_s);
+  if (!(options.ft.frozen_after_s >= 0.0) ||
+      !std::isfinite(options.ft.frozen_after_s)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--ft_frozen_after_s must be >= 0 (0: off), got ",
+                     options.ft.frozen_after_s));
+  }
   options.acquisition.watchdog_timeout_s =
       watchdog_s > 0.0 ? watchdog_s : silence_default_s;
   options.acquisition.X_TaskCamera =

@@ -50,6 +50,23 @@ std::string Json(const google::protobuf::Message& message) {
   return out;
 }
 
+// A frozen-readings threshold below zero would turn the check into
+// nonsense: the binary refuses to start, naming the flag.
+TEST(RobotBinaryTest, RefusesANegativeFrozenReadingsThreshold) {
+  testing::ChildProcess child;
+  const std::string log = ::testing::TempDir() + "/robot_bad_flag.log";
+  ASSERT_TRUE(child
+                  .Start({BITEWISE_ROBOT_BINARY, "--listen=127.0.0.1:0",
+                          "--ft_frozen_after_s=-0.5"},
+                         log)
+                  .ok());
+  absl::StatusOr<int> exit = child.Wait(absl::Seconds(30));
+  ASSERT_TRUE(exit.ok()) << exit.status();
+  EXPECT_NE(*exit, 0);
+  EXPECT_THAT(child.log(),
+              HasSubstr("--ft_frozen_after_s must be >= 0 (0: off), got -0.5"));
+}
+
 TEST(RobotBinaryTest, SimulatedRobotEndToEnd) {
   testing::ChildProcess child;
   const std::string log = ::testing::TempDir() + "/robot_binary_test.log";
