@@ -74,8 +74,10 @@ struct NetFtRdtClientOptions {
   double silence_timeout_s = 0.05;
   // All six raw readings identical for this long (by arrival time) and for
   // at least kMinFrozenRecords records in a row means the gauges are not
-  // being read: a live transducer's noise moves the counts of every record
-  // (at the factory 1e6 counts per N, 0.01 N of noise is 10,000 counts).
+  // being read: a live transducer's noise moves the counts of every new
+  // internal sample (at the factory 1e6 counts per N, 0.01 N of noise is
+  // 10,000 counts); a box streaming faster than it samples repeats a sample
+  // in a record or two, never for 0.1 s.
   // 0 turns the check off.
   double frozen_after_s = 0.1;
   // While silent, the start request is sent again this often, so a box that
