@@ -12,6 +12,7 @@
 #include "services/common/status_macros.h"
 #include "services/domain/context_ridge.h"
 #include "services/domain/random.h"
+#include "services/domain/skewering_actions.h"
 #include "services/haptic/default_model.h"
 #include "services/haptic/training/labelled_traces.h"
 #include "services/perception/spanet_featurizer.h"
@@ -131,6 +132,26 @@ std::vector<double> AttemptPosthoc(const SimAttempt& attempt,
   return PosthocContext(attempt.haptic, kind, unfamiliar);
 }
 
+const char* LimitReachedPosthocName(LimitReachedPosthoc rule) {
+  return rule == LimitReachedPosthoc::kZero ? "zero" : "asis";
+}
+
+std::vector<double> ActionPosthoc(const SimAttempt& attempt, double limit_n,
+                                  HapticContext kind,
+                                  domain::UnfamiliarPosthoc unfamiliar,
+                                  LimitReachedPosthoc rule) {
+  if (attempt.contact) {
+    for (const SimAttempt::Limited& limited : attempt.limited) {
+      if (limited.limit_n != limit_n || !limited.reached) continue;
+      if (rule == LimitReachedPosthoc::kZero) {
+        return std::vector<double>(haptic::kHapticClasses, 0.0);
+      }
+      return PosthocContext(limited.haptic, kind, unfamiliar);
+    }
+  }
+  return AttemptPosthoc(attempt, kind, unfamiliar);
+}
+
 absl::Status ValidateSimMealsConfig(const SimMealsConfig& config) {
   if (config.attempts_per_food < 1) {
     return absl::InvalidArgumentError(absl::StrCat(
@@ -159,6 +180,13 @@ absl::Status ValidateSimMealsConfig(const SimMealsConfig& config) {
     return absl::InvalidArgumentError(
         absl::StrCat("lambda_c must be >= 0 and rho_c positive, got ",
                      config.lambda_c, " and ", config.rho_c));
+  }
+  if (config.force_limit &&
+      (config.trace_story != "world" || config.haptic_accuracy > 0.0)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "force_limit needs the world's traces (trace_story world, got \"",
+        config.trace_story, "\") and haptic_accuracy 0 (got ",
+        config.haptic_accuracy, ")"));
   }
   return absl::OkStatus();
 }
@@ -321,6 +349,14 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
   // (the config was validated above, so the name parses).
   const haptic::StoryTraceFunction story = haptic::StoryTraceDraw(
       haptic::ParseTraceStories(config.trace_story)->front());
+  // The actions' distinct force limits, for force_limit.
+  std::vector<double> limits_n;
+  for (const domain::SkeweringAction& action : domain::kSkeweringActions) {
+    if (std::find(limits_n.begin(), limits_n.end(), action.max_force_n) ==
+        limits_n.end()) {
+      limits_n.push_back(action.max_force_n);
+    }
+  }
   for (int food : order) {
     SimAttempt attempt;
     attempt.food = food;
@@ -328,6 +364,33 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
     attempt.context = contexts[attempt.plate][food];
     absl::StatusOr<haptic::HapticClassification> classified;
     if (story == nullptr) {
+      if (config.force_limit) {
+        // Each limit's trace from the same generator state as the whole
+        // trace, so they share the bias; the whole trace's draw then moves
+        // the generator on as without limits.
+        for (double limit_n : limits_n) {
+          std::mt19937_64 limit_rng = trace_rng;
+          sim::TraceOptions limited_options = trace_options;
+          limited_options.stop.limit_n = limit_n;
+          SimAttempt::Limited limited;
+          limited.limit_n = limit_n;
+          const std::vector<sim::TimedWrench> trace =
+              sim::SimulateTrace(profiles[attempt.plate][food], limited_options,
+                                 limit_rng, &limited.reached);
+          if (limited.reached) {
+            absl::StatusOr<haptic::HapticClassification> cut =
+                classifier_->Classify(trace);
+            if (!cut.ok()) {
+              return absl::InternalError(absl::StrCat(
+                  "classifying the ", limit_n, " N limit's trace of attempt ",
+                  world.attempts.size(), " (", foods[food]->name,
+                  "): ", cut.status().ToString()));
+            }
+            limited.haptic = *cut;
+          }
+          attempt.limited.push_back(std::move(limited));
+        }
+      }
       classified = classifier_->Classify(sim::SimulateTrace(
           profiles[attempt.plate][food], trace_options, trace_rng));
     } else {
@@ -352,6 +415,9 @@ absl::StatusOr<SimMealWorld> SimMealsSimulator::DrawWorld(
           foods[food]->name, "): ", classified.status().ToString()));
     }
     if (attempt.contact) attempt.haptic = *classified;
+    for (SimAttempt::Limited& limited : attempt.limited) {
+      if (!limited.reached) limited.haptic = attempt.haptic;
+    }
     if (attempt.contact && config.haptic_accuracy > 0.0 &&
         random::Uniform01(haptic_error_rng) >= config.haptic_accuracy) {
       // A confident wrong answer: the top probability moves to another
@@ -397,7 +463,8 @@ absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
                                        HapticContext kind, uint64_t seed,
                                        int64_t first_round,
                                        bandit::LearnerModel& model,
-                                       domain::UnfamiliarPosthoc unfamiliar) {
+                                       domain::UnfamiliarPosthoc unfamiliar,
+                                       LimitReachedPosthoc limit_rule) {
   const bandit::BanditConfig& bandit_config = model.config();
   SimMealRun run;
   double failures = 0.0;
@@ -417,8 +484,15 @@ absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
     round.context = attempt.context;
     round.action = choice.action;
     round.loss = failed ? 1.0 : 0.0;
+    const domain::SkeweringAction* action =
+        domain::FindSkeweringAction(bandit_config.action_names[choice.action]);
+    const double limit_n = action == nullptr ? 0.0 : action->max_force_n;
+    for (const SimAttempt::Limited& limited : attempt.limited) {
+      if (limited.limit_n == limit_n && limited.reached) ++run.limit_reached;
+    }
     if (bandit::UsesPosthoc(bandit_config.learner)) {
-      round.posthoc = AttemptPosthoc(attempt, kind, unfamiliar);
+      round.posthoc =
+          ActionPosthoc(attempt, limit_n, kind, unfamiliar, limit_rule);
     }
     RETURN_IF_ERROR(model.ValidateRound(round));
     model.Update(round);
@@ -444,7 +518,7 @@ absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
           config, learner, strategy,
           static_cast<int>(world.attempts.front().context.size()), seed)));
   return PlaySimMeal(world, kind, seed, /*first_round=*/0, *model,
-                     config.unfamiliar_posthoc);
+                     config.unfamiliar_posthoc, config.limit_reached_posthoc);
 }
 
 std::vector<double> OracleExpectedFailures(const SimMealWorld& world) {

@@ -74,6 +74,15 @@ enum class MealOrder {
   kBlocked,
 };
 
+// What the post hoc learners are told for an attempt whose chosen action's
+// force limit halted the fork (with SimMealsConfig::force_limit).
+enum class LimitReachedPosthoc {
+  kAsIs,  // HapticNet's answer on the cut trace
+  kZero,  // no post hoc context (p = 0), as for a bite without contact
+};
+// "asis", "zero".
+const char* LimitReachedPosthocName(LimitReachedPosthoc rule);
+
 struct SimMealsConfig {
   int attempts_per_food = 8;
   // Rendered plates per trial. Each plate holds every unseen food once; the
@@ -133,6 +142,14 @@ struct SimMealsConfig {
   // trace is unfamiliar.
   domain::UnfamiliarPosthoc unfamiliar_posthoc =
       domain::kDefaultUnfamiliarPosthoc;
+  // The robot's force limits halt the fork on the world's traces as the
+  // acquisition does (sim::ForceLimitStop; 10 N for TA0/TA90, 20 N for TV,
+  // 25 N for VS: domain/skewering_actions.h), so each attempt's haptic
+  // answer depends on the action chosen: the trace its limit leaves. Off:
+  // every action sees the whole trace (earlier results reproduce). The
+  // world's traces only, without haptic_accuracy.
+  bool force_limit = false;
+  LimitReachedPosthoc limit_reached_posthoc = LimitReachedPosthoc::kAsIs;
 };
 
 // The lambda_c the learners use under `config` (see SimMealsConfig).
@@ -161,6 +178,15 @@ struct SimAttempt {
   // Outcome draw: the attempt succeeds iff coin < success[action], whatever
   // learner chose the action.
   double coin = 0.0;
+  // With SimMealsConfig::force_limit, one entry per distinct action force
+  // limit: whether the limit halted the fork on this attempt's trace, and
+  // the answer on the trace it left (`haptic` itself when it did not).
+  struct Limited {
+    double limit_n = 0.0;
+    bool reached = false;
+    haptic::HapticClassification haptic;
+  };
+  std::vector<Limited> limited;
 };
 
 // What the post hoc learners get for `attempt`: PosthocContext of its
@@ -168,6 +194,14 @@ struct SimAttempt {
 std::vector<double> AttemptPosthoc(
     const SimAttempt& attempt, HapticContext kind,
     domain::UnfamiliarPosthoc unfamiliar = domain::UnfamiliarPosthoc::kAsIs);
+
+// What the post hoc learners get when they chose an action with force limit
+// `limit_n` (0: none): as AttemptPosthoc, but on the trace that limit left
+// (attempt.limited), and p = 0 for a halted one when `rule` says so.
+std::vector<double> ActionPosthoc(const SimAttempt& attempt, double limit_n,
+                                  HapticContext kind,
+                                  domain::UnfamiliarPosthoc unfamiliar,
+                                  LimitReachedPosthoc rule);
 
 struct SimMealWorld {
   // The meal's foods; SimAttempt::food indexes this.
@@ -225,6 +259,8 @@ struct SimMealRun {
   std::vector<int> failed;   // 1 if the attempt failed
   // failed summed up to and including each attempt.
   std::vector<double> cumulative_failures;
+  // Attempts whose chosen action's force limit halted the fork.
+  int limit_reached = 0;
 };
 
 // Plays `world` with `strategy` (LinUCB with config.alpha, or Thompson
@@ -250,10 +286,11 @@ bandit::BanditConfig SimUserConfig(const SimMealsConfig& config,
 absl::StatusOr<SimMealRun> PlaySimMeal(
     const SimMealWorld& world, HapticContext kind, uint64_t seed,
     int64_t first_round, bandit::LearnerModel& model,
-    domain::UnfamiliarPosthoc unfamiliar = domain::UnfamiliarPosthoc::kAsIs);
+    domain::UnfamiliarPosthoc unfamiliar = domain::UnfamiliarPosthoc::kAsIs,
+    LimitReachedPosthoc limit_rule = LimitReachedPosthoc::kAsIs);
 
 // Post hoc learners treat unfamiliar attempts as config.unfamiliar_posthoc
-// says.
+// says, and halted ones as config.limit_reached_posthoc.
 absl::StatusOr<SimMealRun> RunSimMealTrial(
     const SimMealsConfig& config, const SimMealWorld& world,
     bandit::Learner learner, HapticContext kind, uint64_t seed,

@@ -9,6 +9,7 @@
 #include <array>
 #include <chrono>
 #include <cstdio>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -66,6 +67,16 @@ ABSL_FLAG(std::string, unfamiliar_posthoc,
           "or zero (no post hoc context). Every run also plays post hoc "
           "LinUCB (logprob) under each of the three, paired with "
           "context-only.");
+ABSL_FLAG(bool, force_limit, false,
+          "Let each action's force limit halt the fork on the world's traces "
+          "(10 N for TA0/TA90, 20 N for TV, 25 N for VS), as the robot does: "
+          "an attempt's haptic answer is then HapticNet's on the trace the "
+          "chosen action leaves. Every such run also plays post hoc LinUCB "
+          "(logprob) under both --limit_reached_posthoc rules.");
+ABSL_FLAG(std::string, limit_reached_posthoc, "asis",
+          "With --force_limit, what the post hoc learners get for an attempt "
+          "the limit halted: asis (HapticNet's answer on the cut trace) or "
+          "zero (no post hoc context, as for a bite without contact).");
 ABSL_FLAG(uint64_t, seed, 1,
           "Base seed; trial i uses a seed mixed from (seed, i).");
 ABSL_FLAG(std::string, haptic_model, "",
@@ -100,9 +111,12 @@ struct LearnerSpec {
   int versus = -1;
   // What it gets for unfamiliar attempts; -1: --unfamiliar_posthoc.
   int unfamiliar = -1;
+  // What it gets for attempts the force limit halted; -1:
+  // --limit_reached_posthoc.
+  int limit_rule = -1;
 };
 
-std::vector<LearnerSpec> Learners() {
+std::vector<LearnerSpec> Learners(bool force_limit) {
   std::vector<LearnerSpec> specs = {
       {"context-only", "context_only", bandit::Learner::kContextOnly,
        HapticContext::kLogProbabilities, bandit::Strategy::kLinUcb, -1}};
@@ -120,6 +134,7 @@ std::vector<LearnerSpec> Learners() {
                    bandit::Learner::kPostHoc, HapticContext::kLogProbabilities,
                    bandit::Strategy::kThompson, ts_baseline});
   // Paired with context-only (the CSV) and with post hoc LinUCB (logprob).
+  const int polinucb = static_cast<int>(specs.size());
   specs.push_back({"poLinUCB (logprob)", "polinucb_logprob",
                    bandit::Learner::kPoLinUcb, HapticContext::kLogProbabilities,
                    bandit::Strategy::kLinUcb, 0, 1});
@@ -134,6 +149,30 @@ std::vector<LearnerSpec> Learners() {
                       domain::UnfamiliarPosthocName(rule)),
          bandit::Learner::kPostHoc, HapticContext::kLogProbabilities,
          bandit::Strategy::kLinUcb, 0, -1, static_cast<int>(rule)});
+  }
+  // The choice of what a halted attempt sends (docs/experiments.md, "A
+  // trace the robot cut short"), each paired with context-only and with
+  // each other.
+  if (force_limit) {
+    const int first = static_cast<int>(specs.size());
+    for (LimitReachedPosthoc rule :
+         {LimitReachedPosthoc::kAsIs, LimitReachedPosthoc::kZero}) {
+      const bool zero = rule == LimitReachedPosthoc::kZero;
+      specs.push_back(
+          {absl::StrCat("post hoc, halted ", LimitReachedPosthocName(rule)),
+           absl::StrCat("posthoc_logprob_halted_",
+                        LimitReachedPosthocName(rule)),
+           bandit::Learner::kPostHoc, HapticContext::kLogProbabilities,
+           bandit::Strategy::kLinUcb, 0, zero ? first : -1, -1,
+           static_cast<int>(rule)});
+    }
+    // The product's learner under the zero rule, paired with itself under
+    // --limit_reached_posthoc.
+    specs.push_back({"poLinUCB, halted zero", "polinucb_logprob_halted_zero",
+                     bandit::Learner::kPoLinUcb,
+                     HapticContext::kLogProbabilities,
+                     bandit::Strategy::kLinUcb, 0, polinucb, -1,
+                     static_cast<int>(LimitReachedPosthoc::kZero)});
   }
   return specs;
 }
@@ -153,6 +192,20 @@ int Run() {
   config.trace_story = absl::GetFlag(FLAGS_trace_story);
   config.keep_no_contact = absl::GetFlag(FLAGS_keep_no_contact);
   config.lambda_p = absl::GetFlag(FLAGS_lambda_p);
+  config.force_limit = absl::GetFlag(FLAGS_force_limit);
+  {
+    const std::string rule = absl::GetFlag(FLAGS_limit_reached_posthoc);
+    if (rule == "asis" || rule == "zero") {
+      config.limit_reached_posthoc = rule == "zero"
+                                         ? LimitReachedPosthoc::kZero
+                                         : LimitReachedPosthoc::kAsIs;
+    } else {
+      absl::FPrintF(stderr,
+                    "--limit_reached_posthoc must be asis or zero, not %s\n",
+                    rule);
+      return 2;
+    }
+  }
   {
     absl::StatusOr<domain::UnfamiliarPosthoc> rule =
         domain::ParseUnfamiliarPosthoc(absl::GetFlag(FLAGS_unfamiliar_posthoc));
@@ -207,7 +260,7 @@ int Run() {
   }
   const std::vector<const sim::FoodType*>& foods = *meal_foods;
   const int num_foods = static_cast<int>(foods.size());
-  const std::vector<LearnerSpec> learners = Learners();
+  const std::vector<LearnerSpec> learners = Learners(config.force_limit);
   const int kLearners = static_cast<int>(learners.size());
   const auto start = std::chrono::steady_clock::now();
   double world_seconds = 0.0;
@@ -222,6 +275,11 @@ int Run() {
   // failures_by_food[learner][food], summed over trials.
   std::vector<std::vector<double>> failures_by_food(
       kLearners, std::vector<double>(num_foods, 0.0));
+  // Per force limit: attempts it would halt, and HapticNet's right answers
+  // on the traces it leaves.
+  std::map<double, std::pair<int64_t, int64_t>> halted_by_limit;
+  // Attempts the force limit halted, per learner, summed over trials.
+  std::vector<int64_t> limit_reached(kLearners, 0);
   int64_t haptic_correct = 0, haptic_total = 0;
   // Attempts scored unfamiliar, and how many of them HapticNet got right.
   int64_t unfamiliar_total = 0, unfamiliar_correct = 0;
@@ -256,6 +314,13 @@ int Run() {
         }
       }
       if (!attempt.contact) continue;
+      for (const SimAttempt::Limited& limited : attempt.limited) {
+        auto& [reached, right] = halted_by_limit[limited.limit_n];
+        if (!limited.reached) continue;
+        ++reached;
+        right += static_cast<int>(limited.haptic.category) ==
+                 static_cast<int>(foods[attempt.food]->category);
+      }
       const bool correct = static_cast<int>(attempt.haptic.category) ==
                            static_cast<int>(foods[attempt.food]->category);
       haptic_correct += correct;
@@ -276,6 +341,10 @@ int Run() {
         learner_config.unfamiliar_posthoc =
             static_cast<domain::UnfamiliarPosthoc>(spec.unfamiliar);
       }
+      if (spec.limit_rule >= 0) {
+        learner_config.limit_reached_posthoc =
+            static_cast<LimitReachedPosthoc>(spec.limit_rule);
+      }
       absl::StatusOr<SimMealRun> run = RunSimMealTrial(
           learner_config, *world, spec.learner, spec.kind, seed, spec.strategy);
       if (!run.ok()) {
@@ -283,6 +352,7 @@ int Run() {
                       run.status().ToString());
         return 1;
       }
+      limit_reached[learner] += run->limit_reached;
       for (size_t t = 0; t < run->failed.size(); ++t) {
         failures_by_food[learner][world->attempts[t].food] += run->failed[t];
       }
@@ -440,6 +510,24 @@ int Run() {
                    v.mean[0] + half);
     }
     absl::PrintF("\n");
+  }
+  for (const auto& [limit_n, counts] : halted_by_limit) {
+    absl::PrintF(
+        "a %g N force limit halts the fork on %.2f%% of the attempts; "
+        "HapticNet right on %.2f%% of the traces it leaves\n",
+        limit_n, 100.0 * counts.first / haptic_total,
+        counts.first > 0 ? 100.0 * counts.second / counts.first : 0.0);
+  }
+  if (config.force_limit) {
+    absl::PrintF(
+        "attempts the chosen action's force limit halted (--force_limit; "
+        "mean per meal), post hoc learners given %s for them "
+        "(--limit_reached_posthoc):\n",
+        LimitReachedPosthocName(config.limit_reached_posthoc));
+    for (int learner = 0; learner < kLearners; ++learner) {
+      absl::PrintF("  %-22s %6.2f\n", learners[learner].label,
+                   static_cast<double>(limit_reached[learner]) / trials);
+    }
   }
   absl::PrintF("failures per food (mean per trial, out of %d attempts):\n",
                config.attempts_per_food);

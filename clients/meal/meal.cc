@@ -35,6 +35,7 @@ mealpb::ActionInfo DescribeAction(int index, const std::string& name) {
           domain::FindSkeweringAction(name)) {
     info.set_title(action->title);
     info.set_description(action->description);
+    info.set_max_force_n(action->max_force_n);
   }
   return info;
 }
@@ -624,16 +625,27 @@ absl::StatusOr<v1::AcquireResult> Meal::Acquire(const v1::FoodItem& item,
     }
     return result.status();
   }
+  std::string text;
   {
     absl::MutexLock lock(&mu_);
     mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
     bite->set_phase(v1::ACQUIRE_PHASE_DONE);
     bite->set_food(result->true_food_type());
     bite->set_peak_force_n(result->peak_force_n());
+    bite->set_force_limit_reached(result->force_limit_reached());
+    if (result->force_limit_reached()) {
+      const mealpb::ActionInfo& action = bite->action();
+      text = action.max_force_n() > 0.0
+                 ? absl::StrFormat(
+                       " The fork stopped pushing at %s's %.0f N limit.",
+                       action.name(), action.max_force_n())
+                 : absl::StrFormat(" The fork stopped pushing at %s's limit.",
+                                   action.name());
+    }
   }
   Emit(mealpb::STEP_ACQUIRE, mealpb::STEP_STATE_DONE,
-       absl::StrFormat("The arm is back (peak force %.1f N).",
-                       result->peak_force_n()));
+       absl::StrFormat("The arm is back (peak force %.1f N).%s",
+                       result->peak_force_n(), text));
   return result;
 }
 
@@ -672,29 +684,41 @@ std::string Meal::Felt(const v1::ClassifyResponse& haptic, mealpb::Bite* bite) {
                                ? haptic.probabilities(category - 1)
                                : 0.0);
   *summary->mutable_probabilities() = haptic.probabilities();
+  // A trace cut short by the force limit is replaced by its own rule
+  // (measured), whatever its familiarity.
+  const bool cut = bite->force_limit_reached();
+  const domain::UnfamiliarPosthoc rule =
+      cut ? options_.limit_reached_posthoc : options_.unfamiliar_posthoc;
   if (update_.has_value() && options_.posthoc != PosthocMode::kNone) {
     const bool log_form = options_.posthoc == PosthocMode::kLogProbabilities;
     const auto& answer =
         log_form ? haptic.log_probabilities() : haptic.probabilities();
     update_->posthoc = domain::PosthocContext(
         std::vector<double>(answer.begin(), answer.end()), log_form,
-        haptic.unfamiliar(), options_.unfamiliar_posthoc);
+        cut || haptic.unfamiliar(), rule);
   }
   std::string text =
       absl::StrFormat("It felt %s (%.0f%% sure).", summary->label(),
                       100.0 * summary->probability());
-  if (haptic.unfamiliar() && options_.posthoc != PosthocMode::kNone) {
-    const domain::UnfamiliarPosthoc rule = options_.unfamiliar_posthoc;
+  const char* use = rule == domain::UnfamiliarPosthoc::kAsIs
+                        ? "its answer is still used for learning"
+                    : rule == domain::UnfamiliarPosthoc::kUniform
+                        ? "learning treats how it felt as unknown (uniform)"
+                        : "learning leaves out how it felt";
+  if (options_.posthoc == PosthocMode::kNone) {
+    // Vision only: nothing of the feel is learned anyway.
+  } else if (cut) {
+    absl::StrAppend(&text,
+                    " The trace is cut short where the fork stopped at the "
+                    "force limit, a shape HapticNet never learned from, so "
+                    "this may be wrong; ",
+                    use, ".");
+  } else if (haptic.unfamiliar()) {
     absl::StrAppendFormat(
         &text,
         " This bite felt unusual, unlike what HapticNet learned from "
         "(familiarity %.3f); %s.",
-        haptic.familiarity(),
-        rule == domain::UnfamiliarPosthoc::kAsIs
-            ? "its answer is still used for learning"
-        : rule == domain::UnfamiliarPosthoc::kUniform
-            ? "learning treats how it felt as unknown (uniform)"
-            : "learning leaves out how it felt");
+        haptic.familiarity(), use);
   }
   return text;
 }

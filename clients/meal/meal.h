@@ -75,6 +75,11 @@ struct MealOptions {
   // familiarity model never calls a trace unfamiliar.
   domain::UnfamiliarPosthoc unfamiliar_posthoc =
       domain::kDefaultUnfamiliarPosthoc;
+  // What a bite sends whose descent the action's force limit stopped, so
+  // that its trace is cut short (docs/experiments.md, "A trace the robot cut
+  // short"); it takes precedence over unfamiliar_posthoc.
+  domain::UnfamiliarPosthoc limit_reached_posthoc =
+      domain::kDefaultLimitReachedPosthoc;
   // For a NEW user: LEARNER_UNSPECIFIED picks poLinUCB, or the
   // context-only learner with PosthocMode::kNone (ParseLearner).
   v1::Learner learner = v1::LEARNER_UNSPECIFIED;

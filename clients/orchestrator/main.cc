@@ -61,6 +61,13 @@ ABSL_FLAG(std::string, unfamiliar_posthoc,
           "Post hoc context of a bite whose trace the HapticService calls "
           "unfamiliar: uniform (flattened), zero (none) or asis (HapticNet's "
           "answer); docs/experiments.md, \"Unfamiliar traces\".");
+ABSL_FLAG(std::string, limit_reached_posthoc,
+          bitewise::domain::UnfamiliarPosthocName(
+              bitewise::domain::kDefaultLimitReachedPosthoc),
+          "Post hoc context of a bite whose descent the action's force "
+          "limit stopped, cutting its trace short: zero (none), uniform or "
+          "asis (HapticNet's answer on the cut trace); docs/experiments.md, "
+          "\"A trace the robot cut short\".");
 ABSL_FLAG(std::string, journal, "bitewise-orchestrator.journal",
           "File of updates not yet delivered to the BanditService.");
 ABSL_FLAG(int, deadline_ms, 10000, "Deadline of every unary call.");
@@ -143,14 +150,20 @@ void PrintBite(const mealpb::Bite& bite) {
           ? bite.haptic().label()
           : absl::StrFormat("%s %.2f", bite.haptic().label(),
                             bite.haptic().probability());
+  // A trace cut short by the force limit (docs/haptic.md, "A trace the
+  // robot cut short"): its haptic class is shown with the limit.
+  const std::string limit = bite.force_limit_reached()
+                                ? absl::StrFormat("  (stopped at %.0f N)",
+                                                  bite.action().max_force_n())
+                                : std::string();
   std::string learned = bite.learned();
   if (learned == "journaled") {
     learned = absl::StrCat("journaled (", bite.error(), ")");
   }
-  std::printf("bite %2d  %-14s %-5s lcb[%s ]  %-7s  haptic %-14s %s\n",
+  std::printf("bite %2d  %-14s %-5s lcb[%s ]  %-7s  haptic %-14s %s%s\n",
               bite.number(), bite.food().empty() ? "?" : bite.food().c_str(),
               bite.action().name().c_str(), lcbs.c_str(), outcome.c_str(),
-              haptic.c_str(), learned.c_str());
+              haptic.c_str(), learned.c_str(), limit.c_str());
   std::fflush(stdout);
 }
 
@@ -242,6 +255,14 @@ int main(int argc, char** argv) {
       return 2;
     }
     options.unfamiliar_posthoc = *rule;
+    rule = bitewise::domain::ParseUnfamiliarPosthoc(
+        absl::GetFlag(FLAGS_limit_reached_posthoc));
+    if (!rule.ok()) {
+      std::fprintf(stderr, "--limit_reached_posthoc: %s\n",
+                   std::string(rule.status().message()).c_str());
+      return 2;
+    }
+    options.limit_reached_posthoc = *rule;
   }
   absl::StatusOr<bitewise::v1::Learner> learner =
       meals::ParseLearner(absl::GetFlag(FLAGS_learner), options.posthoc);

@@ -1,5 +1,6 @@
 #include "services/sim/force_trace.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "services/domain/random.h"
@@ -133,7 +134,8 @@ Wrench Measure(const ForceProfile& profile, double tau_s,
 
 std::vector<TimedWrench> SimulateTrace(const ForceProfile& profile,
                                        const TraceOptions& options,
-                                       std::mt19937_64& rng) {
+                                       std::mt19937_64& rng,
+                                       bool* force_limit_reached) {
   Wrench bias = options.noise.bias;
   if (options.noise.random_bias_n > 0.0) {
     const double b = options.noise.random_bias_n;
@@ -142,12 +144,24 @@ std::vector<TimedWrench> SimulateTrace(const ForceProfile& profile,
       bias.torque_nm[i] += Uniform(rng, -0.02 * b, 0.02 * b);
     }
   }
+  const ForceLimitStop& stop = options.stop;
+  const bool limited = stop.limit_n > 0.0;
+  // The first force-limit check after contact.
+  double next_check_s =
+      limited ? options.contact_s + Uniform(rng, 0.0, stop.control_period_s)
+              : 0.0;
+  double max_force_n = 0.0;
+  double halt_s = -1.0;  // when the limit halted the fork; < 0: not yet
+  Wrench held;           // the item's wrench at the halt
   const double dt = 1.0 / options.rate_hz;
   const int n =
       static_cast<int>(std::floor(options.duration_s * options.rate_hz));
   const TraceVariation& variation = options.variation;
   const bool varied = !variation.IsIdentity();
   const double peak_s = varied ? PeakTime(profile) : 0.0;
+  auto item_at = [&](double tau) {
+    return varied ? VariedAt(profile, variation, peak_s, tau) : profile.At(tau);
+  };
   std::vector<TimedWrench> trace;
   trace.reserve(n);
   for (int i = 0; i < n; ++i) {
@@ -156,11 +170,36 @@ std::vector<TimedWrench> SimulateTrace(const ForceProfile& profile,
       t += Uniform(rng, -0.5, 0.5) * options.jitter_fraction * dt;
     }
     const double tau = t - options.contact_s;
-    trace.push_back(
-        {t, varied ? AddSensorNoise(VariedAt(profile, variation, peak_s, tau),
-                                    options.noise, bias, rng)
-                   : Measure(profile, tau, options.noise, bias, rng)});
+    if (limited && halt_s < 0.0) {
+      // The checks that fell due before this sample, on what came before.
+      while (next_check_s <= t && halt_s < 0.0) {
+        if (max_force_n >= stop.limit_n) {
+          halt_s = next_check_s;
+          held = item_at(halt_s - options.contact_s);
+        }
+        next_check_s += stop.control_period_s;
+      }
+    }
+    Wrench w;
+    if (halt_s < 0.0) {
+      w = item_at(tau);
+      const auto& f = w.force_n;
+      max_force_n = std::max(
+          max_force_n, std::sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]));
+    } else {
+      // Halted: the depth holds, then the pull-back unloads the tines.
+      const double back_s = t - halt_s - stop.lift_delay_s;
+      const double scale =
+          back_s <= 0.0 ? 1.0 : std::max(0.0, 1.0 - back_s / stop.unload_s);
+      w = held;
+      for (int c = 0; c < 3; ++c) {
+        w.force_n[c] *= scale;
+        w.torque_nm[c] *= scale;
+      }
+    }
+    trace.push_back({t, AddSensorNoise(w, options.noise, bias, rng)});
   }
+  if (force_limit_reached != nullptr) *force_limit_reached = halt_s >= 0.0;
   return trace;
 }
 

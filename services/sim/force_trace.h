@@ -89,6 +89,23 @@ struct TraceVariation {
   bool IsIdentity() const;
 };
 
+// The robot's force limit acting on the trace, as the acquisition does it
+// (services/robot/robot.cc): the limit is checked once per control period
+// on the largest force magnitude since the last check; at the first check
+// that finds it reached, the arm halts where it is (the fork's depth, and so
+// the item's force, holds), the extraction starts one period later, and the
+// tines unload linearly as the fork pulls back release_m (sim::ItemContact)
+// at the extraction speed. Defaults: AcquisitionConfig's 100 Hz control and
+// 0.08 m/s extraction, ContactModelOptions' 0.5 mm release.
+struct ForceLimitStop {
+  // The action's force limit (N): 10 for TA0/TA90, 20 for TV, 25 for VS
+  // (domain/skewering_actions.h). 0: no limit, the fork goes on.
+  double limit_n = 0.0;
+  double control_period_s = 0.01;
+  double lift_delay_s = 0.01;
+  double unload_s = 0.0005 / 0.08;
+};
+
 struct TraceOptions {
   double rate_hz = 1000.0;       // 100 Hz to 7 kHz
   double contact_s = 0.3;        // first contact, from the start of the trace
@@ -96,6 +113,9 @@ struct TraceOptions {
   double jitter_fraction = 0.0;  // timestamp jitter as a fraction of 1/rate
   SensorNoise noise;
   TraceVariation variation;
+  // With a limit, the check's phase against contact is drawn uniformly over
+  // one control period (one more draw from the trace's generator).
+  ForceLimitStop stop;
 };
 
 // The wrench that the sensor reports at time `tau_s` after contact: the
@@ -108,9 +128,12 @@ Wrench Measure(const ForceProfile& profile, double tau_s,
 // `options.contact_s`, with noise and a bias (fixed or random), of the
 // profile varied by `options.variation`. With the identity variation every
 // sample is Measure()'s, as the simulated Net F/T box streams.
+// `force_limit_reached` (may be null) tells whether options.stop's limit
+// halted the fork.
 std::vector<TimedWrench> SimulateTrace(const ForceProfile& profile,
                                        const TraceOptions& options,
-                                       std::mt19937_64& rng);
+                                       std::mt19937_64& rng,
+                                       bool* force_limit_reached = nullptr);
 
 }  // namespace bitewise::sim
 

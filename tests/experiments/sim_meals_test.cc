@@ -2,12 +2,13 @@
 // the world is what the experiment says it is (every food the right number
 // of times, one crop per item, traces classified), runs are reproducible
 // from the seed and paired across learners, and the failure counts follow
-// the outcome draws.
+// the outcome draws; the actions' force limits cut the traces they should.
 #include "experiments/sim_meals.h"
 
 #include <cmath>
 #include <memory>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "gmock/gmock.h"
@@ -310,6 +311,66 @@ TEST_F(SimMealsTest, KeepsContactlessAttemptsWithNoPosthocContext) {
                              HapticContext::kLogProbabilities, 11);
   ASSERT_TRUE(run.ok()) << run.status();
   EXPECT_EQ(run->failed.size(), kept->attempts.size());
+}
+
+// With the actions' force limits, a hard item's trace is cut at TA's 10 N
+// (the world's hard items push back 10-18 N) and never at TV's 20 N or VS's
+// 25 N; no other category reaches 10 N. The whole traces, and so every
+// answer without limits, are those of the same world drawn without them. A
+// learner that chose TA gets the cut trace's answer, or p = 0 under the zero
+// rule; one that chose VS gets the whole trace's.
+TEST_F(SimMealsTest, ForceLimitsCutHardTracesAtTaLimitOnly) {
+  SimMealsConfig config = TinyConfig();
+  auto whole = simulator_->DrawWorld(config, 5);
+  ASSERT_TRUE(whole.ok()) << whole.status();
+  config.force_limit = true;
+  auto limited = simulator_->DrawWorld(config, 5);
+  ASSERT_TRUE(limited.ok()) << limited.status();
+  ASSERT_EQ(limited->attempts.size(), whole->attempts.size());
+  int cut = 0;
+  for (size_t t = 0; t < limited->attempts.size(); ++t) {
+    const SimAttempt& a = limited->attempts[t];
+    EXPECT_EQ(a.haptic.probabilities, whole->attempts[t].haptic.probabilities);
+    EXPECT_TRUE(whole->attempts[t].limited.empty());
+    ASSERT_EQ(a.limited.size(), 3u);  // 25, 20 and 10 N
+    const bool hard =
+        limited->foods[a.food]->category == sim::HapticCategory::kHard;
+    for (const SimAttempt::Limited& l : a.limited) {
+      EXPECT_EQ(l.reached, hard && l.limit_n == 10.0)
+          << limited->foods[a.food]->name << " " << l.limit_n;
+      if (!l.reached) {
+        EXPECT_EQ(l.haptic.probabilities, a.haptic.probabilities);
+        continue;
+      }
+      ++cut;
+      const auto kind = HapticContext::kLogProbabilities;
+      const auto as_is = domain::UnfamiliarPosthoc::kAsIs;
+      EXPECT_EQ(ActionPosthoc(a, 10.0, kind, as_is, LimitReachedPosthoc::kZero),
+                std::vector<double>(4, 0.0));
+      EXPECT_EQ(ActionPosthoc(a, 10.0, kind, as_is, LimitReachedPosthoc::kAsIs),
+                PosthocContext(l.haptic, kind));
+      EXPECT_NE(PosthocContext(l.haptic, kind), AttemptPosthoc(a, kind));
+      EXPECT_EQ(ActionPosthoc(a, 25.0, kind, as_is, LimitReachedPosthoc::kZero),
+                AttemptPosthoc(a, kind));
+    }
+  }
+  EXPECT_EQ(cut, 2 * config.attempts_per_food);  // carrot and celery
+  // Learners count the cut attempts they chose.
+  auto run = RunSimMealTrial(config, *limited, bandit::Learner::kPoLinUcb,
+                             HapticContext::kLogProbabilities, 5);
+  ASSERT_TRUE(run.ok()) << run.status();
+  int chose_ta_on_hard = 0;
+  for (size_t t = 0; t < run->actions.size(); ++t) {
+    const std::string name = domain::kSkeweringActions[run->actions[t]].name;
+    chose_ta_on_hard += (name == "TA0" || name == "TA90") &&
+                        limited->foods[limited->attempts[t].food]->category ==
+                            sim::HapticCategory::kHard;
+  }
+  EXPECT_EQ(run->limit_reached, chose_ta_on_hard);
+
+  config.trace_story = "mechanics";
+  EXPECT_EQ(ValidateSimMealsConfig(config).code(),
+            absl::StatusCode::kInvalidArgument);
 }
 
 TEST(SimMealsConfigTest, RejectsNonPositiveCounts) {

@@ -97,6 +97,32 @@ absl::StatusOr<std::unique_ptr<TraceRecording>> RecordInto(
   return recording;
 }
 
+// A meal's surroundings on services of its own: the services with
+// `service_options`, clients, a journal and the options of `user_id`'s
+// lunch.
+struct OwnServices {
+  std::unique_ptr<FourServices> services;
+  std::unique_ptr<ServiceClients> clients;
+  std::unique_ptr<UpdateJournal> journal;
+  MealOptions options;
+};
+
+absl::StatusOr<OwnServices> StartOwnServices(
+    const FourServicesOptions& service_options, const std::string& user_id) {
+  OwnServices own;
+  absl::StatusOr<std::unique_ptr<FourServices>> services =
+      FourServices::Start(service_options);
+  if (!services.ok()) return services.status();
+  own.services = *std::move(services);
+  own.clients = std::make_unique<ServiceClients>(own.services->channels(),
+                                                 CallDeadlines());
+  own.journal = std::make_unique<UpdateJournal>(
+      absl::StrCat(own.services->dir(), "/", user_id, ".journal"));
+  own.options.user_id = user_id;
+  own.options.meal_id = "lunch";
+  return own;
+}
+
 class MealTest : public SharedFourServicesTest<MealTest> {
  public:
   static FourServicesOptions Options() {
@@ -177,20 +203,18 @@ TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
   FourServicesOptions service_options;
   service_options.foods = {"carrot", "banana"};
   service_options.familiarity_threshold = 1.0;
-  absl::StatusOr<std::unique_ptr<FourServices>> services =
-      FourServices::Start(service_options);
-  ASSERT_OK(services.status());
-  ServiceClients clients((*services)->channels(), CallDeadlines());
-  UpdateJournal journal(
-      absl::StrCat((*services)->dir(), "/unfamiliar.journal"));
-  MealOptions options;
-  options.user_id = "unfamiliar-user";
-  options.meal_id = "lunch";
+  absl::StatusOr<OwnServices> own =
+      StartOwnServices(service_options, "unfamiliar-user");
+  ASSERT_OK(own.status());
+  FourServices* services = own->services.get();
+  ServiceClients& clients = *own->clients;
+  UpdateJournal& journal = *own->journal;
+  MealOptions& options = own->options;
   // The default sends HapticNet's answer as it is (measured); this test
   // checks the flattening path the flag chooses.
   EXPECT_EQ(options.unfamiliar_posthoc, domain::UnfamiliarPosthoc::kAsIs);
   options.unfamiliar_posthoc = domain::UnfamiliarPosthoc::kUniform;
-  const std::string recorded = absl::StrCat((*services)->dir(), "/recorded");
+  const std::string recorded = absl::StrCat(services->dir(), "/recorded");
   absl::StatusOr<std::unique_ptr<TraceRecording>> recording =
       RecordInto(recorded, &options);
   ASSERT_OK(recording.status());
@@ -239,17 +263,16 @@ class NoContactMealTest : public ::testing::TestWithParam<ConfirmBy> {};
 TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
   FourServicesOptions service_options;
   service_options.foods = {"strawberry"};
-  absl::StatusOr<std::unique_ptr<FourServices>> services =
-      FourServices::Start(service_options);
-  ASSERT_OK(services.status());
-  ServiceClients clients((*services)->channels(), CallDeadlines());
-  UpdateJournal journal(absl::StrCat((*services)->dir(), "/miss.journal"));
-  MealOptions options;
-  options.user_id = "miss-user";
-  options.meal_id = "lunch";
+  absl::StatusOr<OwnServices> own =
+      StartOwnServices(service_options, "miss-user");
+  ASSERT_OK(own.status());
+  FourServices* services = own->services.get();
+  ServiceClients& clients = *own->clients;
+  UpdateJournal& journal = *own->journal;
+  MealOptions& options = own->options;
   options.confirm = GetParam();
   ASSERT_EQ(options.posthoc, PosthocMode::kLogProbabilities);
-  const std::string recorded = absl::StrCat((*services)->dir(), "/recorded");
+  const std::string recorded = absl::StrCat(services->dir(), "/recorded");
   absl::StatusOr<std::unique_ptr<TraceRecording>> recording =
       RecordInto(recorded, &options);
   ASSERT_OK(recording.status());
@@ -277,13 +300,13 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
     }
     if (options.confirm == ConfirmBy::kOperator) {
       // The robot's verdict is not shown; the world's is.
-      came_up = (*services)->ItemsLeft() == 0;
+      came_up = services->ItemsLeft() == 0;
     }
     answer_if_asked(came_up);
     if (came_up) break;
   }
   ASSERT_LT(bites, 12) << "the strawberry never came up";
-  ASSERT_EQ((*services)->ItemsLeft(), 0);
+  ASSERT_EQ(services->ItemsLeft(), 0);
 
   // The same item again: it is gone.
   ASSERT_OK(meal.Bite(0));
@@ -350,6 +373,101 @@ INSTANTIATE_TEST_SUITE_P(RobotOrOperator, NoContactMealTest,
                                       ? std::string("RobotJudges")
                                       : std::string("OperatorAnswers");
                          });
+
+// A person whose only action is TA90, at a carrot: the world's hard items
+// push back with 10-18 N, so the fork stops pushing at TA90's 10 N limit and
+// the trace is cut short there. The bite says so (its flag, the action's
+// limit, the Acquire's and the Classify's words), and the post hoc learner
+// gets what the rule says: by default no post hoc context (measured better
+// for poLinUCB: docs/experiments.md, "A trace the robot cut short"), or
+// HapticNet's answer on the cut trace.
+class ForceLimitMealTest
+    : public ::testing::TestWithParam<domain::UnfamiliarPosthoc> {};
+
+TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
+  FourServicesOptions service_options;
+  service_options.foods = {"carrot"};
+  absl::StatusOr<OwnServices> own =
+      StartOwnServices(service_options, "limit-user");
+  ASSERT_OK(own.status());
+  ServiceClients& clients = *own->clients;
+  EXPECT_EQ(own->options.limit_reached_posthoc,
+            domain::UnfamiliarPosthoc::kZero);
+  own->options.limit_reached_posthoc = GetParam();
+  // The featurizer's context size, without a bite.
+  absl::StatusOr<v1::Frame> frame = clients.robot.CaptureFrame();
+  ASSERT_OK(frame.status());
+  absl::StatusOr<v1::DetectFoodResponse> detected =
+      clients.perception.DetectFood(*frame);
+  ASSERT_OK(detected.status());
+  ASSERT_EQ(detected->items_size(), 1);
+  absl::StatusOr<v1::FeaturizeResponse> features =
+      clients.perception.Featurize(*frame, detected->items(0).bbox());
+  ASSERT_OK(features.status());
+  v1::CreateUserRequest create;
+  create.set_user_id(own->options.user_id);
+  create.mutable_config()->set_context_dim(features->context_size());
+  create.mutable_config()->set_learner(v1::LEARNER_POLINUCB);
+  create.mutable_config()->add_action_names("TA90");
+  ASSERT_OK(clients.bandit.CreateUser(create).status());
+
+  RecordingListener listener;
+  Meal meal(&clients, own->journal.get(), own->options, &listener);
+  ASSERT_OK(meal.LookAtPlate());
+  ASSERT_OK(meal.Bite(0));
+  const mealpb::MealState state = meal.state();
+  const mealpb::Bite& bite = state.current();
+  EXPECT_NE(state.phase(), "failed") << state.error();
+  EXPECT_EQ(bite.food(), "carrot");
+  EXPECT_EQ(bite.action().name(), "TA90");
+  EXPECT_EQ(bite.action().max_force_n(), 10.0);
+  EXPECT_TRUE(bite.force_limit_reached());
+  EXPECT_GE(bite.peak_force_n(), 10.0);
+  EXPECT_EQ(bite.learned(), "learned");
+  const bool zero = GetParam() == domain::UnfamiliarPosthoc::kZero;
+  bool acquire_told = false, classify_told = false;
+  for (const mealpb::BiteEvent& e : listener.events()) {
+    if (e.state() != mealpb::STEP_STATE_DONE) continue;
+    acquire_told = acquire_told ||
+                   (e.step() == mealpb::STEP_ACQUIRE &&
+                    absl::StrContains(e.text(),
+                                      "The fork stopped pushing at TA90's 10 N "
+                                      "limit."));
+    classify_told =
+        classify_told ||
+        (e.step() == mealpb::STEP_CLASSIFY &&
+         absl::StrContains(e.text(), "cut short where the fork stopped") &&
+         absl::StrContains(e.text(),
+                           zero ? "learning leaves out how it felt"
+                                : "its answer is still used for learning"));
+  }
+  EXPECT_TRUE(acquire_told);
+  EXPECT_TRUE(classify_told);
+  // HapticNet's answer is shown; the learner got what the rule says.
+  ASSERT_EQ(bite.haptic().probabilities_size(), 4);
+  v1::ListEventsRequest request;
+  request.set_user_id(own->options.user_id);
+  absl::StatusOr<v1::ListEventsResponse> events =
+      clients.bandit.ListEvents(request);
+  ASSERT_OK(events.status());
+  ASSERT_EQ(events->events_size(), 1);
+  ASSERT_EQ(events->events(0).posthoc_size(), 4);
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_NEAR(events->events(0).posthoc(k),
+                zero ? 0.0 : std::log(bite.haptic().probabilities(k)), 1e-4)
+        << k;
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Rules, ForceLimitMealTest,
+    ::testing::Values(domain::UnfamiliarPosthoc::kZero,
+                      domain::UnfamiliarPosthoc::kAsIs),
+    [](const ::testing::TestParamInfo<domain::UnfamiliarPosthoc>& info) {
+      return info.param == domain::UnfamiliarPosthoc::kZero
+                 ? std::string("NoPosthocContext")
+                 : std::string("HapticNetsAnswer");
+    });
 
 TEST(MealWordsTest, SingularAndPlural) {
   EXPECT_EQ(SummaryText(1, 1), "1 attempt, 1 failure");

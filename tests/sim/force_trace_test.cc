@@ -3,9 +3,12 @@
 // sampled at its rate with contact at its time and, unvaried, is Measure()'s
 // sample for sample; the random bias is one per trace; each variation
 // (amplitude, time, drop time, lateral, twist, touch) does what it says
-// against the unvaried profile; jitter stays within its fraction.
+// against the unvaried profile; jitter stays within its fraction; a force
+// limit halts the fork at the first control-period check that finds it
+// reached, holds the force, then unloads it as the fork pulls back.
 #include "services/sim/force_trace.h"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -237,6 +240,89 @@ TEST(SimulateTraceTest, JitterMovesEachStampByLessThanItsFraction) {
     moved = std::max(moved, std::abs(off));
   }
   EXPECT_GT(moved, 0.2 / options.rate_hz);
+}
+
+double Magnitude(const Wrench& w) {
+  return std::sqrt(w.force_n[0] * w.force_n[0] + w.force_n[1] * w.force_n[1] +
+                   w.force_n[2] * w.force_n[2]);
+}
+
+TEST(SimulateTraceTest, AForceLimitHoldsTheForceAtTheCheckThenUnloads) {
+  for (uint64_t seed = 1; seed <= 20; ++seed) {
+    const ForceProfile profile = Profile(HapticCategory::kHard, seed);
+    TraceOptions options = Clean();
+    options.stop.limit_n = 10.0;
+    if (profile.PeakForce() < 10.5) continue;  // reaches 10 N too late
+    std::mt19937_64 rng(seed);
+    bool reached = false;
+    const std::vector<TimedWrench> trace =
+        SimulateTrace(profile, options, rng, &reached);
+    ASSERT_TRUE(reached) << seed;
+    // When the item's force first reaches the limit, on the trace's samples.
+    double first_s = -1.0;
+    for (const TimedWrench& sample : trace) {
+      if (Magnitude(profile.At(sample.t_s - options.contact_s)) >= 10.0) {
+        first_s = sample.t_s;
+        break;
+      }
+    }
+    ASSERT_GT(first_s, options.contact_s) << seed;
+    // Before the halt the trace is the profile; the halt comes at the next
+    // check, within one control period; then the force holds.
+    double halt_s = -1.0, held_n = 0.0;
+    for (size_t i = 1; i < trace.size(); ++i) {
+      const double clean =
+          Magnitude(profile.At(trace[i].t_s - options.contact_s));
+      if (std::abs(Magnitude(trace[i].wrench) - clean) > 1e-9) {
+        halt_s = trace[i - 1].t_s;
+        held_n = Magnitude(trace[i].wrench);
+        break;
+      }
+    }
+    ASSERT_GT(halt_s, 0.0) << seed;
+    EXPECT_GE(halt_s, first_s - 1e-9) << seed;
+    EXPECT_LE(halt_s, first_s + options.stop.control_period_s + 1e-3) << seed;
+    EXPECT_GE(held_n, 10.0) << seed;
+    EXPECT_LT(held_n, profile.PeakForce()) << seed;
+    for (const TimedWrench& sample : trace) {
+      const double since_halt = sample.t_s - halt_s;
+      const double force = Magnitude(sample.wrench);
+      if (since_halt > 1e-3 && since_halt < options.stop.lift_delay_s) {
+        EXPECT_NEAR(force, held_n, 1e-9) << seed << " " << sample.t_s;
+      }
+      // Unloading: never above the held force, zero once pulled back.
+      if (since_halt > 0.0) {
+        EXPECT_LE(force, held_n + 1e-9) << seed;
+      }
+      if (since_halt >
+          options.stop.lift_delay_s + options.stop.unload_s + 1e-3) {
+        EXPECT_EQ(force, 0.0) << seed << " " << sample.t_s;
+      }
+    }
+  }
+}
+
+TEST(SimulateTraceTest, AForceLimitAboveThePeakChangesNothingButTheNoise) {
+  for (const HapticCategory category : kCategories) {
+    const ForceProfile profile = Profile(category, 4);
+    TraceOptions options = Clean();
+    double max_n = 0.0;
+    for (double tau = 0.0; tau <= options.duration_s; tau += 1e-4) {
+      max_n = std::max(max_n, Magnitude(profile.At(tau)));
+    }
+    options.stop.limit_n = max_n + 0.01;
+    std::mt19937_64 rng(4);
+    bool reached = true;
+    const std::vector<TimedWrench> trace =
+        SimulateTrace(profile, options, rng, &reached);
+    EXPECT_FALSE(reached);
+    for (const TimedWrench& sample : trace) {
+      const Wrench clean = profile.At(sample.t_s - options.contact_s);
+      for (int c = 0; c < 3; ++c) {
+        EXPECT_EQ(sample.wrench.force_n[c], clean.force_n[c]);
+      }
+    }
+  }
 }
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include "absl/flags/flag.h"
 #include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
+#include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_join.h"
 #include "services/common/flags_usage.h"
@@ -50,6 +51,10 @@ ABSL_FLAG(std::string, probabilities_csv, "",
           "distance and the squared distance to each class's Gaussian, empty "
           "without a familiarity model) to this CSV, for calibration "
           "studies.");
+ABSL_FLAG(double, force_limit_n, 0.0,
+          "Also evaluate the world's nominal traces with the fork halted at "
+          "this force limit, as the robot halts an action whose limit an "
+          "item reaches (10: TA0/TA90, 20: TV, 25: VS); 0: not.");
 ABSL_FLAG(std::string, stories, "",
           "Evaluate only these trace stories (comma-separated; empty: the "
           "world conditions and every story).");
@@ -63,11 +68,16 @@ struct Condition {
   SimulationConditions conditions;
 };
 
-std::vector<Condition> Conditions() {
+std::vector<Condition> Conditions(double force_limit_n) {
   const SimulationConditions nominal;  // 1 kHz, nominal noise, +-0.5 N
   std::vector<Condition> out = {
       {"world: nominal (1 kHz, noise x1, bias +-0.5 N)", nominal}};
   SimulationConditions c = nominal;
+  if (force_limit_n > 0.0) {
+    c.force_limit_n = force_limit_n;
+    out.push_back({"world: nominal, the fork halted at the force limit", c});
+    c = nominal;
+  }
   c.min_noise_scale = c.max_noise_scale = 2.0;
   out.push_back({"world: doubled noise", c});
   c = nominal;
@@ -97,6 +107,13 @@ int main(int argc, char** argv) {
       "model under several sensor conditions, and each trace story.");
   bitewise::ShowOwnFlagsInHelp();
   absl::ParseCommandLine(argc, argv);
+  if (!(absl::GetFlag(FLAGS_force_limit_n) >= 0.0)) {
+    std::fprintf(stderr,
+                 "bitewise-haptic-eval: --force_limit_n must be 0 (none) or "
+                 "a force in N, not %g\n",
+                 absl::GetFlag(FLAGS_force_limit_n));
+    return 2;
+  }
   const std::string path = absl::GetFlag(FLAGS_model);
   absl::StatusOr<std::unique_ptr<HapticNet>> net = LoadHapticNet(path);
   if (!net.ok()) {
@@ -184,7 +201,11 @@ int main(int argc, char** argv) {
                 ? absl::StrCat(score.familiarity, ",", score.distance, ",",
                                absl::StrJoin(score.class_distances, ","))
                 : ",,,,,";
-        std::fprintf(dump, "%s,%s,%.9g,%.9g,%.9g,%.9g,%s\n", name.c_str(),
+        // Quoted when it holds a comma, so the CSV keeps its columns.
+        const std::string condition = absl::StrContains(name, ',')
+                                          ? absl::StrCat("\"", name, "\"")
+                                          : name;
+        std::fprintf(dump, "%s,%s,%.9g,%.9g,%.9g,%.9g,%s\n", condition.c_str(),
                      HapticClassName(trace.label), result->probabilities[0],
                      result->probabilities[1], result->probabilities[2],
                      result->probabilities[3], familiarity_fields.c_str());
@@ -235,7 +256,8 @@ int main(int argc, char** argv) {
     }
     stories = *parsed;
   } else {
-    for (const Condition& condition : Conditions()) {
+    for (const Condition& condition :
+         Conditions(absl::GetFlag(FLAGS_force_limit_n))) {
       evaluate(condition.name,
                SimulateLabelledTraces(per_class, condition.conditions, seed));
     }

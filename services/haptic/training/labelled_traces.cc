@@ -119,6 +119,7 @@ std::vector<LabelledTrace> SimulateLabelledTraces(
           Uniform(rng, conditions.min_contact_s, conditions.max_contact_s);
       options.duration_s = options.contact_s + conditions.after_contact_s;
       options.jitter_fraction = conditions.jitter_fraction;
+      options.stop.limit_n = conditions.force_limit_n;
       const double noise_scale =
           Uniform(rng, conditions.min_noise_scale, conditions.max_noise_scale);
       options.noise.force_sd_n *= noise_scale;

@@ -51,6 +51,10 @@ struct SimulationConditions {
   double min_contact_s = 0.3;
   double max_contact_s = 0.3;
   double after_contact_s = 0.3;
+  // The robot's force limit halting the fork (sim::ForceLimitStop), in N;
+  // 0: none. Not an augmentation: the traces of an action whose limit an
+  // item reaches (docs/haptic.md, "A trace the robot cut short").
+  double force_limit_n = 0.0;
 
   // Augmentation beyond the force-trace model (training only; all off by
   // default): the ranges of a sim::TraceVariation (force_trace.h), drawn per

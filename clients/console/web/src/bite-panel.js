@@ -175,6 +175,10 @@ export function createBitePanel() {
     } else if (bite.haptic?.label) {
       more.push(`Felt ${bite.haptic.label}`);
     }
+    if (bite.force_limit_reached) {
+      const limit = Number(bite.action?.max_force_n) > 0 ? `${Math.round(Number(bite.action.max_force_n))} N ` : '';
+      more.push(`The fork stopped pushing at its ${limit}limit, so the trace is cut short`);
+    }
     if (bite.learned && bite.learned !== 'pending') more.push(`Learning: ${bite.learned}`);
     setText(outcomeMore, more.join('. '));
   }
