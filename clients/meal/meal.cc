@@ -812,6 +812,7 @@ void Meal::Record(const v1::AcquireResult& result,
                               haptic->probabilities().end());
   }
   bite.no_contact = no_contact;
+  bite.force_limit_reached = result.force_limit_reached();
   if (haptic != nullptr && haptic->has_familiarity()) {
     bite.familiarity = haptic->familiarity();
     bite.unfamiliar = haptic->unfamiliar();

@@ -27,10 +27,15 @@ constexpr char kTracesFile[] = "traces.csv";
 constexpr char kBitesFile[] = "bites.csv";
 constexpr char kBitesHeader[] =
     "trace,time_utc,user,meal,event_id,food,label,action,outcome,haptic,"
+    "p_hard,p_medium,p_soft,p_hard_skin,familiarity,unfamiliar,"
+    "force_limit_reached";
+// The headers of earlier releases: before the force-limit column, and before
+// the familiarity columns. Such a file is appended to in its own format, so
+// that it stays one table for the lab's spreadsheet and the trainer's
+// --labels.
+constexpr char kBitesHeaderBeforeForceLimit[] =
+    "trace,time_utc,user,meal,event_id,food,label,action,outcome,haptic,"
     "p_hard,p_medium,p_soft,p_hard_skin,familiarity,unfamiliar";
-// The header before the familiarity columns. Such a file is appended to in
-// its own format, so that it stays one table for the lab's spreadsheet and
-// the trainer's --labels.
 constexpr char kBitesHeaderBeforeFamiliarity[] =
     "trace,time_utc,user,meal,event_id,food,label,action,outcome,haptic,"
     "p_hard,p_medium,p_soft,p_hard_skin";
@@ -158,6 +163,7 @@ absl::StatusOr<std::unique_ptr<TraceRecording>> TraceRecording::Open(
               &traces_header, &last_trace);
   if (!traces.ok()) return traces.status();
   const absl::string_view bite_headers[] = {kBitesHeader,
+                                            kBitesHeaderBeforeForceLimit,
                                             kBitesHeaderBeforeFamiliarity};
   absl::StatusOr<int> bites = OpenCsv(absl::StrCat(dir, "/", kBitesFile),
                                       bite_headers, &bites_header, &last_bite);
@@ -167,20 +173,30 @@ absl::StatusOr<std::unique_ptr<TraceRecording>> TraceRecording::Open(
   }
   return std::unique_ptr<TraceRecording>(new TraceRecording(
       dir, *traces, *bites, std::max(last_trace, last_bite) + 1,
-      /*records_familiarity=*/bites_header == 0));
+      /*records_familiarity=*/bites_header <= 1,
+      /*records_force_limit=*/bites_header == 0));
 }
 
 TraceRecording::TraceRecording(std::string dir, int traces_fd, int bites_fd,
-                               int64_t next_id, bool records_familiarity)
+                               int64_t next_id, bool records_familiarity,
+                               bool records_force_limit)
     : dir_(std::move(dir)),
       records_familiarity_(records_familiarity),
-      note_(records_familiarity
-                ? ""
+      records_force_limit_(records_force_limit),
+      note_(records_force_limit ? ""
+            : records_familiarity
+                ? absl::StrCat(dir_, "/", kBitesFile,
+                               " predates the force_limit_reached column (an "
+                               "earlier release started it), so whether the "
+                               "force limit cut a trace short is not "
+                               "recorded in this directory; record into a "
+                               "new directory to have it")
                 : absl::StrCat(dir_, "/", kBitesFile,
                                " predates the familiarity columns (an "
                                "earlier release started it), so familiarity "
-                               "is not recorded in this directory; record "
-                               "into a new directory to have it")),
+                               "and the force limit are not recorded in this "
+                               "directory; record into a new directory to "
+                               "have them")),
       traces_fd_(traces_fd),
       bites_fd_(bites_fd),
       next_id_(next_id) {}
@@ -245,6 +261,9 @@ absl::StatusOr<std::string> TraceRecording::Record(
     } else {
       absl::StrAppend(&row, ",,");
     }
+  }
+  if (records_force_limit_) {
+    absl::StrAppend(&row, ",", bite.force_limit_reached ? "1" : "0");
   }
   row.push_back('\n');
   if (!WriteAll(traces_fd_, rows)) {

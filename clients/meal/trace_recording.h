@@ -11,16 +11,18 @@
 //               food, label, action, outcome, haptic (HapticNet's answer,
 //               "none" if the HapticService did not answer), p_hard,
 //               p_medium, p_soft, p_hard_skin, familiarity (the
-//               HapticService's familiarity score) and unfamiliar (1 or 0);
-//               the last two are empty when the service did not answer or
-//               gave no score. A lab labels its bites here, one row per
-//               bite, and passes the file to the trainer with --labels.
+//               HapticService's familiarity score) and unfamiliar (1 or 0),
+//               both empty when the service did not answer or gave no
+//               score, and force_limit_reached (1 when the descent stopped
+//               at the action's force limit, cutting the trace short). A
+//               lab labels its bites here, one row per bite, and passes the
+//               file to the trainer with --labels.
 //
-// A bites.csv written before the familiarity columns existed (its header
-// ends at p_hard_skin) is kept in that format: rows appended to it have no
-// familiarity columns, so the file stays one table, and
-// records_familiarity() is false (note() says so for the operator). A new
-// directory gets the current header.
+// A bites.csv written by an earlier release (its header ends at unfamiliar,
+// or at p_hard_skin before the familiarity columns) is kept in that format:
+// rows appended to it have only its columns, so the file stays one table,
+// and records_force_limit() (and records_familiarity()) is false; note()
+// says so for the operator. A new directory gets the current header.
 //
 // Each bite is written with one write per file and fsync'd before Record
 // returns. Trace ids continue across runs, so one directory can collect
@@ -63,13 +65,16 @@ struct RecordedBite {
   // service did not answer or gave no score (no familiarity model).
   std::optional<double> familiarity;
   bool unfamiliar = false;  // meaningful only with `familiarity`
+  // The descent stopped at the action's force limit, so the trace is cut
+  // short there (docs/haptic.md, "A trace the robot cut short").
+  bool force_limit_reached = false;
 };
 
 class TraceRecording {
  public:
   // Opens (creating it and its files if need be) the recording in `dir`.
-  // A bites.csv with the header of a release before the familiarity columns
-  // is appended to in its own format. INVALID_ARGUMENT naming the file if a
+  // A bites.csv with the header of an earlier release is appended to in its
+  // own format. INVALID_ARGUMENT naming the file if a
   // file there has any other header; INTERNAL naming the file if it cannot
   // be created or read.
   static absl::StatusOr<std::unique_ptr<TraceRecording>> Open(
@@ -89,16 +94,19 @@ class TraceRecording {
 
   // False when this directory's bites.csv predates the familiarity columns.
   bool records_familiarity() const { return records_familiarity_; }
+  // False for a bites.csv started before the force_limit_reached column.
+  bool records_force_limit() const { return records_force_limit_; }
   // What the operator should be told once, on opening: empty, or that
   // familiarity is not recorded in this directory and why.
   const std::string& note() const { return note_; }
 
  private:
   TraceRecording(std::string dir, int traces_fd, int bites_fd, int64_t next_id,
-                 bool records_familiarity);
+                 bool records_familiarity, bool records_force_limit);
 
   const std::string dir_;
   const bool records_familiarity_;
+  const bool records_force_limit_;
   const std::string note_;
   mutable absl::Mutex mu_;
   int traces_fd_ ABSL_GUARDED_BY(mu_);

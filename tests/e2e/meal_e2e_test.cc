@@ -383,10 +383,11 @@ TEST_F(MealEndToEndTest, RecordedMealsRetrainHapticNetAndTheServiceServesIt) {
   for (std::string line; std::getline(bites_file, line);) bites.push_back(line);
   ASSERT_EQ(bites.size(), 11u);
   EXPECT_TRUE(absl::StartsWith(bites[0], "trace,time_utc,user,meal,event_id"));
-  EXPECT_TRUE(absl::EndsWith(bites[0], ",p_hard_skin,familiarity,unfamiliar"))
+  EXPECT_TRUE(absl::EndsWith(
+      bites[0], ",p_hard_skin,familiarity,unfamiliar,force_limit_reached"))
       << bites[0];
   const std::vector<std::string> row = absl::StrSplit(bites[7], ',');
-  ASSERT_EQ(row.size(), 16u) << bites[7];
+  ASSERT_EQ(row.size(), 17u) << bites[7];
   EXPECT_EQ(row[0], "6");
   EXPECT_EQ(row[2], "lab");
   EXPECT_EQ(row[3], "m2");
@@ -395,7 +396,8 @@ TEST_F(MealEndToEndTest, RecordedMealsRetrainHapticNetAndTheServiceServesIt) {
   // (in [0, 1]) and the verdict, unfamiliar exactly below the threshold.
   for (size_t i = 1; i < bites.size(); ++i) {
     const std::vector<std::string> fields = absl::StrSplit(bites[i], ',');
-    ASSERT_EQ(fields.size(), 16u) << bites[i];
+    ASSERT_EQ(fields.size(), 17u) << bites[i];
+    EXPECT_TRUE(fields[16] == "0" || fields[16] == "1") << bites[i];
     double familiarity = -1.0;
     EXPECT_TRUE(absl::SimpleAtod(fields[14], &familiarity)) << bites[i];
     EXPECT_GE(familiarity, 0.0) << bites[i];

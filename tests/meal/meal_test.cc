@@ -201,7 +201,9 @@ class MealTest : public SharedFourServicesTest<MealTest> {
 // keeps the score and the verdict.
 TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
   FourServicesOptions service_options;
-  service_options.foods = {"carrot", "banana"};
+  // Neither pushes back with 10 N, so no action's force limit cuts the
+  // trace short (a cut bite follows its own rule).
+  service_options.foods = {"strawberry", "banana"};
   service_options.familiarity_threshold = 1.0;
   absl::StatusOr<OwnServices> own =
       StartOwnServices(service_options, "unfamiliar-user");
@@ -242,14 +244,17 @@ TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
   std::ifstream bites(absl::StrCat(recorded, "/bites.csv"));
   std::string header, line;
   ASSERT_TRUE(std::getline(bites, header) && std::getline(bites, line));
-  EXPECT_TRUE(absl::EndsWith(header, ",familiarity,unfamiliar")) << header;
+  EXPECT_TRUE(
+      absl::EndsWith(header, ",familiarity,unfamiliar,force_limit_reached"))
+      << header;
   const std::vector<std::string> row = absl::StrSplit(line, ',');
-  ASSERT_EQ(row.size(), 16u) << line;
+  ASSERT_EQ(row.size(), 17u) << line;
   double familiarity = -1.0;
   EXPECT_TRUE(absl::SimpleAtod(row[14], &familiarity)) << line;
   EXPECT_GE(familiarity, 0.0);
   EXPECT_LE(familiarity, 1.0);
   EXPECT_EQ(row[15], "1") << line;  // the threshold 1 flags it
+  EXPECT_EQ(row[16], "0") << line;  // not cut short
 }
 
 // A bite the fork never feels: the only item (a strawberry, taller than the
@@ -394,6 +399,10 @@ TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
   EXPECT_EQ(own->options.limit_reached_posthoc,
             domain::UnfamiliarPosthoc::kZero);
   own->options.limit_reached_posthoc = GetParam();
+  const std::string recorded = absl::StrCat(own->services->dir(), "/recorded");
+  absl::StatusOr<std::unique_ptr<TraceRecording>> recording =
+      RecordInto(recorded, &own->options);
+  ASSERT_OK(recording.status());
   // The featurizer's context size, without a bite.
   absl::StatusOr<v1::Frame> frame = clients.robot.CaptureFrame();
   ASSERT_OK(frame.status());
@@ -457,6 +466,12 @@ TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
                 zero ? 0.0 : std::log(bite.haptic().probabilities(k)), 1e-4)
         << k;
   }
+  // The lab's recording marks the trace as cut short.
+  std::ifstream bites_csv(absl::StrCat(recorded, "/bites.csv"));
+  std::string header, line;
+  ASSERT_TRUE(std::getline(bites_csv, header) && std::getline(bites_csv, line));
+  EXPECT_TRUE(absl::EndsWith(header, ",force_limit_reached")) << header;
+  EXPECT_TRUE(absl::EndsWith(line, ",1")) << line;
 }
 
 INSTANTIATE_TEST_SUITE_P(

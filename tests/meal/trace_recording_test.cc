@@ -66,10 +66,14 @@ RecordedBite Bite(const std::string& event, bool labelled) {
   return bite;
 }
 
-// bites.csv as the release before the familiarity columns wrote it.
+// bites.csv as the release before the familiarity columns wrote it, and
+// the one before the force-limit column.
 constexpr char kHeaderBeforeFamiliarity[] =
     "trace,time_utc,user,meal,event_id,food,label,action,outcome,haptic,"
     "p_hard,p_medium,p_soft,p_hard_skin";
+constexpr char kHeaderBeforeForceLimit[] =
+    "trace,time_utc,user,meal,event_id,food,label,action,outcome,haptic,"
+    "p_hard,p_medium,p_soft,p_hard_skin,familiarity,unfamiliar";
 
 std::vector<std::string> Lines(const std::string& path) {
   std::ifstream in(path);
@@ -83,10 +87,13 @@ TEST(TraceRecordingTest, WritesWhatTheTrainerReadsBackExactly) {
   auto recording = TraceRecording::Open(dir);
   ASSERT_THAT(recording.status(), IsOk());
   EXPECT_TRUE((*recording)->records_familiarity());
+  EXPECT_TRUE((*recording)->records_force_limit());
   EXPECT_EQ((*recording)->note(), "");
   const auto first = Trace(50, 1.0);
   const auto second = Trace(30, 2.5);
-  ASSERT_THAT((*recording)->Record(Bite("e1", true), first).status(), IsOk());
+  RecordedBite cut = Bite("e1", true);  // stopped at the force limit
+  cut.force_limit_reached = true;
+  ASSERT_THAT((*recording)->Record(cut, first).status(), IsOk());
   RecordedBite no_score = Bite("e2", false);  // a service without the model
   no_score.familiarity.reset();
   absl::StatusOr<std::string> id = (*recording)->Record(no_score, second);
@@ -115,9 +122,9 @@ TEST(TraceRecordingTest, WritesWhatTheTrainerReadsBackExactly) {
   const std::vector<std::string> bites = Lines(dir + "/bites.csv");
   ASSERT_EQ(bites.size(), 3u);
   EXPECT_EQ(bites[0],
-            absl::StrCat(kHeaderBeforeFamiliarity, ",familiarity,unfamiliar"));
+            absl::StrCat(kHeaderBeforeForceLimit, ",force_limit_reached"));
   const std::vector<std::string> row = absl::StrSplit(bites[1], ',');
-  ASSERT_EQ(row.size(), 16u);
+  ASSERT_EQ(row.size(), 17u);
   EXPECT_EQ(row[0], "0");
   EXPECT_THAT(row[1],
               ::testing::MatchesRegex("[0-9]{4}-[0-9]{2}-[0-9]{2}T[0-9:.]+Z"));
@@ -130,8 +137,10 @@ TEST(TraceRecordingTest, WritesWhatTheTrainerReadsBackExactly) {
   EXPECT_EQ(row[11], "0.600000");
   EXPECT_EQ(row[14], "0.029167");
   EXPECT_EQ(row[15], "1");
+  EXPECT_EQ(row[16], "1");  // cut short at the force limit
   const std::vector<std::string> unscored = absl::StrSplit(bites[2], ',');
-  ASSERT_EQ(unscored.size(), 16u);
+  ASSERT_EQ(unscored.size(), 17u);
+  EXPECT_EQ(unscored[16], "0");
   EXPECT_EQ(unscored[13], "0.200000");  // HapticNet answered
   EXPECT_EQ(unscored[14], "");          // but gave no familiarity
   EXPECT_EQ(unscored[15], "");
@@ -194,9 +203,10 @@ TEST(TraceRecordingTest, AnOlderDirectoryKeepsItsFormatAndSaysSo) {
     EXPECT_EQ((*recording)->note(),
               absl::StrCat(dir,
                            "/bites.csv predates the familiarity columns (an "
-                           "earlier release started it), so familiarity is "
-                           "not recorded in this directory; record into a "
-                           "new directory to have it"));
+                           "earlier release started it), so familiarity and "
+                           "the force limit are not recorded in this "
+                           "directory; record into a new directory to have "
+                           "them"));
     absl::StatusOr<std::string> id =
         (*recording)
             ->Record(Bite(absl::StrCat("e", run), run == 1), Trace(20, 1));
@@ -225,6 +235,34 @@ TEST(TraceRecordingTest, AnOlderDirectoryKeepsItsFormatAndSaysSo) {
   EXPECT_EQ(traces->size(), 3u);
 }
 
+// A directory from the release before the force-limit column keeps its
+// sixteen columns, familiarity included, and says once what it lacks.
+TEST(TraceRecordingTest, ADirectoryBeforeTheForceLimitColumnKeepsItsFormat) {
+  const std::string dir = TempDir();
+  std::ofstream(dir + "/bites.csv") << kHeaderBeforeForceLimit << "\n";
+  auto recording = TraceRecording::Open(dir);
+  ASSERT_THAT(recording.status(), IsOk());
+  EXPECT_TRUE((*recording)->records_familiarity());
+  EXPECT_FALSE((*recording)->records_force_limit());
+  EXPECT_EQ((*recording)->note(),
+            absl::StrCat(dir,
+                         "/bites.csv predates the force_limit_reached column "
+                         "(an earlier release started it), so whether the "
+                         "force limit cut a trace short is not recorded in "
+                         "this directory; record into a new directory to "
+                         "have it"));
+  RecordedBite cut = Bite("e1", true);
+  cut.force_limit_reached = true;
+  ASSERT_THAT((*recording)->Record(cut, Trace(20, 1)).status(), IsOk());
+  const std::vector<std::string> bites = Lines(dir + "/bites.csv");
+  ASSERT_EQ(bites.size(), 2u);
+  EXPECT_EQ(bites[0], kHeaderBeforeForceLimit);
+  const std::vector<std::string> row = absl::StrSplit(bites[1], ',');
+  ASSERT_EQ(row.size(), 16u) << bites[1];
+  EXPECT_EQ(row[14], "0.029167");
+  EXPECT_EQ(row[15], "1");
+}
+
 TEST(TraceRecordingTest, RefusesForeignFilesEmptyTracesAndUnwritableDirs) {
   const std::string dir = TempDir();
   { std::ofstream(dir + "/traces.csv") << "time,fz\n0,1\n"; }
@@ -235,7 +273,7 @@ TEST(TraceRecordingTest, RefusesForeignFilesEmptyTracesAndUnwritableDirs) {
   // one before is refused, naming the file: another CSV, a header cut short
   // or extended, and this release's header without its newline.
   const std::string current =
-      absl::StrCat(kHeaderBeforeFamiliarity, ",familiarity,unfamiliar");
+      absl::StrCat(kHeaderBeforeForceLimit, ",force_limit_reached");
   for (const std::string& text :
        {std::string("trace,label\n0,hard\n"),
         absl::StrCat(kHeaderBeforeFamiliarity, ",familiarity\n"),
