@@ -245,24 +245,24 @@ int main(int argc, char** argv) {
                                          : meals::PosthocMode::kNone;
   options.confirm = confirm == "operator" ? meals::ConfirmBy::kOperator
                                           : meals::ConfirmBy::kRobot;
-  {
-    absl::StatusOr<bitewise::domain::UnfamiliarPosthoc> rule =
-        bitewise::domain::ParseUnfamiliarPosthoc(
-            absl::GetFlag(FLAGS_unfamiliar_posthoc));
-    if (!rule.ok()) {
-      std::fprintf(stderr, "--unfamiliar_posthoc: %s\n",
-                   std::string(rule.status().message()).c_str());
+  const struct {
+    const char* flag;
+    std::string value;
+    bitewise::domain::UnfamiliarPosthoc* rule;
+  } posthoc_rules[] = {
+      {"unfamiliar_posthoc", absl::GetFlag(FLAGS_unfamiliar_posthoc),
+       &options.unfamiliar_posthoc},
+      {"limit_reached_posthoc", absl::GetFlag(FLAGS_limit_reached_posthoc),
+       &options.limit_reached_posthoc}};
+  for (const auto& [flag, value, rule] : posthoc_rules) {
+    absl::StatusOr<bitewise::domain::UnfamiliarPosthoc> parsed =
+        bitewise::domain::ParseUnfamiliarPosthoc(value);
+    if (!parsed.ok()) {
+      std::fprintf(stderr, "--%s: %s\n", flag,
+                   std::string(parsed.status().message()).c_str());
       return 2;
     }
-    options.unfamiliar_posthoc = *rule;
-    rule = bitewise::domain::ParseUnfamiliarPosthoc(
-        absl::GetFlag(FLAGS_limit_reached_posthoc));
-    if (!rule.ok()) {
-      std::fprintf(stderr, "--limit_reached_posthoc: %s\n",
-                   std::string(rule.status().message()).c_str());
-      return 2;
-    }
-    options.limit_reached_posthoc = *rule;
+    *rule = *parsed;
   }
   absl::StatusOr<bitewise::v1::Learner> learner =
       meals::ParseLearner(absl::GetFlag(FLAGS_learner), options.posthoc);

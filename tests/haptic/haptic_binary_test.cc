@@ -19,6 +19,7 @@
 
 #include "absl/status/status.h"
 #include "absl/status/statusor.h"
+#include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
@@ -282,6 +283,40 @@ TEST_F(HapticEvalTest, AMalformedFamiliarityFileStopsIt) {
   EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
       << DescribeWaitStatus(status);
   EXPECT_THAT(log(), HasSubstr(model + ".familiarity"));
+}
+
+// --force_limit_n adds the world's nominal traces cut at that limit as a
+// condition of its own; its name holds a comma, so the CSV quotes it and
+// keeps twelve columns.
+TEST_F(HapticEvalTest, AForceLimitAddsTheCutTracesAsAQuotedCondition) {
+  const std::string csv = ::testing::TempDir() + "/eval_limit.csv";
+  const int status = RunEval(
+      "eval_limit", {"--stories=", "--traces_per_class=5", "--force_limit_n=10",
+                     "--familiarity=none", "--probabilities_csv=" + csv});
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << DescribeWaitStatus(status) << "\n"
+      << log();
+  EXPECT_THAT(
+      log(),
+      HasSubstr("| world: nominal, the fork halted at the force limit |"));
+  std::ifstream in(csv);
+  std::string line;
+  int cut = 0;
+  while (std::getline(in, line)) {
+    if (!absl::StartsWith(line, "\"world: nominal, the fork halted")) continue;
+    ++cut;
+    const std::string rest = line.substr(line.find("\",") + 2);
+    EXPECT_EQ(std::vector<std::string>(absl::StrSplit(rest, ',')).size(), 11u)
+        << line;
+  }
+  EXPECT_EQ(cut, 20);  // 5 per class
+}
+
+TEST_F(HapticEvalTest, ANegativeForceLimitIsRefusedNamingTheFlag) {
+  const int status = RunEval("eval_negative_limit", {"--force_limit_n=-1"});
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 2)
+      << DescribeWaitStatus(status);
+  EXPECT_THAT(log(), HasSubstr("--force_limit_n must be 0 (none) or a force"));
 }
 
 // A small, quick run of bitewise-haptic-train with extra `flags`,
