@@ -149,7 +149,9 @@ struct SimMealsConfig {
   // every action sees the whole trace (earlier results reproduce). The
   // world's traces only, without haptic_accuracy.
   bool force_limit = false;
-  LimitReachedPosthoc limit_reached_posthoc = LimitReachedPosthoc::kAsIs;
+  // As the orchestrator (domain::kDefaultLimitReachedPosthoc): no post hoc
+  // context for a halted attempt.
+  LimitReachedPosthoc limit_reached_posthoc = LimitReachedPosthoc::kZero;
 };
 
 // The lambda_c the learners use under `config` (see SimMealsConfig).

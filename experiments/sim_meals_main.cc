@@ -73,10 +73,11 @@ ABSL_FLAG(bool, force_limit, false,
           "an attempt's haptic answer is then HapticNet's on the trace the "
           "chosen action leaves. Every such run also plays post hoc LinUCB "
           "(logprob) under both --limit_reached_posthoc rules.");
-ABSL_FLAG(std::string, limit_reached_posthoc, "asis",
+ABSL_FLAG(std::string, limit_reached_posthoc, "zero",
           "With --force_limit, what the post hoc learners get for an attempt "
-          "the limit halted: asis (HapticNet's answer on the cut trace) or "
-          "zero (no post hoc context, as for a bite without contact).");
+          "the limit halted: zero (no post hoc context, as for a bite without "
+          "contact; the product's default) or asis (HapticNet's answer on the "
+          "cut trace).");
 ABSL_FLAG(uint64_t, seed, 1,
           "Base seed; trial i uses a seed mixed from (seed, i).");
 ABSL_FLAG(std::string, haptic_model, "",
@@ -150,29 +151,39 @@ std::vector<LearnerSpec> Learners(bool force_limit) {
          bandit::Learner::kPostHoc, HapticContext::kLogProbabilities,
          bandit::Strategy::kLinUcb, 0, -1, static_cast<int>(rule)});
   }
+  // The same choice for poLinUCB, the product's learner (added 2026-12-06),
+  // each paired with context-only and with poLinUCB under
+  // --unfamiliar_posthoc.
+  for (domain::UnfamiliarPosthoc rule : {domain::UnfamiliarPosthoc::kUniform,
+                                         domain::UnfamiliarPosthoc::kZero}) {
+    specs.push_back(
+        {absl::StrCat("poLinUCB, unfam. ", domain::UnfamiliarPosthocName(rule)),
+         absl::StrCat("polinucb_logprob_unfamiliar_",
+                      domain::UnfamiliarPosthocName(rule)),
+         bandit::Learner::kPoLinUcb, HapticContext::kLogProbabilities,
+         bandit::Strategy::kLinUcb, 0, polinucb, static_cast<int>(rule)});
+  }
   // The choice of what a halted attempt sends (docs/experiments.md, "A
-  // trace the robot cut short"), each paired with context-only and with
-  // each other.
+  // trace the robot cut short"), for post hoc LinUCB and poLinUCB, each
+  // paired with context-only, and "zero" with "asis" of the same learner.
   if (force_limit) {
-    const int first = static_cast<int>(specs.size());
-    for (LimitReachedPosthoc rule :
-         {LimitReachedPosthoc::kAsIs, LimitReachedPosthoc::kZero}) {
-      const bool zero = rule == LimitReachedPosthoc::kZero;
-      specs.push_back(
-          {absl::StrCat("post hoc, halted ", LimitReachedPosthocName(rule)),
-           absl::StrCat("posthoc_logprob_halted_",
-                        LimitReachedPosthocName(rule)),
-           bandit::Learner::kPostHoc, HapticContext::kLogProbabilities,
-           bandit::Strategy::kLinUcb, 0, zero ? first : -1, -1,
-           static_cast<int>(rule)});
+    for (const auto& [learner, name] :
+         {std::pair{bandit::Learner::kPostHoc, "post hoc"},
+          std::pair{bandit::Learner::kPoLinUcb, "poLinUCB"}}) {
+      const int as_is = static_cast<int>(specs.size());
+      for (LimitReachedPosthoc rule :
+           {LimitReachedPosthoc::kAsIs, LimitReachedPosthoc::kZero}) {
+        const bool zero = rule == LimitReachedPosthoc::kZero;
+        specs.push_back(
+            {absl::StrCat(name, ", halted ", LimitReachedPosthocName(rule)),
+             absl::StrCat(
+                 learner == bandit::Learner::kPostHoc ? "posthoc" : "polinucb",
+                 "_logprob_halted_", LimitReachedPosthocName(rule)),
+             learner, HapticContext::kLogProbabilities,
+             bandit::Strategy::kLinUcb, 0, zero ? as_is : -1, -1,
+             static_cast<int>(rule)});
+      }
     }
-    // The product's learner under the zero rule, paired with itself under
-    // --limit_reached_posthoc.
-    specs.push_back({"poLinUCB, halted zero", "polinucb_logprob_halted_zero",
-                     bandit::Learner::kPoLinUcb,
-                     HapticContext::kLogProbabilities,
-                     bandit::Strategy::kLinUcb, 0, polinucb, -1,
-                     static_cast<int>(LimitReachedPosthoc::kZero)});
   }
   return specs;
 }
