@@ -9,6 +9,7 @@
 #include "opencv2/core.hpp"
 #include "services/bandit/core/learners.h"
 #include "services/bandit/core/policy.h"
+#include "services/bandit/core/polinucb.h"
 #include "services/common/status_macros.h"
 #include "services/domain/context_ridge.h"
 #include "services/domain/random.h"
@@ -464,7 +465,11 @@ absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
                                        int64_t first_round,
                                        bandit::LearnerModel& model,
                                        domain::UnfamiliarPosthoc unfamiliar,
-                                       LimitReachedPosthoc limit_rule) {
+                                       LimitReachedPosthoc limit_rule,
+                                       bool impute_missing) {
+  const auto* polinucb =
+      impute_missing ? dynamic_cast<const bandit::PoLinUcbModel*>(&model)
+                     : nullptr;
   const bandit::BanditConfig& bandit_config = model.config();
   SimMealRun run;
   double failures = 0.0;
@@ -487,12 +492,23 @@ absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
     const domain::SkeweringAction* action =
         domain::FindSkeweringAction(bandit_config.action_names[choice.action]);
     const double limit_n = action == nullptr ? 0.0 : action->max_force_n;
+    bool halted = false;
     for (const SimAttempt::Limited& limited : attempt.limited) {
-      if (limited.limit_n == limit_n && limited.reached) ++run.limit_reached;
+      halted = halted || (limited.limit_n == limit_n && limited.reached);
     }
+    run.limit_reached += halted;
     if (bandit::UsesPosthoc(bandit_config.learner)) {
-      round.posthoc =
-          ActionPosthoc(attempt, limit_n, kind, unfamiliar, limit_rule);
+      const bool missing = !attempt.contact ||
+                           (halted && limit_rule == LimitReachedPosthoc::kZero);
+      if (polinucb != nullptr && missing) {
+        const Eigen::VectorXd predicted =
+            polinucb->PredictPosthoc(attempt.context);
+        round.posthoc.assign(predicted.data(),
+                             predicted.data() + predicted.size());
+      } else {
+        round.posthoc =
+            ActionPosthoc(attempt, limit_n, kind, unfamiliar, limit_rule);
+      }
     }
     RETURN_IF_ERROR(model.ValidateRound(round));
     model.Update(round);
@@ -518,7 +534,8 @@ absl::StatusOr<SimMealRun> RunSimMealTrial(const SimMealsConfig& config,
           config, learner, strategy,
           static_cast<int>(world.attempts.front().context.size()), seed)));
   return PlaySimMeal(world, kind, seed, /*first_round=*/0, *model,
-                     config.unfamiliar_posthoc, config.limit_reached_posthoc);
+                     config.unfamiliar_posthoc, config.limit_reached_posthoc,
+                     config.impute_missing_posthoc);
 }
 
 std::vector<double> OracleExpectedFailures(const SimMealWorld& world) {

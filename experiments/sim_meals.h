@@ -152,6 +152,11 @@ struct SimMealsConfig {
   // As the orchestrator (domain::kDefaultLimitReachedPosthoc): no post hoc
   // context for a halted attempt.
   LimitReachedPosthoc limit_reached_posthoc = LimitReachedPosthoc::kZero;
+  // poLinUCB only (a study, not the product): an attempt whose post hoc
+  // context is missing (no contact, or halted under the zero rule) sends
+  // the model's own prediction p_hat(c), made before the update, instead of
+  // p = 0.
+  bool impute_missing_posthoc = false;
 };
 
 // The lambda_c the learners use under `config` (see SimMealsConfig).
@@ -289,10 +294,12 @@ absl::StatusOr<SimMealRun> PlaySimMeal(
     const SimMealWorld& world, HapticContext kind, uint64_t seed,
     int64_t first_round, bandit::LearnerModel& model,
     domain::UnfamiliarPosthoc unfamiliar = domain::UnfamiliarPosthoc::kAsIs,
-    LimitReachedPosthoc limit_rule = LimitReachedPosthoc::kAsIs);
+    LimitReachedPosthoc limit_rule = LimitReachedPosthoc::kAsIs,
+    bool impute_missing = false);
 
 // Post hoc learners treat unfamiliar attempts as config.unfamiliar_posthoc
-// says, and halted ones as config.limit_reached_posthoc.
+// says, halted ones as config.limit_reached_posthoc, and missing ones as
+// config.impute_missing_posthoc.
 absl::StatusOr<SimMealRun> RunSimMealTrial(
     const SimMealsConfig& config, const SimMealWorld& world,
     bandit::Learner learner, HapticContext kind, uint64_t seed,

@@ -115,6 +115,8 @@ struct LearnerSpec {
   // What it gets for attempts the force limit halted; -1:
   // --limit_reached_posthoc.
   int limit_rule = -1;
+  // poLinUCB: missing post hoc contexts sent as its own prediction.
+  bool impute = false;
 };
 
 std::vector<LearnerSpec> Learners(bool force_limit) {
@@ -163,6 +165,13 @@ std::vector<LearnerSpec> Learners(bool force_limit) {
          bandit::Learner::kPoLinUcb, HapticContext::kLogProbabilities,
          bandit::Strategy::kLinUcb, 0, polinucb, static_cast<int>(rule)});
   }
+  // A study (docs/experiments.md, "A missing post hoc context for
+  // poLinUCB"): poLinUCB sending its own prediction p_hat(c) where the meal
+  // has no post hoc context (no contact; halted, under the zero rule),
+  // paired with context-only and with poLinUCB sending p = 0 there.
+  specs.push_back({"poLinUCB, missing imputed", "polinucb_logprob_imputed",
+                   bandit::Learner::kPoLinUcb, HapticContext::kLogProbabilities,
+                   bandit::Strategy::kLinUcb, 0, polinucb, -1, -1, true});
   // The choice of what a halted attempt sends (docs/experiments.md, "A
   // trace the robot cut short"), for post hoc LinUCB and poLinUCB, each
   // paired with context-only, and "zero" with "asis" of the same learner.
@@ -356,6 +365,7 @@ int Run() {
         learner_config.limit_reached_posthoc =
             static_cast<LimitReachedPosthoc>(spec.limit_rule);
       }
+      learner_config.impute_missing_posthoc = spec.impute;
       absl::StatusOr<SimMealRun> run = RunSimMealTrial(
           learner_config, *world, spec.learner, spec.kind, seed, spec.strategy);
       if (!run.ok()) {
