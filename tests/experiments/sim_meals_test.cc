@@ -373,6 +373,46 @@ TEST_F(SimMealsTest, ForceLimitsCutHardTracesAtTaLimitOnly) {
             absl::StatusCode::kInvalidArgument);
 }
 
+// The imputation study: poLinUCB sends its own prediction where a post hoc
+// context is missing. Without missing contexts the runs are the same as
+// with p = 0; with contact-less attempts they part, and the first attempt
+// where they do is at or after the first contact-less one.
+TEST_F(SimMealsTest, ImputingMissingPosthocChangesOnlyRunsWithMissingOnes) {
+  SimMealsConfig config = TinyConfig();
+  auto whole = simulator_->DrawWorld(config, 3);
+  ASSERT_TRUE(whole.ok()) << whole.status();
+  SimMealsConfig imputing = config;
+  imputing.impute_missing_posthoc = true;
+  auto plain = RunSimMealTrial(config, *whole, bandit::Learner::kPoLinUcb,
+                               HapticContext::kLogProbabilities, 3);
+  auto imputed = RunSimMealTrial(imputing, *whole, bandit::Learner::kPoLinUcb,
+                                 HapticContext::kLogProbabilities, 3);
+  ASSERT_TRUE(plain.ok() && imputed.ok());
+  EXPECT_EQ(plain->actions, imputed->actions);
+
+  config.trace_story = "poroelastic";
+  config.keep_no_contact = true;
+  imputing.trace_story = "poroelastic";
+  imputing.keep_no_contact = true;
+  auto missing = simulator_->DrawWorld(config, 3);
+  ASSERT_TRUE(missing.ok()) << missing.status();
+  ASSERT_GT(missing->no_contact, 0);
+  plain = RunSimMealTrial(config, *missing, bandit::Learner::kPoLinUcb,
+                          HapticContext::kLogProbabilities, 3);
+  imputed = RunSimMealTrial(imputing, *missing, bandit::Learner::kPoLinUcb,
+                            HapticContext::kLogProbabilities, 3);
+  ASSERT_TRUE(plain.ok() && imputed.ok());
+  size_t first_missing = 0;
+  while (missing->attempts[first_missing].contact) ++first_missing;
+  size_t first_apart = 0;
+  while (first_apart < plain->actions.size() &&
+         plain->actions[first_apart] == imputed->actions[first_apart]) {
+    ++first_apart;
+  }
+  EXPECT_LT(first_apart, plain->actions.size());
+  EXPECT_GT(first_apart, first_missing);
+}
+
 TEST(SimMealsConfigTest, RejectsNonPositiveCounts) {
   SimMealsConfig config;
   config.attempts_per_food = 0;
