@@ -555,6 +555,8 @@ absl::StatusOr<v1::SelectResponse> Meal::Select(
         DescribeAction(chosen->action(), chosen->action_name());
     *bite->mutable_estimates() = chosen->estimates();
     bite->set_event_id(chosen->event_id());
+    predicted_posthoc_.assign(chosen->predicted_posthoc().begin(),
+                              chosen->predicted_posthoc().end());
     text =
         absl::StrFormat("%s: %s. %s", chosen->action_name(),
                         bite->action().title(), bite->action().description());
@@ -675,6 +677,12 @@ void Meal::Judge(const v1::AcquireResult& result) {
        ask ? mealpb::STEP_STATE_WAITING : mealpb::STEP_STATE_DONE, text);
 }
 
+std::vector<double> Meal::MissingPosthoc() const {
+  if (predicted_posthoc_.size() == static_cast<size_t>(domain::kHapticClasses))
+    return predicted_posthoc_;
+  return std::vector<double>(domain::kHapticClasses, 0.0);
+}
+
 std::string Meal::Felt(const v1::ClassifyResponse& haptic, mealpb::Bite* bite) {
   const int category = static_cast<int>(haptic.category());
   mealpb::HapticSummary* summary = bite->mutable_haptic();
@@ -696,6 +704,10 @@ std::string Meal::Felt(const v1::ClassifyResponse& haptic, mealpb::Bite* bite) {
     update_->posthoc = domain::PosthocContext(
         std::vector<double>(answer.begin(), answer.end()), log_form,
         cut || haptic.unfamiliar(), rule);
+    // A cut trace's answer left out is a missing post hoc context.
+    if (cut && rule == domain::UnfamiliarPosthoc::kZero) {
+      update_->posthoc = MissingPosthoc();
+    }
   }
   std::string text =
       absl::StrFormat("It felt %s (%.0f%% sure).", summary->label(),
@@ -704,6 +716,9 @@ std::string Meal::Felt(const v1::ClassifyResponse& haptic, mealpb::Bite* bite) {
                         ? "its answer is still used for learning"
                     : rule == domain::UnfamiliarPosthoc::kUniform
                         ? "learning treats how it felt as unknown (uniform)"
+                    : cut && !predicted_posthoc_.empty()
+                        ? "learning uses what the learner expected it to feel "
+                          "from what the camera saw"
                         : "learning leaves out how it felt";
   if (options_.posthoc == PosthocMode::kNone) {
     // Vision only: nothing of the feel is learned anyway.
@@ -758,15 +773,18 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
     if (no_contact) {
       bite->mutable_haptic()->set_label("no contact");
       if (update_.has_value() && options_.posthoc != PosthocMode::kNone) {
-        update_->posthoc.assign(domain::kHapticClasses, 0.0);
+        update_->posthoc = MissingPosthoc();
       }
       text = absl::StrCat(
           "The fork felt no contact, so there is no haptic class (",
           haptic.status().message(), "); ",
           options_.posthoc == PosthocMode::kNone
               ? "vision only, so the bite is still learned."
-              : "the bite is learned from what the camera saw, with no post "
-                "hoc context.");
+          : predicted_posthoc_.empty()
+              ? "the bite is learned from what the camera saw, with no post "
+                "hoc context."
+              : "the bite is learned from what the camera saw, with the "
+                "post hoc context the learner expected from it.");
     } else {
       text = Felt(*haptic, bite);
     }

@@ -193,6 +193,12 @@ class Meal {
   absl::Status Classify(const v1::AcquireResult& result);
   // What the person reads about how the bite felt; keeps HapticNet's
   // answer in `bite` and the post hoc context it gives in update_.
+  // What a bite without a post hoc context sends (no contact; a trace the
+  // force limit cut short, under the zero rule): the post hoc context its
+  // Select predicted (poLinUCB: measured better than zeros,
+  // docs/experiments.md "A missing post hoc context for poLinUCB"), or p = 0
+  // for learners that predict none.
+  std::vector<double> MissingPosthoc() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   std::string Felt(const v1::ClassifyResponse& haptic, mealpb::Bite* bite)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   // Records the trace when options_.recording is set (`haptic` null when
@@ -226,6 +232,9 @@ class Meal {
   // The update of the current bite, once its loss is known (or while the
   // operator's answer is awaited: loss unset).
   std::optional<JournaledUpdate> update_ ABSL_GUARDED_BY(mu_);
+  // The current bite's Select: the post hoc context the learner predicts
+  // (poLinUCB; empty for other learners), sent when the bite has none.
+  std::vector<double> predicted_posthoc_ ABSL_GUARDED_BY(mu_);
   bool stop_requested_ ABSL_GUARDED_BY(mu_) = false;
 };
 

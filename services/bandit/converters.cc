@@ -169,6 +169,8 @@ void SelectToProto(const SelectResult& result, v1::SelectResponse* proto) {
   proto->set_action_name(result.action_name);
   proto->set_propensity(result.propensity);
   proto->set_model_version(result.model_version);
+  proto->mutable_predicted_posthoc()->Add(result.predicted_posthoc.begin(),
+                                          result.predicted_posthoc.end());
   for (size_t a = 0; a < result.estimates.size(); ++a) {
     v1::ActionEstimate* e = proto->add_estimates();
     e->set_action(static_cast<int32_t>(a));

@@ -641,6 +641,7 @@ absl::StatusOr<std::optional<SelectResult>> BanditEngine::TrySelect(
   SelectResult result;
   SelectProducts products;
   result.estimates = model.Estimate(input.context, &products);
+  result.predicted_posthoc = model.PredictedPosthoc(input.context);
   std::mt19937_64 rng = SelectRng(slot.record.config.seed, slot.select_count);
   const Choice choice = ChooseAction(model.config(), result.estimates, rng);
 

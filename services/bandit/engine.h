@@ -95,6 +95,8 @@ struct SelectResult {
   std::vector<ActionEstimate> estimates;
   std::vector<std::string> action_names;  // index-aligned with estimates
   int64_t model_version = 0;
+  // LearnerModel::PredictedPosthoc at the context (poLinUCB); empty else.
+  std::vector<double> predicted_posthoc;
 };
 
 struct UpdateInput {

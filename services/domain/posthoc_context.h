@@ -46,7 +46,9 @@ inline constexpr UnfamiliarPosthoc kDefaultUnfamiliarPosthoc =
 // force limits, on the tuning seed (2), poLinUCB (the product's learner)
 // failed 1.37 fewer times per meal with no post hoc context for such bites
 // than with HapticNet's answer on the cut trace (post hoc LinUCB, the other
-// way round, 0.44 more).
+// way round, 0.44 more). For such a bite kZero means "no post hoc context
+// of its own": the meal sends a poLinUCB person's predicted p_hat(c)
+// (SelectResponse.predicted_posthoc) and p = 0 for other learners.
 inline constexpr UnfamiliarPosthoc kDefaultLimitReachedPosthoc =
     UnfamiliarPosthoc::kZero;
 

@@ -746,5 +746,49 @@ TEST_F(EngineTest, PoLinUcbCheckpointsAndPoolsAsTheOtherLearners) {
   }
 }
 
+// A poLinUCB user's Select carries the post hoc context the model predicts
+// at the context, p_hat(c): the dense float64 reference's, from the rounds
+// it has learned. Other learners predict none.
+TEST_F(EngineTest, PoLinUcbSelectCarriesItsPredictedPosthocContext) {
+  BanditConfig config = SmallConfig();
+  config.learner = Learner::kPoLinUcb;
+  ASSERT_TRUE(engine_->CreateUser("po", config).ok());
+  ASSERT_TRUE(engine_->CreateUser("plain", SmallConfig()).ok());
+  std::mt19937_64 rng(47);
+  std::vector<Round> seen;
+  for (int t = 0; t < 25; ++t) {
+    SelectInput select{"po", RandomVector(8, rng), "m", "item"};
+    absl::StatusOr<SelectResult> chosen = engine_->Select(select);
+    ASSERT_TRUE(chosen.ok()) << chosen.status();
+    ASSERT_EQ(chosen->predicted_posthoc.size(), 4u);
+    UpdateInput update{chosen->event_id, t % 3 ? 1.0 : 0.0,
+                       RandomVector(4, rng)};
+    ASSERT_TRUE(engine_->Update(update).ok());
+    Round round;
+    round.context = select.context;
+    round.action = chosen->action;
+    round.loss = update.loss;
+    round.posthoc = update.posthoc;
+    seen.push_back(round);
+  }
+  absl::StatusOr<ModelExport> model = engine_->GetModel("po");
+  ASSERT_TRUE(model.ok()) << model.status();
+  const std::vector<double> at = RandomVector(8, rng);
+  const testing::DensePoLinUcb ref =
+      testing::DensePoLinUcbReference(model->user.config, seen, at);
+  absl::StatusOr<SelectResult> chosen =
+      engine_->Select(SelectInput{"po", at, "m", "item"});
+  ASSERT_TRUE(chosen.ok()) << chosen.status();
+  const Eigen::Map<const Eigen::VectorXd> predicted(
+      chosen->predicted_posthoc.data(), chosen->predicted_posthoc.size());
+  EXPECT_TRUE(bitewise::testing::RelNear(predicted, ref.p_hat, 1e-10));
+  EXPECT_GT(ref.p_hat.norm(), 0.0);
+
+  absl::StatusOr<SelectResult> plain =
+      engine_->Select(SelectInput{"plain", at, "m", "item"});
+  ASSERT_TRUE(plain.ok()) << plain.status();
+  EXPECT_TRUE(plain->predicted_posthoc.empty());
+}
+
 }  // namespace
 }  // namespace bitewise::bandit

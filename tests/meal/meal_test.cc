@@ -123,6 +123,35 @@ absl::StatusOr<OwnServices> StartOwnServices(
   return own;
 }
 
+// A Select at `event`'s context predicts the post hoc context `event` was
+// learned with: what a poLinUCB bite without one sends (the prediction the
+// model made at its own Select; learning it leaves the prediction as it
+// was, so a new Select at the same context gives it again). A person's
+// first bite predicts zeros (nothing learned yet); later ones must not.
+void ExpectPredictedAt(ServiceClients& clients, const v1::Event& event,
+                       bool first_bite = false) {
+  v1::SelectRequest select;
+  select.set_user_id(event.user_id());
+  select.set_meal_id("check");
+  *select.mutable_context() = event.context();
+  absl::StatusOr<v1::SelectResponse> chosen = clients.bandit.Select(select);
+  ASSERT_TRUE(chosen.ok()) << chosen.status();
+  ASSERT_EQ(chosen->predicted_posthoc_size(), 4);
+  ASSERT_EQ(event.posthoc_size(), 4);
+  double norm = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    EXPECT_NEAR(event.posthoc(k), chosen->predicted_posthoc(k),
+                1e-8 * (1.0 + std::abs(event.posthoc(k))))
+        << k;
+    norm += event.posthoc(k) * event.posthoc(k);
+  }
+  if (first_bite) {
+    EXPECT_EQ(norm, 0.0);
+  } else {
+    EXPECT_GT(norm, 0.0);
+  }
+}
+
 class MealTest : public SharedFourServicesTest<MealTest> {
  public:
   static FourServicesOptions Options() {
@@ -330,9 +359,11 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
             e.state() == mealpb::STEP_STATE_DONE && e.bite() == state.bite() &&
             absl::StrContains(e.text(), "felt no contact") &&
             absl::StrContains(e.text(), "peak force") &&
-            absl::StrContains(e.text(), "with no post hoc context"));
+            absl::StrContains(
+                e.text(), "with the post hoc context the learner expected"));
   }
   EXPECT_TRUE(told);
+  std::vector<double> saved_posthoc;
   if (options.confirm == ConfirmBy::kOperator) {
     // The answer is saved now, and learned when the next bite starts.
     absl::StatusOr<std::vector<JournaledUpdate>> saved = journal.ReadAll();
@@ -340,8 +371,8 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
     ASSERT_FALSE(saved->empty());
     EXPECT_EQ(saved->back().event_id, missed.event_id());
     EXPECT_EQ(saved->back().loss, 1.0);
-    EXPECT_THAT(saved->back().posthoc,
-                ::testing::ElementsAre(0.0, 0.0, 0.0, 0.0));
+    ASSERT_EQ(saved->back().posthoc.size(), 4u);
+    saved_posthoc = saved->back().posthoc;
     ASSERT_OK(meal.Bite(0));
   } else {
     EXPECT_EQ(missed.learned(), "learned");
@@ -358,7 +389,13 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
   ASSERT_NE(event, events->events().end());
   EXPECT_TRUE(event->completed());
   EXPECT_EQ(event->loss(), 1.0);
-  EXPECT_THAT(event->posthoc(), ::testing::ElementsAre(0.0, 0.0, 0.0, 0.0));
+  // The person's learner is poLinUCB: the bite sent the post hoc context
+  // the Select predicted, not zeros.
+  if (options.confirm == ConfirmBy::kOperator) {
+    EXPECT_THAT(event->posthoc(), ::testing::ElementsAreArray(saved_posthoc));
+  } else {
+    ExpectPredictedAt(clients, *event);
+  }
   // The lab's recording keeps the trace and says it had no contact.
   std::ifstream bites_csv(absl::StrCat(recorded, "/bites.csv"));
   std::string line, missed_row;
@@ -383,11 +420,17 @@ INSTANTIATE_TEST_SUITE_P(RobotOrOperator, NoContactMealTest,
 // push back with 10-18 N, so the fork stops pushing at TA90's 10 N limit and
 // the trace is cut short there. The bite says so (its flag, the action's
 // limit, the Acquire's and the Classify's words), and the post hoc learner
-// gets what the rule says: by default no post hoc context (measured better
-// for poLinUCB: docs/experiments.md, "A trace the robot cut short"), or
+// gets what the rule says: by default no post hoc context of its own
+// (measured better for poLinUCB: docs/experiments.md, "A trace the robot
+// cut short"), so poLinUCB's prediction and post hoc LinUCB's zeros; or
 // HapticNet's answer on the cut trace.
-class ForceLimitMealTest
-    : public ::testing::TestWithParam<domain::UnfamiliarPosthoc> {};
+struct ForceLimitCase {
+  domain::UnfamiliarPosthoc rule;
+  v1::Learner learner;
+  const char* name;
+};
+
+class ForceLimitMealTest : public ::testing::TestWithParam<ForceLimitCase> {};
 
 TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
   FourServicesOptions service_options;
@@ -398,7 +441,7 @@ TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
   ServiceClients& clients = *own->clients;
   EXPECT_EQ(own->options.limit_reached_posthoc,
             domain::UnfamiliarPosthoc::kZero);
-  own->options.limit_reached_posthoc = GetParam();
+  own->options.limit_reached_posthoc = GetParam().rule;
   const std::string recorded = absl::StrCat(own->services->dir(), "/recorded");
   absl::StatusOr<std::unique_ptr<TraceRecording>> recording =
       RecordInto(recorded, &own->options);
@@ -416,7 +459,7 @@ TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
   v1::CreateUserRequest create;
   create.set_user_id(own->options.user_id);
   create.mutable_config()->set_context_dim(features->context_size());
-  create.mutable_config()->set_learner(v1::LEARNER_POLINUCB);
+  create.mutable_config()->set_learner(GetParam().learner);
   create.mutable_config()->add_action_names("TA90");
   ASSERT_OK(clients.bandit.CreateUser(create).status());
 
@@ -433,7 +476,9 @@ TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
   EXPECT_TRUE(bite.force_limit_reached());
   EXPECT_GE(bite.peak_force_n(), 10.0);
   EXPECT_EQ(bite.learned(), "learned");
-  const bool zero = GetParam() == domain::UnfamiliarPosthoc::kZero;
+  const bool zero = GetParam().rule == domain::UnfamiliarPosthoc::kZero;
+  // A missing post hoc context: poLinUCB's own prediction, else p = 0.
+  const bool predicted = zero && GetParam().learner == v1::LEARNER_POLINUCB;
   bool acquire_told = false, classify_told = false;
   for (const mealpb::BiteEvent& e : listener.events()) {
     if (e.state() != mealpb::STEP_STATE_DONE) continue;
@@ -446,9 +491,11 @@ TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
         classify_told ||
         (e.step() == mealpb::STEP_CLASSIFY &&
          absl::StrContains(e.text(), "cut short where the fork stopped") &&
-         absl::StrContains(e.text(),
-                           zero ? "learning leaves out how it felt"
-                                : "its answer is still used for learning"));
+         absl::StrContains(
+             e.text(), predicted ? "learning uses what the learner expected it "
+                                   "to feel from what the camera saw"
+                       : zero    ? "learning leaves out how it felt"
+                                 : "its answer is still used for learning"));
   }
   EXPECT_TRUE(acquire_told);
   EXPECT_TRUE(classify_told);
@@ -461,10 +508,16 @@ TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
   ASSERT_OK(events.status());
   ASSERT_EQ(events->events_size(), 1);
   ASSERT_EQ(events->events(0).posthoc_size(), 4);
-  for (int k = 0; k < 4; ++k) {
-    EXPECT_NEAR(events->events(0).posthoc(k),
-                zero ? 0.0 : std::log(bite.haptic().probabilities(k)), 1e-4)
-        << k;
+  if (predicted) {
+    // The person's first bite: the prediction is still zeros
+    // (NoContactMealTest sees a later one).
+    ExpectPredictedAt(clients, events->events(0), /*first_bite=*/true);
+  } else {
+    for (int k = 0; k < 4; ++k) {
+      EXPECT_NEAR(events->events(0).posthoc(k),
+                  zero ? 0.0 : std::log(bite.haptic().probabilities(k)), 1e-4)
+          << k;
+    }
   }
   // The lab's recording marks the trace as cut short.
   std::ifstream bites_csv(absl::StrCat(recorded, "/bites.csv"));
@@ -476,12 +529,16 @@ TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
 
 INSTANTIATE_TEST_SUITE_P(
     Rules, ForceLimitMealTest,
-    ::testing::Values(domain::UnfamiliarPosthoc::kZero,
-                      domain::UnfamiliarPosthoc::kAsIs),
-    [](const ::testing::TestParamInfo<domain::UnfamiliarPosthoc>& info) {
-      return info.param == domain::UnfamiliarPosthoc::kZero
-                 ? std::string("NoPosthocContext")
-                 : std::string("HapticNetsAnswer");
+    ::testing::Values(ForceLimitCase{domain::UnfamiliarPosthoc::kZero,
+                                     v1::LEARNER_POLINUCB,
+                                     "PoLinUcbSendsItsPrediction"},
+                      ForceLimitCase{domain::UnfamiliarPosthoc::kZero,
+                                     v1::LEARNER_POSTHOC,
+                                     "PostHocLinUcbSendsZeros"},
+                      ForceLimitCase{domain::UnfamiliarPosthoc::kAsIs,
+                                     v1::LEARNER_POLINUCB, "HapticNetsAnswer"}),
+    [](const ::testing::TestParamInfo<ForceLimitCase>& info) {
+      return std::string(info.param.name);
     });
 
 TEST(MealWordsTest, SingularAndPlural) {

@@ -53,6 +53,13 @@ class LearnerModel {
   std::vector<ActionEstimate> Estimate(absl::Span<const double> context) const {
     return Estimate(context, nullptr);
   }
+  // The post hoc context this learner predicts at a validated context, for
+  // a client that gets none for the bite to send in its place (poLinUCB's
+  // p_hat(c)); empty for learners that make no such prediction.
+  virtual std::vector<double> PredictedPosthoc(
+      absl::Span<const double> context) const {
+    return {};
+  }
   // Adds one round (it must pass ValidateRound); `products` from an
   // Estimate of the same context are used when the model has not changed
   // since, with the same result either way.

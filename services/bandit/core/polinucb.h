@@ -127,6 +127,11 @@ class PoLinUcbModel final : public LearnerModel {
                                        SelectProducts* products) const override;
   // The predicted post hoc context p_hat(c) and the radius e of its ball.
   Eigen::VectorXd PredictPosthoc(absl::Span<const double> c) const;
+  std::vector<double> PredictedPosthoc(
+      absl::Span<const double> c) const override {
+    const Eigen::VectorXd p = PredictPosthoc(c);
+    return std::vector<double>(p.data(), p.data() + p.size());
+  }
   double PosthocRadius(absl::Span<const double> c) const;
 
   // One round (it must pass ValidateRound); `products` from an Estimate of
