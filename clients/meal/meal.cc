@@ -748,9 +748,10 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
   // No contact: the force never held above the HapticService's contact
   // threshold (the fork missed the food, or the food is softer than the
   // threshold), so there is no haptic class, only a fact about the bite. It
-  // is learned with no post hoc context (p = 0: the post hoc part of the
-  // model learns nothing, the visual part does), not failed: failing it would
-  // leave every such bite unlearned and stop the meal at each one.
+  // is learned with no post hoc context of its own (MissingPosthoc: p = 0,
+  // so post hoc LinUCB's post hoc part learns nothing and its visual part
+  // does; poLinUCB's own prediction), not failed: failing it would leave
+  // every such bite unlearned and stop the meal at each one.
   const bool no_contact =
       !haptic.ok() && absl::IsFailedPrecondition(haptic.status());
   if (!haptic.ok() && !no_contact) {

@@ -290,7 +290,8 @@ TEST(UnfamiliarMealTest, AnUnfamiliarBiteSendsFlattenedPosthocContext) {
 // descent's depth limit, so the fork stops in the air where it was) has been
 // eaten, and the robot bites where it was seen. The HapticService finds no
 // contact (FAILED_PRECONDITION); the meal goes on and learns the failure
-// from what the camera saw, with no post hoc context (p = 0), the robot's
+// from what the camera saw, with no post hoc context of its own (the person
+// learns with poLinUCB, so the one its Select predicted), the robot's
 // verdict or the operator's answer alike.
 class NoContactMealTest : public ::testing::TestWithParam<ConfirmBy> {};
 
