@@ -262,6 +262,24 @@ void LearnerThreadsGrid(benchmark::internal::Benchmark* b) {
       ->UseRealTime();
 }
 
+// What a poLinUCB Select adds for its reply's predicted_posthoc: p_hat(c)
+// = q_map^T c, d x q multiply-adds.
+void BM_PoLinUcbPredictedPosthoc(benchmark::State& state) {
+  Round probe;
+  const LearnerModel& model = CachedLearner(state, &probe);
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(model.PredictedPosthoc(probe.context));
+  }
+  state.SetLabel(LearnerName(model.config().learner));
+}
+
+void PredictedPosthocGrid(benchmark::internal::Benchmark* b) {
+  for (int rounds : {1000, 10000}) {
+    b->Args({2048, rounds, static_cast<int>(Learner::kPoLinUcb)});
+  }
+  b->ArgNames({"d", "rounds", "learner"})->Unit(benchmark::kMicrosecond);
+}
+
 void BM_NaiveSelect(benchmark::State& state) {
   const int d = static_cast<int>(state.range(0));
   const int rounds = static_cast<int>(state.range(1));
@@ -315,6 +333,7 @@ BENCHMARK(BM_IncrementalUpdate)->Apply(Grid)->Iterations(40);
 BENCHMARK(BM_IncrementalRebuild)->Apply(Grid)->Iterations(2);
 BENCHMARK(BM_LearnerSelect)->Apply(LearnerThreadsGrid);
 BENCHMARK(BM_LearnerUpdate)->Apply(LearnerGrid)->Iterations(40);
+BENCHMARK(BM_PoLinUcbPredictedPosthoc)->Apply(PredictedPosthocGrid);
 BENCHMARK(BM_NaiveSelect)->Apply(Grid);
 BENCHMARK(BM_NaiveUpdate)->Apply(NaiveGrid);
 BENCHMARK(BM_NaiveRebuild)->Apply(NaiveGrid);
