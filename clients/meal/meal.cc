@@ -113,7 +113,11 @@ std::string OperatorQuestion(const mealpb::Bite& bite) {
   const std::string food = bite.food().empty()
                                ? absl::StrCat("item ", bite.item_index() + 1)
                                : absl::StrCat("the ", bite.food());
-  return absl::StrFormat("Did %s come up on the fork with %s (%s)?", food,
+  // The bite's number first, so the answer is given knowing which bite.
+  const std::string which = bite.number() > 0
+                                ? absl::StrCat("Bite ", bite.number(), ": did ")
+                                : std::string("Did ");
+  return absl::StrFormat("%s%s come up on the fork with %s (%s)?", which, food,
                          bite.action().name(), bite.action().title());
 }
 
@@ -555,8 +559,13 @@ absl::StatusOr<v1::SelectResponse> Meal::Select(
         DescribeAction(chosen->action(), chosen->action_name());
     *bite->mutable_estimates() = chosen->estimates();
     bite->set_event_id(chosen->event_id());
-    predicted_posthoc_.assign(chosen->predicted_posthoc().begin(),
-                              chosen->predicted_posthoc().end());
+    // Kept only in the shape an Update takes, so that "has a prediction"
+    // is one test (empty()) everywhere below.
+    predicted_posthoc_.clear();
+    if (chosen->predicted_posthoc_size() == domain::kHapticClasses) {
+      predicted_posthoc_.assign(chosen->predicted_posthoc().begin(),
+                                chosen->predicted_posthoc().end());
+    }
     text =
         absl::StrFormat("%s: %s. %s", chosen->action_name(),
                         bite->action().title(), bite->action().description());
@@ -678,8 +687,7 @@ void Meal::Judge(const v1::AcquireResult& result) {
 }
 
 std::vector<double> Meal::MissingPosthoc() const {
-  if (predicted_posthoc_.size() == static_cast<size_t>(domain::kHapticClasses))
-    return predicted_posthoc_;
+  if (!predicted_posthoc_.empty()) return predicted_posthoc_;
   return std::vector<double>(domain::kHapticClasses, 0.0);
 }
 

@@ -549,7 +549,7 @@ TEST(MealWordsTest, SingularAndPlural) {
   EXPECT_EQ(Count(1, "item", "items"), "1 item");
 }
 
-TEST(MealWordsTest, QuestionNamesTheFoodAndTheAction) {
+TEST(MealWordsTest, QuestionNamesTheBiteTheFoodAndTheAction) {
   mealpb::Bite bite;
   bite.set_food("strawberry");
   bite.mutable_action()->set_name("VS0");
@@ -557,9 +557,13 @@ TEST(MealWordsTest, QuestionNamesTheFoodAndTheAction) {
   EXPECT_EQ(OperatorQuestion(bite),
             "Did the strawberry come up on the fork with VS0 (Vertical "
             "skewer)?");
+  bite.set_number(4);
+  EXPECT_EQ(OperatorQuestion(bite),
+            "Bite 4: did the strawberry come up on the fork with VS0 "
+            "(Vertical skewer)?");
   bite.clear_food();
   bite.set_item_index(2);
-  EXPECT_THAT(OperatorQuestion(bite), HasSubstr("Did item 3 come up"));
+  EXPECT_THAT(OperatorQuestion(bite), HasSubstr("Bite 4: did item 3 come up"));
 }
 
 TEST(ContextRidgeTest, ExplicitThenScaledThenServiceDefault) {
@@ -770,6 +774,8 @@ TEST_F(MealTest, OperatorAnswerCanChangeAndIsLearnedWhenFinal) {
   ASSERT_OK(meal->Bite(std::nullopt));
   mealpb::Bite bite = meal->state().current();
   // The question names the food and the action.
+  EXPECT_THAT(bite.question(), ::testing::StartsWith(
+                                   absl::StrCat("Bite ", bite.number(), ": ")));
   EXPECT_THAT(bite.question(), HasSubstr(bite.food()));
   EXPECT_THAT(bite.question(), HasSubstr(bite.action().name()));
   EXPECT_EQ(bite.outcome(), "pending");
