@@ -133,21 +133,19 @@ std::vector<double> AttemptPosthoc(const SimAttempt& attempt,
   return PosthocContext(attempt.haptic, kind, unfamiliar);
 }
 
-const char* LimitReachedPosthocName(LimitReachedPosthoc rule) {
-  return rule == LimitReachedPosthoc::kZero ? "zero" : "asis";
-}
-
 std::vector<double> ActionPosthoc(const SimAttempt& attempt, double limit_n,
                                   HapticContext kind,
                                   domain::UnfamiliarPosthoc unfamiliar,
-                                  LimitReachedPosthoc rule) {
+                                  domain::UnfamiliarPosthoc rule) {
   if (attempt.contact) {
     for (const SimAttempt::Limited& limited : attempt.limited) {
       if (limited.limit_n != limit_n || !limited.reached) continue;
-      if (rule == LimitReachedPosthoc::kZero) {
-        return std::vector<double>(haptic::kHapticClasses, 0.0);
-      }
-      return PosthocContext(limited.haptic, kind, unfamiliar);
+      // As the meal: the cut answer is replaced as `rule` says, whatever
+      // its familiarity.
+      haptic::HapticClassification flagged = limited.haptic;
+      flagged.has_familiarity = true;
+      flagged.familiarity.unfamiliar = true;
+      return PosthocContext(flagged, kind, rule);
     }
   }
   return AttemptPosthoc(attempt, kind, unfamiliar);
@@ -465,7 +463,7 @@ absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
                                        int64_t first_round,
                                        bandit::LearnerModel& model,
                                        domain::UnfamiliarPosthoc unfamiliar,
-                                       LimitReachedPosthoc limit_rule,
+                                       domain::UnfamiliarPosthoc limit_rule,
                                        bool impute_missing) {
   const auto* polinucb =
       impute_missing ? dynamic_cast<const bandit::PoLinUcbModel*>(&model)
@@ -498,8 +496,9 @@ absl::StatusOr<SimMealRun> PlaySimMeal(const SimMealWorld& world,
     }
     run.limit_reached += halted;
     if (bandit::UsesPosthoc(bandit_config.learner)) {
-      const bool missing = !attempt.contact ||
-                           (halted && limit_rule == LimitReachedPosthoc::kZero);
+      const bool missing =
+          !attempt.contact ||
+          (halted && limit_rule == domain::UnfamiliarPosthoc::kZero);
       if (polinucb != nullptr && missing) {
         const Eigen::VectorXd predicted =
             polinucb->PredictPosthoc(attempt.context);

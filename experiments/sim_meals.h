@@ -74,15 +74,6 @@ enum class MealOrder {
   kBlocked,
 };
 
-// What the post hoc learners are told for an attempt whose chosen action's
-// force limit halted the fork (with SimMealsConfig::force_limit).
-enum class LimitReachedPosthoc {
-  kAsIs,  // HapticNet's answer on the cut trace
-  kZero,  // no post hoc context (p = 0), as for a bite without contact
-};
-// "asis", "zero".
-const char* LimitReachedPosthocName(LimitReachedPosthoc rule);
-
 struct SimMealsConfig {
   int attempts_per_food = 8;
   // Rendered plates per trial. Each plate holds every unseen food once; the
@@ -151,7 +142,10 @@ struct SimMealsConfig {
   bool force_limit = false;
   // As the orchestrator (domain::kDefaultLimitReachedPosthoc): no post hoc
   // context for a halted attempt.
-  LimitReachedPosthoc limit_reached_posthoc = LimitReachedPosthoc::kZero;
+  // (The orchestrator's rule: its answer replaced as the rule says, whatever
+  // its familiarity.)
+  domain::UnfamiliarPosthoc limit_reached_posthoc =
+      domain::kDefaultLimitReachedPosthoc;
   // poLinUCB only (a study, not the product): an attempt whose post hoc
   // context is missing (no contact, or halted under the zero rule) sends
   // the model's own prediction p_hat(c), made before the update, instead of
@@ -208,7 +202,7 @@ std::vector<double> AttemptPosthoc(
 std::vector<double> ActionPosthoc(const SimAttempt& attempt, double limit_n,
                                   HapticContext kind,
                                   domain::UnfamiliarPosthoc unfamiliar,
-                                  LimitReachedPosthoc rule);
+                                  domain::UnfamiliarPosthoc rule);
 
 struct SimMealWorld {
   // The meal's foods; SimAttempt::food indexes this.
@@ -294,7 +288,7 @@ absl::StatusOr<SimMealRun> PlaySimMeal(
     const SimMealWorld& world, HapticContext kind, uint64_t seed,
     int64_t first_round, bandit::LearnerModel& model,
     domain::UnfamiliarPosthoc unfamiliar = domain::UnfamiliarPosthoc::kAsIs,
-    LimitReachedPosthoc limit_rule = LimitReachedPosthoc::kAsIs,
+    domain::UnfamiliarPosthoc limit_rule = domain::UnfamiliarPosthoc::kAsIs,
     bool impute_missing = false);
 
 // Post hoc learners treat unfamiliar attempts as config.unfamiliar_posthoc

@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <map>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "absl/flags/flag.h"
@@ -73,11 +74,13 @@ ABSL_FLAG(bool, force_limit, false,
           "an attempt's haptic answer is then HapticNet's on the trace the "
           "chosen action leaves. Every such run also plays post hoc LinUCB "
           "(logprob) under both --limit_reached_posthoc rules.");
-ABSL_FLAG(std::string, limit_reached_posthoc, "zero",
+ABSL_FLAG(std::string, limit_reached_posthoc,
+          bitewise::domain::UnfamiliarPosthocName(
+              bitewise::domain::kDefaultLimitReachedPosthoc),
           "With --force_limit, what the post hoc learners get for an attempt "
           "the limit halted: zero (no post hoc context, as for a bite without "
-          "contact; the product's default) or asis (HapticNet's answer on the "
-          "cut trace).");
+          "contact; the product's default), uniform (flattened) or asis "
+          "(HapticNet's answer on the cut trace).");
 ABSL_FLAG(uint64_t, seed, 1,
           "Base seed; trial i uses a seed mixed from (seed, i).");
 ABSL_FLAG(std::string, haptic_model, "",
@@ -180,14 +183,16 @@ std::vector<LearnerSpec> Learners(bool force_limit) {
          {std::pair{bandit::Learner::kPostHoc, "post hoc"},
           std::pair{bandit::Learner::kPoLinUcb, "poLinUCB"}}) {
       const int as_is = static_cast<int>(specs.size());
-      for (LimitReachedPosthoc rule :
-           {LimitReachedPosthoc::kAsIs, LimitReachedPosthoc::kZero}) {
-        const bool zero = rule == LimitReachedPosthoc::kZero;
+      for (domain::UnfamiliarPosthoc rule :
+           {domain::UnfamiliarPosthoc::kAsIs,
+            domain::UnfamiliarPosthoc::kZero}) {
+        const bool zero = rule == domain::UnfamiliarPosthoc::kZero;
         specs.push_back(
-            {absl::StrCat(name, ", halted ", LimitReachedPosthocName(rule)),
+            {absl::StrCat(name, ", halted ",
+                          domain::UnfamiliarPosthocName(rule)),
              absl::StrCat(
                  learner == bandit::Learner::kPostHoc ? "posthoc" : "polinucb",
-                 "_logprob_halted_", LimitReachedPosthocName(rule)),
+                 "_logprob_halted_", domain::UnfamiliarPosthocName(rule)),
              learner, HapticContext::kLogProbabilities,
              bandit::Strategy::kLinUcb, 0, zero ? as_is : -1, -1,
              static_cast<int>(rule)});
@@ -213,28 +218,20 @@ int Run() {
   config.keep_no_contact = absl::GetFlag(FLAGS_keep_no_contact);
   config.lambda_p = absl::GetFlag(FLAGS_lambda_p);
   config.force_limit = absl::GetFlag(FLAGS_force_limit);
-  {
-    const std::string rule = absl::GetFlag(FLAGS_limit_reached_posthoc);
-    if (rule == "asis" || rule == "zero") {
-      config.limit_reached_posthoc = rule == "zero"
-                                         ? LimitReachedPosthoc::kZero
-                                         : LimitReachedPosthoc::kAsIs;
-    } else {
-      absl::FPrintF(stderr,
-                    "--limit_reached_posthoc must be asis or zero, not %s\n",
-                    rule);
+  for (const auto& [flag, value, rule] :
+       {std::tuple{"unfamiliar_posthoc",
+                   absl::GetFlag(FLAGS_unfamiliar_posthoc),
+                   &config.unfamiliar_posthoc},
+        std::tuple{"limit_reached_posthoc",
+                   absl::GetFlag(FLAGS_limit_reached_posthoc),
+                   &config.limit_reached_posthoc}}) {
+    absl::StatusOr<domain::UnfamiliarPosthoc> parsed =
+        domain::ParseUnfamiliarPosthoc(value);
+    if (!parsed.ok()) {
+      absl::FPrintF(stderr, "--%s: %s\n", flag, parsed.status().message());
       return 2;
     }
-  }
-  {
-    absl::StatusOr<domain::UnfamiliarPosthoc> rule =
-        domain::ParseUnfamiliarPosthoc(absl::GetFlag(FLAGS_unfamiliar_posthoc));
-    if (!rule.ok()) {
-      absl::FPrintF(stderr, "--unfamiliar_posthoc: %s\n",
-                    rule.status().message());
-      return 2;
-    }
-    config.unfamiliar_posthoc = *rule;
+    *rule = *parsed;
   }
   const std::string order = absl::GetFlag(FLAGS_order);
   if (order == "shuffled") {
@@ -363,7 +360,7 @@ int Run() {
       }
       if (spec.limit_rule >= 0) {
         learner_config.limit_reached_posthoc =
-            static_cast<LimitReachedPosthoc>(spec.limit_rule);
+            static_cast<domain::UnfamiliarPosthoc>(spec.limit_rule);
       }
       learner_config.impute_missing_posthoc = spec.impute;
       absl::StatusOr<SimMealRun> run = RunSimMealTrial(
@@ -544,7 +541,7 @@ int Run() {
         "attempts the chosen action's force limit halted (--force_limit; "
         "mean per meal), post hoc learners given %s for them "
         "(--limit_reached_posthoc):\n",
-        LimitReachedPosthocName(config.limit_reached_posthoc));
+        domain::UnfamiliarPosthocName(config.limit_reached_posthoc));
     for (int learner = 0; learner < kLearners; ++learner) {
       absl::PrintF("  %-22s %6.2f\n", learners[learner].label,
                    static_cast<double>(limit_reached[learner]) / trials);

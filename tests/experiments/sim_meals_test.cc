@@ -345,13 +345,16 @@ TEST_F(SimMealsTest, ForceLimitsCutHardTracesAtTaLimitOnly) {
       ++cut;
       const auto kind = HapticContext::kLogProbabilities;
       const auto as_is = domain::UnfamiliarPosthoc::kAsIs;
-      EXPECT_EQ(ActionPosthoc(a, 10.0, kind, as_is, LimitReachedPosthoc::kZero),
-                std::vector<double>(4, 0.0));
-      EXPECT_EQ(ActionPosthoc(a, 10.0, kind, as_is, LimitReachedPosthoc::kAsIs),
-                PosthocContext(l.haptic, kind));
+      EXPECT_EQ(
+          ActionPosthoc(a, 10.0, kind, as_is, domain::UnfamiliarPosthoc::kZero),
+          std::vector<double>(4, 0.0));
+      EXPECT_EQ(
+          ActionPosthoc(a, 10.0, kind, as_is, domain::UnfamiliarPosthoc::kAsIs),
+          PosthocContext(l.haptic, kind));
       EXPECT_NE(PosthocContext(l.haptic, kind), AttemptPosthoc(a, kind));
-      EXPECT_EQ(ActionPosthoc(a, 25.0, kind, as_is, LimitReachedPosthoc::kZero),
-                AttemptPosthoc(a, kind));
+      EXPECT_EQ(
+          ActionPosthoc(a, 25.0, kind, as_is, domain::UnfamiliarPosthoc::kZero),
+          AttemptPosthoc(a, kind));
     }
   }
   EXPECT_EQ(cut, 2 * config.attempts_per_food);  // carrot and celery
