@@ -5,13 +5,18 @@
 # items, seed 20261123), then chooses each fold's softmax temperature from
 # the OTHER folds' tuning items and prints the tables of docs/haptic.md.
 #
-#   scripts/haptic/leave_one_story_out.sh OUT_DIR [--ensemble|--seed_ensemble]
+#   scripts/haptic/leave_one_story_out.sh OUT_DIR
+#       [--ensemble|--single_story_ensemble|--seed_ensemble]
 #                                          [--train_also=LIST] [trainer flags...]
 #   e.g. scripts/haptic/leave_one_story_out.sh /tmp/loso --augment
 #
-# --ensemble: each fold's model is the ensemble of the models trained on
-# every pair of its three training stories (docs/haptic.md, "An ensemble
-# over stories"); the six pair models are trained once into OUT_DIR/pairs.
+# --ensemble: each fold's model is the ensemble of the models trained on its
+# training stories but one, one member per training story (with four folds:
+# every pair of its three; docs/haptic.md, "An ensemble over stories"); each
+# member is trained once into OUT_DIR/pairs (six with four folds, fifteen with
+# six).
+# --single_story_ensemble: each fold's model is the ensemble of the models
+# trained on one of its training stories each, trained into OUT_DIR/singles.
 # --seed_ensemble: each fold's model is the ensemble of three models trained
 # on its three training stories with seeds 1, 2 and 3 (traces, split, initial
 # weights, batch order), trained into OUT_DIR/seeds.
@@ -26,7 +31,9 @@ OUT="${1:?usage: scripts/haptic/leave_one_story_out.sh OUT_DIR [trainer flags...
 shift
 ENSEMBLE=0
 SEED_ENSEMBLE=0
+SINGLES=0
 if [ "${1:-}" = "--ensemble" ]; then ENSEMBLE=1; shift; fi
+if [ "${1:-}" = "--single_story_ensemble" ]; then SINGLES=1; shift; fi
 if [ "${1:-}" = "--seed_ensemble" ]; then SEED_ENSEMBLE=1; shift; fi
 ALSO=""
 if [[ "${1:-}" == --train_also=* ]]; then ALSO="${1#--train_also=}"; shift; fi
@@ -39,25 +46,44 @@ mkdir -p "$OUT"
 for held in "${STORIES[@]}"; do
   others=$(printf '%s\n' "${STORIES[@]}" | grep -vx "$held" | paste -sd,)
   if [ -n "$ALSO" ]; then
-    if [ "$ENSEMBLE" = 1 ]; then
-      echo "--train_also does not combine with --ensemble" >&2
+    if [ "$ENSEMBLE" = 1 ] || [ "$SINGLES" = 1 ]; then
+      echo "--train_also does not combine with a story ensemble" >&2
       exit 2
     fi
     others="$others,$ALSO"
   fi
   if [ ! -f "$OUT/$held.onnx" ] && [ "$ENSEMBLE" = 1 ]; then
+    # One member per training story g: trained on the fold's training stories
+    # but g. Named by its stories in the folds' order, so the model without
+    # h and g is trained once and shared by the folds of h and of g.
     mkdir -p "$OUT/pairs"
-    IFS=, read -r -a three <<<"$others"
+    IFS=, read -r -a training <<<"$others"
     members=()
-    for pair in "${three[0]}+${three[1]}" "${three[0]}+${three[2]}" "${three[1]}+${three[2]}"; do
-      if [ ! -f "$OUT/pairs/$pair.onnx" ]; then
-        echo "==> training on ${pair/+/ and }"
-        "$TRAIN" --stories="${pair/+/,}" --held_out_per_class=0 "$@" \
-          --out="$OUT/pairs/$pair.onnx" >"$OUT/pairs/$pair.log"
+    for g in "${training[@]}"; do
+      subset=$(printf '%s\n' "${training[@]}" | grep -vx "$g" | paste -sd+)
+      if [ ! -f "$OUT/pairs/$subset.onnx" ]; then
+        echo "==> training on ${subset//+/, }"
+        "$TRAIN" --stories="${subset//+/,}" --held_out_per_class=0 "$@" \
+          --out="$OUT/pairs/$subset.onnx" >"$OUT/pairs/$subset.log"
       fi
-      members+=("$OUT/pairs/$pair.onnx")
+      members+=("$OUT/pairs/$subset.onnx")
     done
-    echo "==> the ensemble of the pairs of $others (holding out $held)"
+    echo "==> the ensemble of the ${#members[@]} subsets of $others without one story (holding out $held)"
+    "$TRAIN" --ensemble_of="$(IFS=,; echo "${members[*]}")" --out="$OUT/$held.onnx" \
+      >"$OUT/$held.train.log"
+  elif [ ! -f "$OUT/$held.onnx" ] && [ "$SINGLES" = 1 ]; then
+    mkdir -p "$OUT/singles"
+    IFS=, read -r -a training <<<"$others"
+    members=()
+    for g in "${training[@]}"; do
+      if [ ! -f "$OUT/singles/$g.onnx" ]; then
+        echo "==> training on $g alone"
+        "$TRAIN" --stories="$g" --held_out_per_class=0 "$@" \
+          --out="$OUT/singles/$g.onnx" >"$OUT/singles/$g.log"
+      fi
+      members+=("$OUT/singles/$g.onnx")
+    done
+    echo "==> the ensemble of $others, one story each (holding out $held)"
     "$TRAIN" --ensemble_of="$(IFS=,; echo "${members[*]}")" --out="$OUT/$held.onnx" \
       >"$OUT/$held.train.log"
   elif [ ! -f "$OUT/$held.onnx" ] && [ "$SEED_ENSEMBLE" = 1 ]; then
