@@ -109,6 +109,18 @@ for held in "${STORIES[@]}"; do
     "$BUILD_DIR"/services/haptic/bitewise-haptic-eval --model="$OUT/$held.onnx" \
       --stories="$held" --seed="${part#*:}" \
       --probabilities_csv="$OUT/$held.${part%%:*}.csv" >"$OUT/$held.${part%%:*}.log"
+    if [ "$ENSEMBLE" = 1 ]; then
+      # Each member alone, for the disagreement study below.
+      mkdir -p "$OUT/members"
+      IFS=, read -r -a training <<<"$others"
+      for g in "${training[@]}"; do
+        subset=$(printf '%s\n' "${training[@]}" | grep -vx "$g" | paste -sd+)
+        "$BUILD_DIR"/services/haptic/bitewise-haptic-eval \
+          --model="$OUT/pairs/$subset.onnx" --stories="$held" --seed="${part#*:}" \
+          --probabilities_csv="$OUT/members/$held.without-$g.${part%%:*}.csv" \
+          >"$OUT/members/$held.without-$g.${part%%:*}.log"
+      done
+    fi
   done
 done
 # Debian's python3 (python3-numpy, which scripts/setup.sh installs) first.
@@ -121,3 +133,8 @@ if [ -x /usr/bin/python3 ]; then PYTHON=/usr/bin/python3; fi
 # The summaries' Gaussians as a second opinion mixed in, chosen the same way
 # ("A second opinion from the summaries").
 "$PYTHON" scripts/haptic/second_opinion_calibration.py "$OUT" "${STORIES[@]}"
+# The story ensemble's members' disagreement, chosen the same way
+# ("Ensembles on the six folds").
+if [ "$ENSEMBLE" = 1 ]; then
+  "$PYTHON" scripts/haptic/disagreement_calibration.py "$OUT" "${STORIES[@]}"
+fi
