@@ -170,10 +170,9 @@ absl::Status ValidateSimMealsConfig(const SimMealsConfig& config) {
   }
   const auto stories = haptic::ParseTraceStories(config.trace_story);
   if (!stories.ok() || stories->size() != 1) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        "trace_story must be one of world, piecewise, mechanics, compliant, "
-        "puncture, poroelastic; got \"",
-        config.trace_story, "\""));
+    return absl::InvalidArgumentError(
+        absl::StrCat("trace_story must be one of ", haptic::TraceStoryNames(),
+                     "; got \"", config.trace_story, "\""));
   }
   if (config.lambda_c < 0.0 || !(config.rho_c > 0.0)) {
     return absl::InvalidArgumentError(

@@ -55,7 +55,7 @@ ABSL_FLAG(std::string, trace_story, "world",
           "Where the attempts' force/torque traces come from: world (the "
           "simulated robot's model) or a trace story HapticNet may never "
           "have seen: piecewise, mechanics, compliant, puncture, "
-          "poroelastic.");
+          "poroelastic, lattice.");
 ABSL_FLAG(bool, keep_no_contact, false,
           "Keep a story's attempt whose trace never reaches contact, as the "
           "product meets it: no haptic class, no post hoc context (p = 0) "

@@ -51,6 +51,23 @@
 //    on the plate. An impedance-controlled arm at 15-40 mm/s with a fork that
 //    slips in the gripper; a wrist Mini40 16-24 cm above the tines over
 //    EtherCAT at 500 Hz-2 kHz (low-pass, counts, stale frames).
+//  - Lattice (lattice_story.cc): tissue as a discrete network of cell walls,
+//    a column of walls under each tine joined by the cells between them and
+//    tied to the surrounding tissue by rings of wall junctions, whose bonds
+//    break stochastically with the rate of loading (Weibull strengths, Bell
+//    kinetics): the wall under the tip bursts and the tine passes into the
+//    next cell, rings shear and the column softens, so crisp tissue climbs
+//    steeply through repeated small cracks, medium tissue's large cells
+//    collapse and burst in coarse serrations and a soft column sags
+//    smoothly by many cells; the tapered tine wedges and rubs behind it. Berries carry a pre-tensioned skin that
+//    stiffens as it stretches and bursts (splitting round the berry, or
+//    slackening the others) and a body squashed on the plate. The arm is a
+//    3-8 N/mm spring under a 100 Hz admittance law that slows the fork as the
+//    force grows (v0 15-45 mm/s); the sensor: the mount's mode at
+//    250-900 Hz, an RC anti-alias, a 16-bit ADC at 1-7 kHz with noise,
+//    offset and thermal drift, block averages of 1-8 samples, USB packets
+//    stamped by the host on arrival (irregular stamps), and a pre-triggered
+//    recorder that cuts the trace round the 1 N trigger.
 //
 // Thread-compatible; deterministic in the generator's state.
 #ifndef BITEWISE_SERVICES_SIM_TRACE_STORIES_H_
@@ -90,6 +107,16 @@ std::vector<TimedWrench> PunctureStoryTrace(HapticCategory category,
 // (EtherCAT cycles with +-2% jitter).
 std::vector<TimedWrench> PoroelasticStoryTrace(HapticCategory category,
                                                std::mt19937_64& rng);
+
+// One trace of a new item of `category` from the lattice story: contact
+// 0.1-0.2 s into the trace (the tared force passing 1 N by 0.29 s, or not
+// at all), 0.3-0.45 s after it and at least 0.3 s after the force passes
+// 1 N (an item too soft to pass it that soon is recorded for 0.19-0.45 s
+// after contact, up to just before it would), at 125 Hz to 7 kHz (an ADC at
+// 1-7 kHz averaged in blocks of 1, 2, 4 or 8) with host-stamped, irregular
+// times.
+std::vector<TimedWrench> LatticeStoryTrace(HapticCategory category,
+                                           std::mt19937_64& rng);
 
 }  // namespace bitewise::sim
 

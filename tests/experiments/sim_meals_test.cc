@@ -245,8 +245,8 @@ TEST_F(SimMealsTest, AttemptsCarryTheShippedFamiliarityScore) {
 // Every independent trace story can stand in for the world's traces; a
 // name that is not one story is refused, naming the choices.
 TEST_F(SimMealsTest, DrawsAttemptsFromEveryTraceStory) {
-  for (const char* story :
-       {"piecewise", "mechanics", "compliant", "puncture", "poroelastic"}) {
+  for (const char* story : {"piecewise", "mechanics", "compliant", "puncture",
+                            "poroelastic", "lattice"}) {
     SimMealsConfig config = TinyConfig();
     config.trace_story = story;
     ASSERT_TRUE(ValidateSimMealsConfig(config).ok()) << story;

@@ -132,6 +132,15 @@ TEST(TraceStoriesTest, ParsesListsAndNamesBadOnes) {
                                               TraceStory::kMechanics));
   EXPECT_THAT(ParseTraceStories("world,recorded").status().message(),
               HasSubstr("unknown trace story \"recorded\""));
+  EXPECT_THAT(ParseTraceStories("world,recorded").status().message(),
+              HasSubstr("(world, piecewise, mechanics, compliant, puncture, "
+                        "poroelastic, lattice)"));
+  EXPECT_EQ(
+      *ParseTraceStories(TraceStoryNames()),
+      std::vector<TraceStory>({TraceStory::kWorld, TraceStory::kPiecewise,
+                               TraceStory::kMechanics, TraceStory::kCompliant,
+                               TraceStory::kPuncture, TraceStory::kPoroelastic,
+                               TraceStory::kLattice}));
   EXPECT_THAT(ParseTraceStories("piecewise,piecewise").status().message(),
               HasSubstr("\"piecewise\" given twice"));
   EXPECT_THAT(ParseTraceStories(",").status().message(),

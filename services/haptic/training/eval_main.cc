@@ -244,8 +244,8 @@ int main(int argc, char** argv) {
     matrices += "\n" + name + "\n" + score.confusion.ToString();
   };
   std::vector<TraceStory> stories = {
-      TraceStory::kPiecewise, TraceStory::kMechanics, TraceStory::kCompliant,
-      TraceStory::kPuncture, TraceStory::kPoroelastic};
+      TraceStory::kPiecewise, TraceStory::kMechanics,   TraceStory::kCompliant,
+      TraceStory::kPuncture,  TraceStory::kPoroelastic, TraceStory::kLattice};
   if (!absl::GetFlag(FLAGS_stories).empty()) {
     absl::StatusOr<std::vector<TraceStory>> parsed =
         ParseTraceStories(absl::GetFlag(FLAGS_stories));

@@ -155,8 +155,19 @@ const char* TraceStoryName(TraceStory story) {
       return "puncture";
     case TraceStory::kPoroelastic:
       return "poroelastic";
+    case TraceStory::kLattice:
+      return "lattice";
   }
   return "unknown";
+}
+
+std::string TraceStoryNames() {
+  std::string names;
+  for (int i = 0; i < kTraceStories; ++i) {
+    absl::StrAppend(&names, i > 0 ? ", " : "",
+                    TraceStoryName(static_cast<TraceStory>(i)));
+  }
+  return names;
 }
 
 absl::StatusOr<std::vector<TraceStory>> ParseTraceStories(
@@ -176,10 +187,8 @@ absl::StatusOr<std::vector<TraceStory>> ParseTraceStories(
       stories.push_back(story);
     }
     if (!known) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("unknown trace story \"", name,
-                       "\" (world, piecewise, mechanics, compliant, puncture, "
-                       "poroelastic)"));
+      return absl::InvalidArgumentError(absl::StrCat(
+          "unknown trace story \"", name, "\" (", TraceStoryNames(), ")"));
     }
   }
   if (stories.empty()) {
@@ -200,6 +209,8 @@ StoryTraceFunction StoryTraceDraw(TraceStory story) {
       return sim::PunctureStoryTrace;
     case TraceStory::kPoroelastic:
       return sim::PoroelasticStoryTrace;
+    case TraceStory::kLattice:
+      return sim::LatticeStoryTrace;
     case TraceStory::kWorld:
       break;
   }

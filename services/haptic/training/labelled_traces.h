@@ -108,12 +108,17 @@ enum class TraceStory {
   kMechanics = 2,
   kCompliant = 3,
   kPuncture = 4,
-  kPoroelastic = 5
+  kPoroelastic = 5,
+  kLattice = 6
 };
-inline constexpr int kTraceStories = 6;
+inline constexpr int kTraceStories = 7;
 
-// "world", "piecewise", "mechanics", "compliant", "puncture", "poroelastic".
+// "world", "piecewise", "mechanics", "compliant", "puncture", "poroelastic",
+// "lattice".
 const char* TraceStoryName(TraceStory story);
+
+// Every story's name in order, comma-separated ("world, piecewise, ...").
+std::string TraceStoryNames();
 
 // A comma-separated list of story names, each at most once. INVALID_ARGUMENT
 // naming an unknown or repeated name, or an empty list.

@@ -45,10 +45,10 @@ ABSL_FLAG(int, traces_repeat, 1,
 ABSL_FLAG(std::string, stories, "world,piecewise",
           "Simulated trace stories to train on, comma-separated: world (the "
           "simulated world's force-trace model, augmented), piecewise, "
-          "mechanics, compliant, puncture, poroelastic "
+          "mechanics, compliant, puncture, poroelastic, lattice "
           "(services/sim/trace_stories.h); \"none\" to train on --traces "
-          "alone. The shipped model holds mechanics, compliant, puncture and "
-          "poroelastic out for its evaluation.");
+          "alone. The shipped model holds mechanics, compliant, puncture, "
+          "poroelastic and lattice out for its evaluation.");
 ABSL_FLAG(std::string, write_traces, "",
           "Also write the traces used (simulated or read) to this CSV file.");
 ABSL_FLAG(bool, write_traces_only, false,
