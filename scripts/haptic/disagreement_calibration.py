@@ -25,7 +25,8 @@ import sys
 import numpy as np
 
 from story_calibration import load, scores
-from unfamiliar_calibration import best_flatten, flatten, row
+from unfamiliar_calibration import (best_flatten, flatten, pooled,
+                                    print_quantiles, print_rules_header, row)
 
 
 def disagreement(members, mean):
@@ -60,27 +61,11 @@ def main():
     directory, stories = sys.argv[1], sys.argv[2:]
     tune = {h: fold(directory, h, stories, "tune") for h in stories}
     report = {h: fold(directory, h, stories, "report") for h in stories}
-    print("Disagreement D on the report items (median, 90th percentile), "
-          "per true category:")
-    print("| held out | hard | medium | soft | hard-skin |")
-    print("|---|---:|---:|---:|---:|")
-    for h in stories:
-        y, _, log_d = report[h]
-        d = np.exp(log_d)
-        print(f"| {h} | " + " | ".join(
-            f"{np.median(d[y == k]):.3f} / {np.quantile(d[y == k], 0.9):.3f}"
-            for k in range(4)) + " |")
-    print()
-    print("| held out, rule (parameters, chosen on the other stories) | "
-          "accuracy | hard | medium | soft | hard-skin | ECE | "
-          "over-confidence: hard | medium | soft | hard-skin | log loss |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print_quantiles("Disagreement D", report, stories, ".3f")
+    print_rules_header()
     for h in stories:
         others = [g for g in stories if g != h]
-        y_t = np.concatenate([tune[g][0] for g in others])
-        p_t = np.concatenate([tune[g][1] for g in others])
-        d_t = np.concatenate([tune[g][2] for g in others])
-        a, b = best_flatten(y_t, p_t, d_t)
+        a, b = best_flatten(*pooled(tune, others))
         y, p, log_d = report[h]
         print(row(f"{h}: as is", scores(y, p)))
         print(row(f"{h}: disagree (a {a:.2f}, b {b:.2f})",

@@ -52,38 +52,30 @@ for held in "${STORIES[@]}"; do
     fi
     others="$others,$ALSO"
   fi
-  if [ ! -f "$OUT/$held.onnx" ] && [ "$ENSEMBLE" = 1 ]; then
-    # One member per training story g: trained on the fold's training stories
-    # but g. Named by its stories in the folds' order, so the model without
-    # h and g is trained once and shared by the folds of h and of g.
-    mkdir -p "$OUT/pairs"
+  if [ ! -f "$OUT/$held.onnx" ] && { [ "$ENSEMBLE" = 1 ] || [ "$SINGLES" = 1 ]; }; then
+    # One member per training story g: with --ensemble trained on the fold's
+    # training stories but g, named by its stories in the folds' order (so
+    # the model without h and g is trained once and shared by the folds of h
+    # and of g); with --single_story_ensemble trained on g alone.
     IFS=, read -r -a training <<<"$others"
     members=()
     for g in "${training[@]}"; do
-      subset=$(printf '%s\n' "${training[@]}" | grep -vx "$g" | paste -sd+)
-      if [ ! -f "$OUT/pairs/$subset.onnx" ]; then
-        echo "==> training on ${subset//+/, }"
-        "$TRAIN" --stories="${subset//+/,}" --held_out_per_class=0 "$@" \
-          --out="$OUT/pairs/$subset.onnx" >"$OUT/pairs/$subset.log"
+      if [ "$ENSEMBLE" = 1 ]; then
+        dir="$OUT/pairs"
+        name=$(printf '%s\n' "${training[@]}" | grep -vx "$g" | paste -sd+)
+      else
+        dir="$OUT/singles"
+        name="$g"
       fi
-      members+=("$OUT/pairs/$subset.onnx")
-    done
-    echo "==> the ensemble of the ${#members[@]} subsets of $others without one story (holding out $held)"
-    "$TRAIN" --ensemble_of="$(IFS=,; echo "${members[*]}")" --out="$OUT/$held.onnx" \
-      >"$OUT/$held.train.log"
-  elif [ ! -f "$OUT/$held.onnx" ] && [ "$SINGLES" = 1 ]; then
-    mkdir -p "$OUT/singles"
-    IFS=, read -r -a training <<<"$others"
-    members=()
-    for g in "${training[@]}"; do
-      if [ ! -f "$OUT/singles/$g.onnx" ]; then
-        echo "==> training on $g alone"
-        "$TRAIN" --stories="$g" --held_out_per_class=0 "$@" \
-          --out="$OUT/singles/$g.onnx" >"$OUT/singles/$g.log"
+      mkdir -p "$dir"
+      if [ ! -f "$dir/$name.onnx" ]; then
+        echo "==> training on ${name//+/, }"
+        "$TRAIN" --stories="${name//+/,}" --held_out_per_class=0 "$@" \
+          --out="$dir/$name.onnx" >"$dir/$name.log"
       fi
-      members+=("$OUT/singles/$g.onnx")
+      members+=("$dir/$name.onnx")
     done
-    echo "==> the ensemble of $others, one story each (holding out $held)"
+    echo "==> the ensemble of ${#members[@]} members on $others (holding out $held)"
     "$TRAIN" --ensemble_of="$(IFS=,; echo "${members[*]}")" --out="$OUT/$held.onnx" \
       >"$OUT/$held.train.log"
   elif [ ! -f "$OUT/$held.onnx" ] && [ "$SEED_ENSEMBLE" = 1 ]; then

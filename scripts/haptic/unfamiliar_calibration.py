@@ -85,6 +85,29 @@ def row(name, s):
     return f"| {name} | " + " | ".join(cells) + " |"
 
 
+def print_quantiles(what, report, stories, fmt):
+    """A table of ln-stored per-trace values (report[h][2]) on the report
+    items: median and 90th percentile per story and true category."""
+    print(f"{what} on the report items (median, 90th percentile), per true "
+          "category:")
+    print("| held out | hard | medium | soft | hard-skin |")
+    print("|---|---:|---:|---:|---:|")
+    for h in stories:
+        y, _, log_d = report[h]
+        d = np.exp(log_d)
+        print(f"| {h} | " + " | ".join(
+            f"{np.median(d[y == k]):{fmt}} / {np.quantile(d[y == k], 0.9):{fmt}}"
+            for k in range(4)) + " |")
+    print()
+
+
+def print_rules_header():
+    print("| held out, rule (parameters, chosen on the other stories) | "
+          "accuracy | hard | medium | soft | hard-skin | ECE | "
+          "over-confidence: hard | medium | soft | hard-skin | log loss |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+
+
 def has_distances(path):
     with open(path) as f:
         row = next(csv.DictReader(f), None)
@@ -101,21 +124,8 @@ def main():
     report = {h: load(f"{directory}/{h}.report.csv") for h in stories}
     own_t = {h: best_temperature(tune[h][0], tune[h][1]) for h in stories}
 
-    print("Familiarity distance on the report items (median, 90th "
-          "percentile), per true category:")
-    print("| held out | hard | medium | soft | hard-skin |")
-    print("|---|---:|---:|---:|---:|")
-    for h in stories:
-        y, _, log_d = report[h]
-        d = np.exp(log_d)
-        print(f"| {h} | " + " | ".join(
-            f"{np.median(d[y == k]):.0f} / {np.quantile(d[y == k], 0.9):.0f}"
-            for k in range(4)) + " |")
-    print()
-    print("| held out, rule (parameters, chosen on the other stories) | "
-          "accuracy | hard | medium | soft | hard-skin | ECE | "
-          "over-confidence: hard | medium | soft | hard-skin | log loss |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print_quantiles("Familiarity distance", report, stories, ".0f")
+    print_rules_header()
     for h in stories:
         others = [g for g in stories if g != h]
         y, p, log_d = report[h]
