@@ -59,15 +59,15 @@
 //    next cell, rings shear and the column softens, so crisp tissue climbs
 //    steeply through repeated small cracks, medium tissue's large cells
 //    collapse and burst in coarse serrations and a soft column sags
-//    smoothly by many cells; the tapered tine wedges and rubs behind it. Berries carry a pre-tensioned skin that
-//    stiffens as it stretches and bursts (splitting round the berry, or
-//    slackening the others) and a body squashed on the plate. The arm is a
-//    3-8 N/mm spring under a 100 Hz admittance law that slows the fork as the
-//    force grows (v0 15-45 mm/s); the sensor: the mount's mode at
-//    250-900 Hz, an RC anti-alias, a 16-bit ADC at 1-7 kHz with noise,
-//    offset and thermal drift, block averages of 1-8 samples, USB packets
-//    stamped by the host on arrival (irregular stamps), and a pre-triggered
-//    recorder that cuts the trace round the 1 N trigger.
+//    smoothly by many cells; the tapered tine wedges and rubs behind it.
+//    Berries carry a pre-tensioned skin that stiffens as it stretches and
+//    bursts (splitting round the berry, or slackening the others) and a body
+//    squashed on the plate. The arm is a 3-8 N/mm spring under a 100 Hz
+//    admittance law that slows the fork as the force grows (v0 15-45 mm/s); the
+//    sensor: the mount's mode at 250-900 Hz, an RC anti-alias, a 16-bit ADC at
+//    1-7 kHz with noise, offset and thermal drift, block averages of 1-8
+//    samples, USB packets stamped by the host on arrival (irregular stamps),
+//    and a pre-triggered recorder that cuts the trace round the 1 N trigger.
 //
 // Thread-compatible; deterministic in the generator's state.
 #ifndef BITEWISE_SERVICES_SIM_TRACE_STORIES_H_
