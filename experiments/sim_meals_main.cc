@@ -111,8 +111,8 @@ struct LearnerSpec {
   HapticContext kind;  // ignored by context-only learners
   bandit::Strategy strategy;
   int baseline;  // the context-only spec it is paired with; -1: none
-  // A second spec it is paired with (printed only); -1: none.
-  int versus = -1;
+  // Other specs it is paired with (printed only).
+  std::vector<int> versus = {};
   // What it gets for unfamiliar attempts; -1: --unfamiliar_posthoc.
   int unfamiliar = -1;
   // What it gets for attempts the force limit halted; -1:
@@ -141,9 +141,13 @@ std::vector<LearnerSpec> Learners(bool force_limit) {
                    bandit::Strategy::kThompson, ts_baseline});
   // Paired with context-only (the CSV) and with post hoc LinUCB (logprob).
   const int polinucb = static_cast<int>(specs.size());
-  specs.push_back({"poLinUCB (logprob)", "polinucb_logprob",
-                   bandit::Learner::kPoLinUcb, HapticContext::kLogProbabilities,
-                   bandit::Strategy::kLinUcb, 0, 1});
+  specs.push_back({"poLinUCB (logprob)",
+                   "polinucb_logprob",
+                   bandit::Learner::kPoLinUcb,
+                   HapticContext::kLogProbabilities,
+                   bandit::Strategy::kLinUcb,
+                   0,
+                   {1}});
   // The choice of what an unfamiliar attempt sends (docs/experiments.md,
   // "Unfamiliar traces"), each paired with context-only.
   for (domain::UnfamiliarPosthoc rule :
@@ -153,8 +157,12 @@ std::vector<LearnerSpec> Learners(bool force_limit) {
         {absl::StrCat("post hoc, unfam. ", domain::UnfamiliarPosthocName(rule)),
          absl::StrCat("posthoc_logprob_unfamiliar_",
                       domain::UnfamiliarPosthocName(rule)),
-         bandit::Learner::kPostHoc, HapticContext::kLogProbabilities,
-         bandit::Strategy::kLinUcb, 0, -1, static_cast<int>(rule)});
+         bandit::Learner::kPostHoc,
+         HapticContext::kLogProbabilities,
+         bandit::Strategy::kLinUcb,
+         0,
+         {},
+         static_cast<int>(rule)});
   }
   // The same choice for poLinUCB, the product's learner (added 2026-12-06),
   // each paired with context-only and with poLinUCB under
@@ -165,16 +173,28 @@ std::vector<LearnerSpec> Learners(bool force_limit) {
         {absl::StrCat("poLinUCB, unfam. ", domain::UnfamiliarPosthocName(rule)),
          absl::StrCat("polinucb_logprob_unfamiliar_",
                       domain::UnfamiliarPosthocName(rule)),
-         bandit::Learner::kPoLinUcb, HapticContext::kLogProbabilities,
-         bandit::Strategy::kLinUcb, 0, polinucb, static_cast<int>(rule)});
+         bandit::Learner::kPoLinUcb,
+         HapticContext::kLogProbabilities,
+         bandit::Strategy::kLinUcb,
+         0,
+         {polinucb},
+         static_cast<int>(rule)});
   }
   // A study (docs/experiments.md, "A missing post hoc context for
   // poLinUCB"): poLinUCB sending its own prediction p_hat(c) where the meal
   // has no post hoc context (no contact; halted, under the zero rule),
-  // paired with context-only and with poLinUCB sending p = 0 there.
-  specs.push_back({"poLinUCB, missing imputed", "polinucb_logprob_imputed",
-                   bandit::Learner::kPoLinUcb, HapticContext::kLogProbabilities,
-                   bandit::Strategy::kLinUcb, 0, polinucb, -1, -1, true});
+  // paired with context-only, with poLinUCB sending p = 0 there, and with
+  // post hoc LinUCB (logprob): the product's two learners.
+  specs.push_back({"poLinUCB, missing imputed",
+                   "polinucb_logprob_imputed",
+                   bandit::Learner::kPoLinUcb,
+                   HapticContext::kLogProbabilities,
+                   bandit::Strategy::kLinUcb,
+                   0,
+                   {polinucb, 1},
+                   -1,
+                   -1,
+                   true});
   // The choice of what a halted attempt sends (docs/experiments.md, "A
   // trace the robot cut short"), for post hoc LinUCB and poLinUCB, each
   // paired with context-only, and "zero" with "asis" of the same learner.
@@ -194,7 +214,8 @@ std::vector<LearnerSpec> Learners(bool force_limit) {
                  learner == bandit::Learner::kPostHoc ? "posthoc" : "polinucb",
                  "_logprob_halted_", domain::UnfamiliarPosthocName(rule)),
              learner, HapticContext::kLogProbabilities,
-             bandit::Strategy::kLinUcb, 0, zero ? as_is : -1, -1,
+             bandit::Strategy::kLinUcb, 0,
+             zero ? std::vector<int>{as_is} : std::vector<int>{}, -1,
              static_cast<int>(rule)});
       }
     }
@@ -285,9 +306,13 @@ int Run() {
   // baseline minus it (post hoc learners only).
   std::vector<std::vector<std::vector<double>>> curves(kLearners);
   std::vector<std::vector<std::vector<double>>> diffs(kLearners);
-  // Per trial, the versus spec's failures minus the learner's (a curve of
-  // one value).
-  std::vector<std::vector<std::vector<double>>> versus_diffs(kLearners);
+  // versus_diffs[learner][k][trial]: the k-th versus spec's failures minus
+  // the learner's (a curve of one value).
+  std::vector<std::vector<std::vector<std::vector<double>>>> versus_diffs(
+      kLearners);
+  for (int learner = 0; learner < kLearners; ++learner) {
+    versus_diffs[learner].resize(learners[learner].versus.size());
+  }
   std::vector<std::vector<double>> oracle, uniform;
   // failures_by_food[learner][food], summed over trials.
   std::vector<std::vector<double>> failures_by_food(
@@ -382,9 +407,9 @@ int Run() {
         diffs[learner].push_back(
             Difference(curves[baseline].back(), curves[learner].back()));
       }
-      const int versus = learners[learner].versus;
-      if (versus >= 0) {
-        versus_diffs[learner].push_back(
+      for (size_t k = 0; k < learners[learner].versus.size(); ++k) {
+        const int versus = learners[learner].versus[k];
+        versus_diffs[learner][k].push_back(
             {curves[versus].back().back() - curves[learner].back().back()});
       }
     }
@@ -520,8 +545,9 @@ int Run() {
           100.0 * d.mean[last] /
               summaries[learners[learner].baseline].mean[last]);
     }
-    if (const int versus = learners[learner].versus; versus >= 0) {
-      const CurveSummary v = SummarizeCurves(versus_diffs[learner]);
+    for (size_t k = 0; k < learners[learner].versus.size(); ++k) {
+      const int versus = learners[learner].versus[k];
+      const CurveSummary v = SummarizeCurves(versus_diffs[learner][k]);
       const double half = 1.96 * v.standard_error[0];
       absl::PrintF("   paired %s minus this: %+.2f [%+.2f, %+.2f]",
                    learners[versus].label, v.mean[0], v.mean[0] - half,
