@@ -756,10 +756,12 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
   // No contact: the force never held above the HapticService's contact
   // threshold (the fork missed the food, or the food is softer than the
   // threshold), so there is no haptic class, only a fact about the bite. It
-  // is learned with no post hoc context of its own (MissingPosthoc: p = 0,
-  // so post hoc LinUCB's post hoc part learns nothing and its visual part
-  // does; poLinUCB's own prediction), not failed: failing it would leave
-  // every such bite unlearned and stop the meal at each one.
+  // is learned with no post hoc context (p = 0, so post hoc LinUCB's post
+  // hoc part learns nothing and its visual part does; for poLinUCB too: its
+  // own prediction did worse on a fork where many soft bites never reach
+  // contact, docs/experiments.md "A missing post hoc context for
+  // poLinUCB"), not failed: failing it would leave every such bite
+  // unlearned and stop the meal at each one.
   const bool no_contact =
       !haptic.ok() && absl::IsFailedPrecondition(haptic.status());
   if (!haptic.ok() && !no_contact) {
@@ -782,18 +784,15 @@ absl::Status Meal::Classify(const v1::AcquireResult& result) {
     if (no_contact) {
       bite->mutable_haptic()->set_label("no contact");
       if (update_.has_value() && options_.posthoc != PosthocMode::kNone) {
-        update_->posthoc = MissingPosthoc();
+        update_->posthoc.assign(domain::kHapticClasses, 0.0);
       }
       text = absl::StrCat(
           "The fork felt no contact, so there is no haptic class (",
           haptic.status().message(), "); ",
           options_.posthoc == PosthocMode::kNone
               ? "vision only, so the bite is still learned."
-          : predicted_posthoc_.empty()
-              ? "the bite is learned from what the camera saw, with no post "
-                "hoc context."
-              : "the bite is learned from what the camera saw, with the "
-                "post hoc context the learner expected from it.");
+              : "the bite is learned from what the camera saw, with no post "
+                "hoc context.");
     } else {
       text = Felt(*haptic, bite);
     }

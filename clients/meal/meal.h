@@ -193,11 +193,11 @@ class Meal {
   absl::Status Classify(const v1::AcquireResult& result);
   // What the person reads about how the bite felt; keeps HapticNet's
   // answer in `bite` and the post hoc context it gives in update_.
-  // What a bite without a post hoc context sends (no contact; a trace the
-  // force limit cut short, under the zero rule): the post hoc context its
-  // Select predicted (poLinUCB: measured better than zeros,
-  // docs/experiments.md "A missing post hoc context for poLinUCB"), or p = 0
-  // for learners that predict none.
+  // What a trace the force limit cut short sends under the zero rule: the
+  // post hoc context its Select predicted (poLinUCB: measured better than
+  // zeros on the world's traces, docs/experiments.md "A missing post hoc
+  // context for poLinUCB"), or p = 0 for learners that predict none. A bite
+  // with no contact sends p = 0 for every learner.
   std::vector<double> MissingPosthoc() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
   std::string Felt(const v1::ClassifyResponse& haptic, mealpb::Bite* bite)
       ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_);
