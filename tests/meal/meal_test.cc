@@ -391,7 +391,8 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
   EXPECT_EQ(event->loss(), 1.0);
   // The person's learner is poLinUCB, and the bite sent p = 0, not the post
   // hoc context its Select predicted (measured worse for contact-less
-  // bites), though that prediction is not zeros after the earlier bites.
+  // bites). A Select at its context now predicts a non-zero context, so
+  // zeros here are the rule, not an empty prediction.
   EXPECT_THAT(event->posthoc(), ::testing::Each(0.0));
   if (options.confirm == ConfirmBy::kOperator) {
     EXPECT_THAT(saved_posthoc, ::testing::Each(0.0));
