@@ -140,12 +140,14 @@ struct SimMealsConfig {
   // every action sees the whole trace (earlier results reproduce). The
   // world's traces only, without haptic_accuracy.
   bool force_limit = false;
-  // As the orchestrator (domain::kDefaultLimitReachedPosthoc): no post hoc
-  // context for a halted attempt.
-  // (The orchestrator's rule: its answer replaced as the rule says, whatever
-  // its familiarity.)
+  // What a halted attempt sends, for every learner without a rule of its
+  // own: no post hoc context, the rule the rows were written with (since
+  // 2026-12-06 the orchestrator's default for poLinUCB only; its default
+  // for post hoc LinUCB is asis, the row "post hoc, halted asis":
+  // domain::DefaultLimitReachedPosthoc). As in the orchestrator, the answer
+  // is replaced as the rule says, whatever its familiarity.
   domain::UnfamiliarPosthoc limit_reached_posthoc =
-      domain::kDefaultLimitReachedPosthoc;
+      domain::UnfamiliarPosthoc::kZero;
   // poLinUCB only (a study, not the product): an attempt whose post hoc
   // context is missing (no contact, or halted under the zero rule) sends
   // the model's own prediction p_hat(c), made before the update, instead of

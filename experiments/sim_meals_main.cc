@@ -74,13 +74,12 @@ ABSL_FLAG(bool, force_limit, false,
           "an attempt's haptic answer is then HapticNet's on the trace the "
           "chosen action leaves. Every such run also plays post hoc LinUCB "
           "(logprob) under both --limit_reached_posthoc rules.");
-ABSL_FLAG(std::string, limit_reached_posthoc,
-          bitewise::domain::UnfamiliarPosthocName(
-              bitewise::domain::kDefaultLimitReachedPosthoc),
+ABSL_FLAG(std::string, limit_reached_posthoc, "zero",
           "With --force_limit, what the post hoc learners get for an attempt "
           "the limit halted: zero (no post hoc context, as for a bite without "
-          "contact; the product's default), uniform (flattened) or asis "
-          "(HapticNet's answer on the cut trace).");
+          "contact; the product's default for poLinUCB), uniform (flattened) "
+          "or asis (HapticNet's answer on the cut trace; the product's "
+          "default for post hoc LinUCB, the row \"post hoc, halted asis\").");
 ABSL_FLAG(uint64_t, seed, 1,
           "Base seed; trial i uses a seed mixed from (seed, i).");
 ABSL_FLAG(std::string, haptic_model, "",
@@ -185,6 +184,7 @@ std::vector<LearnerSpec> Learners(bool force_limit) {
   // has no post hoc context (no contact; halted, under the zero rule),
   // paired with context-only, with poLinUCB sending p = 0 there, and with
   // post hoc LinUCB (logprob): the product's two learners.
+  const int imputed = static_cast<int>(specs.size());
   specs.push_back({"poLinUCB, missing imputed",
                    "polinucb_logprob_imputed",
                    bandit::Learner::kPoLinUcb,
@@ -198,6 +198,9 @@ std::vector<LearnerSpec> Learners(bool force_limit) {
   // The choice of what a halted attempt sends (docs/experiments.md, "A
   // trace the robot cut short"), for post hoc LinUCB and poLinUCB, each
   // paired with context-only, and "zero" with "asis" of the same learner.
+  // Post hoc LinUCB with "asis", the product's default learner and its rule
+  // since 2026-12-06, is also paired with "poLinUCB, missing imputed", a
+  // poLinUCB person's bites (docs/experiments.md, "The learner default").
   if (force_limit) {
     for (const auto& [learner, name] :
          {std::pair{bandit::Learner::kPostHoc, "post hoc"},
@@ -215,8 +218,10 @@ std::vector<LearnerSpec> Learners(bool force_limit) {
                  "_logprob_halted_", domain::UnfamiliarPosthocName(rule)),
              learner, HapticContext::kLogProbabilities,
              bandit::Strategy::kLinUcb, 0,
-             zero ? std::vector<int>{as_is} : std::vector<int>{}, -1,
-             static_cast<int>(rule)});
+             zero                                   ? std::vector<int>{as_is}
+             : learner == bandit::Learner::kPostHoc ? std::vector<int>{imputed}
+                                                    : std::vector<int>{},
+             -1, static_cast<int>(rule)});
       }
     }
   }

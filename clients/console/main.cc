@@ -60,8 +60,8 @@ ABSL_FLAG(std::string, confirm, "robot",
           "Who decides success: robot, or operator (the table view asks).");
 ABSL_FLAG(std::string, learner, "",
           "Learner for NEW users: posthoc, context_only or polinucb (empty: "
-          "polinucb, or context_only with --posthoc=none; "
-          "docs/experiments.md, \"Learners compared\").");
+          "posthoc, or context_only with --posthoc=none; "
+          "docs/experiments.md, \"The learner default\").");
 ABSL_FLAG(std::string, posthoc, "logprob",
           "Post hoc context sent to the bandit: logprob, prob or none.");
 ABSL_FLAG(std::string, journal, "bitewise-console.journal",

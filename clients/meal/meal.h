@@ -77,11 +77,13 @@ struct MealOptions {
       domain::kDefaultUnfamiliarPosthoc;
   // What a bite sends whose descent the action's force limit stopped, so
   // that its trace is cut short (docs/experiments.md, "A trace the robot cut
-  // short"); it takes precedence over unfamiliar_posthoc.
-  domain::UnfamiliarPosthoc limit_reached_posthoc =
-      domain::kDefaultLimitReachedPosthoc;
-  // For a NEW user: LEARNER_UNSPECIFIED picks poLinUCB, or the
-  // context-only learner with PosthocMode::kNone (ParseLearner).
+  // short"); it takes precedence over unfamiliar_posthoc. Unset: the rule
+  // measured for the person's learner (domain::DefaultLimitReachedPosthoc:
+  // zero for poLinUCB, asis for post hoc LinUCB).
+  std::optional<domain::UnfamiliarPosthoc> limit_reached_posthoc;
+  // For a NEW user: LEARNER_UNSPECIFIED picks post hoc LinUCB, or the
+  // context-only learner with PosthocMode::kNone (ParseLearner;
+  // docs/experiments.md, "The learner default").
   v1::Learner learner = v1::LEARNER_UNSPECIFIED;
   ConfirmBy confirm = ConfirmBy::kRobot;
   // For a NEW user: lambda_c > 0 is used exactly; otherwise lambda_c =
@@ -113,7 +115,7 @@ class MealListener {
 // "1 failure", "2 failures".
 std::string Count(int n, const char* singular, const char* plural);
 
-// A --learner flag's value: "" (by the post hoc mode: polinucb, or
+// A --learner flag's value: "" (by the post hoc mode: posthoc, or
 // context_only with kNone), "posthoc",
 // "context_only" or "polinucb". INVALID_ARGUMENT naming the choices, or
 // when the learner needs a post hoc context and `posthoc` is kNone.
@@ -193,6 +195,9 @@ class Meal {
   absl::Status Classify(const v1::AcquireResult& result);
   // What the person reads about how the bite felt; keeps HapticNet's
   // answer in `bite` and the post hoc context it gives in update_.
+  // The rule for a trace the force limit cut short: the option, or the one
+  // measured for the person's learner.
+  domain::UnfamiliarPosthoc LimitReachedRule() const;
   // What a trace the force limit cut short sends under the zero rule: the
   // post hoc context its Select predicted (poLinUCB: measured better than
   // zeros on the world's traces, docs/experiments.md "A missing post hoc

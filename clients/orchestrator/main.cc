@@ -49,8 +49,8 @@ ABSL_FLAG(std::string, confirm, "robot",
           "operator (answer y/n at the terminal).");
 ABSL_FLAG(std::string, learner, "",
           "Learner for NEW users: posthoc, context_only or polinucb (empty: "
-          "polinucb, or context_only with --posthoc=none; "
-          "docs/experiments.md, \"Learners compared\").");
+          "posthoc, or context_only with --posthoc=none; "
+          "docs/experiments.md, \"The learner default\").");
 ABSL_FLAG(std::string, posthoc, "logprob",
           "Post hoc context sent to the bandit: logprob (as the original "
           "research code), prob (as the paper's text) or none (vision only; "
@@ -61,13 +61,13 @@ ABSL_FLAG(std::string, unfamiliar_posthoc,
           "Post hoc context of a bite whose trace the HapticService calls "
           "unfamiliar: uniform (flattened), zero (none) or asis (HapticNet's "
           "answer); docs/experiments.md, \"Unfamiliar traces\".");
-ABSL_FLAG(std::string, limit_reached_posthoc,
-          bitewise::domain::UnfamiliarPosthocName(
-              bitewise::domain::kDefaultLimitReachedPosthoc),
+ABSL_FLAG(std::string, limit_reached_posthoc, "",
           "Post hoc context of a bite whose descent the action's force "
-          "limit stopped, cutting its trace short: zero (none), uniform or "
-          "asis (HapticNet's answer on the cut trace); docs/experiments.md, "
-          "\"A trace the robot cut short\".");
+          "limit stopped, cutting its trace short: zero (none; a poLinUCB "
+          "person's own prediction), uniform or asis (HapticNet's answer on "
+          "the cut trace); empty: what was measured for the person's "
+          "learner, asis for post hoc LinUCB and zero for poLinUCB "
+          "(docs/experiments.md, \"A trace the robot cut short\").");
 ABSL_FLAG(std::string, journal, "bitewise-orchestrator.journal",
           "File of updates not yet delivered to the BanditService.");
 ABSL_FLAG(int, deadline_ms, 10000, "Deadline of every unary call.");
@@ -245,24 +245,25 @@ int main(int argc, char** argv) {
                                          : meals::PosthocMode::kNone;
   options.confirm = confirm == "operator" ? meals::ConfirmBy::kOperator
                                           : meals::ConfirmBy::kRobot;
-  const struct {
-    const char* flag;
-    std::string value;
-    bitewise::domain::UnfamiliarPosthoc* rule;
-  } posthoc_rules[] = {
-      {"unfamiliar_posthoc", absl::GetFlag(FLAGS_unfamiliar_posthoc),
-       &options.unfamiliar_posthoc},
-      {"limit_reached_posthoc", absl::GetFlag(FLAGS_limit_reached_posthoc),
-       &options.limit_reached_posthoc}};
-  for (const auto& [flag, value, rule] : posthoc_rules) {
+  // Each rule by name (nullopt, said on stderr: not a rule);
+  // --limit_reached_posthoc may be empty, the rule of the person's learner.
+  const auto parse_rule = [](const char* flag, const std::string& value)
+      -> std::optional<bitewise::domain::UnfamiliarPosthoc> {
     absl::StatusOr<bitewise::domain::UnfamiliarPosthoc> parsed =
         bitewise::domain::ParseUnfamiliarPosthoc(value);
-    if (!parsed.ok()) {
-      std::fprintf(stderr, "--%s: %s\n", flag,
-                   std::string(parsed.status().message()).c_str());
-      return 2;
-    }
-    *rule = *parsed;
+    if (parsed.ok()) return *parsed;
+    std::fprintf(stderr, "--%s: %s\n", flag,
+                 std::string(parsed.status().message()).c_str());
+    return std::nullopt;
+  };
+  const std::optional<bitewise::domain::UnfamiliarPosthoc> unfamiliar =
+      parse_rule("unfamiliar_posthoc", absl::GetFlag(FLAGS_unfamiliar_posthoc));
+  if (!unfamiliar.has_value()) return 2;
+  options.unfamiliar_posthoc = *unfamiliar;
+  if (const std::string limit = absl::GetFlag(FLAGS_limit_reached_posthoc);
+      !limit.empty()) {
+    options.limit_reached_posthoc = parse_rule("limit_reached_posthoc", limit);
+    if (!options.limit_reached_posthoc.has_value()) return 2;
   }
   absl::StatusOr<bitewise::v1::Learner> learner =
       meals::ParseLearner(absl::GetFlag(FLAGS_learner), options.posthoc);

@@ -306,6 +306,9 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
   UpdateJournal& journal = *own->journal;
   MealOptions& options = own->options;
   options.confirm = GetParam();
+  // The learner that predicts a post hoc context (the default, post hoc
+  // LinUCB, sends p = 0 for such a bite anyway).
+  options.learner = v1::LEARNER_POLINUCB;
   ASSERT_EQ(options.posthoc, PosthocMode::kLogProbabilities);
   const std::string recorded = absl::StrCat(services->dir(), "/recorded");
   absl::StatusOr<std::unique_ptr<TraceRecording>> recording =
@@ -431,12 +434,13 @@ INSTANTIATE_TEST_SUITE_P(RobotOrOperator, NoContactMealTest,
 // push back with 10-18 N, so the fork stops pushing at TA90's 10 N limit and
 // the trace is cut short there. The bite says so (its flag, the action's
 // limit, the Acquire's and the Classify's words), and the post hoc learner
-// gets what the rule says: by default no post hoc context of its own
-// (measured better for poLinUCB: docs/experiments.md, "A trace the robot
-// cut short"), so poLinUCB's prediction and post hoc LinUCB's zeros; or
-// HapticNet's answer on the cut trace.
+// gets what the rule says. By default the rule measured for the person's
+// learner (docs/experiments.md, "A trace the robot cut short"): for
+// poLinUCB no post hoc context of its own, so its prediction; for post hoc
+// LinUCB HapticNet's answer on the cut trace. Zero for post hoc LinUCB
+// sends zeros.
 struct ForceLimitCase {
-  domain::UnfamiliarPosthoc rule;
+  std::optional<domain::UnfamiliarPosthoc> rule;  // nullopt: the default
   v1::Learner learner;
   const char* name;
 };
@@ -450,8 +454,7 @@ TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
       StartOwnServices(service_options, "limit-user");
   ASSERT_OK(own.status());
   ServiceClients& clients = *own->clients;
-  EXPECT_EQ(own->options.limit_reached_posthoc,
-            domain::UnfamiliarPosthoc::kZero);
+  EXPECT_EQ(own->options.limit_reached_posthoc, std::nullopt);
   own->options.limit_reached_posthoc = GetParam().rule;
   const std::string recorded = absl::StrCat(own->services->dir(), "/recorded");
   absl::StatusOr<std::unique_ptr<TraceRecording>> recording =
@@ -487,7 +490,9 @@ TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
   EXPECT_TRUE(bite.force_limit_reached());
   EXPECT_GE(bite.peak_force_n(), 10.0);
   EXPECT_EQ(bite.learned(), "learned");
-  const bool zero = GetParam().rule == domain::UnfamiliarPosthoc::kZero;
+  const bool zero = GetParam().rule.value_or(domain::DefaultLimitReachedPosthoc(
+                        GetParam().learner == v1::LEARNER_POLINUCB)) ==
+                    domain::UnfamiliarPosthoc::kZero;
   // A missing post hoc context: poLinUCB's own prediction, else p = 0.
   const bool predicted = zero && GetParam().learner == v1::LEARNER_POLINUCB;
   bool acquire_told = false, classify_told = false;
@@ -540,14 +545,15 @@ TEST_P(ForceLimitMealTest, ABiteStoppedAtTheLimitSaysSoAndFollowsTheRule) {
 
 INSTANTIATE_TEST_SUITE_P(
     Rules, ForceLimitMealTest,
-    ::testing::Values(ForceLimitCase{domain::UnfamiliarPosthoc::kZero,
-                                     v1::LEARNER_POLINUCB,
-                                     "PoLinUcbSendsItsPrediction"},
-                      ForceLimitCase{domain::UnfamiliarPosthoc::kZero,
-                                     v1::LEARNER_POSTHOC,
-                                     "PostHocLinUcbSendsZeros"},
-                      ForceLimitCase{domain::UnfamiliarPosthoc::kAsIs,
-                                     v1::LEARNER_POLINUCB, "HapticNetsAnswer"}),
+    ::testing::Values(
+        ForceLimitCase{std::nullopt, v1::LEARNER_POLINUCB,
+                       "PoLinUcbSendsItsPredictionByDefault"},
+        ForceLimitCase{std::nullopt, v1::LEARNER_POSTHOC,
+                       "PostHocLinUcbSendsHapticNetsAnswerByDefault"},
+        ForceLimitCase{domain::UnfamiliarPosthoc::kZero, v1::LEARNER_POSTHOC,
+                       "PostHocLinUcbSendsZerosUnderZero"},
+        ForceLimitCase{domain::UnfamiliarPosthoc::kAsIs, v1::LEARNER_POLINUCB,
+                       "PoLinUcbSendsHapticNetsAnswerUnderAsIs"}),
     [](const ::testing::TestParamInfo<ForceLimitCase>& info) {
       return std::string(info.param.name);
     });
@@ -659,10 +665,10 @@ TEST_F(MealTest, RobotsChoiceRunsEveryStepInOrderAndLearns) {
   EXPECT_EQ(events[0].posthoc_size(), 4);
 
   // A new user's context ridge is rho_c x the featurizer's E||c||^2, and
-  // its learner poLinUCB (the default).
+  // its learner post hoc LinUCB (the default).
   absl::StatusOr<v1::User> user = clients_->bandit.GetUser(options_.user_id);
   ASSERT_OK(user.status());
-  EXPECT_EQ(user->config().learner(), v1::LEARNER_POLINUCB);
+  EXPECT_EQ(user->config().learner(), v1::LEARNER_POSTHOC);
   EXPECT_GT(user->config().lambda_c(), 0.0);
   EXPECT_THAT(listener_.notes(),
               ::testing::Contains(HasSubstr("context ridge lambda_c")));
@@ -689,17 +695,17 @@ TEST(ParseLearnerTest, NamesFromTheApiAndThePosthocTheyNeed) {
                        HasSubstr("--posthoc=logprob or prob")));
 }
 
-// A new user with --learner=posthoc gets post hoc LinUCB and learns from
-// its bites through the real services.
+// A new user with --learner=polinucb gets poLinUCB and learns from its
+// bites through the real services.
 TEST_F(MealTest, AChosenLearnerIsTheNewUsers) {
-  options_.learner = v1::LEARNER_POSTHOC;
+  options_.learner = v1::LEARNER_POLINUCB;
   auto meal = NewMeal();
   ASSERT_OK(meal->LookAtPlate());
   ASSERT_OK(meal->Bite(std::nullopt));
   ASSERT_OK(meal->Bite(std::nullopt));
   absl::StatusOr<v1::User> user = clients_->bandit.GetUser(options_.user_id);
   ASSERT_TRUE(user.ok()) << user.status();
-  EXPECT_EQ(user->config().learner(), v1::LEARNER_POSTHOC);
+  EXPECT_EQ(user->config().learner(), v1::LEARNER_POLINUCB);
   EXPECT_EQ(user->model_version(), 2);
   for (const v1::Event& event : Events()) {
     EXPECT_TRUE(event.completed());
