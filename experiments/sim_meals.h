@@ -148,10 +148,12 @@ struct SimMealsConfig {
   // is replaced as the rule says, whatever its familiarity.
   domain::UnfamiliarPosthoc limit_reached_posthoc =
       domain::UnfamiliarPosthoc::kZero;
-  // poLinUCB only (a study, not the product): an attempt whose post hoc
-  // context is missing (no contact, or halted under the zero rule) sends
-  // the model's own prediction p_hat(c), made before the update, instead of
-  // p = 0.
+  // poLinUCB only: an attempt whose post hoc context is missing (no
+  // contact, or halted under the zero rule) sends the model's own
+  // prediction p_hat(c), made before the update, instead of p = 0. The
+  // product does this for halted attempts only (a poLinUCB person's cut
+  // trace); contact-less ones send p = 0 (docs/experiments.md, "A missing
+  // post hoc context for poLinUCB").
   bool impute_missing_posthoc = false;
 };
 
