@@ -161,27 +161,40 @@ absl::StatusOr<consolepb::EstimatesReply> EstimatesFor(
         "the BanditService withholds contexts from this console's identity, "
         "so no estimate can be computed");
   }
-  absl::StatusOr<v1::Model> model = bandit.GetModel(user_id);
-  if (!model.ok()) return model.status();
+  // The learner's own estimates (the BanditService computes them as Select
+  // does), and each action's count from the model of the same version: a
+  // bite learned between the two calls is read again, a few times at most.
+  v1::EstimateRequest request;
+  request.set_user_id(user_id);
+  *request.mutable_context() = event->context();
+  absl::StatusOr<v1::EstimateResponse> estimated;
+  absl::StatusOr<v1::Model> model;
+  for (int attempt = 0; attempt < 3; ++attempt) {
+    estimated = bandit.Estimate(request);
+    if (!estimated.ok()) return estimated.status();
+    model = bandit.GetModel(user_id);
+    if (!model.ok()) return model.status();
+    if (model->model_version() == estimated->model_version()) break;
+  }
+  if (model->actions_size() != estimated->estimates_size()) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "the model has ", model->actions_size(), " actions but its estimates ",
+        estimated->estimates_size()));
+  }
   consolepb::EstimatesReply reply;
   reply.set_event_id(event_id);
   reply.set_user_id(user_id);
-  reply.set_model_version(model->model_version());
-  for (const v1::ActionModel& action : model->actions()) {
-    if (action.theta_size() != event->context_size()) {
-      return absl::FailedPreconditionError(absl::StrCat(
-          "the model's theta has ", action.theta_size(),
-          " values but the bite's context ", event->context_size()));
-    }
-    double dot = 0.0;
-    for (int i = 0; i < action.theta_size(); ++i) {
-      dot += action.theta(i) * event->context(i);
-    }
+  reply.set_model_version(estimated->model_version());
+  reply.set_learner(v1::Learner_Name(model->config().learner()));
+  for (int a = 0; a < estimated->estimates_size(); ++a) {
+    const v1::ActionEstimate& from = estimated->estimates(a);
     consolepb::ActionEstimate* estimate = reply.add_estimates();
-    estimate->set_action(action.action());
-    estimate->set_action_name(action.action_name());
-    estimate->set_predicted_loss(dot);
-    estimate->set_count(action.count());
+    estimate->set_action(from.action());
+    estimate->set_action_name(from.action_name());
+    estimate->set_predicted_loss(from.predicted_loss());
+    estimate->set_width(from.width());
+    estimate->set_lcb(from.lcb());
+    estimate->set_count(model->actions(a).count());
   }
   return reply;
 }

@@ -1,5 +1,5 @@
 // Research: the researcher view's questions, answered from the
-// BanditService alone (ListUsers, ListEvents, GetModel), so what a
+// BanditService alone (ListUsers, ListEvents, GetModel, Estimate), so what a
 // researcher sees is what the store holds: failures per meal, events as
 // CSV, and per-action estimates for a bite's context.
 //
@@ -41,7 +41,9 @@ consolepb::MealsReply MealsOf(const std::string& user_id,
 // contexts only when `with_contexts`.
 std::string EventsCsv(const std::vector<v1::Event>& events, bool with_contexts);
 
-// theta_a . c for every action, c the context of `event_id`.
+// Every action's estimate at the context of `event_id` from the person's
+// current model, as the learner computes it at Select (Estimate), with
+// each action's count.
 absl::StatusOr<consolepb::EstimatesReply> EstimatesFor(
     meals::BanditClient& bandit, const std::string& user_id,
     const std::string& event_id);

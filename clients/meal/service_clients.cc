@@ -178,6 +178,12 @@ absl::StatusOr<v1::Model> BanditClient::GetModel(const std::string& user_id) {
                "BanditService.GetModel", request, deadlines_.unary);
 }
 
+absl::StatusOr<v1::EstimateResponse> BanditClient::Estimate(
+    const v1::EstimateRequest& request) {
+  return Unary(stub_.get(), &v1::BanditService::Stub::Estimate,
+               "BanditService.Estimate", request, deadlines_.unary);
+}
+
 absl::StatusOr<v1::ListEventsResponse> BanditClient::ListEvents(
     const v1::ListEventsRequest& request) {
   return Unary(stub_.get(), &v1::BanditService::Stub::ListEvents,

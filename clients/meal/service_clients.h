@@ -125,6 +125,8 @@ class BanditClient {
   absl::StatusOr<v1::SelectResponse> Select(const v1::SelectRequest& request);
   absl::StatusOr<v1::UpdateResponse> Update(const v1::UpdateRequest& request);
   absl::StatusOr<v1::Model> GetModel(const std::string& user_id);
+  absl::StatusOr<v1::EstimateResponse> Estimate(
+      const v1::EstimateRequest& request);
   absl::StatusOr<v1::ListEventsResponse> ListEvents(
       const v1::ListEventsRequest& request);
 

@@ -125,6 +125,19 @@ grpc::Status BanditServiceImpl::GetModel(grpc::ServerContext* context,
                 });
 }
 
+grpc::Status BanditServiceImpl::Estimate(grpc::ServerContext* context,
+                                         const v1::EstimateRequest* request,
+                                         v1::EstimateResponse* response) {
+  return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
+                [&]() -> absl::Status {
+                  ASSIGN_OR_RETURN(const EstimateResult result,
+                                   engine_->Estimate(request->user_id(),
+                                                     request->context()));
+                  EstimateToProto(result, response);
+                  return absl::OkStatus();
+                });
+}
+
 grpc::Status BanditServiceImpl::ListEvents(grpc::ServerContext* context,
                                            const v1::ListEventsRequest* request,
                                            v1::ListEventsResponse* response) {

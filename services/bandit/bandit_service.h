@@ -42,6 +42,9 @@ class BanditServiceImpl final : public v1::BanditService::Service {
   grpc::Status DeleteUser(grpc::ServerContext* context,
                           const v1::DeleteUserRequest* request,
                           v1::DeleteUserResponse* response) override;
+  grpc::Status Estimate(grpc::ServerContext* context,
+                        const v1::EstimateRequest* request,
+                        v1::EstimateResponse* response) override;
   grpc::Status GetModel(grpc::ServerContext* context,
                         const v1::GetModelRequest* request,
                         v1::Model* response) override;

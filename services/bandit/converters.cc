@@ -35,6 +35,21 @@ uint64_t StableHash(const std::string& s) {
   return h;
 }
 
+// Every action's estimate, named.
+void EstimatesToProto(
+    const std::vector<ActionEstimate>& estimates,
+    const std::vector<std::string>& action_names,
+    google::protobuf::RepeatedPtrField<v1::ActionEstimate>* proto) {
+  for (size_t a = 0; a < estimates.size(); ++a) {
+    v1::ActionEstimate* e = proto->Add();
+    e->set_action(static_cast<int32_t>(a));
+    e->set_action_name(action_names[a]);
+    e->set_predicted_loss(estimates[a].predicted_loss);
+    e->set_width(estimates[a].width);
+    e->set_lcb(estimates[a].lcb);
+  }
+}
+
 }  // namespace
 
 absl::StatusOr<BanditConfig> ConfigFromProto(const v1::UserConfig& proto,
@@ -171,14 +186,17 @@ void SelectToProto(const SelectResult& result, v1::SelectResponse* proto) {
   proto->set_model_version(result.model_version);
   proto->mutable_predicted_posthoc()->Add(result.predicted_posthoc.begin(),
                                           result.predicted_posthoc.end());
-  for (size_t a = 0; a < result.estimates.size(); ++a) {
-    v1::ActionEstimate* e = proto->add_estimates();
-    e->set_action(static_cast<int32_t>(a));
-    e->set_action_name(result.action_names[a]);
-    e->set_predicted_loss(result.estimates[a].predicted_loss);
-    e->set_width(result.estimates[a].width);
-    e->set_lcb(result.estimates[a].lcb);
-  }
+  EstimatesToProto(result.estimates, result.action_names,
+                   proto->mutable_estimates());
+}
+
+void EstimateToProto(const EstimateResult& result,
+                     v1::EstimateResponse* proto) {
+  proto->set_model_version(result.model_version);
+  proto->mutable_predicted_posthoc()->Add(result.predicted_posthoc.begin(),
+                                          result.predicted_posthoc.end());
+  EstimatesToProto(result.estimates, result.action_names,
+                   proto->mutable_estimates());
 }
 
 void ModelToProto(const ModelExport& model, v1::Model* proto) {

@@ -26,6 +26,7 @@ void UserToProto(const UserRecord& user, v1::User* proto);
 void PoolToProto(const PoolRecord& pool, v1::PopulationPool* proto);
 void EventToProto(const EventRecord& event, v1::Event* proto);
 void SelectToProto(const SelectResult& result, v1::SelectResponse* proto);
+void EstimateToProto(const EstimateResult& result, v1::EstimateResponse* proto);
 void ModelToProto(const ModelExport& model, v1::Model* proto);
 
 // Event ids travel as decimal strings. INVALID_ARGUMENT if malformed.

@@ -842,6 +842,21 @@ absl::StatusOr<ModelExport> BanditEngine::GetModel(const std::string& user_id) {
   return out;
 }
 
+absl::StatusOr<EstimateResult> BanditEngine::Estimate(
+    const std::string& user_id, absl::Span<const double> context) {
+  ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
+  absl::MutexLock lock(&slot->mu);
+  RETURN_IF_ERROR(Sync(user_id, *slot));
+  const LearnerModel& model = *slot->model;
+  RETURN_IF_ERROR(model.ValidateContext(context));
+  EstimateResult result;
+  result.estimates = model.Estimate(context);
+  result.predicted_posthoc = model.PredictedPosthoc(context);
+  result.action_names = model.config().action_names;
+  result.model_version = model.TotalRounds();
+  return result;
+}
+
 absl::StatusOr<PageResult<EventRecord>> BanditEngine::ListEvents(
     const std::string& user_id, const std::string& meal_id, const Page& page) {
   RETURN_IF_ERROR(ValidateUserId(user_id));

@@ -32,6 +32,7 @@
 #include "absl/status/statusor.h"
 #include "absl/synchronization/mutex.h"
 #include "absl/time/time.h"
+#include "absl/types/span.h"
 #include "services/bandit/core/config.h"
 #include "services/bandit/core/learner_model.h"
 #include "services/bandit/store/event_store.h"
@@ -99,6 +100,16 @@ struct SelectResult {
   std::vector<double> predicted_posthoc;
 };
 
+// The model's answer for a context with nothing recorded (Estimate): what
+// a Select there would weigh, without choosing or writing an event.
+struct EstimateResult {
+  std::vector<ActionEstimate> estimates;
+  std::vector<std::string> action_names;  // index-aligned with estimates
+  int64_t model_version = 0;
+  // LearnerModel::PredictedPosthoc at the context (poLinUCB); empty else.
+  std::vector<double> predicted_posthoc;
+};
+
 struct UpdateInput {
   int64_t event_id = 0;
   double loss = 0.0;
@@ -155,6 +166,12 @@ class BanditEngine {
   absl::StatusOr<UpdateResult> Update(const UpdateInput& input);
 
   absl::StatusOr<ModelExport> GetModel(const std::string& user_id);
+  // Every action's estimate at `context` from the user's current model, as
+  // Select computes them (every learner's own prediction, width and lcb),
+  // with no event and nothing changed. NOT_FOUND for an unknown user;
+  // INVALID_ARGUMENT for a context of the wrong length or not finite.
+  absl::StatusOr<EstimateResult> Estimate(const std::string& user_id,
+                                          absl::Span<const double> context);
   absl::StatusOr<PageResult<EventRecord>> ListEvents(const std::string& user_id,
                                                      const std::string& meal_id,
                                                      const Page& page);

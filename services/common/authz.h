@@ -12,10 +12,11 @@
 // (proto/bitewise/v1/access.proto), read through the method table
 // (rpc_methods.h):
 //   robot: the meal's calls (Select, Update, CreateUser, GetUser, GetModel,
-//     DetectFood, Featurize, Classify, Acquire, CaptureFrame, Tare,
+//     Estimate, DetectFood, Featurize, Classify, Acquire, CaptureFrame, Tare,
 //     GetStatus, ListActions, GetFrame);
-//   researcher: read only (GetUser, ListUsers, GetModel, ListEvents, and the
-//     stateless DetectFood, Featurize, Classify, GetStatus, ListActions);
+//   researcher: read only (GetUser, ListUsers, GetModel, Estimate, ListEvents,
+//     and the stateless DetectFood, Featurize, Classify, GetStatus,
+//     ListActions);
 //   admin: everything, including ResetUser, DeleteUser, BuildPopulationPrior.
 // RobotService/Stop stays callable by every client with a valid lab
 // certificate, role or not: anyone must be able to stop the arm.

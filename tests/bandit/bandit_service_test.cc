@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "gtest/gtest.h"
 #include "services/bandit/converters.h"
 #include "services/bandit/store/sqlite_event_store.h"
@@ -257,6 +258,100 @@ TEST_F(BanditServiceTest, SelectUpdateGetModelListEvents) {
     list.set_page_token(events.next_page_token());
   }
   EXPECT_EQ(seen, 20);
+}
+
+// Estimate answers what a Select at the same context would weigh, for
+// every learner (poLinUCB's prediction included), and records nothing: no
+// event, no pending bite, the same model version. Bad input is refused by
+// name, as Select refuses it.
+TEST_F(BanditServiceTest, EstimateIsSelectsAnswerWithoutAnEvent) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (v1::Learner learner :
+       {v1::LEARNER_POSTHOC, v1::LEARNER_CONTEXT_ONLY, v1::LEARNER_POLINUCB}) {
+    const std::string id = absl::StrCat("est-", v1::Learner_Name(learner));
+    v1::CreateUserRequest create;
+    create.set_user_id(id);
+    create.mutable_config()->set_learner(learner);
+    create.mutable_config()->set_lambda_c(1.0);
+    v1::User user;
+    ASSERT_TRUE(stub_->CreateUser(Ctx().get(), create, &user).ok());
+    for (int t = 0; t < 12; ++t) {
+      std::vector<double> c(6);
+      for (double& x : c) x = u(rng);
+      v1::SelectResponse chosen;
+      ASSERT_TRUE(Select(id, c, &chosen).ok());
+      v1::UpdateResponse updated;
+      ASSERT_TRUE(Update(chosen.event_id(), u(rng) < 0.0,
+                         {u(rng), u(rng), u(rng), u(rng)}, &updated)
+                      .ok());
+    }
+    v1::EstimateRequest request;
+    request.set_user_id(id);
+    std::vector<double> c(6);
+    for (double& x : c) x = u(rng);
+    request.mutable_context()->Add(c.begin(), c.end());
+    v1::EstimateResponse estimated;
+    grpc::Status status = stub_->Estimate(Ctx().get(), request, &estimated);
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    EXPECT_EQ(estimated.model_version(), 12);
+    v1::GetUserRequest get;
+    get.set_user_id(id);
+    ASSERT_TRUE(stub_->GetUser(Ctx().get(), get, &user).ok());
+    EXPECT_EQ(user.model_version(), 12);
+    EXPECT_EQ(user.pending_events(), 0);
+
+    v1::SelectResponse chosen;
+    ASSERT_TRUE(Select(id, c, &chosen).ok());
+    ASSERT_EQ(estimated.estimates_size(), 6);
+    ASSERT_EQ(chosen.estimates_size(), 6);
+    bool learned = false;
+    for (int a = 0; a < 6; ++a) {
+      const v1::ActionEstimate& e = estimated.estimates(a);
+      const v1::ActionEstimate& s = chosen.estimates(a);
+      EXPECT_EQ(e.action(), a);
+      EXPECT_EQ(e.action_name(), s.action_name());
+      EXPECT_EQ(e.predicted_loss(), s.predicted_loss()) << id << " " << a;
+      EXPECT_EQ(e.width(), s.width()) << id << " " << a;
+      EXPECT_EQ(e.lcb(), s.lcb()) << id << " " << a;
+      learned |= e.predicted_loss() != 0.0;
+    }
+    EXPECT_TRUE(learned) << id;
+    EXPECT_EQ(estimated.predicted_posthoc_size(),
+              learner == v1::LEARNER_POLINUCB ? 4 : 0);
+    for (int k = 0; k < estimated.predicted_posthoc_size(); ++k) {
+      EXPECT_EQ(estimated.predicted_posthoc(k), chosen.predicted_posthoc(k));
+    }
+  }
+
+  v1::EstimateRequest bad;
+  bad.set_user_id("est-LEARNER_POSTHOC");
+  v1::EstimateResponse out;
+  for (const std::vector<double>& context :
+       {std::vector<double>{1, 2, 3},
+        std::vector<double>{1, 2, NAN, 4, 5, 6}}) {
+    bad.clear_context();
+    bad.mutable_context()->Add(context.begin(), context.end());
+    const grpc::Status status = stub_->Estimate(Ctx().get(), bad, &out);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+    EXPECT_NE(status.error_message().find("context"), std::string::npos)
+        << status.error_message();
+  }
+  bad.set_user_id("nobody");
+  bad.clear_context();
+  for (int i = 0; i < 6; ++i) bad.add_context(0.5);
+  EXPECT_EQ(stub_->Estimate(Ctx().get(), bad, &out).error_code(),
+            grpc::StatusCode::NOT_FOUND);
+  bad.set_user_id("no body");
+  EXPECT_EQ(stub_->Estimate(Ctx().get(), bad, &out).error_code(),
+            grpc::StatusCode::INVALID_ARGUMENT);
+  // The refused calls left the user as it was: no event beyond the 13.
+  v1::ListEventsRequest list;
+  list.set_user_id("est-LEARNER_POSTHOC");
+  list.set_page_size(100);
+  v1::ListEventsResponse events;
+  ASSERT_TRUE(stub_->ListEvents(Ctx().get(), list, &events).ok());
+  EXPECT_EQ(events.events_size(), 13);
 }
 
 TEST_F(BanditServiceTest, ErrorsNameTheFieldAndChangeNothing) {

@@ -201,9 +201,30 @@ TEST(ReplicaTest, TwoReplicasChooseExactlyWhatOneEngineChooses) {
     if (chosen[0][t].propensity < 1.0) ++explored;
   }
   EXPECT_GT(explored, 10);  // the random draws mattered
+  std::mt19937_64 probe(5);
+  const std::vector<double> context = RandomVector(kDim, probe);
   for (const auto& [user, strategy] : users) {
     for (size_t r = 0; r < pair.size(); ++r) {
       ExpectDenseReference(pair.replica(r), pair.store(), user);
+    }
+    // Either replica's Estimate is caught up with the other's writes: the
+    // same answer as the one engine's.
+    absl::StatusOr<EstimateResult> one =
+        alone.replica(0).Estimate(user, context);
+    ASSERT_TRUE(one.ok()) << one.status();
+    for (size_t r = 0; r < pair.size(); ++r) {
+      absl::StatusOr<EstimateResult> each =
+          pair.replica(r).Estimate(user, context);
+      ASSERT_TRUE(each.ok()) << each.status();
+      EXPECT_EQ(each->model_version, one->model_version) << user;
+      ASSERT_EQ(each->estimates.size(), one->estimates.size());
+      for (size_t a = 0; a < one->estimates.size(); ++a) {
+        EXPECT_NEAR(each->estimates[a].predicted_loss,
+                    one->estimates[a].predicted_loss, 1e-12)
+            << user << " action " << a;
+        EXPECT_NEAR(each->estimates[a].lcb, one->estimates[a].lcb, 1e-12)
+            << user << " action " << a;
+      }
     }
   }
 }

@@ -3,6 +3,8 @@
 // events and the per-action estimates from a real BanditService.
 #include "clients/console/research.h"
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
 #include <string>
 #include <vector>
@@ -122,9 +124,11 @@ class ResearchTest : public SharedFourServicesTest<ResearchTest> {
     double loss;  // < 0: pending
   };
   std::vector<std::string> Feed(const std::string& user_id,
-                                const std::vector<Bite>& bites) {
+                                const std::vector<Bite>& bites,
+                                v1::Learner learner = v1::LEARNER_UNSPECIFIED) {
     v1::CreateUserRequest create;
     create.set_user_id(user_id);
+    create.mutable_config()->set_learner(learner);
     create.mutable_config()->set_context_dim(3);
     create.mutable_config()->set_posthoc_dim(2);
     create.mutable_config()->set_lambda_c(1.0);
@@ -194,22 +198,61 @@ TEST_F(ResearchTest, AllEventsAreListedWithContextsOnlyWhenAsked) {
   EXPECT_TRUE(listed);
 }
 
-TEST_F(ResearchTest, EstimatesAreEachActionsThetaDotTheBitesContext) {
-  const std::vector<std::string> ids =
-      Feed("bea", {{"lunch", {1.0, 0.0, 0.5}, 1.0},
-                   {"lunch", {0.0, 1.0, -0.5}, 0.0},
-                   {"lunch", {0.3, -0.2, 0.9}, 1.0},
-                   {"lunch", {0.25, 0.5, -1.5}, -1}});
+// A bite's estimates are the person's learner's own, as a Select at the
+// bite's context computes them: theta_a . c for post hoc LinUCB; for
+// poLinUCB theta_a . c plus beta_a . p_hat(c), which theta alone misses.
+// Asking records nothing.
+TEST_F(ResearchTest, EstimatesAreTheLearnersOwnAtTheBitesContext) {
+  const std::vector<Bite> bites = {{"lunch", {1.0, 0.0, 0.5}, 1.0},
+                                   {"lunch", {0.0, 1.0, -0.5}, 0.0},
+                                   {"lunch", {0.3, -0.2, 0.9}, 1.0},
+                                   {"lunch", {0.25, 0.5, -1.5}, -1}};
+  const std::vector<double> context = {0.25, 0.5, -1.5};
+  const std::vector<std::string> pia_ids =
+      Feed("pia", bites, v1::LEARNER_POLINUCB);
+  ASSERT_EQ(pia_ids.size(), 4u);
+  absl::StatusOr<consolepb::EstimatesReply> pia =
+      EstimatesFor(clients_->bandit, "pia", pia_ids[3]);
+  ASSERT_THAT(pia, IsOk());
+  EXPECT_EQ(pia->learner(), "LEARNER_POLINUCB");
+  absl::StatusOr<v1::Model> pia_model = clients_->bandit.GetModel("pia");
+  ASSERT_THAT(pia_model, IsOk());
+  EXPECT_EQ(pia_model->model_version(), 3);  // nothing recorded by asking
+  v1::SelectRequest select;
+  select.set_user_id("pia");
+  select.mutable_context()->Add(context.begin(), context.end());
+  absl::StatusOr<v1::SelectResponse> selected = clients_->bandit.Select(select);
+  ASSERT_THAT(selected, IsOk());
+  ASSERT_EQ(pia->estimates_size(), selected->estimates_size());
+  double largest_gap = 0.0;
+  for (int a = 0; a < pia->estimates_size(); ++a) {
+    EXPECT_EQ(pia->estimates(a).predicted_loss(),
+              selected->estimates(a).predicted_loss())
+        << a;
+    EXPECT_EQ(pia->estimates(a).width(), selected->estimates(a).width()) << a;
+    EXPECT_EQ(pia->estimates(a).lcb(), selected->estimates(a).lcb()) << a;
+    double dot = 0.0;
+    for (int i = 0; i < 3; ++i) {
+      dot += pia_model->actions(a).theta(i) * context[i];
+    }
+    largest_gap = std::max(largest_gap,
+                           std::abs(pia->estimates(a).predicted_loss() - dot));
+  }
+  EXPECT_GT(largest_gap, 1e-6);  // theta . c alone is not poLinUCB's
+
+  const std::vector<std::string> ids = Feed("bea", bites);
   ASSERT_EQ(ids.size(), 4u);
   absl::StatusOr<v1::Model> model = clients_->bandit.GetModel("bea");
   ASSERT_THAT(model, IsOk());
-  const std::vector<double> context = {0.25, 0.5, -1.5};
+  absl::StatusOr<v1::User> user = clients_->bandit.GetUser("bea");
+  ASSERT_THAT(user, IsOk());
 
   absl::StatusOr<consolepb::EstimatesReply> reply =
       EstimatesFor(clients_->bandit, "bea", ids[3]);
   ASSERT_THAT(reply, IsOk());
   EXPECT_EQ(reply->event_id(), ids[3]);
   EXPECT_EQ(reply->user_id(), "bea");
+  EXPECT_EQ(reply->learner(), "LEARNER_POSTHOC");
   EXPECT_EQ(reply->model_version(), 3);
   ASSERT_EQ(reply->estimates_size(), model->actions_size());
   ASSERT_EQ(reply->estimates_size(), 6);
@@ -221,6 +264,11 @@ TEST_F(ResearchTest, EstimatesAreEachActionsThetaDotTheBitesContext) {
     double dot = 0.0;
     for (int i = 0; i < 3; ++i) dot += action.theta(i) * context[i];
     EXPECT_NEAR(reply->estimates(a).predicted_loss(), dot, 1e-12) << a;
+    EXPECT_GT(reply->estimates(a).width(), 0.0) << a;
+    EXPECT_NEAR(reply->estimates(a).lcb(),
+                dot - user->config().alpha() * reply->estimates(a).width(),
+                1e-12)
+        << a;
     EXPECT_EQ(reply->estimates(a).action(), action.action());
     EXPECT_EQ(reply->estimates(a).action_name(), action.action_name());
     EXPECT_EQ(reply->estimates(a).count(), action.count());
@@ -229,6 +277,10 @@ TEST_F(ResearchTest, EstimatesAreEachActionsThetaDotTheBitesContext) {
   }
   EXPECT_EQ(counted, 3);
   EXPECT_TRUE(some_learned);
+  user = clients_->bandit.GetUser("bea");
+  ASSERT_THAT(user, IsOk());
+  EXPECT_EQ(user->model_version(), 3);
+  EXPECT_EQ(user->pending_events(), 1);  // the fourth bite, as it was
 
   for (const char* bad : {"x", "0", "-3", ""}) {
     EXPECT_THAT(EstimatesFor(clients_->bandit, "bea", bad),

@@ -139,6 +139,8 @@ TEST(ServiceClientsTest, EveryCallToAnAbsentServiceIsUnavailableNamingIt) {
       {"BanditService.Update",
        clients.bandit.Update(v1::UpdateRequest()).status()},
       {"BanditService.GetModel", clients.bandit.GetModel("ann").status()},
+      {"BanditService.Estimate",
+       clients.bandit.Estimate(v1::EstimateRequest()).status()},
       {"BanditService.ListEvents",
        clients.bandit.ListEvents(v1::ListEventsRequest()).status()},
   };

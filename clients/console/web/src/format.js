@@ -23,6 +23,17 @@ export function count(n, singular, plural = `${singular}s`) {
   return `${n} ${Number(n) === 1 ? singular : plural}`;
 }
 
+/** A person's learner (UserConfig.learner, the API's name) as people read it. */
+export const LEARNER_WORDS = {
+  LEARNER_POSTHOC: 'post hoc LinUCB',
+  LEARNER_POLINUCB: 'poLinUCB',
+  LEARNER_CONTEXT_ONLY: 'vision only (context-only LinUCB)',
+};
+
+export function learnerWord(learner) {
+  return LEARNER_WORDS[learner] ?? `an unknown learner (${learner || 'unset'})`;
+}
+
 export function newtons(f) {
   return Number.isFinite(f) ? `${f.toFixed(1)} N` : '–';
 }

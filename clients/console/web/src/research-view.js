@@ -6,7 +6,7 @@
 
 import { getJSON, query, userPath } from './api.js';
 import { h, keyed, setAttr, setText, show } from './dom.js';
-import { count, int, when } from './format.js';
+import { count, int, learnerWord, when } from './format.js';
 import { createFailuresChart } from './failures-chart.js';
 
 const PAGE_SIZE = 50;
@@ -99,12 +99,19 @@ export function createResearchView() {
   // --- estimates of one bite ------------------------------------------------
   const estimatesHeading = h('h3', { id: 'estimates-heading', tabindex: '-1' }, 'Estimates');
   const estimatesError = h('p', { className: 'error', hidden: true });
+  const estimatesLearner = h('p', { className: 'estimates-learner' });
   const estimatesTable = scrollBox('Estimates table');
   const estimatesSection = h(
     'section',
     { className: 'card estimates', 'aria-labelledby': 'estimates-heading', hidden: true },
     estimatesHeading,
-    h('p', { className: 'hint' }, "Each action's predicted loss for this bite's context (lower is better)."),
+    h(
+      'p',
+      { className: 'hint' },
+      "Each action's predicted loss at this bite's context from the person's current model, as their learner " +
+        'weighs it at a Select (lower is better), its width, and the lower bound LinUCB picks the lowest of.',
+    ),
+    estimatesLearner,
     estimatesError,
     estimatesTable,
   );
@@ -231,7 +238,7 @@ export function createResearchView() {
     setText(
       personLine,
       user
-        ? `${count(int(user.model_version), 'bite')} learned, ${count(int(user.pending_events), 'bite')} pending.`
+        ? `Learns with ${learnerWord(user.config?.learner)}. ${count(int(user.model_version), 'bite')} learned, ${count(int(user.pending_events), 'bite')} pending.`
         : '',
     );
     try {
@@ -392,16 +399,23 @@ export function createResearchView() {
       errorLine(estimatesError, null);
       const chosen = events.find((e) => e.event_id === route.event)?.action;
       const estimates = reply?.estimates || [];
+      setText(
+        estimatesLearner,
+        `${learnerWord(reply?.learner)}, model after ${count(int(reply?.model_version), 'bite')} learned.`,
+      );
+      const fixed = (x) => Number(x ?? 0).toFixed(3);
       estimatesTable.replaceChildren(
         table(
-          `Predicted loss per action for event ${route.event}`,
-          ['Action', 'Predicted loss', 'Bites learned'],
+          `Estimates per action for event ${route.event}`,
+          ['Action', 'Predicted loss', 'Width', 'Lower bound', 'Bites learned'],
           estimates.map((e) =>
             h(
               'tr',
               { 'data-action': e.action, className: e.action === chosen ? 'chosen' : null },
               h('th', { scope: 'row' }, e.action_name, e.action === chosen ? ' (chosen)' : ''),
-              h('td', {}, Number(e.predicted_loss).toFixed(3)),
+              h('td', {}, fixed(e.predicted_loss)),
+              h('td', {}, fixed(e.width)),
+              h('td', {}, fixed(e.lcb)),
               h('td', {}, int(e.count)),
             ),
           ),
@@ -411,6 +425,7 @@ export function createResearchView() {
     } catch (err) {
       if (load !== loads) return;
       estimatesTable.replaceChildren();
+      setText(estimatesLearner, '');
       errorLine(estimatesError, err);
     }
   }

@@ -134,6 +134,7 @@ describe('researcher view', { skip: SKIP }, () => {
       failures: expected.map((m) => m.failures),
       canvas: true,
     });
+    assert.match(await page.$eval('.person-line', (p) => p.textContent), /^Learns with post hoc LinUCB\. /);
     await waitIn(page, () => document.querySelectorAll('.health-table tbody tr').length > 0);
     await screenshot(page, 'research-01-person', '.person');
     await checkAxe(page, 'a person in the researcher view');
@@ -167,6 +168,26 @@ describe('researcher view', { skip: SKIP }, () => {
       ths.map((th) => th.textContent.replace(' (chosen)', '')),
     );
     assert.deepEqual(names, estimates.estimates.map((e) => e.action_name));
+    // Each row is the learner's own estimate (BanditService.Estimate), to the
+    // shown digits, and the learner is named.
+    const cells = await page.$$eval('.estimates-table tbody tr', (trs) =>
+      trs.map((tr) => [...tr.cells].slice(1).map((td) => td.textContent)),
+    );
+    assert.deepEqual(
+      cells,
+      estimates.estimates.map((e) => [
+        Number(e.predicted_loss ?? 0).toFixed(3),
+        Number(e.width ?? 0).toFixed(3),
+        Number(e.lcb ?? 0).toFixed(3),
+        String(Number(e.count ?? 0)),
+      ]),
+    );
+    assert.ok(Number(estimates.estimates[0].width) > 0, 'the estimates carry their widths');
+    assert.equal(estimates.learner, 'LEARNER_POSTHOC', 'a new person learns with post hoc LinUCB');
+    assert.match(
+      await page.$eval('.estimates-learner', (p) => p.textContent),
+      /^post hoc LinUCB, model after \d+ bites? learned\.$/,
+    );
     await screenshot(page, 'research-02-estimates', '.estimates');
     await checkAxe(page, "a bite's estimates");
   });
