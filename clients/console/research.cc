@@ -169,12 +169,17 @@ absl::StatusOr<consolepb::EstimatesReply> EstimatesFor(
   *request.mutable_context() = event->context();
   absl::StatusOr<v1::EstimateResponse> estimated;
   absl::StatusOr<v1::Model> model;
-  for (int attempt = 0; attempt < 3; ++attempt) {
+  for (int attempt = 1;; ++attempt) {
     estimated = bandit.Estimate(request);
     if (!estimated.ok()) return estimated.status();
     model = bandit.GetModel(user_id);
     if (!model.ok()) return model.status();
     if (model->model_version() == estimated->model_version()) break;
+    if (attempt == 3) {
+      return absl::UnavailableError(absl::StrCat(
+          user_id, "'s model changed while it was read (bites are being ",
+          "learned); try again"));
+    }
   }
   if (model->actions_size() != estimated->estimates_size()) {
     return absl::FailedPreconditionError(absl::StrCat(
@@ -188,6 +193,11 @@ absl::StatusOr<consolepb::EstimatesReply> EstimatesFor(
   reply.set_learner(v1::Learner_Name(model->config().learner()));
   for (int a = 0; a < estimated->estimates_size(); ++a) {
     const v1::ActionEstimate& from = estimated->estimates(a);
+    if (model->actions(a).action() != from.action()) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "the model's action ", model->actions(a).action(),
+          " stands where its estimates have action ", from.action()));
+    }
     consolepb::ActionEstimate* estimate = reply.add_estimates();
     estimate->set_action(from.action());
     estimate->set_action_name(from.action_name());

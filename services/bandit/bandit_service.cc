@@ -130,6 +130,15 @@ grpc::Status BanditServiceImpl::Estimate(grpc::ServerContext* context,
                                          v1::EstimateResponse* response) {
   return RunRpc(*env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
                 [&]() -> absl::Status {
+                  // Widths at contexts of the caller's choosing would give
+                  // away each action's sum of c c^T, the contexts withheld.
+                  if (!CallerMayReadContexts()) {
+                    return absl::PermissionDeniedError(
+                        "Estimate: this identity's role withholds contexts "
+                        "(without_contexts), and an estimate's width at a "
+                        "chosen context reveals what the model learned of "
+                        "them");
+                  }
                   ASSIGN_OR_RETURN(const EstimateResult result,
                                    engine_->Estimate(request->user_id(),
                                                      request->context()));

@@ -12,7 +12,7 @@
 // (proto/bitewise/v1/access.proto), read through the method table
 // (rpc_methods.h):
 //   robot: the meal's calls (Select, Update, CreateUser, GetUser, GetModel,
-//     Estimate, DetectFood, Featurize, Classify, Acquire, CaptureFrame, Tare,
+//     DetectFood, Featurize, Classify, Acquire, CaptureFrame, Tare,
 //     GetStatus, ListActions, GetFrame);
 //   researcher: read only (GetUser, ListUsers, GetModel, Estimate, ListEvents,
 //     and the stateless DetectFood, Featurize, Classify, GetStatus,

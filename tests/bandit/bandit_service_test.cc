@@ -17,6 +17,7 @@
 #include "services/bandit/store/sqlite_event_store.h"
 #include "services/common/channel.h"
 #include "services/common/server.h"
+#include "tests/common/test_certs.h"
 
 namespace bitewise::bandit {
 namespace {
@@ -352,6 +353,77 @@ TEST_F(BanditServiceTest, EstimateIsSelectsAnswerWithoutAnEvent) {
   v1::ListEventsResponse events;
   ASSERT_TRUE(stub_->ListEvents(Ctx().get(), list, &events).ok());
   EXPECT_EQ(events.events_size(), 13);
+}
+
+// Over real mutual TLS with a roles file: a researcher may ask Estimate; a
+// researcher the contexts are withheld from may not (widths at contexts of
+// its choosing would give away the learned ones), and its ListEvents has
+// no contexts. The robot role may not ask Estimate.
+TEST_F(BanditServiceTest, EstimateIsRefusedWhereContextsAreWithheld) {
+  ASSERT_EQ(testing::Certs().error, "");
+  BanditConfig config;
+  config.context_dim = 6;
+  ASSERT_TRUE(engine_->CreateUser("tia", config).ok());
+  for (int t = 0; t < 3; ++t) {
+    absl::StatusOr<SelectResult> selected =
+        engine_->Select({"tia", {0.1 * t, 0.2, 0.3, 0.4, 0.5, 0.6}, "m", ""});
+    ASSERT_TRUE(selected.ok()) << selected.status();
+    ASSERT_TRUE(engine_->Update({selected->event_id, 1.0, {1, 0, 0, 0}}).ok());
+  }
+  const std::vector<double> context = {0.3, 0.1, 0.4, 0.1, 0.5, 0.9};
+  for (const char* roles : {"bitewise-client researcher\n",
+                            "bitewise-client researcher without_contexts\n",
+                            "bitewise-client robot\n"}) {
+    ServerOptions options = testing::TlsServerOptions(/*mutual=*/true);
+    options.authz_file = testing::WriteRoles(roles);
+    RpcEnvironment env;
+    BanditServiceImpl service(&env, engine_.get(), BanditConfig());
+    auto server = ServiceServer::Start(options, &env, {&service},
+                                       {"bitewise.v1.BanditService"});
+    ASSERT_TRUE(server.ok()) << server.status();
+    (*server)->SetServing(true);
+    auto channel =
+        MakeChannel((*server)->address(), testing::TlsChannelOptions(true));
+    ASSERT_TRUE(channel.ok());
+    auto stub = v1::BanditService::NewStub(*channel);
+    v1::EstimateRequest request;
+    request.set_user_id("tia");
+    request.mutable_context()->Add(context.begin(), context.end());
+    v1::EstimateResponse estimated;
+    const grpc::Status status =
+        stub->Estimate(Ctx().get(), request, &estimated);
+    v1::ListEventsRequest list;
+    list.set_user_id("tia");
+    v1::ListEventsResponse events;
+    const grpc::Status listed = stub->ListEvents(Ctx().get(), list, &events);
+    const std::string role = roles;
+    if (role == "bitewise-client researcher\n") {
+      ASSERT_TRUE(status.ok()) << status.error_message();
+      absl::StatusOr<EstimateResult> direct = engine_->Estimate("tia", context);
+      ASSERT_TRUE(direct.ok());
+      ASSERT_EQ(estimated.estimates_size(), 6);
+      for (int a = 0; a < 6; ++a) {
+        EXPECT_EQ(estimated.estimates(a).width(), direct->estimates[a].width);
+      }
+      ASSERT_TRUE(listed.ok());
+      EXPECT_FALSE(events.contexts_withheld());
+      EXPECT_EQ(events.events(0).context_size(), 6);
+    } else if (role == "bitewise-client robot\n") {
+      EXPECT_EQ(status.error_code(), grpc::StatusCode::PERMISSION_DENIED);
+      EXPECT_NE(status.error_message().find("BanditService/Estimate"),
+                std::string::npos)
+          << status.error_message();
+    } else {
+      EXPECT_EQ(status.error_code(), grpc::StatusCode::PERMISSION_DENIED);
+      EXPECT_NE(status.error_message().find("without_contexts"),
+                std::string::npos)
+          << status.error_message();
+      ASSERT_TRUE(listed.ok());
+      EXPECT_TRUE(events.contexts_withheld());
+      EXPECT_EQ(events.events(0).context_size(), 0);
+    }
+    (*server)->Shutdown();
+  }
 }
 
 TEST_F(BanditServiceTest, ErrorsNameTheFieldAndChangeNothing) {

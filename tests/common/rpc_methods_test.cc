@@ -33,7 +33,7 @@ TEST(RpcMethodsTest, EveryRpcOfEveryServiceIsInTheTable) {
   EXPECT_EQ(
       per_service[0],
       v1::SelectRequest::descriptor()->file()->service(0)->method_count());
-  EXPECT_EQ(per_service[0], 12);
+  EXPECT_EQ(per_service[0], 13);
   EXPECT_EQ(per_service[1], 2);
   EXPECT_EQ(per_service[2], 1);
   EXPECT_EQ(per_service[3], 6);
@@ -43,6 +43,8 @@ TEST(RpcMethodsTest, EveryRpcOfEveryServiceIsInTheTable) {
 TEST(RpcMethodsTest, TheRolesAndTheAuditReadTheProtoOptions) {
   EXPECT_TRUE(RoleAllows(Role::kRobot, "BanditService/Select"));
   EXPECT_FALSE(RoleAllows(Role::kRobot, "BanditService/ListEvents"));
+  EXPECT_FALSE(RoleAllows(Role::kRobot, "BanditService/Estimate"));
+  EXPECT_TRUE(RoleAllows(Role::kResearcher, "BanditService/Estimate"));
   EXPECT_TRUE(RoleAllows(Role::kResearcher, "BanditService/ListEvents"));
   EXPECT_FALSE(RoleAllows(Role::kResearcher, "BanditService/Update"));
   EXPECT_FALSE(RoleAllows(Role::kResearcher, "RobotService/Acquire"));

@@ -48,10 +48,15 @@
 #include "services/common/metrics.h"
 #include "services/common/rpc_environment.h"
 #include "services/common/rpc_handler.h"
+#include "tests/common/test_certs.h"
 
 namespace bitewise {
 namespace {
 
+using ::bitewise::testing::Certs;
+using ::bitewise::testing::TlsChannelOptions;
+using ::bitewise::testing::TlsServerOptions;
+using ::bitewise::testing::WriteRoles;
 using ::testing::HasSubstr;
 
 constexpr char kHapticName[] = "bitewise.v1.HapticService";
@@ -555,80 +560,6 @@ TEST(ServiceServerTest, RunUntilSignalDrainsOnSigterm) {
   EXPECT_FALSE(CheckHealth(channel, "", absl::Seconds(1)).ok());
 }
 
-// Certificates for one test run: a CA, a server certificate for
-// 127.0.0.1/localhost and a client certificate, all signed by the CA.
-struct TestCerts {
-  std::string dir;
-  std::string error;  // Empty when generation succeeded.
-
-  std::string Path(const std::string& name) const {
-    return absl::StrCat(dir, "/", name);
-  }
-  ~TestCerts() {
-    if (!dir.empty()) std::filesystem::remove_all(dir);
-  }
-};
-
-// Runs the openssl CLI into a fresh temporary directory. Failure is recorded,
-// not skipped: CI installs openssl, so its absence is a broken environment.
-void GenerateCerts(TestCerts& certs) {
-  std::string dir_template =
-      (std::filesystem::temp_directory_path() / "bitewise_common_test_XXXXXX")
-          .string();
-  if (mkdtemp(dir_template.data()) == nullptr) {
-    certs.error = "mkdtemp failed";
-    return;
-  }
-  certs.dir = dir_template;
-  const std::string script = absl::StrCat(
-      "cd '", certs.dir, "' && {",
-      " openssl req -x509 -newkey rsa:2048 -nodes -days 2",
-      "   -subj /CN=bitewise-test-ca -keyout ca.key -out ca.pem &&",
-      " printf 'subjectAltName=DNS:localhost,IP:127.0.0.1\\n",
-      "extendedKeyUsage=serverAuth\\n' > server.ext &&",
-      " printf 'extendedKeyUsage=clientAuth\\n' > client.ext &&",
-      " for who in server client; do",
-      "   openssl req -newkey rsa:2048 -nodes -subj /CN=bitewise-$who",
-      "     -keyout $who.key -out $who.csr &&",
-      "   openssl x509 -req -in $who.csr -CA ca.pem -CAkey ca.key",
-      "     -CAcreateserial -days 2 -extfile $who.ext -out $who.pem",
-      "   || exit 1;", " done; } > openssl.log 2>&1");
-  if (std::system(script.c_str()) != 0) {
-    std::ifstream log(certs.Path("openssl.log"));
-    std::stringstream log_text;
-    log_text << log.rdbuf();
-    certs.error = absl::StrCat(
-        "openssl failed (it is required, not optional):\n", log_text.str());
-  }
-}
-
-const TestCerts& Certs() {
-  static TestCerts certs;
-  static const bool generated = (GenerateCerts(certs), true);
-  (void)generated;
-  return certs;
-}
-
-ServerOptions TlsServerOptions(bool mutual) {
-  const TestCerts& certs = Certs();
-  ServerOptions options;
-  options.tls_cert_file = certs.Path("server.pem");
-  options.tls_key_file = certs.Path("server.key");
-  if (mutual) options.tls_client_ca_file = certs.Path("ca.pem");
-  return options;
-}
-
-ChannelOptions TlsChannelOptions(bool with_client_cert) {
-  const TestCerts& certs = Certs();
-  ChannelOptions options;
-  options.tls_ca_file = certs.Path("ca.pem");
-  if (with_client_cert) {
-    options.tls_cert_file = certs.Path("client.pem");
-    options.tls_key_file = certs.Path("client.key");
-  }
-  return options;
-}
-
 TEST(ServiceServerTlsTest, TlsClientConnectsAndPlaintextClientDoesNot) {
   ASSERT_EQ(Certs().error, "");
   FakeHapticService service;
@@ -776,12 +707,6 @@ class AuthzProbeService final : public v1::HapticService::Service {
   const RpcEnvironment* const env_;
 };
 
-std::string WriteRoles(const std::string& text) {
-  const std::string path = Certs().Path("roles.txt");
-  std::ofstream(path, std::ios::trunc) << text;
-  return path;
-}
-
 TEST(AuthorizationTest, RolesDecideWhatAClientCertificateMayCall) {
   ASSERT_TRUE(Certs().error.empty()) << Certs().error;
   RpcEnvironment env;
@@ -916,22 +841,15 @@ TEST(MetricsTest, RpcCountsLatencyAndScrapeValuesAreServed) {
 // under test.
 TEST(AuthorizationTest, EveryRoleTimesEveryMethodOverMutualTls) {
   ASSERT_TRUE(Certs().error.empty()) << Certs().error;
-  const std::set<std::string> robot = {"BanditService/Select",
-                                       "BanditService/Update",
-                                       "BanditService/CreateUser",
-                                       "BanditService/GetUser",
-                                       "BanditService/GetModel",
-                                       "BanditService/Estimate",
-                                       "PerceptionService/DetectFood",
-                                       "PerceptionService/Featurize",
-                                       "HapticService/Classify",
-                                       "RobotService/Acquire",
-                                       "RobotService/CaptureFrame",
-                                       "RobotService/Tare",
-                                       "RobotService/GetStatus",
-                                       "RobotService/ListActions",
-                                       "RobotService/Stop",
-                                       "CameraService/GetFrame"};
+  const std::set<std::string> robot = {
+      "BanditService/Select",        "BanditService/Update",
+      "BanditService/CreateUser",    "BanditService/GetUser",
+      "BanditService/GetModel",      "PerceptionService/DetectFood",
+      "PerceptionService/Featurize", "HapticService/Classify",
+      "RobotService/Acquire",        "RobotService/CaptureFrame",
+      "RobotService/Tare",           "RobotService/GetStatus",
+      "RobotService/ListActions",    "RobotService/Stop",
+      "CameraService/GetFrame"};
   const std::set<std::string> researcher = {"BanditService/GetUser",
                                             "BanditService/ListUsers",
                                             "BanditService/GetModel",

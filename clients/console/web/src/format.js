@@ -34,6 +34,13 @@ export function learnerWord(learner) {
   return LEARNER_WORDS[learner] ?? `an unknown learner (${learner || 'unset'})`;
 }
 
+/** Three significant digits, without a "-0": 0.904, -0.0442, -0.000245, 0. */
+export function threeDigits(x) {
+  if (!Number.isFinite(x)) return '–';
+  const rounded = Number(x.toPrecision(3));
+  return rounded === 0 ? '0' : String(rounded);
+}
+
 export function newtons(f) {
   return Number.isFinite(f) ? `${f.toFixed(1)} N` : '–';
 }

@@ -6,7 +6,7 @@
 
 import { getJSON, query, userPath } from './api.js';
 import { h, keyed, setAttr, setText, show } from './dom.js';
-import { count, int, learnerWord, when } from './format.js';
+import { count, int, learnerWord, threeDigits, when } from './format.js';
 import { createFailuresChart } from './failures-chart.js';
 
 const PAGE_SIZE = 50;
@@ -109,7 +109,8 @@ export function createResearchView() {
       'p',
       { className: 'hint' },
       "Each action's predicted loss at this bite's context from the person's current model, as their learner " +
-        'weighs it at a Select (lower is better), its width, and the lower bound LinUCB picks the lowest of.',
+        'weighs it at a Select (lower is better), its width, and its lower bound (LinUCB, the default strategy, ' +
+        'picks the action with the lowest).',
     ),
     estimatesLearner,
     estimatesError,
@@ -403,7 +404,7 @@ export function createResearchView() {
         estimatesLearner,
         `${learnerWord(reply?.learner)}, model after ${count(int(reply?.model_version), 'bite')} learned.`,
       );
-      const fixed = (x) => Number(x ?? 0).toFixed(3);
+      const fixed = (x) => threeDigits(Number(x ?? 0));
       estimatesTable.replaceChildren(
         table(
           `Estimates per action for event ${route.event}`,

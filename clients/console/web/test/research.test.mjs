@@ -176,9 +176,10 @@ describe('researcher view', { skip: SKIP }, () => {
     assert.deepEqual(
       cells,
       estimates.estimates.map((e) => [
-        Number(e.predicted_loss ?? 0).toFixed(3),
-        Number(e.width ?? 0).toFixed(3),
-        Number(e.lcb ?? 0).toFixed(3),
+        ...[e.predicted_loss, e.width, e.lcb].map((x) => {
+          const rounded = Number(Number(x ?? 0).toPrecision(3));
+          return rounded === 0 ? '0' : String(rounded);
+        }),
         String(Number(e.count ?? 0)),
       ]),
     );
