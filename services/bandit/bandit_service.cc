@@ -104,6 +104,27 @@ grpc::Status BanditServiceImpl::ResetUser(grpc::ServerContext* context,
       RpcPolicy::kNormal, request->user_id());
 }
 
+grpc::Status BanditServiceImpl::SetLearner(grpc::ServerContext* context,
+                                           const v1::SetLearnerRequest* request,
+                                           v1::User* response) {
+  return RunRpc(
+      *env_, BITEWISE_RPC_METHOD(v1::BanditService), context,
+      [&]() -> absl::Status {
+        if (request->learner() == v1::LEARNER_UNSPECIFIED) {
+          return absl::InvalidArgumentError(
+              "learner: unset (LEARNER_UNSPECIFIED); name the learner to "
+              "move the user to");
+        }
+        ASSIGN_OR_RETURN(
+            const UserRecord user,
+            engine_->SetLearner(request->user_id(),
+                                static_cast<Learner>(request->learner())));
+        UserToProto(user, response);
+        return absl::OkStatus();
+      },
+      RpcPolicy::kNormal, request->user_id());
+}
+
 grpc::Status BanditServiceImpl::DeleteUser(grpc::ServerContext* context,
                                            const v1::DeleteUserRequest* request,
                                            v1::DeleteUserResponse*) {

@@ -39,6 +39,9 @@ class BanditServiceImpl final : public v1::BanditService::Service {
   grpc::Status ResetUser(grpc::ServerContext* context,
                          const v1::ResetUserRequest* request,
                          v1::User* response) override;
+  grpc::Status SetLearner(grpc::ServerContext* context,
+                          const v1::SetLearnerRequest* request,
+                          v1::User* response) override;
   grpc::Status DeleteUser(grpc::ServerContext* context,
                           const v1::DeleteUserRequest* request,
                           v1::DeleteUserResponse* response) override;

@@ -492,28 +492,31 @@ absl::Status CheckModelFits(const BanditConfig& config, size_t bytes,
 
 }  // namespace
 
-absl::StatusOr<UserRecord> BanditEngine::CreateUser(
-    const std::string& user_id, const BanditConfig& requested,
-    double prior_rounds) {
-  RETURN_IF_ERROR(ValidateConfig(requested));
-  const size_t worst_bytes = MaxModelBytes(requested);
-  RETURN_IF_ERROR(CheckModelFits(requested, worst_bytes,
-                                 options_.max_model_bytes,
+absl::Status BanditEngine::CheckConfigFits(const BanditConfig& config) const {
+  RETURN_IF_ERROR(ValidateConfig(config));
+  const size_t worst_bytes = MaxModelBytes(config);
+  RETURN_IF_ERROR(CheckModelFits(config, worst_bytes, options_.max_model_bytes,
                                  "this service's limit", "--max_model_mb"));
-  if (const size_t bytes = ModelReplyBytes(requested);
+  if (const size_t bytes = ModelReplyBytes(config);
       bytes > options_.max_reply_bytes) {
     return absl::InvalidArgumentError(absl::StrFormat(
         "config: GetModel's reply for context_dim %d, posthoc_dim %d and %d "
         "actions would take about %.1f MB, over the %.1f MB a reply may take "
         "(4 MiB message limit); use fewer dimensions or actions",
-        requested.context_dim, requested.posthoc_dim, requested.num_actions(),
+        config.context_dim, config.posthoc_dim, config.num_actions(),
         bytes / 1e6, options_.max_reply_bytes / 1e6));
   }
   // A model that cannot fit the cache budget on its own would be rebuilt
   // from the log at every call: refused like one over the limit.
-  RETURN_IF_ERROR(
-      CheckModelFits(requested, worst_bytes, options_.cache_budget_bytes,
-                     "this service's whole model cache", "--cache_budget_mb"));
+  return CheckModelFits(config, worst_bytes, options_.cache_budget_bytes,
+                        "this service's whole model cache",
+                        "--cache_budget_mb");
+}
+
+absl::StatusOr<UserRecord> BanditEngine::CreateUser(
+    const std::string& user_id, const BanditConfig& requested,
+    double prior_rounds) {
+  RETURN_IF_ERROR(CheckConfigFits(requested));
   if (!std::isfinite(prior_rounds) || prior_rounds < 0.0) {
     return absl::InvalidArgumentError(absl::StrCat(
         "prior_rounds: must be finite and >= 0, got ", prior_rounds));
@@ -601,6 +604,33 @@ absl::StatusOr<UserRecord> BanditEngine::ResetUser(const std::string& user_id) {
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
   absl::MutexLock lock(&slot->mu);
   RETURN_IF_ERROR(store_->ResetUser(user_id));
+  Unload(*slot);
+  return store_->GetUser(user_id);
+}
+
+absl::StatusOr<UserRecord> BanditEngine::SetLearner(const std::string& user_id,
+                                                    Learner learner) {
+  if (FindLearner(learner) == nullptr) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("learner: unknown learner ", static_cast<int>(learner),
+                     "; expected one of ", LearnerNames()));
+  }
+  ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(user_id, false));
+  absl::MutexLock lock(&slot->mu);
+  ASSIGN_OR_RETURN(UserRecord user, store_->GetUser(user_id));
+  if (user.config.learner == learner) return user;
+  if (user.config.prior.enabled()) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "user \"", user_id, "\" started from population pool ",
+        user.config.prior.pool_version, " of ",
+        LearnerName(user.config.learner),
+        " users, whose prior does not carry to ", LearnerName(learner),
+        "; ResetUser first (it forgets the history) or keep the learner"));
+  }
+  BanditConfig config = user.config;
+  config.learner = learner;
+  RETURN_IF_ERROR(CheckConfigFits(config));
+  RETURN_IF_ERROR(store_->SetLearner(user_id, learner));
   Unload(*slot);
   return store_->GetUser(user_id);
 }

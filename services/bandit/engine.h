@@ -160,6 +160,14 @@ class BanditEngine {
   absl::StatusOr<UserRecord> GetUser(const std::string& user_id);
   absl::StatusOr<PageResult<UserRecord>> ListUsers(const Page& page);
   absl::StatusOr<UserRecord> ResetUser(const std::string& user_id);
+  // Moves the user to `learner`, keeping every event: the model is rebuilt
+  // from the log under the new learner at the next call (model_version
+  // unchanged). The same learner changes nothing. INVALID_ARGUMENT for an
+  // unknown learner or one whose model would not fit (as at CreateUser);
+  // FAILED_PRECONDITION for a user started from a population pool (its
+  // prior is of the old learner's statistics); NOT_FOUND if unknown.
+  absl::StatusOr<UserRecord> SetLearner(const std::string& user_id,
+                                        Learner learner);
   absl::Status DeleteUser(const std::string& user_id);
 
   absl::StatusOr<SelectResult> Select(const SelectInput& input);
@@ -218,6 +226,10 @@ class BanditEngine {
   CacheCounters Counters() const;
 
  private:
+  // A configuration a user may have here: valid, and its model within the
+  // service's limits and cache budget and its GetModel reply within a
+  // message (INVALID_ARGUMENT naming which).
+  absl::Status CheckConfigFits(const BanditConfig& config) const;
   struct UserSlot {
     absl::Mutex mu;
     // Loaded state, valid while `model` has a value.

@@ -25,7 +25,8 @@
 // ServiceServer loads from its options and installs in the services'
 // RpcEnvironment (rpc_environment.h); a refused call is PERMISSION_DENIED
 // naming the identity, the role and the method, and nothing runs.
-// Administrative and destructive calls (CreateUser, ResetUser, DeleteUser,
+// Administrative and destructive calls (CreateUser, ResetUser, SetLearner,
+// DeleteUser,
 // BuildPopulationPrior, Tare) are written to the audit trail (audit.h: stderr,
 // and the BanditService's store).
 //

@@ -112,6 +112,23 @@ TEST_F(BanditServiceTest, AdministrativeCallsAreAuditedAndTheStoreCheckable) {
   v1::DeleteUserResponse removed;
   EXPECT_EQ(stub_->DeleteUser(Ctx().get(), remove, &removed).error_code(),
             grpc::StatusCode::NOT_FOUND);
+  // A new learner for alice: her event stays, her model is rebuilt.
+  v1::SetLearnerRequest move;
+  move.set_user_id("alice");
+  v1::User moved;
+  const grpc::Status unset = stub_->SetLearner(Ctx().get(), move, &moved);
+  EXPECT_EQ(unset.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(unset.error_message().find("learner"), std::string::npos);
+  move.set_learner(v1::LEARNER_POLINUCB);
+  ASSERT_TRUE(stub_->SetLearner(Ctx().get(), move, &moved).ok());
+  EXPECT_EQ(moved.config().learner(), v1::LEARNER_POLINUCB);
+  EXPECT_EQ(moved.pending_events(), 1);
+  v1::EstimateRequest estimate;
+  estimate.set_user_id("alice");
+  for (int i = 0; i < 6; ++i) estimate.add_context(0.5);
+  v1::EstimateResponse estimated;
+  ASSERT_TRUE(stub_->Estimate(Ctx().get(), estimate, &estimated).ok());
+  EXPECT_EQ(estimated.predicted_posthoc_size(), 4);  // poLinUCB's now
   v1::CheckStoreResponse check;
   ASSERT_TRUE(
       stub_->CheckStore(Ctx().get(), v1::CheckStoreRequest(), &check).ok());
@@ -124,16 +141,22 @@ TEST_F(BanditServiceTest, AdministrativeCallsAreAuditedAndTheStoreCheckable) {
   v1::ListAuditResponse audit;
   ASSERT_TRUE(
       stub_->ListAudit(Ctx().get(), v1::ListAuditRequest(), &audit).ok());
-  ASSERT_EQ(audit.records_size(), 3);  // Select and ListAudit are not audited
+  // Select, Estimate and ListAudit are not audited.
+  ASSERT_EQ(audit.records_size(), 5);
   EXPECT_EQ(audit.records(0).method(), "BanditService/CreateUser");
   EXPECT_EQ(audit.records(0).target(), "alice");
   EXPECT_EQ(audit.records(0).result(), "OK");
   EXPECT_EQ(audit.records(1).method(), "BanditService/DeleteUser");
   EXPECT_EQ(audit.records(1).target(), "nobody");
   EXPECT_EQ(audit.records(1).result(), "NOT_FOUND");
-  EXPECT_EQ(audit.records(2).method(), "BanditService/CheckStore");
-  EXPECT_NE(audit.records(2).peer(), "");
-  EXPECT_GT(audit.records(2).time().seconds(), 1700000000);
+  EXPECT_EQ(audit.records(2).method(), "BanditService/SetLearner");
+  EXPECT_EQ(audit.records(2).result(), "INVALID_ARGUMENT");
+  EXPECT_EQ(audit.records(3).method(), "BanditService/SetLearner");
+  EXPECT_EQ(audit.records(3).target(), "alice");
+  EXPECT_EQ(audit.records(3).result(), "OK");
+  EXPECT_EQ(audit.records(4).method(), "BanditService/CheckStore");
+  EXPECT_NE(audit.records(4).peer(), "");
+  EXPECT_GT(audit.records(4).time().seconds(), 1700000000);
 }
 
 TEST(ParseEventIdTest, TakesOnlyWhatSelectReturns) {

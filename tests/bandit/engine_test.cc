@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <functional>
 #include <memory>
 #include <random>
 #include <set>
@@ -746,6 +747,109 @@ TEST_F(EngineTest, PoLinUcbCheckpointsAndPoolsAsTheOtherLearners) {
   }
 }
 
+// `n` bites of `user` at random contexts (8 values), each learned at once
+// with loss 1, 0 every third, and a random post hoc context (4 values): the
+// rounds learned, in order. `each` sees every Select.
+std::vector<Round> LearnRandomRounds(
+    BanditEngine& engine, const std::string& user, int n, std::mt19937_64& rng,
+    const std::function<void(const SelectResult&)>& each = nullptr) {
+  std::vector<Round> seen;
+  for (int t = 0; t < n; ++t) {
+    SelectInput select{user, RandomVector(8, rng), "m", "item"};
+    absl::StatusOr<SelectResult> chosen = engine.Select(select);
+    EXPECT_TRUE(chosen.ok()) << chosen.status();
+    if (!chosen.ok()) return seen;
+    if (each) each(*chosen);
+    UpdateInput update{chosen->event_id, t % 3 ? 1.0 : 0.0,
+                       RandomVector(4, rng)};
+    EXPECT_TRUE(engine.Update(update).ok());
+    seen.push_back(Round{select.context, chosen->action, update.loss,
+                         update.posthoc, 1.0});
+  }
+  return seen;
+}
+
+// SetLearner moves a user to another learner and keeps the log: the model
+// is then the new learner's on every round learned, as the dense float64
+// reference computes it from the same rounds, after a restart too (the old
+// learner's checkpoint is gone), and back again. Refused for a user started
+// from a population pool, an unknown learner or user; the same learner
+// changes nothing.
+TEST_F(EngineTest, SetLearnerRebuildsTheModelFromTheLogUnderTheNewLearner) {
+  EngineOptions options;
+  options.checkpoint_min_events = 0;
+  Reopen(options);
+  ASSERT_TRUE(engine_->CreateUser("mo", SmallConfig()).ok());
+  std::mt19937_64 rng(53);
+  const std::vector<Round> seen = LearnRandomRounds(*engine_, "mo", 30, rng);
+  ASSERT_EQ(seen.size(), 30u);
+  ASSERT_TRUE(engine_->CheckpointUser("mo").ok());
+  const std::vector<double> at = RandomVector(8, rng);
+
+  absl::StatusOr<UserRecord> same =
+      engine_->SetLearner("mo", Learner::kPostHoc);
+  ASSERT_TRUE(same.ok()) << same.status();
+  EXPECT_EQ(same->config.learner, Learner::kPostHoc);
+
+  absl::StatusOr<UserRecord> moved =
+      engine_->SetLearner("mo", Learner::kPoLinUcb);
+  ASSERT_TRUE(moved.ok()) << moved.status();
+  EXPECT_EQ(moved->config.learner, Learner::kPoLinUcb);
+  EXPECT_EQ(moved->model_version, 30);
+  for (int restart = 0; restart < 2; ++restart) {
+    if (restart == 1) Reopen(options);
+    absl::StatusOr<EstimateResult> estimated = engine_->Estimate("mo", at);
+    ASSERT_TRUE(estimated.ok()) << estimated.status();
+    EXPECT_EQ(estimated->model_version, 30);
+    const testing::DensePoLinUcb ref =
+        testing::DensePoLinUcbReference(moved->config, seen, at);
+    const Eigen::Map<const Eigen::VectorXd> predicted(
+        estimated->predicted_posthoc.data(),
+        estimated->predicted_posthoc.size());
+    EXPECT_TRUE(bitewise::testing::RelNear(predicted, ref.p_hat, 1e-10));
+    for (int a = 0; a < 6; ++a) {
+      EXPECT_NEAR(estimated->estimates[a].predicted_loss, ref.predicted[a],
+                  1e-10 * std::max(1.0, std::abs(ref.predicted[a])))
+          << a;
+      EXPECT_NEAR(estimated->estimates[a].lcb, ref.lcb[a],
+                  1e-10 * std::max(1.0, std::abs(ref.lcb[a])))
+          << a;
+    }
+  }
+  EXPECT_EQ(engine_->Counters().checkpoint_loads, 0);  // the old one is gone
+
+  absl::StatusOr<UserRecord> back =
+      engine_->SetLearner("mo", Learner::kPostHoc);
+  ASSERT_TRUE(back.ok()) << back.status();
+  absl::StatusOr<ModelExport> model = engine_->GetModel("mo");
+  ASSERT_TRUE(model.ok()) << model.status();
+  const std::vector<testing::DenseActionModel> ref =
+      testing::DenseReference(back->config, seen);
+  for (int a = 0; a < 6; ++a) {
+    const Eigen::Map<const Eigen::VectorXd> theta(
+        model->actions[a].theta.data(), model->actions[a].theta.size());
+    EXPECT_TRUE(bitewise::testing::RelNear(theta, ref[a].theta, 1e-9)) << a;
+  }
+
+  EXPECT_EQ(engine_->SetLearner("nobody", Learner::kPoLinUcb).status().code(),
+            absl::StatusCode::kNotFound);
+  EXPECT_EQ(engine_->SetLearner("mo", static_cast<Learner>(9)).status().code(),
+            absl::StatusCode::kInvalidArgument);
+  // A user started from a pool keeps its learner: its prior is of that
+  // learner's statistics.
+  absl::StatusOr<PoolRecord> pool = engine_->BuildPopulationPool(SmallConfig());
+  ASSERT_TRUE(pool.ok()) << pool.status();
+  ASSERT_TRUE(engine_->CreateUser("primed", SmallConfig(), 2.0).ok());
+  absl::StatusOr<UserRecord> refused =
+      engine_->SetLearner("primed", Learner::kPoLinUcb);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(refused.status().message()),
+              ::testing::HasSubstr("population pool"));
+  absl::StatusOr<UserRecord> kept = engine_->GetUser("primed");
+  ASSERT_TRUE(kept.ok());
+  EXPECT_EQ(kept->config.learner, Learner::kPostHoc);
+}
+
 // A poLinUCB user's Select carries the post hoc context the model predicts
 // at the context, p_hat(c): the dense float64 reference's, from the rounds
 // it has learned. Other learners predict none.
@@ -755,22 +859,10 @@ TEST_F(EngineTest, PoLinUcbSelectCarriesItsPredictedPosthocContext) {
   ASSERT_TRUE(engine_->CreateUser("po", config).ok());
   ASSERT_TRUE(engine_->CreateUser("plain", SmallConfig()).ok());
   std::mt19937_64 rng(47);
-  std::vector<Round> seen;
-  for (int t = 0; t < 25; ++t) {
-    SelectInput select{"po", RandomVector(8, rng), "m", "item"};
-    absl::StatusOr<SelectResult> chosen = engine_->Select(select);
-    ASSERT_TRUE(chosen.ok()) << chosen.status();
-    ASSERT_EQ(chosen->predicted_posthoc.size(), 4u);
-    UpdateInput update{chosen->event_id, t % 3 ? 1.0 : 0.0,
-                       RandomVector(4, rng)};
-    ASSERT_TRUE(engine_->Update(update).ok());
-    Round round;
-    round.context = select.context;
-    round.action = chosen->action;
-    round.loss = update.loss;
-    round.posthoc = update.posthoc;
-    seen.push_back(round);
-  }
+  const std::vector<Round> seen = LearnRandomRounds(
+      *engine_, "po", 25, rng,
+      [](const SelectResult& r) { EXPECT_EQ(r.predicted_posthoc.size(), 4u); });
+  ASSERT_EQ(seen.size(), 25u);
   absl::StatusOr<ModelExport> model = engine_->GetModel("po");
   ASSERT_TRUE(model.ok()) << model.status();
   const std::vector<double> at = RandomVector(8, rng);

@@ -321,7 +321,20 @@ TEST(ReplicaTest, AResetOnOneReplicaIsSeenByTheOther) {
           .Update({after->event_id, 0.0, RandomVector(kPostHocDim, rng)})
           .ok());
   ExpectDenseReference(pair.replica(1), pair.store(), "ann");
-  // Reset again: replica 1's cached model (version 1) is of the old log. A
+  // A new learner on replica 0: replica 1 drops its cached model and
+  // rebuilds ann's from the log under poLinUCB.
+  ASSERT_TRUE(pair.replica(0).SetLearner("ann", Learner::kPoLinUcb).ok());
+  absl::StatusOr<SelectResult> moved =
+      pair.replica(1).Select({"ann", RandomVector(kDim, rng), "m", "i"});
+  ASSERT_TRUE(moved.ok()) << moved.status();
+  EXPECT_EQ(moved->model_version, 1);
+  EXPECT_EQ(moved->predicted_posthoc.size(), static_cast<size_t>(kPostHocDim));
+  EXPECT_GE(pair.replica(1).Counters().dropped_stale, 2);
+  ASSERT_TRUE(
+      pair.replica(1)
+          .Update({moved->event_id, 0.0, RandomVector(kPostHocDim, rng)})
+          .ok());
+  // Reset again: replica 1's cached model (version 2) is of the old log. A
   // checkpoint of it is refused, and the model is dropped rather than
   // offered again at every poll.
   ASSERT_TRUE(pair.replica(0).ResetUser("ann").ok());

@@ -33,7 +33,7 @@ TEST(RpcMethodsTest, EveryRpcOfEveryServiceIsInTheTable) {
   EXPECT_EQ(
       per_service[0],
       v1::SelectRequest::descriptor()->file()->service(0)->method_count());
-  EXPECT_EQ(per_service[0], 13);
+  EXPECT_EQ(per_service[0], 14);
   EXPECT_EQ(per_service[1], 2);
   EXPECT_EQ(per_service[2], 1);
   EXPECT_EQ(per_service[3], 6);
@@ -56,6 +56,8 @@ TEST(RpcMethodsTest, TheRolesAndTheAuditReadTheProtoOptions) {
   EXPECT_FALSE(OpenToEveryIdentity("RobotService/Acquire"));
   EXPECT_TRUE(Audited("BanditService/CreateUser"));
   EXPECT_TRUE(Audited("RobotService/Tare"));
+  EXPECT_TRUE(Audited("BanditService/SetLearner"));
+  EXPECT_FALSE(RoleAllows(Role::kResearcher, "BanditService/SetLearner"));
   EXPECT_FALSE(Audited("BanditService/Select"));
 }
 

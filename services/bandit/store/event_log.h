@@ -33,6 +33,13 @@ class EventLog {
   // Deletes all of the user's events and sets model_version to 0; keeps the
   // configuration. NOT_FOUND if unknown.
   virtual absl::Status ResetUser(const std::string& user_id) = 0;
+  // Changes the user's learner and keeps every event, so the model is
+  // rebuilt from the log under the new learner; deletes the user's
+  // checkpoint (the old learner's). Shared stores give the user a new
+  // incarnation, so other processes drop their cached models. NOT_FOUND if
+  // unknown.
+  virtual absl::Status SetLearner(const std::string& user_id,
+                                  Learner learner) = 0;
 
   // Durably appends a pending event (event_id, completed and the outcome
   // fields of `event` are ignored) and returns its new event_id.

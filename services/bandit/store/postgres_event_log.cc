@@ -129,6 +129,22 @@ absl::Status PostgresEventStore::ResetUser(const std::string& user_id) {
   return txn.Commit();
 }
 
+absl::Status PostgresEventStore::SetLearner(const std::string& user_id,
+                                            Learner learner) {
+  constexpr char kOp[] = "SetLearner";
+  ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
+  ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp));
+  RETURN_IF_ERROR(LockUser(*conn, user_id, kOp));
+  RETURN_IF_ERROR(
+      conn->Exec("UPDATE users SET learner = $2, incarnation = "
+                 "nextval('user_incarnations') WHERE user_id = $1",
+                 Params().Text(user_id).Int64(static_cast<int64_t>(learner)),
+                 kOp)
+          .status());
+  RETURN_IF_ERROR(DeleteCheckpointRows(*conn, user_id, kOp));
+  return txn.Commit();
+}
+
 absl::StatusOr<int64_t> PostgresEventStore::AppendPending(
     const EventRecord& event) {
   return Append(event, nullptr);

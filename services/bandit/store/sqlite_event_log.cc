@@ -223,6 +223,29 @@ absl::Status SqliteEventStore::ResetUser(const std::string& user_id) {
   return absl::OkStatus();
 }
 
+absl::Status SqliteEventStore::SetLearner(const std::string& user_id,
+                                          Learner learner) {
+  RETURN_IF_ERROR(CheckHealth());
+  absl::MutexLock lock(&mu_);
+  ASSIGN_OR_RETURN(
+      Transaction txn,
+      Transaction::Begin(db_, Transaction::Kind::kWrite, "SetLearner"));
+  {
+    ASSIGN_OR_RETURN(Statement st,
+                     Statement::Prepare(db_,
+                                        "UPDATE users SET learner = ?2 "
+                                        "WHERE user_id = ?1 RETURNING user_id",
+                                        "SetLearner"));
+    st.BindText(1, user_id);
+    st.BindInt64(2, static_cast<int64_t>(learner));
+    ASSIGN_OR_RETURN(const bool found, st.Step());
+    RETURN_IF_ERROR(st.Run());
+    if (!found) return UserNotFound(user_id);
+  }
+  RETURN_IF_ERROR(DeleteCheckpointLocked(user_id));
+  return txn.Commit();
+}
+
 absl::StatusOr<int64_t> SqliteEventStore::AppendPending(
     const EventRecord& event) {
   RETURN_IF_ERROR(CheckHealth());

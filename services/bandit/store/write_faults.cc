@@ -174,6 +174,12 @@ absl::Status FaultWatchStore::ResetUser(const std::string& user_id) {
   return Note(store_->ResetUser(user_id));
 }
 
+absl::Status FaultWatchStore::SetLearner(const std::string& user_id,
+                                         Learner learner) {
+  RETURN_IF_ERROR(Writable());
+  return Note(store_->SetLearner(user_id, learner));
+}
+
 absl::StatusOr<int64_t> FaultWatchStore::AppendPending(
     const EventRecord& event) {
   RETURN_IF_ERROR(Writable());

@@ -77,8 +77,12 @@ TEST_P(CheckpointContractTest, CheckpointsRoundTripInChunksAndGoWithTheLog) {
   EXPECT_EQ(store_->GetCheckpoint("ann").status().code(),
             absl::StatusCode::kNotFound);
   checkpoint.model_version = 5;
-  // Reset and delete take it along.
+  // A new learner, reset and delete take it along.
   checkpoint.last_event_id = ids[4];
+  ASSERT_TRUE(store_->PutCheckpoint("ann", checkpoint).ok());
+  ASSERT_TRUE(store_->SetLearner("ann", Learner::kPoLinUcb).ok());
+  EXPECT_EQ(store_->GetCheckpoint("ann").status().code(),
+            absl::StatusCode::kNotFound);
   ASSERT_TRUE(store_->PutCheckpoint("ann", checkpoint).ok());
   ASSERT_TRUE(store_->ResetUser("ann").ok());
   EXPECT_EQ(store_->GetCheckpoint("ann").status().code(),

@@ -5,7 +5,26 @@
 namespace bitewise::bandit::store_test {
 namespace {
 
-class EventLogContractTest : public StoreContractTest {};
+class EventLogContractTest : public StoreContractTest {
+ protected:
+  // alice (alpha 0.5) with one completed event and one pending, and bob
+  // with none: what a reset or a new learner is tried on.
+  struct Alice {
+    UserRecord user;
+    int64_t done = 0;
+    int64_t pending = 0;
+  };
+  Alice AliceWithTwoEvents() {
+    Alice alice{MakeUser("alice")};
+    alice.user.config.alpha = 0.5;
+    EXPECT_TRUE(store_->CreateUser(alice.user).ok());
+    EXPECT_TRUE(store_->CreateUser(MakeUser("bob")).ok());
+    alice.done = MustAppend(MakeEvent("alice", "m"));
+    MustComplete(alice.done);
+    alice.pending = MustAppend(MakeEvent("alice", "m"));
+    return alice;
+  }
+};
 INSTANTIATE_TEST_SUITE_P(Stores, EventLogContractTest, kAllBackends,
                          BackendName);
 
@@ -74,6 +93,8 @@ TEST_P(EventLogContractTest, UnknownUserIsNotFoundEverywhere) {
             absl::StatusCode::kNotFound);
   EXPECT_EQ(store_->DeleteUser("nobody").code(), absl::StatusCode::kNotFound);
   EXPECT_EQ(store_->ResetUser("nobody").code(), absl::StatusCode::kNotFound);
+  EXPECT_EQ(store_->SetLearner("nobody", Learner::kPoLinUcb).code(),
+            absl::StatusCode::kNotFound);
   const auto appended = store_->AppendPending(MakeEvent("nobody", "m"));
   EXPECT_EQ(appended.status().code(), absl::StatusCode::kNotFound);
   EXPECT_THAT(appended.status().message(), HasSubstr("nobody"));
@@ -504,13 +525,7 @@ TEST_P(EventLogContractTest, CompletedEventsAreInModelVersionOrder) {
 }
 
 TEST_P(EventLogContractTest, ResetUserDeletesEventsAndKeepsConfig) {
-  UserRecord user = MakeUser("alice");
-  user.config.alpha = 0.5;
-  ASSERT_TRUE(store_->CreateUser(user).ok());
-  ASSERT_TRUE(store_->CreateUser(MakeUser("bob")).ok());
-  const int64_t done = MustAppend(MakeEvent("alice", "m"));
-  MustComplete(done);
-  const int64_t pending = MustAppend(MakeEvent("alice", "m"));
+  const auto [user, done, pending] = AliceWithTwoEvents();
   const int64_t bobs = MustAppend(MakeEvent("bob", "m"));
 
   ASSERT_TRUE(store_->ResetUser("alice").ok());
@@ -532,6 +547,25 @@ TEST_P(EventLogContractTest, ResetUserDeletesEventsAndKeepsConfig) {
   const int64_t fresh = MustAppend(MakeEvent("alice", "m"));
   EXPECT_GT(fresh, bobs);
   EXPECT_EQ(MustComplete(fresh).model_version, 1);
+}
+
+TEST_P(EventLogContractTest, SetLearnerKeepsEveryEventAndTheRestOfTheConfig) {
+  const auto [user, done, pending] = AliceWithTwoEvents();
+  const UserRecord before = MustGetUser("alice");
+
+  ASSERT_TRUE(store_->SetLearner("alice", Learner::kPoLinUcb).ok());
+  const UserRecord moved = MustGetUser("alice");
+  EXPECT_EQ(moved.config.learner, Learner::kPoLinUcb);
+  EXPECT_EQ(moved.config.alpha, 0.5);
+  EXPECT_EQ(moved.config.seed, before.config.seed);
+  EXPECT_EQ(moved.model_version, 1);
+  EXPECT_EQ(moved.pending_events, 1);
+  EXPECT_EQ(moved.created_at, before.created_at);
+  EXPECT_TRUE(MustGetEvent(done).completed);
+  EXPECT_FALSE(MustGetEvent(pending).completed);
+  EXPECT_EQ(MustGetUser("bob").config.learner, MakeUser("bob").config.learner);
+  // The log goes on where it was.
+  EXPECT_EQ(MustComplete(pending).model_version, 2);
 }
 
 TEST_P(EventLogContractTest, DeleteUserCascadesToEvents) {
