@@ -143,6 +143,7 @@ absl::Status BanditEngine::MaybeCheckpoint(
     }
     checkpoint.model_version = version;
     checkpoint.last_event_id = slot.last_event_id;
+    checkpoint.learner = slot.model->config().learner;
     checkpoint.created_at = absl::Now();
     slot.model->SaveState(&buffer);
     checkpoint.state = std::move(buffer);
@@ -271,15 +272,8 @@ absl::Status BanditEngine::EnsureLoaded(const std::string& user_id,
     model = LoadFromCheckpoint(record, &last_event_id, &checkpoint_version);
   }
   if (model == nullptr) {
-    ASSIGN_OR_RETURN(std::vector<EventRecord> events,
-                     store_->CompletedEvents(user_id));
-    last_event_id = events.empty() ? 0 : events.back().event_id;
-    std::vector<Round> rounds;
-    rounds.reserve(events.size());
-    for (EventRecord& event : events) {
-      rounds.push_back(EventRound(std::move(event)));
-    }
-    std::vector<EventRecord>().swap(events);
+    ASSIGN_OR_RETURN(const std::vector<Round> rounds,
+                     CompletedRounds(user_id, &last_event_id));
     ASSIGN_OR_RETURN(
         model, RebuildModel(record.config, rounds, options_.primal_threshold));
   }
@@ -492,6 +486,21 @@ absl::Status CheckModelFits(const BanditConfig& config, size_t bytes,
 
 }  // namespace
 
+absl::StatusOr<std::vector<Round>> BanditEngine::CompletedRounds(
+    const std::string& user_id, int64_t* last_event_id) {
+  ASSIGN_OR_RETURN(std::vector<EventRecord> events,
+                   store_->CompletedEvents(user_id));
+  if (last_event_id != nullptr) {
+    *last_event_id = events.empty() ? 0 : events.back().event_id;
+  }
+  std::vector<Round> rounds;
+  rounds.reserve(events.size());
+  for (EventRecord& event : events) {
+    rounds.push_back(EventRound(std::move(event)));
+  }
+  return rounds;
+}
+
 absl::Status BanditEngine::CheckConfigFits(const BanditConfig& config) const {
   RETURN_IF_ERROR(ValidateConfig(config));
   const size_t worst_bytes = MaxModelBytes(config);
@@ -625,11 +634,24 @@ absl::StatusOr<UserRecord> BanditEngine::SetLearner(const std::string& user_id,
         user.config.prior.pool_version, " of ",
         LearnerName(user.config.learner),
         " users, whose prior does not carry to ", LearnerName(learner),
-        "; ResetUser first (it forgets the history) or keep the learner"));
+        "; keep the learner, or delete the user and create it again with the "
+        "new one (that forgets the history; ResetUser keeps the prior)"));
   }
   BanditConfig config = user.config;
   config.learner = learner;
   RETURN_IF_ERROR(CheckConfigFits(config));
+  // The new learner must be able to learn every round of the log (a
+  // context-only user's rounds may have no post hoc context): rebuilt
+  // here, before anything is written.
+  ASSIGN_OR_RETURN(const std::vector<Round> rounds, CompletedRounds(user_id));
+  if (absl::StatusOr<std::unique_ptr<LearnerModel>> rebuilt =
+          RebuildModel(config, rounds, options_.primal_threshold);
+      !rebuilt.ok()) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("user \"", user_id, "\"'s log cannot be learned by ",
+                     LearnerName(learner), ": ", rebuilt.status().message(),
+                     "; the learner is unchanged"));
+  }
   RETURN_IF_ERROR(store_->SetLearner(user_id, learner));
   Unload(*slot);
   return store_->GetUser(user_id);

@@ -230,6 +230,10 @@ class BanditEngine {
   // service's limits and cache budget and its GetModel reply within a
   // message (INVALID_ARGUMENT naming which).
   absl::Status CheckConfigFits(const BanditConfig& config) const;
+  // Every completed round of the user's log, in order (`last_event_id`: the
+  // last one's event, 0 for none).
+  absl::StatusOr<std::vector<Round>> CompletedRounds(
+      const std::string& user_id, int64_t* last_event_id = nullptr);
   struct UserSlot {
     absl::Mutex mu;
     // Loaded state, valid while `model` has a value.

@@ -17,7 +17,8 @@
 //   researcher: read only (GetUser, ListUsers, GetModel, Estimate, ListEvents,
 //     and the stateless DetectFood, Featurize, Classify, GetStatus,
 //     ListActions);
-//   admin: everything, including ResetUser, DeleteUser, BuildPopulationPrior.
+//   admin: everything, including ResetUser, SetLearner, DeleteUser,
+//     BuildPopulationPrior.
 // RobotService/Stop stays callable by every client with a valid lab
 // certificate, role or not: anyone must be able to stop the arm.
 //

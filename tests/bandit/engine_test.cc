@@ -817,6 +817,7 @@ TEST_F(EngineTest, SetLearnerRebuildsTheModelFromTheLogUnderTheNewLearner) {
     }
   }
   EXPECT_EQ(engine_->Counters().checkpoint_loads, 0);  // the old one is gone
+  EXPECT_EQ(engine_->Counters().checkpoints_ignored, 0);
 
   absl::StatusOr<UserRecord> back =
       engine_->SetLearner("mo", Learner::kPostHoc);
@@ -835,6 +836,26 @@ TEST_F(EngineTest, SetLearnerRebuildsTheModelFromTheLogUnderTheNewLearner) {
             absl::StatusCode::kNotFound);
   EXPECT_EQ(engine_->SetLearner("mo", static_cast<Learner>(9)).status().code(),
             absl::StatusCode::kInvalidArgument);
+  // A context-only user's rounds without a post hoc context cannot be
+  // learned by a post hoc learner: refused before anything is written.
+  BanditConfig vision = SmallConfig();
+  vision.learner = Learner::kContextOnly;
+  ASSERT_TRUE(engine_->CreateUser("vi", vision).ok());
+  for (int t = 0; t < 3; ++t) {
+    absl::StatusOr<SelectResult> chosen =
+        engine_->Select({"vi", RandomVector(8, rng), "m", "item"});
+    ASSERT_TRUE(chosen.ok()) << chosen.status();
+    ASSERT_TRUE(engine_->Update({chosen->event_id, 1.0, {}}).ok());
+  }
+  absl::StatusOr<UserRecord> unlearnable =
+      engine_->SetLearner("vi", Learner::kPostHoc);
+  EXPECT_EQ(unlearnable.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(unlearnable.status().message()),
+              ::testing::HasSubstr("cannot be learned by posthoc"));
+  absl::StatusOr<UserRecord> vi = engine_->GetUser("vi");
+  ASSERT_TRUE(vi.ok());
+  EXPECT_EQ(vi->config.learner, Learner::kContextOnly);
+  EXPECT_TRUE(engine_->Select({"vi", RandomVector(8, rng), "m", "item"}).ok());
   // A user started from a pool keeps its learner: its prior is of that
   // learner's statistics.
   absl::StatusOr<PoolRecord> pool = engine_->BuildPopulationPool(SmallConfig());

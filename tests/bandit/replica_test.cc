@@ -334,7 +334,22 @@ TEST(ReplicaTest, AResetOnOneReplicaIsSeenByTheOther) {
       pair.replica(1)
           .Update({moved->event_id, 0.0, RandomVector(kPostHocDim, rng)})
           .ok());
-  // Reset again: replica 1's cached model (version 2) is of the old log. A
+  // And back: replica 1's poLinUCB model is not saved as ann's checkpoint
+  // (its events are all there, its learner is not ann's), and is dropped.
+  ASSERT_TRUE(pair.replica(0).SetLearner("ann", Learner::kPostHoc).ok());
+  ASSERT_EQ(pair.replica(1).CachedModels(), 1);
+  EXPECT_EQ(pair.replica(1).CheckpointUser("ann").code(),
+            absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ(pair.replica(1).CachedModels(), 0);
+  absl::StatusOr<SelectResult> back =
+      pair.replica(1).Select({"ann", RandomVector(kDim, rng), "m", "i"});
+  ASSERT_TRUE(back.ok()) << back.status();
+  EXPECT_TRUE(back->predicted_posthoc.empty());
+  ASSERT_TRUE(pair.replica(1)
+                  .Update({back->event_id, 1.0, RandomVector(kPostHocDim, rng)})
+                  .ok());
+  ExpectDenseReference(pair.replica(1), pair.store(), "ann");
+  // Reset again: replica 1's cached model (version 3) is of the old log. A
   // checkpoint of it is refused, and the model is dropped rather than
   // offered again at every poll.
   ASSERT_TRUE(pair.replica(0).ResetUser("ann").ok());

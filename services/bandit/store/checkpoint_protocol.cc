@@ -18,6 +18,7 @@ absl::Status WriteCheckpoint(CheckpointRows& rows, const std::string& user_id,
   CheckpointHeader header;
   header.model_version = checkpoint.model_version;
   header.last_event_id = checkpoint.last_event_id;
+  header.learner = checkpoint.learner;
   header.state_bytes = static_cast<int64_t>(state.size());
   header.chunks =
       static_cast<int64_t>((state.size() + chunk_bytes - 1) / chunk_bytes);

@@ -34,6 +34,7 @@ namespace bitewise::bandit {
 struct CheckpointHeader {
   int64_t model_version = 0;
   int64_t last_event_id = 0;
+  Learner learner = Learner::kPostHoc;  // must be the user's to be current
   int64_t write_key = 0;
   int64_t state_bytes = 0;
   int64_t chunks = 0;

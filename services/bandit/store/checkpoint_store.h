@@ -31,7 +31,8 @@ class CheckpointStore {
   // user if its bytes are incomplete or do not match their checksum.
   virtual absl::StatusOr<ModelCheckpoint> GetCheckpoint(
       const std::string& user_id) = 0;
-  // Removes the user's checkpoint, if any (ResetUser and DeleteUser do too).
+  // Removes the user's checkpoint, if any (ResetUser, SetLearner and
+  // DeleteUser do too).
   virtual absl::Status DeleteCheckpoint(const std::string& user_id) = 0;
 };
 

@@ -55,12 +55,14 @@ class PostgresCheckpointRows final : public CheckpointRows {
     HeaderOutcome outcome;
     ASSIGN_OR_RETURN(
         Rows current,
-        conn_.Exec("SELECT 1 FROM events WHERE user_id = $1 AND completed AND "
-                   "model_version = $2 AND event_id = $3",
+        conn_.Exec("SELECT 1 FROM events JOIN users USING (user_id) WHERE "
+                   "user_id = $1 AND completed AND events.model_version = $2 "
+                   "AND event_id = $3 AND users.learner = $4",
                    Params()
                        .Text(user_id)
                        .Int64(header.model_version)
-                       .Int64(header.last_event_id),
+                       .Int64(header.last_event_id)
+                       .Int64(static_cast<int64_t>(header.learner)),
                    kOp));
     outcome.current = current.size() > 0;
     ASSIGN_OR_RETURN(

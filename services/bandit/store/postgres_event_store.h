@@ -30,8 +30,9 @@
 //    server returns, without a restart. If the connection is lost at
 //    COMMIT the outcome is unknown: UNAVAILABLE says so, and a retried
 //    Update is then either applied once or FAILED_PRECONDITION.
-//  - Users carry an incarnation (a sequence value set at CreateUser and
-//    ResetUser) so a process can tell a cached model is of an older log.
+//  - Users carry an incarnation (a sequence value set at CreateUser,
+//    ResetUser and SetLearner; the DDL's comment predates the last) so a
+//    process can tell a cached model is of an older log or learner.
 //  - CheckStore reads back every user, event and checkpoint; the storage's
 //    own consistency is the server's (see docs/operations.md, amcheck).
 #ifndef BITEWISE_SERVICES_BANDIT_STORE_POSTGRES_EVENT_STORE_H_

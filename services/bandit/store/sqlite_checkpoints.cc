@@ -80,13 +80,15 @@ class SqliteEventStore::CheckpointRowsImpl final : public CheckpointRows {
       ASSIGN_OR_RETURN(
           Statement st,
           Statement::Prepare(db,
-                             "SELECT 1 FROM events WHERE user_id = ?1 AND "
-                             "completed = 1 AND model_version = ?2 AND "
-                             "event_id = ?3",
+                             "SELECT 1 FROM events JOIN users USING (user_id) "
+                             "WHERE user_id = ?1 AND completed = 1 AND "
+                             "events.model_version = ?2 AND event_id = ?3 AND "
+                             "users.learner = ?4",
                              kOp));
       st.BindText(1, user_id);
       st.BindInt64(2, header.model_version);
       st.BindInt64(3, header.last_event_id);
+      st.BindInt64(4, static_cast<int64_t>(header.learner));
       ASSIGN_OR_RETURN(outcome.current, st.Step());
       RETURN_IF_ERROR(st.Run());
     }

@@ -26,7 +26,8 @@ struct UserRecord {
   // Number of completed events since creation or the last reset.
   int64_t model_version = 0;
   int64_t pending_events = 0;
-  // Changes whenever the user's log starts over (CreateUser, ResetUser) in
+  // Changes whenever the user's log starts over or is to be learned anew
+  // (CreateUser, ResetUser, SetLearner) in
   // a store several processes share (PostgreSQL), so a process can tell
   // its cached model belongs to an older log; always 0 in SQLite.
   int64_t incarnation = 0;
@@ -92,6 +93,9 @@ struct PoolRecord {
 struct ModelCheckpoint {
   int64_t model_version = 0;  // completed events it covers, > 0
   int64_t last_event_id = 0;  // the event at model_version: ties it to the log
+  // The model's learner: kept only while it is the user's (a checkpoint of
+  // a model from before SetLearner is not current).
+  Learner learner = Learner::kPostHoc;
   std::string state;
   absl::Time created_at;
 };

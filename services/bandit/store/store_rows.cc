@@ -264,8 +264,10 @@ absl::Status CheckpointNotKept(absl::string_view user_id,
                                const ModelCheckpoint& checkpoint) {
   return absl::FailedPreconditionError(absl::StrCat(
       "checkpoint of user ", user_id, " at model version ",
-      checkpoint.model_version, ": the log no longer has event ",
-      checkpoint.last_event_id, " there (reset meanwhile?); not kept"));
+      checkpoint.model_version, " (", LearnerName(checkpoint.learner),
+      "): the log no longer has event ", checkpoint.last_event_id,
+      " there, or the user has another learner now (reset or SetLearner "
+      "meanwhile?); not kept"));
 }
 
 absl::Status NoPoolFor(const BanditConfig& config, int posthoc_dim) {

@@ -83,6 +83,13 @@ TEST_P(CheckpointContractTest, CheckpointsRoundTripInChunksAndGoWithTheLog) {
   ASSERT_TRUE(store_->SetLearner("ann", Learner::kPoLinUcb).ok());
   EXPECT_EQ(store_->GetCheckpoint("ann").status().code(),
             absl::StatusCode::kNotFound);
+  // A model of the old learner, written late, is not current.
+  const absl::Status late = store_->PutCheckpoint("ann", checkpoint);
+  EXPECT_EQ(late.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(late.message()), HasSubstr("another learner"));
+  EXPECT_EQ(store_->GetCheckpoint("ann").status().code(),
+            absl::StatusCode::kNotFound);
+  checkpoint.learner = Learner::kPoLinUcb;
   ASSERT_TRUE(store_->PutCheckpoint("ann", checkpoint).ok());
   ASSERT_TRUE(store_->ResetUser("ann").ok());
   EXPECT_EQ(store_->GetCheckpoint("ann").status().code(),
@@ -93,6 +100,7 @@ TEST_P(CheckpointContractTest, CheckpointsRoundTripInChunksAndGoWithTheLog) {
   MustComplete(bob_event);
   checkpoint.model_version = 1;
   checkpoint.last_event_id = bob_event;
+  checkpoint.learner = Learner::kPostHoc;
   ASSERT_TRUE(store_->PutCheckpoint("bob", checkpoint).ok());
   ASSERT_TRUE(store_->DeleteUser("bob").ok());
   EXPECT_EQ(Raw().Text("SELECT COUNT(*) FROM model_checkpoints"), "0");
