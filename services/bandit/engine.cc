@@ -166,7 +166,8 @@ absl::Status BanditEngine::MaybeCheckpoint(
     absl::MutexLock lock(&slot.mu);
     if (slot.model != nullptr &&
         slot.model->TotalRounds() == checkpoint.model_version &&
-        slot.last_event_id == checkpoint.last_event_id) {
+        slot.last_event_id == checkpoint.last_event_id &&
+        slot.model->config().learner == checkpoint.learner) {
       Unload(slot);
     }
   }
@@ -642,17 +643,22 @@ absl::StatusOr<UserRecord> BanditEngine::SetLearner(const std::string& user_id,
   RETURN_IF_ERROR(CheckConfigFits(config));
   // The new learner must be able to learn every round of the log (a
   // context-only user's rounds may have no post hoc context): rebuilt
-  // here, before anything is written.
-  ASSIGN_OR_RETURN(const std::vector<Round> rounds, CompletedRounds(user_id));
-  if (absl::StatusOr<std::unique_ptr<LearnerModel>> rebuilt =
-          RebuildModel(config, rounds, options_.primal_threshold);
-      !rebuilt.ok()) {
-    return absl::FailedPreconditionError(
-        absl::StrCat("user \"", user_id, "\"'s log cannot be learned by ",
-                     LearnerName(learner), ": ", rebuilt.status().message(),
-                     "; the learner is unchanged"));
+  // here, before anything is written; the write then requires the log to
+  // be the one checked (another process may complete a bite meanwhile).
+  int64_t checked = 0;
+  {
+    ASSIGN_OR_RETURN(const std::vector<Round> rounds, CompletedRounds(user_id));
+    checked = static_cast<int64_t>(rounds.size());
+    if (absl::StatusOr<std::unique_ptr<LearnerModel>> rebuilt =
+            RebuildModel(config, rounds, options_.primal_threshold);
+        !rebuilt.ok()) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("user \"", user_id, "\"'s log cannot be learned by ",
+                       LearnerName(learner), ": ", rebuilt.status().message(),
+                       "; the learner is unchanged"));
+    }
   }
-  RETURN_IF_ERROR(store_->SetLearner(user_id, learner));
+  RETURN_IF_ERROR(store_->SetLearner(user_id, learner, checked));
   Unload(*slot);
   return store_->GetUser(user_id);
 }

@@ -165,7 +165,9 @@ class BanditEngine {
   // unchanged). The same learner changes nothing. INVALID_ARGUMENT for an
   // unknown learner or one whose model would not fit (as at CreateUser);
   // FAILED_PRECONDITION for a user started from a population pool (its
-  // prior is of the old learner's statistics); NOT_FOUND if unknown.
+  // prior is of the old learner's statistics) or a log the new learner
+  // cannot learn; ABORTED when another process completed a bite while the
+  // log was read; NOT_FOUND if unknown. Nothing is changed when refused.
   absl::StatusOr<UserRecord> SetLearner(const std::string& user_id,
                                         Learner learner);
   absl::Status DeleteUser(const std::string& user_id);

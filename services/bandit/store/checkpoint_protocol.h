@@ -5,8 +5,9 @@
 // Writing: the state is cut into chunks, each written in a transaction of
 // its own under a write key no other write of the user's checkpoint uses;
 // then, in one transaction under the user's lock, the header is written if
-// the log still has the checkpoint's last event at its model version and
-// every chunk of this write is there (a concurrent checkpoint or delete
+// the log still has the checkpoint's last event at its model version, the
+// user's learner is still the checkpoint's, and every chunk of this write
+// is there (a concurrent checkpoint or delete
 // removes chunks it does not keep), never replacing a newer header; and
 // the chunks of every other write go. The checkpoint counts once its header
 // is committed. Reading: the header, then its write's chunks in order,
@@ -44,7 +45,8 @@ struct CheckpointHeader {
 
 // What CommitHeader found.
 struct HeaderOutcome {
-  bool current = false;   // the log has the last event at the version
+  // The log has the last event at the version, and the user the learner.
+  bool current = false;
   bool complete = false;  // every chunk of the write is there
 };
 

@@ -24,7 +24,8 @@ class CheckpointStore {
   // chunks, each its own transaction, so other calls are not held up; the
   // checkpoint counts once its header is written. FAILED_PRECONDITION if the
   // log no longer has `last_event_id` at `model_version` (the user was reset
-  // meanwhile): nothing is kept. NOT_FOUND for an unknown user.
+  // meanwhile) or the user's learner is no longer `checkpoint.learner`
+  // (SetLearner meanwhile): nothing is kept. NOT_FOUND for an unknown user.
   virtual absl::Status PutCheckpoint(const std::string& user_id,
                                      const ModelCheckpoint& checkpoint) = 0;
   // The user's checkpoint. NOT_FOUND if there is none; DATA_LOSS naming the

@@ -36,10 +36,12 @@ class EventLog {
   // Changes the user's learner and keeps every event, so the model is
   // rebuilt from the log under the new learner; deletes the user's
   // checkpoint (the old learner's). Shared stores give the user a new
-  // incarnation, so other processes drop their cached models. NOT_FOUND if
-  // unknown.
-  virtual absl::Status SetLearner(const std::string& user_id,
-                                  Learner learner) = 0;
+  // incarnation, so other processes drop their cached models. Only while
+  // the user has `model_version` completed events (the log the caller
+  // checked the new learner on): ABORTED, nothing written, otherwise.
+  // NOT_FOUND if unknown.
+  virtual absl::Status SetLearner(const std::string& user_id, Learner learner,
+                                  int64_t model_version) = 0;
 
   // Durably appends a pending event (event_id, completed and the outcome
   // fields of `event` are ignored) and returns its new event_id.

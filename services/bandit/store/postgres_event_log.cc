@@ -130,11 +130,21 @@ absl::Status PostgresEventStore::ResetUser(const std::string& user_id) {
 }
 
 absl::Status PostgresEventStore::SetLearner(const std::string& user_id,
-                                            Learner learner) {
+                                            Learner learner,
+                                            int64_t model_version) {
   constexpr char kOp[] = "SetLearner";
   ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool_->Acquire(kOp));
   ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(*conn, kOp));
   RETURN_IF_ERROR(LockUser(*conn, user_id, kOp));
+  {
+    ASSIGN_OR_RETURN(
+        Rows rows,
+        conn->Exec("SELECT model_version FROM users WHERE user_id = $1",
+                   Params().Text(user_id), kOp));
+    rows.Next();
+    RETURN_IF_ERROR(
+        store_rows::LogMovedSince(user_id, model_version, rows.Int64(0), kOp));
+  }
   RETURN_IF_ERROR(
       conn->Exec("UPDATE users SET learner = $2, incarnation = "
                  "nextval('user_incarnations') WHERE user_id = $1",

@@ -89,7 +89,8 @@ class PostgresEventStore final : public EventStore {
   absl::StatusOr<PageResult<UserRecord>> ListUsers(const Page& page) override;
   absl::Status DeleteUser(const std::string& user_id) override;
   absl::Status ResetUser(const std::string& user_id) override;
-  absl::Status SetLearner(const std::string& user_id, Learner learner) override;
+  absl::Status SetLearner(const std::string& user_id, Learner learner,
+                          int64_t model_version) override;
   absl::StatusOr<int64_t> AppendPending(const EventRecord& event) override;
   absl::StatusOr<EventRecord> CompleteEvent(int64_t event_id, double loss,
                                             const std::vector<double>& posthoc,

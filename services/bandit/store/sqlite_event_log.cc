@@ -224,23 +224,35 @@ absl::Status SqliteEventStore::ResetUser(const std::string& user_id) {
 }
 
 absl::Status SqliteEventStore::SetLearner(const std::string& user_id,
-                                          Learner learner) {
+                                          Learner learner,
+                                          int64_t model_version) {
   RETURN_IF_ERROR(CheckHealth());
   absl::MutexLock lock(&mu_);
   ASSIGN_OR_RETURN(
       Transaction txn,
       Transaction::Begin(db_, Transaction::Kind::kWrite, "SetLearner"));
   {
+    ASSIGN_OR_RETURN(
+        Statement st,
+        Statement::Prepare(db_,
+                           "SELECT model_version FROM users WHERE user_id = ?1",
+                           "SetLearner"));
+    st.BindText(1, user_id);
+    ASSIGN_OR_RETURN(const bool found, st.Step());
+    if (!found) return UserNotFound(user_id);
+    RETURN_IF_ERROR(store_rows::LogMovedSince(user_id, model_version,
+                                              st.Int64(0), "SetLearner"));
+    RETURN_IF_ERROR(st.Run());
+  }
+  {
     ASSIGN_OR_RETURN(Statement st,
                      Statement::Prepare(db_,
                                         "UPDATE users SET learner = ?2 "
-                                        "WHERE user_id = ?1 RETURNING user_id",
+                                        "WHERE user_id = ?1",
                                         "SetLearner"));
     st.BindText(1, user_id);
     st.BindInt64(2, static_cast<int64_t>(learner));
-    ASSIGN_OR_RETURN(const bool found, st.Step());
     RETURN_IF_ERROR(st.Run());
-    if (!found) return UserNotFound(user_id);
   }
   RETURN_IF_ERROR(DeleteCheckpointLocked(user_id));
   return txn.Commit();

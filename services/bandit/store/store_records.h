@@ -93,8 +93,9 @@ struct PoolRecord {
 struct ModelCheckpoint {
   int64_t model_version = 0;  // completed events it covers, > 0
   int64_t last_event_id = 0;  // the event at model_version: ties it to the log
-  // The model's learner: kept only while it is the user's (a checkpoint of
-  // a model from before SetLearner is not current).
+  // Written: the model's learner, checked against the user's (a model from
+  // before SetLearner is not current). Not stored: a checkpoint read back
+  // leaves it unset here (LoadModel checks the state against the config).
   Learner learner = Learner::kPostHoc;
   std::string state;
   absl::Time created_at;

@@ -270,6 +270,16 @@ absl::Status CheckpointNotKept(absl::string_view user_id,
       "meanwhile?); not kept"));
 }
 
+absl::Status LogMovedSince(absl::string_view user_id, int64_t expected,
+                           int64_t model_version, absl::string_view op) {
+  if (model_version == expected) return absl::OkStatus();
+  return absl::AbortedError(absl::StrCat(
+      op, ": user \"", user_id, "\" has ", model_version,
+      " completed events, not the ", expected,
+      " it was checked on (a bite was learned meanwhile); nothing changed, "
+      "try again"));
+}
+
 absl::Status NoPoolFor(const BanditConfig& config, int posthoc_dim) {
   return absl::NotFoundError(absl::StrCat(
       "no population pool for ", LearnerName(config.learner),

@@ -135,6 +135,10 @@ absl::Status CheckpointDamaged(absl::string_view user_id, int64_t model_version,
                                int64_t got_chunks, int64_t chunks);
 absl::Status CheckpointNotKept(absl::string_view user_id,
                                const ModelCheckpoint& checkpoint);
+// ABORTED naming the user and both counts unless `model_version` (the
+// user's completed events now) is `expected` (what `op` was checked on).
+absl::Status LogMovedSince(absl::string_view user_id, int64_t expected,
+                           int64_t model_version, absl::string_view op);
 absl::Status NoPoolFor(const BanditConfig& config, int posthoc_dim);
 
 // The action names of one user or pool, read row by row (action, name) in

@@ -175,9 +175,10 @@ absl::Status FaultWatchStore::ResetUser(const std::string& user_id) {
 }
 
 absl::Status FaultWatchStore::SetLearner(const std::string& user_id,
-                                         Learner learner) {
+                                         Learner learner,
+                                         int64_t model_version) {
   RETURN_IF_ERROR(Writable());
-  return Note(store_->SetLearner(user_id, learner));
+  return Note(store_->SetLearner(user_id, learner, model_version));
 }
 
 absl::StatusOr<int64_t> FaultWatchStore::AppendPending(

@@ -80,7 +80,7 @@ TEST_P(CheckpointContractTest, CheckpointsRoundTripInChunksAndGoWithTheLog) {
   // A new learner, reset and delete take it along.
   checkpoint.last_event_id = ids[4];
   ASSERT_TRUE(store_->PutCheckpoint("ann", checkpoint).ok());
-  ASSERT_TRUE(store_->SetLearner("ann", Learner::kPoLinUcb).ok());
+  ASSERT_TRUE(store_->SetLearner("ann", Learner::kPoLinUcb, 5).ok());
   EXPECT_EQ(store_->GetCheckpoint("ann").status().code(),
             absl::StatusCode::kNotFound);
   // A model of the old learner, written late, is not current.

@@ -93,7 +93,7 @@ TEST_P(EventLogContractTest, UnknownUserIsNotFoundEverywhere) {
             absl::StatusCode::kNotFound);
   EXPECT_EQ(store_->DeleteUser("nobody").code(), absl::StatusCode::kNotFound);
   EXPECT_EQ(store_->ResetUser("nobody").code(), absl::StatusCode::kNotFound);
-  EXPECT_EQ(store_->SetLearner("nobody", Learner::kPoLinUcb).code(),
+  EXPECT_EQ(store_->SetLearner("nobody", Learner::kPoLinUcb, 0).code(),
             absl::StatusCode::kNotFound);
   const auto appended = store_->AppendPending(MakeEvent("nobody", "m"));
   EXPECT_EQ(appended.status().code(), absl::StatusCode::kNotFound);
@@ -553,7 +553,14 @@ TEST_P(EventLogContractTest, SetLearnerKeepsEveryEventAndTheRestOfTheConfig) {
   const auto [user, done, pending] = AliceWithTwoEvents();
   const UserRecord before = MustGetUser("alice");
 
-  ASSERT_TRUE(store_->SetLearner("alice", Learner::kPoLinUcb).ok());
+  // Only on the log it was checked on: one completed event.
+  const absl::Status moved_on =
+      store_->SetLearner("alice", Learner::kPoLinUcb, 0);
+  EXPECT_EQ(moved_on.code(), absl::StatusCode::kAborted);
+  EXPECT_THAT(std::string(moved_on.message()),
+              HasSubstr("has 1 completed events, not the 0"));
+  EXPECT_EQ(MustGetUser("alice").config.learner, before.config.learner);
+  ASSERT_TRUE(store_->SetLearner("alice", Learner::kPoLinUcb, 1).ok());
   const UserRecord moved = MustGetUser("alice");
   EXPECT_EQ(moved.config.learner, Learner::kPoLinUcb);
   EXPECT_EQ(moved.config.alpha, 0.5);
