@@ -163,7 +163,8 @@ std::vector<LearnerSpec> Learners(bool force_limit) {
          {},
          static_cast<int>(rule)});
   }
-  // The same choice for poLinUCB, the product's learner (added 2026-12-06),
+  // The same choice for poLinUCB, the default learner when added
+  // (2026-12-06, before post hoc LinUCB became the default again),
   // each paired with context-only and with poLinUCB under
   // --unfamiliar_posthoc.
   for (domain::UnfamiliarPosthoc rule : {domain::UnfamiliarPosthoc::kUniform,

@@ -33,7 +33,8 @@ enum class UnfamiliarPosthoc {
 // hoc LinUCB failed least when unfamiliar bites kept HapticNet's answer
 // (+0.86 fewer failures per meal than context-only, against +0.63 flattened
 // and +0.28 with no post hoc context), so the answer is sent as it is.
-// poLinUCB, the product's learner, chose the same on the same seed and
+// poLinUCB (the default learner from 2026-12-03 to 2026-12-06) chose the
+// same on the same seed and
 // story (400 trials, 2026-12-06: +0.40, against +0.34 flattened and -0.54
 // with none).
 inline constexpr UnfamiliarPosthoc kDefaultUnfamiliarPosthoc =
