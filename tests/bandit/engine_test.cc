@@ -836,6 +836,17 @@ TEST_F(EngineTest, SetLearnerRebuildsTheModelFromTheLogUnderTheNewLearner) {
             absl::StatusCode::kNotFound);
   EXPECT_EQ(engine_->SetLearner("mo", static_cast<Learner>(9)).status().code(),
             absl::StatusCode::kInvalidArgument);
+  // A refusal names why and leaves the user's learner as it was.
+  const auto expect_refused = [&](const std::string& user, Learner to,
+                                  const std::string& why, Learner kept) {
+    absl::StatusOr<UserRecord> refused = engine_->SetLearner(user, to);
+    EXPECT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition);
+    EXPECT_THAT(std::string(refused.status().message()),
+                ::testing::HasSubstr(why));
+    absl::StatusOr<UserRecord> after = engine_->GetUser(user);
+    ASSERT_TRUE(after.ok());
+    EXPECT_EQ(after->config.learner, kept);
+  };
   // A context-only user's rounds without a post hoc context cannot be
   // learned by a post hoc learner: refused before anything is written.
   BanditConfig vision = SmallConfig();
@@ -847,28 +858,16 @@ TEST_F(EngineTest, SetLearnerRebuildsTheModelFromTheLogUnderTheNewLearner) {
     ASSERT_TRUE(chosen.ok()) << chosen.status();
     ASSERT_TRUE(engine_->Update({chosen->event_id, 1.0, {}}).ok());
   }
-  absl::StatusOr<UserRecord> unlearnable =
-      engine_->SetLearner("vi", Learner::kPostHoc);
-  EXPECT_EQ(unlearnable.status().code(), absl::StatusCode::kFailedPrecondition);
-  EXPECT_THAT(std::string(unlearnable.status().message()),
-              ::testing::HasSubstr("cannot be learned by posthoc"));
-  absl::StatusOr<UserRecord> vi = engine_->GetUser("vi");
-  ASSERT_TRUE(vi.ok());
-  EXPECT_EQ(vi->config.learner, Learner::kContextOnly);
+  expect_refused("vi", Learner::kPostHoc, "cannot be learned by posthoc",
+                 Learner::kContextOnly);
   EXPECT_TRUE(engine_->Select({"vi", RandomVector(8, rng), "m", "item"}).ok());
   // A user started from a pool keeps its learner: its prior is of that
   // learner's statistics.
   absl::StatusOr<PoolRecord> pool = engine_->BuildPopulationPool(SmallConfig());
   ASSERT_TRUE(pool.ok()) << pool.status();
   ASSERT_TRUE(engine_->CreateUser("primed", SmallConfig(), 2.0).ok());
-  absl::StatusOr<UserRecord> refused =
-      engine_->SetLearner("primed", Learner::kPoLinUcb);
-  EXPECT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition);
-  EXPECT_THAT(std::string(refused.status().message()),
-              ::testing::HasSubstr("population pool"));
-  absl::StatusOr<UserRecord> kept = engine_->GetUser("primed");
-  ASSERT_TRUE(kept.ok());
-  EXPECT_EQ(kept->config.learner, Learner::kPostHoc);
+  expect_refused("primed", Learner::kPoLinUcb, "population pool",
+                 Learner::kPostHoc);
 }
 
 // A poLinUCB user's Select carries the post hoc context the model predicts
