@@ -2,7 +2,7 @@
 // touch, the same food may appear twice (two carrot sticks side by side),
 // and items are drawn from the unseen foods. Reports, over all items: found
 // once (one-to-one match with IoU >= 0.5), merged with a neighbour, missed,
-// the
+// the items lost (no match with IoU >= 0.5) by how much of them shows, the
 // mean and worst IoU of matched items, and Detect's latency. (Merges are
 // judged on boxes: one detection covering at least half of two items'
 // boxes while one of them has no detection of its own.) The numbers
@@ -12,6 +12,7 @@
 // the colour tables prepared first, and freed memory kept for the next plate
 // (--retain_freed_memory, the service's flag).
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdio>
 #include <random>
@@ -167,6 +168,20 @@ int main(int argc, char** argv) {
   if (blind) crowded = true;  // the blind plates always count by --min_visible
   int lying_on = 0, hidden = 0;  // items on a neighbour; below min_visible
   int items = 0, found = 0, merged = 0, missed = 0, extra = 0;
+  // Lost items by how much of them shows. An item is lost when no
+  // detection matches it with IoU >= 0.5 (the merged count above also
+  // counts the found items of a join: a celery stick found, with a banana
+  // coin lost under its box). Bands: below half showing, half to
+  // kWholeShare, and in full view (kWholeShare or more), none of which may
+  // be lost inside a neighbour's box.
+  constexpr double kWholeShare = 0.95;
+  struct Band {
+    int items = 0, in_join = 0, otherwise = 0;
+  };
+  std::array<Band, 3> bands;
+  const auto band_of = [&](double share) {
+    return share >= kWholeShare ? 2 : share >= 0.5 ? 1 : 0;
+  };
   int touching_items = 0, repeated_items = 0;
   double iou_sum = 0.0, worst = 1.0;
   std::vector<double> latency_ms;
@@ -190,11 +205,14 @@ int main(int argc, char** argv) {
     std::vector<Box> truth, boxes;
     std::vector<std::string> truth_food;  // by truth index
     std::vector<bool> required;           // by truth index: must be found
+    std::vector<double> shown;            // by truth index: visible share
     for (size_t i = 0; i < rendered.truth.size(); ++i) {
       const bitewise::sim::ItemTruth& t = rendered.truth[i];
       if (t.visible_pixels == 0) continue;
       truth.push_back({t.x, t.y, t.width, t.height});
       truth_food.push_back(plate.food[i]);
+      shown.push_back(static_cast<double>(t.visible_pixels) /
+                      std::max(1, t.footprint_pixels));
       lying_on += plate.lies_on_another[i];
       required.push_back(!crowded ||
                          t.visible_pixels >= min_visible * t.footprint_pixels);
@@ -259,7 +277,9 @@ int main(int argc, char** argv) {
         if (absl::GetFlag(FLAGS_verbose)) {
           std::fprintf(stderr, "plate %d merged:", p);
           for (size_t t : covered) {
-            std::fprintf(stderr, " %s", truth_food[t].c_str());
+            std::fprintf(stderr, " %s (%.0f%%%s)", truth_food[t].c_str(),
+                         100.0 * std::min(1.0, shown[t]),
+                         best[t] < 0.5 ? ", lost" : "");
           }
           std::fprintf(stderr, "\n");
         }
@@ -272,17 +292,22 @@ int main(int argc, char** argv) {
         continue;
       }
       ++items;
+      Band& band = bands[band_of(shown[t])];
+      ++band.items;
       if (is_merged[t]) {
         ++merged;
+        band.in_join += best[t] < 0.5;
       } else if (best[t] >= 0.5) {
         ++found;
         iou_sum += best[t];
         worst = std::min(worst, best[t]);
       } else {
         ++missed;
+        ++band.otherwise;
         if (absl::GetFlag(FLAGS_verbose)) {
-          std::fprintf(stderr, "plate %d missed: %s (best IoU %.2f)\n", p,
-                       truth_food[t].c_str(), best[t]);
+          std::fprintf(stderr, "plate %d missed: %s (%.0f%%, best IoU %.2f)\n",
+                       p, truth_food[t].c_str(),
+                       100.0 * std::min(1.0, shown[t]), best[t]);
         }
         dump();
       }
@@ -326,6 +351,13 @@ int main(int argc, char** argv) {
   std::printf("merged with a neighbour     %d (%.2f%%)\n", merged,
               100.0 * merged / items);
   std::printf("missed otherwise            %d\n", missed);
+  const char* band_names[] = {"under 50% showing", "50-95% showing   ",
+                              "in full view     "};
+  for (size_t b = 0; b < bands.size(); ++b) {
+    std::printf("lost, %s  %d of %d (in a join %d, otherwise %d)\n",
+                band_names[b], bands[b].in_join + bands[b].otherwise,
+                bands[b].items, bands[b].in_join, bands[b].otherwise);
+  }
   std::printf("extra detections            %d\n", extra);
   std::printf("IoU of found items          mean %.3f, worst %.3f\n",
               found ? iou_sum / found : 0.0, worst);
