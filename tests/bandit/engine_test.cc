@@ -17,6 +17,7 @@
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "services/bandit/store/sqlite_event_store.h"
+#include "services/bandit/store/write_faults.h"
 #include "sqlite3.h"
 #include "tests/bandit/dense_reference.h"
 #include "tests/common/near.h"
@@ -868,6 +869,86 @@ TEST_F(EngineTest, SetLearnerRebuildsTheModelFromTheLogUnderTheNewLearner) {
   ASSERT_TRUE(engine_->CreateUser("primed", SmallConfig(), 2.0).ok());
   expect_refused("primed", Learner::kPoLinUcb, "population pool",
                  Learner::kPostHoc);
+}
+
+// A checkpoint is written outside the user's lock, so SetLearner can run
+// while one of the old learner's is on its way to the store. The store
+// refuses it (the user's learner no longer matches), and the engine drops
+// only a model of that learner: the new learner's model, loaded meanwhile,
+// stays loaded and keeps answering as the dense reference does, and no
+// checkpoint is left behind. The store is the real SQLite one; the wrapper
+// only holds PutCheckpoint until the test lets it go.
+TEST_F(EngineTest, ALateCheckpointOfTheOldLearnerLeavesTheNewModelLoaded) {
+  class HeldCheckpoints : public FaultWatchStore {
+   public:
+    using FaultWatchStore::FaultWatchStore;
+    absl::Status PutCheckpoint(const std::string& user_id,
+                               const ModelCheckpoint& checkpoint) override {
+      {
+        absl::MutexLock lock(&mu_);
+        entered_ = true;
+        mu_.Await(absl::Condition(&released_));
+      }
+      return FaultWatchStore::PutCheckpoint(user_id, checkpoint);
+    }
+    void AwaitEntered() {
+      absl::MutexLock lock(&mu_);
+      mu_.Await(absl::Condition(&entered_));
+    }
+    void Release() {
+      absl::MutexLock lock(&mu_);
+      released_ = true;
+    }
+
+   private:
+    absl::Mutex mu_;
+    bool entered_ = false, released_ = false;
+  };
+  engine_.reset();
+  store_.reset();
+  SqliteStoreOptions store_options;
+  store_options.path = path_;
+  store_options.synchronous_full = false;
+  auto sqlite = SqliteEventStore::Open(store_options);
+  ASSERT_TRUE(sqlite.ok()) << sqlite.status();
+  HeldCheckpoints store(std::move(sqlite).value());
+  EngineOptions options;
+  options.checkpoint_min_events = 0;
+  BanditEngine engine(&store, options);
+  ASSERT_TRUE(engine.CreateUser("mo", SmallConfig()).ok());
+  std::mt19937_64 rng(71);
+  const std::vector<Round> seen = LearnRandomRounds(engine, "mo", 25, rng);
+  ASSERT_EQ(seen.size(), 25u);
+  const std::vector<double> at = RandomVector(8, rng);
+
+  absl::Status late;
+  std::thread writer([&] { late = engine.CheckpointUser("mo"); });
+  store.AwaitEntered();  // the post hoc model's state is on its way
+  absl::StatusOr<UserRecord> moved =
+      engine.SetLearner("mo", Learner::kPoLinUcb);
+  ASSERT_TRUE(moved.ok()) << moved.status();
+  const testing::DensePoLinUcb ref =
+      testing::DensePoLinUcbReference(moved->config, seen, at);
+  const auto expect_reference = [&] {
+    absl::StatusOr<EstimateResult> estimated = engine.Estimate("mo", at);
+    ASSERT_TRUE(estimated.ok()) << estimated.status();
+    EXPECT_EQ(estimated->model_version, 25);
+    for (int a = 0; a < 6; ++a) {
+      EXPECT_NEAR(estimated->estimates[a].lcb, ref.lcb[a],
+                  1e-10 * std::max(1.0, std::abs(ref.lcb[a])))
+          << a;
+    }
+  };
+  expect_reference();  // loads the poLinUCB model from the log
+  const int64_t rebuilds = engine.Counters().rebuilds;
+  store.Release();
+  writer.join();
+  EXPECT_EQ(late.code(), absl::StatusCode::kFailedPrecondition) << late;
+  EXPECT_EQ(store.GetCheckpoint("mo").status().code(),
+            absl::StatusCode::kNotFound);
+  expect_reference();
+  EXPECT_EQ(engine.Counters().rebuilds, rebuilds);  // still loaded
+  EXPECT_EQ(engine.Counters().checkpoints_written, 0);
 }
 
 // A poLinUCB user's Select carries the post hoc context the model predicts
