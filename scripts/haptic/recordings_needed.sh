@@ -3,8 +3,10 @@
 # "The lab's own data"): the story stands for the lab's fork. For each N,
 # N items per class of STORY (seed 77, so not the evaluation items) are
 # written in the recording format, the trainer learns from them together
-# with the default stories (world + piecewise, seed 1), and its reference
-# pass scores 500 fresh items per class of STORY (seed 1001).
+# with the stories in STORIES (default world,piecewise, seed 1: the
+# trainer's default until 2026-12-06, which the documented runs used; STORY
+# must not be among them), and its reference pass scores 500 fresh items
+# per class of STORY (seed 1001).
 #
 #   scripts/haptic/recordings_needed.sh OUT STORY [trainer flags...]
 #   e.g. scripts/haptic/recordings_needed.sh /tmp/rec compliant --window_s=0.1
@@ -23,7 +25,8 @@ for n in ${COUNTS:-10 25 50 100 250}; do
       --write_traces="$OUT/rec$n.csv" --write_traces_only >/dev/null
   fi
   if [ ! -f "$OUT/model$n.onnx" ]; then
-    "$TRAIN" --traces="$OUT/rec$n.csv" "$@" --out="$OUT/model$n.onnx" \
+    "$TRAIN" --traces="$OUT/rec$n.csv" --stories="${STORIES:-world,piecewise}" \
+      "$@" --out="$OUT/model$n.onnx" \
       >"$OUT/train$n.log"
   fi
   held=$(grep -A6 "held-out story $STORY (never" "$OUT/train$n.log")

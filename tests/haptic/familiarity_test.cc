@@ -193,7 +193,8 @@ TEST(FamiliarityTest, TheShippedFileLoadsAndTheClassifierReportsIt) {
   absl::StatusOr<FamiliarityModel> shipped = FamiliarityModel::FromText(
       DefaultHapticFamiliarity(), kDefaultHapticFamiliaritySource);
   ASSERT_TRUE(shipped.ok()) << shipped.status();
-  EXPECT_EQ(shipped->trained_on(), "world,piecewise");
+  EXPECT_EQ(shipped->trained_on(),
+            "world,piecewise,mechanics,compliant,puncture,poroelastic");
   EXPECT_EQ(shipped->threshold(), 0.05);
 
   const LabelledTrace trace = StoryTraces(TraceStory::kWorld, 1, 5).front();

@@ -42,13 +42,15 @@ ABSL_FLAG(std::string, labels, "",
 ABSL_FLAG(int, traces_repeat, 1,
           "Each recorded training trace counts this many times (so a few "
           "hundred recordings are not drowned by the stories).");
-ABSL_FLAG(std::string, stories, "world,piecewise",
+ABSL_FLAG(std::string, stories,
+          "world,piecewise,mechanics,compliant,puncture,poroelastic",
           "Simulated trace stories to train on, comma-separated: world (the "
           "simulated world's force-trace model, augmented), piecewise, "
           "mechanics, compliant, puncture, poroelastic, lattice "
           "(services/sim/trace_stories.h); \"none\" to train on --traces "
-          "alone. The shipped model holds mechanics, compliant, puncture, "
-          "poroelastic and lattice out for its evaluation.");
+          "alone. The default is the shipped model's six (since 2026-12-06; "
+          "world and piecewise before); it holds lattice out for its "
+          "evaluation.");
 ABSL_FLAG(std::string, write_traces, "",
           "Also write the traces used (simulated or read) to this CSV file.");
 ABSL_FLAG(bool, write_traces_only, false,
