@@ -499,7 +499,8 @@ absl::Status Meal::EnsureUser(int context_dim, double context_msn) {
   v1::UserConfig* config = create.mutable_config();
   config->set_context_dim(context_dim);
   // Post hoc LinUCB by default: it failed less than poLinUCB on every
-  // trace story HapticNet never saw and at most 1.0 more on the world's own
+  // trace story the HapticNet of the time (two stories) never saw and at
+  // most 1.0 more on the world's own
   // with the force limits, the rule fixed before its runs
   // (docs/experiments.md, "The learner default").
   config->set_learner(

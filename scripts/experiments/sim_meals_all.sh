@@ -7,10 +7,15 @@
 # sensitivity cells on the same seed: rho_c 0.3 and 3, blocked order,
 # HapticNet degraded to 95% and 80%, the (seeded, untrained) SPANet
 # featurizer, a look-alike pair on the plate, and traces from trace stories
-# HapticNet never saw (mechanics, compliant; docs/haptic.md), and the
-# actions' force limits cutting the traces.
+# that the two-story HapticNet shipped until 2026-12-06 never saw (mechanics,
+# compliant; docs/haptic.md), and the actions' force limits cutting the
+# traces.
 # Nothing here was chosen by looking at these seeds' results.
-# Usage: scripts/experiments/sim_meals_all.sh [build dir] [output dir]
+# The files in experiments/results were made with that two-story model; the
+# embedded model is now the six-story one. To reproduce them, train the old
+# one (bitewise-haptic-train --stories=world,piecewise --out=two.onnx) and
+# set SIM_MEALS_FLAGS=--haptic_model=two.onnx (flags added to every run).
+# Usage: [SIM_MEALS_FLAGS=...] scripts/experiments/sim_meals_all.sh [build dir] [output dir]
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 build="${1:-$root/build}"
@@ -21,8 +26,10 @@ meals() {
   local name="$1"
   shift
   echo "+ bitewise-sim-meals $* -> $out/$name.{csv,txt}" >&2
+  # shellcheck disable=SC2086  # SIM_MEALS_FLAGS: flags, split on spaces
   nice -n 10 "$build/experiments/bitewise-sim-meals" --trials=400 --seed=1 \
-    --out="$out/$name.csv" "$@" 2>/dev/null | tee "$out/$name.txt"
+    ${SIM_MEALS_FLAGS:-} --out="$out/$name.csv" "$@" 2>/dev/null |
+    tee "$out/$name.txt"
 }
 # Two lanes, one per core.
 (
