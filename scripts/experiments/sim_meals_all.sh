@@ -13,8 +13,9 @@
 # Nothing here was chosen by looking at these seeds' results.
 # The files in experiments/results were made with that two-story model; the
 # embedded model is now the six-story one. To reproduce them, train the old
-# one (bitewise-haptic-train --stories=world,piecewise --out=two.onnx) and
-# set SIM_MEALS_FLAGS=--haptic_model=two.onnx (flags added to every run).
+# one (bitewise-haptic-train --stories=world,piecewise --out=/abs/two.onnx)
+# and set SIM_MEALS_FLAGS=--haptic_model=/abs/two.onnx (flags added to
+# every run, split on spaces).
 # Usage: [SIM_MEALS_FLAGS=...] scripts/experiments/sim_meals_all.sh [build dir] [output dir]
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
@@ -25,7 +26,7 @@ cmake --build "$build" -j2 --target bitewise-sim-meals
 meals() {
   local name="$1"
   shift
-  echo "+ bitewise-sim-meals $* -> $out/$name.{csv,txt}" >&2
+  echo "+ bitewise-sim-meals ${SIM_MEALS_FLAGS:-} $* -> $out/$name.{csv,txt}" >&2
   # shellcheck disable=SC2086  # SIM_MEALS_FLAGS: flags, split on spaces
   nice -n 10 "$build/experiments/bitewise-sim-meals" --trials=400 --seed=1 \
     ${SIM_MEALS_FLAGS:-} --out="$out/$name.csv" "$@" 2>/dev/null |
