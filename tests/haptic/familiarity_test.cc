@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <fstream>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -140,6 +141,16 @@ TEST(FamiliarityTest, TheFileRoundTrips) {
   std::remove(path.c_str());
 }
 
+void ExpectParseError(const std::string& text, const std::string& message) {
+  absl::StatusOr<FamiliarityModel> read =
+      FamiliarityModel::FromText(text, "some/model.onnx.familiarity");
+  ASSERT_FALSE(read.ok()) << message;
+  EXPECT_EQ(read.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(read.status().message(),
+              HasSubstr("familiarity file some/model.onnx.familiarity"));
+  EXPECT_THAT(read.status().message(), HasSubstr(message));
+}
+
 TEST(FamiliarityTest, AMalformedFileIsAClearErrorNamingTheFileAndLine) {
   const std::string text = FitWorld().ToText();
   struct Case {
@@ -156,25 +167,177 @@ TEST(FamiliarityTest, AMalformedFileIsAClearErrorNamingTheFileAndLine) {
       "threshold 7");
   const std::vector<Case> cases = {
       {"", "line 1: the file is empty"},
-      {"hello\n", "line 1: expected \"bitewise-haptic-familiarity 1\""},
+      {"hello\n",
+       "line 1: expected \"bitewise-haptic-familiarity 1\" or "
+       "\"bitewise-haptic-familiarity 2\""},
       {text.substr(0, text.size() / 2), "lines"},
       {bad_number, "line 7: not a finite number"},
       {bad_threshold, "line 3: threshold 7 is outside [0, 1]"},
   };
   for (const Case& c : cases) {
-    absl::StatusOr<FamiliarityModel> read =
-        FamiliarityModel::FromText(c.text, "some/model.onnx.familiarity");
-    ASSERT_FALSE(read.ok());
-    EXPECT_EQ(read.status().code(), absl::StatusCode::kInvalidArgument);
-    EXPECT_THAT(read.status().message(),
-                HasSubstr("familiarity file some/model.onnx.familiarity"));
-    EXPECT_THAT(read.status().message(), HasSubstr(c.message));
+    ExpectParseError(c.text, c.message);
   }
   absl::StatusOr<FamiliarityModel> missing =
       FamiliarityModel::FromFile("/nonexistent/x.onnx.familiarity");
   EXPECT_EQ(missing.status().code(), absl::StatusCode::kNotFound);
   EXPECT_THAT(missing.status().message(),
               HasSubstr("/nonexistent/x.onnx.familiarity"));
+}
+
+// Windows of world and mechanics, each tagged with its story's name.
+struct TwoStories {
+  std::vector<FamiliarityVector> features;
+  std::vector<int> labels;
+  std::vector<std::string> sources;
+};
+
+TwoStories WorldAndMechanics(int per_class, uint64_t seed) {
+  TwoStories out;
+  for (TraceStory story : {TraceStory::kWorld, TraceStory::kMechanics}) {
+    const LabelledWindows w = Windows(story, per_class, seed);
+    for (size_t i = 0; i < w.inputs.size(); ++i) {
+      out.features.push_back(FamiliarityFeatures(w.inputs[i]));
+      out.labels.push_back(w.labels[i]);
+      out.sources.push_back(TraceStoryName(story));
+      // WindowsFromTraces carries each trace's story.
+      EXPECT_EQ(w.sources[i], static_cast<int>(story));
+    }
+  }
+  return out;
+}
+
+// The squared Mahalanobis distance, written out densely.
+double Mahalanobis(const FamiliarityComponent& g, const FamiliarityVector& x) {
+  double sum = 0.0;
+  for (int i = 0; i < kFamiliarityFeatures; ++i) {
+    for (int j = 0; j < kFamiliarityFeatures; ++j) {
+      sum += (x[i] - g.mean[i]) * g.precision[i * kFamiliarityFeatures + j] *
+             (x[j] - g.mean[j]);
+    }
+  }
+  return sum;
+}
+
+TEST(FamiliarityTest, OneGaussianPerClassAndStoryScoresByTheNearest) {
+  const TwoStories train = WorldAndMechanics(60, 1);
+  const TwoStories calibration = WorldAndMechanics(30, 2);
+  absl::StatusOr<FamiliarityModel> model = FamiliarityModel::FitPerSource(
+      train.features, train.labels, train.sources, calibration.features, 0.05,
+      0.1, "world,mechanics");
+  ASSERT_TRUE(model.ok()) << model.status();
+  ASSERT_EQ(model->components().size(), 8u);
+  EXPECT_EQ(model->left_out(), 0);
+  for (size_t k = 0; k < 8; ++k) {
+    EXPECT_EQ(model->components()[k].label, static_cast<int>(k / 2));
+    EXPECT_EQ(model->components()[k].source, k % 2 ? "mechanics" : "world");
+  }
+  const std::string text = model->ToText();
+  EXPECT_EQ(text.rfind("bitewise-haptic-familiarity 2\n", 0), 0u);
+  absl::StatusOr<FamiliarityModel> read =
+      FamiliarityModel::FromText(text, "per_story.familiarity");
+  ASSERT_TRUE(read.ok()) << read.status();
+  EXPECT_EQ(read->ToText(), text);
+
+  const TwoStories fresh = WorldAndMechanics(10, 3);
+  for (const FamiliarityVector& f : fresh.features) {
+    std::array<double, kHapticClasses> want;
+    want.fill(std::numeric_limits<double>::infinity());
+    for (const FamiliarityComponent& g : model->components()) {
+      want[g.label] = std::min(want[g.label], Mahalanobis(g, f));
+    }
+    const FamiliarityScore score = read->Score(f);
+    for (int c = 0; c < kHapticClasses; ++c) {
+      EXPECT_NEAR(score.class_distances[c], want[c], 1e-9 * (1 + want[c]));
+    }
+    EXPECT_EQ(score.distance, *std::min_element(score.class_distances.begin(),
+                                                score.class_distances.end()));
+    EXPECT_EQ(score.familiarity, model->Score(f).familiarity);
+  }
+}
+
+// The reason for a Gaussian per story: one Gaussian over two stories' hard
+// items also covers the space between them, where neither story's items
+// lie.
+TEST(FamiliarityTest, TheSpaceBetweenTwoStoriesIsFamiliarToOneGaussianOnly) {
+  const TwoStories train = WorldAndMechanics(60, 1);
+  const TwoStories calibration = WorldAndMechanics(30, 2);
+  absl::StatusOr<FamiliarityModel> pooled = FamiliarityModel::Fit(
+      train.features, train.labels, calibration.features, 0.05, 0.1, "w,m");
+  absl::StatusOr<FamiliarityModel> per_story = FamiliarityModel::FitPerSource(
+      train.features, train.labels, train.sources, calibration.features, 0.05,
+      0.1, "w,m");
+  ASSERT_TRUE(pooled.ok() && per_story.ok());
+  const auto& g = per_story->components();
+  // Hard items: components 0 (world) and 1 (mechanics).
+  FamiliarityVector between;
+  for (int i = 0; i < kFamiliarityFeatures; ++i) {
+    between[i] = 0.5 * (g[0].mean[i] + g[1].mean[i]);
+  }
+  EXPECT_GT(per_story->Distance(between), 2.0 * pooled->Distance(between));
+  EXPECT_LT(per_story->Score(between).familiarity,
+            pooled->Score(between).familiarity);
+}
+
+TEST(FamiliarityTest, ASourceWithFewWindowsIsPooledOrLeftOut) {
+  TwoStories train = WorldAndMechanics(60, 1);
+  const TwoStories calibration = WorldAndMechanics(30, 2);
+  // 12 windows of each class from each of two small recordings: under 20
+  // each, 24 pooled per class.
+  const LabelledWindows small = Windows(TraceStory::kPiecewise, 24, 5);
+  for (size_t i = 0; i < small.inputs.size(); ++i) {
+    train.features.push_back(FamiliarityFeatures(small.inputs[i]));
+    train.labels.push_back(small.labels[i]);
+    train.sources.push_back(i < small.inputs.size() / 2 ? "recordings"
+                                                        : "lab-b");
+  }
+  absl::StatusOr<FamiliarityModel> model = FamiliarityModel::FitPerSource(
+      train.features, train.labels, train.sources, calibration.features, 0.05,
+      0.1, "w,m,rec");
+  ASSERT_TRUE(model.ok()) << model.status();
+  ASSERT_EQ(model->components().size(), 12u);
+  EXPECT_EQ(model->components()[2].source, "pooled");
+  EXPECT_EQ(model->left_out(), 0);
+  // One recording alone: 12 a class, too few even pooled.
+  train.features.resize(train.features.size() - small.inputs.size() / 2);
+  train.labels.resize(train.features.size());
+  train.sources.resize(train.features.size());
+  model = FamiliarityModel::FitPerSource(train.features, train.labels,
+                                         train.sources, calibration.features,
+                                         0.05, 0.1, "w,m,rec");
+  ASSERT_TRUE(model.ok()) << model.status();
+  EXPECT_EQ(model->components().size(), 8u);
+  EXPECT_EQ(model->left_out(), 48);
+}
+
+TEST(FamiliarityTest, AMalformedPerStoryFileIsAClearErrorNamingTheLine) {
+  const TwoStories train = WorldAndMechanics(60, 1);
+  absl::StatusOr<FamiliarityModel> model = FamiliarityModel::FitPerSource(
+      train.features, train.labels, train.sources, train.features, 0.05, 0.1,
+      "world,mechanics");
+  ASSERT_TRUE(model.ok()) << model.status();
+  const std::string text = model->ToText();
+  auto replaced = [&](const std::string& from, const std::string& to) {
+    std::string out = text;
+    out.replace(out.find(from), from.size(), to);
+    return out;
+  };
+  ExpectParseError(replaced("components 8", "components 9"), "lines");
+  ExpectParseError(replaced("components 8", "components 2"),
+                   "line 5: expected \"components N\" with N from 4");
+  ExpectParseError(replaced("components 8", "components 99999999"),
+                   "line 5: expected \"components N\"");
+  ExpectParseError(replaced("precision 0 mechanics", "precision 0 world"),
+                   "line 9: expected \"precision 0 mechanics ...\"");
+  ExpectParseError(replaced("mean 3 world", "mean 5 world"),
+                   "line 18: expected \"mean CLASS SOURCE ...\" with a class");
+  // Every Gaussian of hard-skin relabelled: no class 3 left.
+  std::string no_hard_skin = text;
+  for (const std::string from : {"mean 3 ", "precision 3 "}) {
+    for (size_t at; (at = no_hard_skin.find(from)) != std::string::npos;) {
+      no_hard_skin[at + from.size() - 2] = '2';
+    }
+  }
+  ExpectParseError(no_hard_skin, "no Gaussian of class 3");
 }
 
 TEST(FamiliarityTest, FitRejectsBadInput) {
@@ -187,6 +350,44 @@ TEST(FamiliarityTest, FitRejectsBadInput) {
   EXPECT_THAT(
       FamiliarityModel::Fit(f, labels, f, 0.05, 0.1, "w").status().message(),
       HasSubstr("label 7"));
+  std::vector<std::string> sources(f.size(), "world");
+  EXPECT_TRUE(FamiliarityModel::FitPerSource(f, train.labels, sources, f, 0.05,
+                                             0.1, "w")
+                  .ok());
+  EXPECT_THAT(
+      FamiliarityModel::FitPerSource(f, labels, sources, f, 0.05, 0.1, "w")
+          .status()
+          .message(),
+      HasSubstr("label 7"));
+  sources.pop_back();
+  EXPECT_THAT(FamiliarityModel::FitPerSource(f, train.labels, sources, f, 0.05,
+                                             0.1, "w")
+                  .status()
+                  .message(),
+              HasSubstr("sources"));
+  sources.push_back("two words");
+  EXPECT_THAT(FamiliarityModel::FitPerSource(f, train.labels, sources, f, 0.05,
+                                             0.1, "w")
+                  .status()
+                  .message(),
+              HasSubstr("\"two words\" of window"));
+  // A class with no Gaussian: hard items only from a source too small.
+  std::vector<std::string> one_small(f.size(), "world");
+  std::vector<FamiliarityVector> few;
+  std::vector<int> few_labels;
+  std::vector<std::string> few_sources;
+  int hard = 0;
+  for (size_t i = 0; i < f.size(); ++i) {
+    if (train.labels[i] == 0 && ++hard > 5) continue;
+    few.push_back(f[i]);
+    few_labels.push_back(train.labels[i]);
+    few_sources.push_back("world");
+  }
+  EXPECT_THAT(FamiliarityModel::FitPerSource(few, few_labels, few_sources, f,
+                                             0.05, 0.1, "w")
+                  .status()
+                  .message(),
+              HasSubstr("class 0 has 5 windows, need at least 20"));
 }
 
 TEST(FamiliarityTest, TheShippedFileLoadsAndTheClassifierReportsIt) {

@@ -3,10 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <limits>
+#include <map>
 #include <sstream>
 #include <utility>
 
 #include "absl/status/status.h"
+#include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
@@ -18,7 +21,13 @@ namespace {
 
 constexpr int kD = kFamiliarityFeatures;
 constexpr char kMagic[] = "bitewise-haptic-familiarity";
+// Version 1: one Gaussian per class, fitted on every source; version 2: any
+// number, each with its class and source.
 constexpr int kVersion = 1;
+constexpr int kComponentsVersion = 2;
+// More Gaussians than any file the trainer writes (4 classes x a few
+// sources), so a corrupt count cannot make the parser allocate without end.
+constexpr int kMaxComponents = 4096;
 // Forces below this (N) are taken as this, so ratios stay finite.
 constexpr double kMinForceN = 0.05;
 
@@ -70,7 +79,7 @@ bool Invert(std::array<double, kD * kD> m, std::array<double, kD * kD>* out) {
   return true;
 }
 
-double SquaredMahalanobis(const FamiliarityClass& cls,
+double SquaredMahalanobis(const FamiliarityComponent& cls,
                           const FamiliarityVector& x) {
   FamiliarityVector d;
   for (int i = 0; i < kD; ++i) d[i] = x[i] - cls.mean[i];
@@ -181,10 +190,13 @@ FamiliarityVector FamiliarityFeatures(
   return f;
 }
 
-absl::StatusOr<FamiliarityModel> FamiliarityModel::Fit(
-    absl::Span<const FamiliarityVector> features, absl::Span<const int> labels,
-    absl::Span<const FamiliarityVector> calibration, double threshold,
-    double shrinkage, const std::string& trained_on) {
+namespace {
+
+// Checks what Fit and FitPerSource share.
+absl::Status CheckFitInput(absl::Span<const FamiliarityVector> features,
+                           absl::Span<const int> labels,
+                           absl::Span<const FamiliarityVector> calibration,
+                           double threshold, double shrinkage) {
   if (features.size() != labels.size()) {
     return absl::InvalidArgumentError(
         absl::StrCat("familiarity fit: ", features.size(), " windows but ",
@@ -202,65 +214,173 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::Fit(
     return absl::InvalidArgumentError(absl::StrCat(
         "familiarity shrinkage must be in [0, 1], got ", shrinkage));
   }
+  for (size_t i = 0; i < labels.size(); ++i) {
+    if (labels[i] < 0 || labels[i] >= kHapticClasses) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("familiarity fit: label ", labels[i], " of window ", i,
+                       " is not a class 0..3"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+// One Gaussian on `members` (at least 2 * kD), its covariance shrunk by
+// `shrinkage` towards its diagonal.
+absl::StatusOr<FamiliarityComponent> FitGaussian(
+    const std::vector<const FamiliarityVector*>& members, double shrinkage,
+    int label, const std::string& source) {
+  FamiliarityComponent g;
+  g.label = label;
+  g.source = source;
+  for (const FamiliarityVector* x : members) {
+    for (int i = 0; i < kD; ++i) g.mean[i] += (*x)[i];
+  }
+  for (double& m : g.mean) m /= static_cast<double>(members.size());
+  std::array<double, kD * kD> cov{};
+  for (const FamiliarityVector* x : members) {
+    for (int i = 0; i < kD; ++i) {
+      for (int j = 0; j < kD; ++j) {
+        cov[i * kD + j] += ((*x)[i] - g.mean[i]) * ((*x)[j] - g.mean[j]);
+      }
+    }
+  }
+  for (int i = 0; i < kD; ++i) {
+    for (int j = 0; j < kD; ++j) {
+      double& v = cov[i * kD + j];
+      v /= static_cast<double>(members.size() - 1);
+      if (i != j) v *= 1.0 - shrinkage;
+    }
+    // A floor, so that a feature constant within a class (say, no drop
+    // at all) does not make the covariance singular.
+    cov[i * kD + i] += 1e-6;
+  }
+  if (!Invert(cov, &g.precision)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "familiarity fit: class ", label,
+        source.empty() ? std::string() : absl::StrCat(" of ", source),
+        "'s covariance is singular"));
+  }
+  return g;
+}
+
+absl::Status TooFew(int label, size_t count) {
+  return absl::InvalidArgumentError(
+      absl::StrCat("familiarity fit: class ", label, " has ", count,
+                   " windows, need at least ", 2 * kD));
+}
+
+}  // namespace
+
+absl::StatusOr<FamiliarityModel> FamiliarityModel::Fit(
+    absl::Span<const FamiliarityVector> features, absl::Span<const int> labels,
+    absl::Span<const FamiliarityVector> calibration, double threshold,
+    double shrinkage, const std::string& trained_on) {
+  if (absl::Status s =
+          CheckFitInput(features, labels, calibration, threshold, shrinkage);
+      !s.ok()) {
+    return s;
+  }
   FamiliarityModel model;
   model.threshold_ = threshold;
   model.trained_on_ = trained_on;
   for (int c = 0; c < kHapticClasses; ++c) {
     std::vector<const FamiliarityVector*> members;
     for (size_t i = 0; i < labels.size(); ++i) {
-      if (labels[i] < 0 || labels[i] >= kHapticClasses) {
-        return absl::InvalidArgumentError(
-            absl::StrCat("familiarity fit: label ", labels[i], " of window ", i,
-                         " is not a class 0..3"));
-      }
       if (labels[i] == c) members.push_back(&features[i]);
     }
     if (members.size() < 2 * static_cast<size_t>(kD)) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("familiarity fit: class ", c, " has ", members.size(),
-                       " windows, need at least ", 2 * kD));
+      return TooFew(c, members.size());
     }
-    FamiliarityClass& cls = model.classes_[c];
-    for (const FamiliarityVector* x : members) {
-      for (int i = 0; i < kD; ++i) cls.mean[i] += (*x)[i];
-    }
-    for (double& m : cls.mean) m /= static_cast<double>(members.size());
-    std::array<double, kD * kD> cov{};
-    for (const FamiliarityVector* x : members) {
-      for (int i = 0; i < kD; ++i) {
-        for (int j = 0; j < kD; ++j) {
-          cov[i * kD + j] += ((*x)[i] - cls.mean[i]) * ((*x)[j] - cls.mean[j]);
-        }
-      }
-    }
-    for (int i = 0; i < kD; ++i) {
-      for (int j = 0; j < kD; ++j) {
-        double& v = cov[i * kD + j];
-        v /= static_cast<double>(members.size() - 1);
-        if (i != j) v *= 1.0 - shrinkage;
-      }
-      // A floor, so that a feature constant within a class (say, no drop
-      // at all) does not make the covariance singular.
-      cov[i * kD + i] += 1e-6;
-    }
-    if (!Invert(cov, &cls.precision)) {
-      return absl::InvalidArgumentError(absl::StrCat(
-          "familiarity fit: class ", c, "'s covariance is singular"));
-    }
+    absl::StatusOr<FamiliarityComponent> g =
+        FitGaussian(members, shrinkage, c, "");
+    if (!g.ok()) return g.status();
+    model.components_.push_back(*std::move(g));
   }
-  model.calibration_.reserve(calibration.size());
-  for (const FamiliarityVector& x : calibration) {
-    model.calibration_.push_back(model.Distance(x));
-  }
-  std::sort(model.calibration_.begin(), model.calibration_.end());
+  model.Calibrate(calibration);
   return model;
+}
+
+absl::StatusOr<FamiliarityModel> FamiliarityModel::FitPerSource(
+    absl::Span<const FamiliarityVector> features, absl::Span<const int> labels,
+    absl::Span<const std::string> sources,
+    absl::Span<const FamiliarityVector> calibration, double threshold,
+    double shrinkage, const std::string& trained_on) {
+  if (absl::Status s =
+          CheckFitInput(features, labels, calibration, threshold, shrinkage);
+      !s.ok()) {
+    return s;
+  }
+  if (sources.size() != features.size()) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("familiarity fit: ", features.size(), " windows but ",
+                     sources.size(), " sources"));
+  }
+  for (size_t i = 0; i < sources.size(); ++i) {
+    if (sources[i].empty() || absl::StrContains(sources[i], ' ')) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("familiarity fit: source \"", sources[i],
+                       "\" of window ", i, " is empty or has a space"));
+    }
+  }
+  FamiliarityModel model;
+  model.threshold_ = threshold;
+  model.trained_on_ = trained_on;
+  for (int c = 0; c < kHapticClasses; ++c) {
+    // Sources in order of first appearance, so the file is reproducible.
+    std::vector<std::string> order;
+    std::map<std::string, std::vector<const FamiliarityVector*>> by_source;
+    size_t count = 0;
+    for (size_t i = 0; i < labels.size(); ++i) {
+      if (labels[i] != c) continue;
+      ++count;
+      auto& members = by_source[sources[i]];
+      if (members.empty()) order.push_back(sources[i]);
+      members.push_back(&features[i]);
+    }
+    std::vector<const FamiliarityVector*> pooled;
+    const size_t before = model.components_.size();
+    for (const std::string& source : order) {
+      const auto& members = by_source[source];
+      if (members.size() < 2 * static_cast<size_t>(kD)) {
+        pooled.insert(pooled.end(), members.begin(), members.end());
+        continue;
+      }
+      absl::StatusOr<FamiliarityComponent> g =
+          FitGaussian(members, shrinkage, c, source);
+      if (!g.ok()) return g.status();
+      model.components_.push_back(*std::move(g));
+    }
+    if (pooled.size() >= 2 * static_cast<size_t>(kD)) {
+      absl::StatusOr<FamiliarityComponent> g =
+          FitGaussian(pooled, shrinkage, c, "pooled");
+      if (!g.ok()) return g.status();
+      model.components_.push_back(*std::move(g));
+    } else {
+      model.left_out_ += static_cast<int>(pooled.size());
+    }
+    if (model.components_.size() == before) return TooFew(c, count);
+  }
+  model.Calibrate(calibration);
+  return model;
+}
+
+void FamiliarityModel::Calibrate(
+    absl::Span<const FamiliarityVector> calibration) {
+  calibration_.clear();
+  calibration_.reserve(calibration.size());
+  for (const FamiliarityVector& x : calibration) {
+    calibration_.push_back(Distance(x));
+  }
+  std::sort(calibration_.begin(), calibration_.end());
 }
 
 std::array<double, kHapticClasses> FamiliarityModel::ClassDistances(
     const FamiliarityVector& features) const {
-  std::array<double, kHapticClasses> distances{};
-  for (int c = 0; c < kHapticClasses; ++c) {
-    distances[c] = SquaredMahalanobis(classes_[c], features);
+  std::array<double, kHapticClasses> distances;
+  distances.fill(std::numeric_limits<double>::infinity());
+  for (const FamiliarityComponent& g : components_) {
+    distances[g.label] =
+        std::min(distances[g.label], SquaredMahalanobis(g, features));
   }
   return distances;
 }
@@ -286,21 +406,34 @@ FamiliarityScore FamiliarityModel::Score(
   return score;
 }
 
+bool FamiliarityModel::OnePerClass() const {
+  if (components_.size() != kHapticClasses) return false;
+  for (int c = 0; c < kHapticClasses; ++c) {
+    if (components_[c].label != c || !components_[c].source.empty()) {
+      return false;
+    }
+  }
+  return true;
+}
+
 std::string FamiliarityModel::ToText() const {
-  std::string text = absl::StrCat(kMagic, " ", kVersion, "\n");
+  const bool v1 = OnePerClass();
+  std::string text =
+      absl::StrCat(kMagic, " ", v1 ? kVersion : kComponentsVersion, "\n");
   absl::StrAppend(&text, "trained_on ", trained_on_.empty() ? "-" : trained_on_,
                   "\n");
   absl::StrAppendFormat(&text, "threshold %.17g\n", threshold_);
   absl::StrAppend(&text, "features");
   for (int i = 0; i < kD; ++i) absl::StrAppend(&text, " ", kFeatureNames[i]);
   absl::StrAppend(&text, "\n");
-  for (int c = 0; c < kHapticClasses; ++c) {
-    absl::StrAppendFormat(&text, "mean %d", c);
-    for (double v : classes_[c].mean) absl::StrAppendFormat(&text, " %.17g", v);
-    absl::StrAppendFormat(&text, "\nprecision %d", c);
-    for (double v : classes_[c].precision) {
-      absl::StrAppendFormat(&text, " %.17g", v);
-    }
+  if (!v1) absl::StrAppend(&text, "components ", components_.size(), "\n");
+  for (const FamiliarityComponent& g : components_) {
+    const std::string head =
+        v1 ? absl::StrCat(g.label) : absl::StrCat(g.label, " ", g.source);
+    absl::StrAppend(&text, "mean ", head);
+    for (double v : g.mean) absl::StrAppendFormat(&text, " %.17g", v);
+    absl::StrAppend(&text, "\nprecision ", head);
+    for (double v : g.precision) absl::StrAppendFormat(&text, " %.17g", v);
     absl::StrAppend(&text, "\n");
   }
   absl::StrAppendFormat(&text, "calibration %d", calibration_.size());
@@ -317,14 +450,32 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::FromText(
     return absl::StrSplit(lines[i], ' ', absl::SkipEmpty());
   };
   // Line numbers are 1-based in messages.
-  const size_t expected_lines = 4 + 2 * kHapticClasses + 1;
   if (lines.empty()) return ParseError(source, 1, "the file is empty");
   std::vector<std::string> t = tokens_of(0);
-  if (t.size() != 2 || t[0] != kMagic || t[1] != absl::StrCat(kVersion)) {
-    return ParseError(source, 1,
-                      absl::StrCat("expected \"", kMagic, " ", kVersion,
-                                   "\", got \"", lines[0], "\""));
+  int version = 0;
+  if (t.size() != 2 || t[0] != kMagic || !absl::SimpleAtoi(t[1], &version) ||
+      (version != kVersion && version != kComponentsVersion)) {
+    return ParseError(
+        source, 1,
+        absl::StrCat("expected \"", kMagic, " ", kVersion, "\" or \"", kMagic,
+                     " ", kComponentsVersion, "\", got \"", lines[0], "\""));
   }
+  // Version 1 has one Gaussian per class and no "components" line.
+  int components = kHapticClasses;
+  int first_component_line = 5;  // 1-based
+  if (version == kComponentsVersion) {
+    t = lines.size() > 4 ? tokens_of(4) : std::vector<std::string>();
+    if (t.size() != 2 || t[0] != "components" ||
+        !absl::SimpleAtoi(t[1], &components) || components < kHapticClasses ||
+        components > kMaxComponents) {
+      return ParseError(source, 5,
+                        absl::StrCat("expected \"components N\" with N from ",
+                                     kHapticClasses, " to ", kMaxComponents));
+    }
+    first_component_line = 6;
+  }
+  const size_t expected_lines =
+      static_cast<size_t>(first_component_line - 1 + 2 * components + 1);
   if (lines.size() != expected_lines) {
     return ParseError(source, static_cast<int>(lines.size()),
                       absl::StrCat("expected ", expected_lines,
@@ -362,27 +513,51 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::FromText(
                        "\", this build computes \"", kFeatureNames[i], "\""));
     }
   }
-  for (int c = 0; c < kHapticClasses; ++c) {
-    const int mean_line = 5 + 2 * c;
+  std::array<bool, kHapticClasses> seen{};
+  for (int k = 0; k < components; ++k) {
+    const int mean_line = first_component_line + 2 * k;
+    FamiliarityComponent g;
+    // Version 1: "mean C", in class order; version 2: "mean C SOURCE".
+    const size_t head = version == kVersion ? 2 : 3;
+    const std::string want = version == kVersion
+                                 ? absl::StrCat("\"mean ", k, " ...\"")
+                                 : std::string("\"mean CLASS SOURCE ...\"");
     t = tokens_of(mean_line - 1);
-    if (t.size() < 2 || t[0] != "mean" || t[1] != absl::StrCat(c)) {
-      return ParseError(source, mean_line,
-                        absl::StrCat("expected \"mean ", c, " ...\""));
+    if (t.size() < head || t[0] != "mean" ||
+        !absl::SimpleAtoi(t[1], &g.label) || g.label < 0 ||
+        g.label >= kHapticClasses || (version == kVersion && g.label != k)) {
+      return ParseError(
+          source, mean_line,
+          absl::StrCat("expected ", want, " with a class from 0 to 3"));
     }
-    if (absl::Status s = ParseDoubles(t, 2, kD, source, mean_line,
-                                      model.classes_[c].mean.data());
+    if (version == kComponentsVersion) g.source = t[2];
+    if (absl::Status s =
+            ParseDoubles(t, head, kD, source, mean_line, g.mean.data());
         !s.ok()) {
       return s;
     }
     t = tokens_of(mean_line);
-    if (t.size() < 2 || t[0] != "precision" || t[1] != absl::StrCat(c)) {
-      return ParseError(source, mean_line + 1,
-                        absl::StrCat("expected \"precision ", c, " ...\""));
+    if (t.size() < head || t[0] != "precision" ||
+        t[1] != absl::StrCat(g.label) ||
+        (version == kComponentsVersion && t[2] != g.source)) {
+      return ParseError(
+          source, mean_line + 1,
+          absl::StrCat("expected \"precision ", g.label,
+                       version == kVersion ? "" : absl::StrCat(" ", g.source),
+                       " ...\", the class and source of the line before"));
     }
-    if (absl::Status s = ParseDoubles(t, 2, kD * kD, source, mean_line + 1,
-                                      model.classes_[c].precision.data());
+    if (absl::Status s = ParseDoubles(t, head, kD * kD, source, mean_line + 1,
+                                      g.precision.data());
         !s.ok()) {
       return s;
+    }
+    seen[g.label] = true;
+    model.components_.push_back(std::move(g));
+  }
+  for (int c = 0; c < kHapticClasses; ++c) {
+    if (!seen[c]) {
+      return ParseError(source, first_component_line,
+                        absl::StrCat("no Gaussian of class ", c));
     }
   }
   const int calibration_line = static_cast<int>(expected_lines);
@@ -392,6 +567,11 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::FromText(
       !absl::SimpleAtoi(t[1], &count) || count <= 0) {
     return ParseError(source, calibration_line,
                       "expected \"calibration N\" with N > 0 and N values");
+  }
+  if (t.size() != 2 + static_cast<size_t>(count)) {
+    return ParseError(
+        source, calibration_line,
+        absl::StrCat("expected ", count, " numbers, got ", t.size() - 2));
   }
   model.calibration_.resize(count);
   if (absl::Status s = ParseDoubles(t, 2, count, source, calibration_line,

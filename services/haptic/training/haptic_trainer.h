@@ -27,6 +27,8 @@ namespace bitewise::haptic {
 struct LabelledWindows {
   std::vector<std::array<float, kHapticInputs>> inputs;
   std::vector<int> labels;
+  // Per window, its trace's LabelledTrace::source (WindowsFromTraces).
+  std::vector<int> sources;
 };
 
 struct TrainerOptions {

@@ -220,7 +220,10 @@ StoryTraceFunction StoryTraceDraw(TraceStory story) {
 std::vector<LabelledTrace> StoryTraces(TraceStory story, int per_class,
                                        uint64_t seed) {
   if (story == TraceStory::kWorld) {
-    return SimulateLabelledTraces(per_class, TrainingConditions(), seed);
+    std::vector<LabelledTrace> traces =
+        SimulateLabelledTraces(per_class, TrainingConditions(), seed);
+    for (LabelledTrace& trace : traces) trace.source = static_cast<int>(story);
+    return traces;
   }
   // Each story its own stream of the seed.
   const uint64_t stream =
@@ -238,6 +241,7 @@ std::vector<LabelledTrace> StoryTraces(TraceStory story, int per_class,
       LabelledTrace trace;
       trace.label = static_cast<HapticClass>(k);
       trace.samples = draw(category, rng);
+      trace.source = static_cast<int>(story);
       traces.push_back(std::move(trace));
     }
   }
@@ -596,6 +600,7 @@ LabelledWindows WindowsFromTraces(const std::vector<LabelledTrace>& traces,
     }
     windows.inputs.push_back(features->window.inputs);
     windows.labels.push_back(static_cast<int>(trace.label));
+    windows.sources.push_back(trace.source);
   }
   if (skipped != nullptr) *skipped = rejected;
   return windows;

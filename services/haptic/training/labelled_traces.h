@@ -28,7 +28,13 @@ namespace bitewise::haptic {
 struct LabelledTrace {
   HapticClass label = HapticClass::kHard;
   std::vector<TimedWrench> samples;
+  // Where it came from, for the familiarity fit per source: a TraceStory's
+  // index, kRecordedSource for a recording, -1 when not said.
+  int source = -1;
 };
+
+// LabelledTrace::source of a recorded trace (not a story).
+inline constexpr int kRecordedSource = 1000;
 
 // Sensor and timing conditions of simulated traces. Ranges are sampled
 // per trace; set min = max for a fixed condition.

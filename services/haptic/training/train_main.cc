@@ -110,6 +110,11 @@ ABSL_FLAG(bool, familiarity_only, false,
 ABSL_FLAG(double, familiarity_threshold, 0.05,
           "Familiarity below which a trace is unfamiliar: the share of the "
           "validation windows flagged (0.05: 5% of familiar traces).");
+ABSL_FLAG(std::string, familiarity_gaussians, "class",
+          "The familiarity density: \"class\", one Gaussian per class over "
+          "every training source; \"class_and_story\", one per class and "
+          "source (each story, the recordings; docs/haptic.md, "
+          "\"Familiarity\").");
 ABSL_FLAG(double, familiarity_shrinkage, 0.1,
           "Shrinkage of each class's feature covariance towards its "
           "diagonal.");
@@ -319,17 +324,45 @@ int FitFamiliarity(const LabelledWindows& train,
   const std::vector<FamiliarityVector> train_features = FamiliarityOf(train);
   const std::vector<FamiliarityVector> validation_features =
       FamiliarityOf(validation);
-  absl::StatusOr<FamiliarityModel> model = FamiliarityModel::Fit(
-      train_features, train.labels, validation_features,
-      absl::GetFlag(FLAGS_familiarity_threshold),
-      absl::GetFlag(FLAGS_familiarity_shrinkage), trained_on);
+  const std::string gaussians = absl::GetFlag(FLAGS_familiarity_gaussians);
+  absl::StatusOr<FamiliarityModel> model;
+  if (gaussians == "class") {
+    model = FamiliarityModel::Fit(
+        train_features, train.labels, validation_features,
+        absl::GetFlag(FLAGS_familiarity_threshold),
+        absl::GetFlag(FLAGS_familiarity_shrinkage), trained_on);
+  } else if (gaussians == "class_and_story") {
+    std::vector<std::string> sources;
+    sources.reserve(train.sources.size());
+    for (int source : train.sources) {
+      sources.push_back(
+          source >= 0 && source < kTraceStories
+              ? std::string(TraceStoryName(static_cast<TraceStory>(source)))
+              : std::string("recordings"));
+    }
+    model = FamiliarityModel::FitPerSource(
+        train_features, train.labels, sources, validation_features,
+        absl::GetFlag(FLAGS_familiarity_threshold),
+        absl::GetFlag(FLAGS_familiarity_shrinkage), trained_on);
+  } else {
+    return Die(absl::StrCat(
+        "--familiarity_gaussians must be class or class_and_story; got \"",
+        gaussians, "\""));
+  }
   if (!model.ok()) return Die(model.status().ToString());
   std::printf(
-      "\nfamiliarity (per-class Gaussian on %d trace summaries, fitted on "
-      "%zu training windows, threshold %.3f = the share of the %zu "
+      "\nfamiliarity (%zu Gaussians, %s, on %d trace summaries, fitted on "
+      "%zu training windows%s, threshold %.3f = the share of the %zu "
       "validation windows flagged)\n",
-      kFamiliarityFeatures, train_features.size(), model->threshold(),
-      validation_features.size());
+      model->components().size(),
+      gaussians == "class" ? "one per class" : "one per class and source",
+      kFamiliarityFeatures, train_features.size(),
+      model->left_out() > 0
+          ? absl::StrCat(" (", model->left_out(),
+                         " left out: too few of their class and source)")
+                .c_str()
+          : "",
+      model->threshold(), validation_features.size());
   std::vector<double> test_distances;
   std::printf("  test split (familiar): %s\n",
               FamiliarityLine(*model, test, nullptr, &test_distances).c_str());
@@ -439,7 +472,8 @@ int main(int argc, char** argv) {
         ++unlabelled;
         continue;
       }
-      recorded.push_back({*trace.label, std::move(trace.samples)});
+      recorded.push_back(
+          {*trace.label, std::move(trace.samples), kRecordedSource});
     }
     std::printf("recorded traces: %zu labelled, %d unknown (skipped) in %s\n",
                 recorded.size(), unlabelled,
