@@ -12,6 +12,7 @@
 #include "services/common/channel.h"
 #include "services/common/server.h"
 #include "services/haptic/converters.h"
+#include "services/haptic/core/familiarity.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/default_model.h"
 #include "services/haptic/haptic_service.h"
@@ -55,6 +56,46 @@ BENCHMARK(BM_Classify)
     ->Arg(100)
     ->Arg(7000)
     ->Unit(benchmark::kMicrosecond);
+
+// Classify as the service runs it by default: with the compiled-in
+// familiarity model (24 Gaussians since the eleventh session of 2026-12-06).
+void BM_ClassifyWithFamiliarity(benchmark::State& state) {
+  auto net =
+      HapticNet::FromOnnxBytes(DefaultHapticNetOnnx(), kDefaultHapticNetSource);
+  auto familiarity = FamiliarityModel::FromText(
+      DefaultHapticFamiliarity(), kDefaultHapticFamiliaritySource);
+  if (!net.ok() || !familiarity.ok()) std::abort();
+  const HapticClassifier classifier(
+      std::move(net).value(), HapticPipelineOptions(),
+      std::make_unique<FamiliarityModel>(*std::move(familiarity)));
+  const auto trace = OneSecondTrace(1000.0);
+  for (auto _ : state) {
+    auto result = classifier.Classify(trace);
+    if (!result.ok() || !result->has_familiarity) {
+      state.SkipWithError("classify failed");
+    }
+    benchmark::DoNotOptimize(result);
+  }
+}
+BENCHMARK(BM_ClassifyWithFamiliarity)->Unit(benchmark::kMicrosecond);
+
+// The familiarity score alone: the ten summaries of the window and the
+// distances to every Gaussian of the compiled-in model.
+void BM_FamiliarityScore(benchmark::State& state) {
+  auto familiarity = FamiliarityModel::FromText(
+      DefaultHapticFamiliarity(), kDefaultHapticFamiliaritySource);
+  if (!familiarity.ok()) std::abort();
+  const auto features =
+      ExtractHapticFeatures(OneSecondTrace(1000.0), HapticPipelineOptions());
+  for (auto _ : state) {
+    auto score =
+        familiarity->Score(FamiliarityFeatures(features->window.inputs));
+    benchmark::DoNotOptimize(score);
+  }
+  state.counters["gaussians"] =
+      static_cast<double>(familiarity->components().size());
+}
+BENCHMARK(BM_FamiliarityScore)->Unit(benchmark::kMicrosecond);
 
 void BM_ContactAndWindow(benchmark::State& state) {
   const auto trace = OneSecondTrace(1000.0);

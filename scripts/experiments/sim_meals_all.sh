@@ -13,7 +13,8 @@
 # Nothing here was chosen by looking at these seeds' results.
 # The files in experiments/results were made with that two-story model; the
 # embedded model is now the six-story one. To reproduce them, train the old
-# one (bitewise-haptic-train --stories=world,piecewise --out=/abs/two.onnx)
+# one (bitewise-haptic-train --stories=world,piecewise
+# --familiarity_gaussians=class --out=/abs/two.onnx)
 # and set SIM_MEALS_FLAGS=--haptic_model=/abs/two.onnx (flags added to
 # every run, split on spaces).
 # Usage: [SIM_MEALS_FLAGS=...] scripts/experiments/sim_meals_all.sh [build dir] [output dir]

@@ -229,7 +229,8 @@ TEST(FamiliarityTest, OneGaussianPerClassAndStoryScoresByTheNearest) {
   EXPECT_EQ(model->left_out(), 0);
   for (size_t k = 0; k < 8; ++k) {
     EXPECT_EQ(model->components()[k].label, static_cast<int>(k / 2));
-    EXPECT_EQ(model->components()[k].source, k % 2 ? "mechanics" : "world");
+    // Within a class, in source name order.
+    EXPECT_EQ(model->components()[k].source, k % 2 ? "world" : "mechanics");
   }
   const std::string text = model->ToText();
   EXPECT_EQ(text.rfind("bitewise-haptic-familiarity 2\n", 0), 0u);
@@ -268,7 +269,7 @@ TEST(FamiliarityTest, TheSpaceBetweenTwoStoriesIsFamiliarToOneGaussianOnly) {
       0.1, "w,m");
   ASSERT_TRUE(pooled.ok() && per_story.ok());
   const auto& g = per_story->components();
-  // Hard items: components 0 (world) and 1 (mechanics).
+  // Hard items: components 0 (mechanics) and 1 (world).
   FamiliarityVector between;
   for (int i = 0; i < kFamiliarityFeatures; ++i) {
     between[i] = 0.5 * (g[0].mean[i] + g[1].mean[i]);
@@ -326,10 +327,10 @@ TEST(FamiliarityTest, AMalformedPerStoryFileIsAClearErrorNamingTheLine) {
                    "line 5: expected \"components N\" with N from 4");
   ExpectParseError(replaced("components 8", "components 99999999"),
                    "line 5: expected \"components N\"");
-  ExpectParseError(replaced("precision 0 mechanics", "precision 0 world"),
-                   "line 9: expected \"precision 0 mechanics ...\"");
+  ExpectParseError(replaced("precision 0 world", "precision 0 mechanics"),
+                   "line 9: expected \"precision 0 world ...\"");
   ExpectParseError(replaced("mean 3 world", "mean 5 world"),
-                   "line 18: expected \"mean CLASS SOURCE ...\" with a class");
+                   "line 20: expected \"mean CLASS SOURCE ...\" with a class");
   // Every Gaussian of hard-skin relabelled: no class 3 left.
   std::string no_hard_skin = text;
   for (const std::string from : {"mean 3 ", "precision 3 "}) {
@@ -397,6 +398,12 @@ TEST(FamiliarityTest, TheShippedFileLoadsAndTheClassifierReportsIt) {
   EXPECT_EQ(shipped->trained_on(),
             "world,piecewise,mechanics,compliant,puncture,poroelastic");
   EXPECT_EQ(shipped->threshold(), 0.05);
+  // One Gaussian per class and story (docs/haptic.md, "One Gaussian per
+  // class and story").
+  ASSERT_EQ(shipped->components().size(), 24u);
+  EXPECT_EQ(shipped->components()[0].source, "compliant");
+  EXPECT_EQ(shipped->components()[5].source, "world");
+  EXPECT_EQ(shipped->components()[23].label, 3);
 
   const LabelledTrace trace = StoryTraces(TraceStory::kWorld, 1, 5).front();
   for (bool with : {false, true}) {

@@ -326,21 +326,18 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::FitPerSource(
   model.threshold_ = threshold;
   model.trained_on_ = trained_on;
   for (int c = 0; c < kHapticClasses; ++c) {
-    // Sources in order of first appearance, so the file is reproducible.
-    std::vector<std::string> order;
+    // Sources in name order, so the file reads the same for any order of
+    // the windows.
     std::map<std::string, std::vector<const FamiliarityVector*>> by_source;
     size_t count = 0;
     for (size_t i = 0; i < labels.size(); ++i) {
       if (labels[i] != c) continue;
       ++count;
-      auto& members = by_source[sources[i]];
-      if (members.empty()) order.push_back(sources[i]);
-      members.push_back(&features[i]);
+      by_source[sources[i]].push_back(&features[i]);
     }
     std::vector<const FamiliarityVector*> pooled;
     const size_t before = model.components_.size();
-    for (const std::string& source : order) {
-      const auto& members = by_source[source];
+    for (const auto& [source, members] : by_source) {
       if (members.size() < 2 * static_cast<size_t>(kD)) {
         pooled.insert(pooled.end(), members.begin(), members.end());
         continue;

@@ -129,7 +129,8 @@ class FamiliarityModel {
   // Sorts the calibration windows' distances into calibration_.
   void Calibrate(absl::Span<const FamiliarityVector> calibration);
 
-  // At least one per class, in class order.
+  // At least one per class, in class order; within a class in source
+  // name order ("pooled" after the sources it pools).
   std::vector<FamiliarityComponent> components_;
   int left_out_ = 0;
   // Sorted squared distances of the calibration windows.

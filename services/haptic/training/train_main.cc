@@ -110,7 +110,7 @@ ABSL_FLAG(bool, familiarity_only, false,
 ABSL_FLAG(double, familiarity_threshold, 0.05,
           "Familiarity below which a trace is unfamiliar: the share of the "
           "validation windows flagged (0.05: 5% of familiar traces).");
-ABSL_FLAG(std::string, familiarity_gaussians, "class",
+ABSL_FLAG(std::string, familiarity_gaussians, "class_and_story",
           "The familiarity density: \"class\", one Gaussian per class over "
           "every training source; \"class_and_story\", one per class and "
           "source (each story, the recordings; docs/haptic.md, "
