@@ -275,29 +275,9 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::Fit(
     absl::Span<const FamiliarityVector> features, absl::Span<const int> labels,
     absl::Span<const FamiliarityVector> calibration, double threshold,
     double shrinkage, const std::string& trained_on) {
-  if (absl::Status s =
-          CheckFitInput(features, labels, calibration, threshold, shrinkage);
-      !s.ok()) {
-    return s;
-  }
-  FamiliarityModel model;
-  model.threshold_ = threshold;
-  model.trained_on_ = trained_on;
-  for (int c = 0; c < kHapticClasses; ++c) {
-    std::vector<const FamiliarityVector*> members;
-    for (size_t i = 0; i < labels.size(); ++i) {
-      if (labels[i] == c) members.push_back(&features[i]);
-    }
-    if (members.size() < 2 * static_cast<size_t>(kD)) {
-      return TooFew(c, members.size());
-    }
-    absl::StatusOr<FamiliarityComponent> g =
-        FitGaussian(members, shrinkage, c, "");
-    if (!g.ok()) return g.status();
-    model.components_.push_back(*std::move(g));
-  }
-  model.Calibrate(calibration);
-  return model;
+  // One source, "", for every window: one Gaussian per class.
+  return FitPerSource(features, labels, {}, calibration, threshold, shrinkage,
+                      trained_on);
 }
 
 absl::StatusOr<FamiliarityModel> FamiliarityModel::FitPerSource(
@@ -310,7 +290,8 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::FitPerSource(
       !s.ok()) {
     return s;
   }
-  if (sources.size() != features.size()) {
+  // Empty: every window's source is "" (Fit).
+  if (!sources.empty() && sources.size() != features.size()) {
     return absl::InvalidArgumentError(
         absl::StrCat("familiarity fit: ", features.size(), " windows but ",
                      sources.size(), " sources"));
@@ -333,7 +314,8 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::FitPerSource(
     for (size_t i = 0; i < labels.size(); ++i) {
       if (labels[i] != c) continue;
       ++count;
-      by_source[sources[i]].push_back(&features[i]);
+      by_source[sources.empty() ? std::string() : sources[i]].push_back(
+          &features[i]);
     }
     std::vector<const FamiliarityVector*> pooled;
     const size_t before = model.components_.size();

@@ -85,7 +85,8 @@ class FamiliarityModel {
   // Gaussian of that class ("pooled"); windows in a pool still smaller than
   // that are left out of the fit (left_out() counts them). INVALID_ARGUMENT
   // as Fit, when a class has no Gaussian at all, when `sources` is not one
-  // per window, or when a source name is empty or contains a space.
+  // per window, or when a source name is empty or contains a space. An
+  // empty `sources` is Fit.
   static absl::StatusOr<FamiliarityModel> FitPerSource(
       absl::Span<const FamiliarityVector> features,
       absl::Span<const int> labels, absl::Span<const std::string> sources,
