@@ -308,6 +308,22 @@ TEST(FamiliarityTest, ASourceWithFewWindowsIsPooledOrLeftOut) {
   ASSERT_TRUE(model.ok()) << model.status();
   EXPECT_EQ(model->components().size(), 8u);
   EXPECT_EQ(model->left_out(), 48);
+  // Repeated ten times (the trainer's --traces_repeat), they are still 12
+  // distinct windows a class: weight, not information.
+  const size_t once = train.features.size();
+  for (int r = 1; r < 10; ++r) {
+    for (size_t i = once - small.inputs.size() / 2; i < once; ++i) {
+      train.features.push_back(train.features[i]);
+      train.labels.push_back(train.labels[i]);
+      train.sources.push_back(train.sources[i]);
+    }
+  }
+  model = FamiliarityModel::FitPerSource(train.features, train.labels,
+                                         train.sources, calibration.features,
+                                         0.05, 0.1, "w,m,rec");
+  ASSERT_TRUE(model.ok()) << model.status();
+  EXPECT_EQ(model->components().size(), 8u);
+  EXPECT_EQ(model->left_out(), 480);
 }
 
 TEST(FamiliarityTest, AMalformedPerStoryFileIsAClearErrorNamingTheLine) {

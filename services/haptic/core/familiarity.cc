@@ -5,6 +5,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <set>
 #include <sstream>
 #include <utility>
 
@@ -317,10 +318,17 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::FitPerSource(
       by_source[sources.empty() ? std::string() : sources[i]].push_back(
           &features[i]);
     }
+    // Distinct windows: a trace the trainer repeats (--traces_repeat) adds
+    // weight, not information, so it does not make a group big enough.
+    auto distinct = [](const std::vector<const FamiliarityVector*>& group) {
+      std::set<FamiliarityVector> seen;
+      for (const FamiliarityVector* x : group) seen.insert(*x);
+      return seen.size();
+    };
     std::vector<const FamiliarityVector*> pooled;
     const size_t before = model.components_.size();
     for (const auto& [source, members] : by_source) {
-      if (members.size() < 2 * static_cast<size_t>(kD)) {
+      if (distinct(members) < 2 * static_cast<size_t>(kD)) {
         pooled.insert(pooled.end(), members.begin(), members.end());
         continue;
       }
@@ -329,7 +337,7 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::FitPerSource(
       if (!g.ok()) return g.status();
       model.components_.push_back(*std::move(g));
     }
-    if (pooled.size() >= 2 * static_cast<size_t>(kD)) {
+    if (distinct(pooled) >= 2 * static_cast<size_t>(kD)) {
       absl::StatusOr<FamiliarityComponent> g =
           FitGaussian(pooled, shrinkage, c, "pooled");
       if (!g.ok()) return g.status();

@@ -81,9 +81,10 @@ class FamiliarityModel {
 
   // As Fit, with one Gaussian per class and source: `sources[i]` names
   // window i's source (a training story, "recordings"). A source with fewer
-  // than 2 * kFamiliarityFeatures windows of a class adds them to one pooled
-  // Gaussian of that class ("pooled"); windows in a pool still smaller than
-  // that are left out of the fit (left_out() counts them). INVALID_ARGUMENT
+  // than 2 * kFamiliarityFeatures distinct windows of a class (a repeated
+  // window counts once) adds them to one pooled Gaussian of that class
+  // ("pooled"); windows in a pool still smaller than that are left out of
+  // the fit (left_out() counts them). INVALID_ARGUMENT
   // as Fit, when a class has no Gaussian at all, when `sources` is not one
   // per window, or when a source name is empty or contains a space. An
   // empty `sources` is Fit.
