@@ -4,8 +4,9 @@
 # N items per class of STORY (seed 77, so not the evaluation items) are
 # written in the recording format, the trainer learns from them together
 # with the stories in STORIES (default world,piecewise, seed 1: the
-# trainer's default until 2026-12-06, which the documented runs used; STORY
-# must not be among them), and its reference pass scores 500 fresh items
+# trainer's default until 2026-12-06, which most documented runs used; the
+# six-story runs on lattice set STORIES to the six; STORY must not be among
+# them), and its reference pass scores 500 fresh items
 # per class of STORY (seed 1001).
 #
 #   scripts/haptic/recordings_needed.sh OUT STORY [trainer flags...]
