@@ -39,6 +39,11 @@ ALSO=""
 if [[ "${1:-}" == --train_also=* ]]; then ALSO="${1#--train_also=}"; shift; fi
 BUILD_DIR="${BUILD_DIR:-build}"
 TRAIN="$BUILD_DIR/services/haptic/bitewise-haptic-train"
+# The fold models' familiarity files: one Gaussian per class, as in every
+# documented run (and as unfamiliar_calibration.py and
+# second_opinion_calibration.py read them); a trainer flag after OUT_DIR
+# overrides it.
+FAMILIARITY=(--familiarity_gaussians=class)
 # The folds: the four stories of the tables, or LOSO_STORIES (comma-separated,
 # e.g. all six with puncture and poroelastic).
 IFS=, read -r -a STORIES <<<"${LOSO_STORIES:-world,piecewise,mechanics,compliant}"
@@ -70,7 +75,7 @@ for held in "${STORIES[@]}"; do
       mkdir -p "$dir"
       if [ ! -f "$dir/$name.onnx" ]; then
         echo "==> training on ${name//+/, }"
-        "$TRAIN" --stories="${name//+/,}" --held_out_per_class=0 "$@" \
+        "$TRAIN" --stories="${name//+/,}" --held_out_per_class=0 "${FAMILIARITY[@]}" "$@" \
           --out="$dir/$name.onnx" >"$dir/$name.log"
       fi
       members+=("$dir/$name.onnx")
@@ -85,7 +90,7 @@ for held in "${STORIES[@]}"; do
       member="$OUT/seeds/$held-seed$seed.onnx"
       if [ ! -f "$member" ]; then
         echo "==> training on $others with seed $seed (holding out $held)"
-        "$TRAIN" --stories="$others" --seed="$seed" "$@" --out="$member" \
+        "$TRAIN" --stories="$others" --seed="$seed" "${FAMILIARITY[@]}" "$@" --out="$member" \
           >"$OUT/seeds/$held-seed$seed.log"
       fi
       members+=("$member")
@@ -95,7 +100,7 @@ for held in "${STORIES[@]}"; do
       >"$OUT/$held.train.log"
   elif [ ! -f "$OUT/$held.onnx" ]; then
     echo "==> training on $others (holding out $held)"
-    "$TRAIN" --stories="$others" "$@" --out="$OUT/$held.onnx" >"$OUT/$held.train.log"
+    "$TRAIN" --stories="$others" "${FAMILIARITY[@]}" "$@" --out="$OUT/$held.onnx" >"$OUT/$held.train.log"
   fi
   for part in tune:7 report:20261123; do
     "$BUILD_DIR"/services/haptic/bitewise-haptic-eval --model="$OUT/$held.onnx" \

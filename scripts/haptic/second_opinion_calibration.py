@@ -39,6 +39,10 @@ def log_dets(path):
     with open(path) as f:
         for line in f:
             fields = line.split()
+            if fields[:2] == ["bitewise-haptic-familiarity", "2"]:
+                sys.exit(f"{path}: a familiarity file with one Gaussian per "
+                         "class and story (version 2); this study needs one "
+                         "per class (train with --familiarity_gaussians=class)")
             if fields and fields[0] == "precision":
                 values = np.array([float(v) for v in fields[2:]])
                 k = int(round(math.sqrt(len(values))))

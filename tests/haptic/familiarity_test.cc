@@ -347,6 +347,12 @@ TEST(FamiliarityTest, AMalformedPerStoryFileIsAClearErrorNamingTheLine) {
                    "line 9: expected \"precision 0 world ...\"");
   ExpectParseError(replaced("mean 3 world", "mean 5 world"),
                    "line 20: expected \"mean CLASS SOURCE ...\" with a class");
+  // A calibration count far beyond its numbers is refused before anything
+  // is allocated for it.
+  const size_t at = text.find("calibration ") + 12;
+  std::string huge = text;
+  huge.replace(at, huge.find(' ', at) - at, "2000000000");
+  ExpectParseError(huge, "expected 2000000000 numbers");
   // Every Gaussian of hard-skin relabelled: no class 3 left.
   std::string no_hard_skin = text;
   for (const std::string from : {"mean 3 ", "precision 3 "}) {
@@ -382,12 +388,20 @@ TEST(FamiliarityTest, FitRejectsBadInput) {
                   .status()
                   .message(),
               HasSubstr("sources"));
-  sources.push_back("two words");
-  EXPECT_THAT(FamiliarityModel::FitPerSource(f, train.labels, sources, f, 0.05,
-                                             0.1, "w")
-                  .status()
-                  .message(),
-              HasSubstr("\"two words\" of window"));
+  for (const std::string bad : {"two words", "tab\there", "", "pooled"}) {
+    sources.push_back(bad);
+    EXPECT_THAT(FamiliarityModel::FitPerSource(f, train.labels, sources, f,
+                                               0.05, 0.1, "w")
+                    .status()
+                    .message(),
+                HasSubstr("\"" + bad + "\" of window"));
+    sources.pop_back();
+  }
+  // One Gaussian per class is the version 1 file.
+  absl::StatusOr<FamiliarityModel> one =
+      FamiliarityModel::Fit(f, train.labels, f, 0.05, 0.1, "w");
+  ASSERT_TRUE(one.ok());
+  EXPECT_EQ(one->ToText().rfind("bitewise-haptic-familiarity 1\n", 0), 0u);
   // A class with no Gaussian: hard items only from a source too small.
   std::vector<std::string> one_small(f.size(), "world");
   std::vector<FamiliarityVector> few;
@@ -404,7 +418,8 @@ TEST(FamiliarityTest, FitRejectsBadInput) {
                                              0.05, 0.1, "w")
                   .status()
                   .message(),
-              HasSubstr("class 0 has 5 windows, need at least 20"));
+              HasSubstr("class 0 has 5 windows, 5 of them distinct, need at "
+                        "least 20 distinct"));
 }
 
 TEST(FamiliarityTest, TheShippedFileLoadsAndTheClassifierReportsIt) {

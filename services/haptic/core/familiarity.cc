@@ -1,6 +1,7 @@
 #include "services/haptic/core/familiarity.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -264,10 +265,10 @@ absl::StatusOr<FamiliarityComponent> FitGaussian(
   return g;
 }
 
-absl::Status TooFew(int label, size_t count) {
-  return absl::InvalidArgumentError(
-      absl::StrCat("familiarity fit: class ", label, " has ", count,
-                   " windows, need at least ", 2 * kD));
+absl::Status TooFew(int label, size_t count, size_t distinct) {
+  return absl::InvalidArgumentError(absl::StrCat(
+      "familiarity fit: class ", label, " has ", count, " windows, ", distinct,
+      " of them distinct, need at least ", 2 * kD, " distinct"));
 }
 
 }  // namespace
@@ -298,10 +299,13 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::FitPerSource(
                      sources.size(), " sources"));
   }
   for (size_t i = 0; i < sources.size(); ++i) {
-    if (sources[i].empty() || absl::StrContains(sources[i], ' ')) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("familiarity fit: source \"", sources[i],
-                       "\" of window ", i, " is empty or has a space"));
+    const bool blank = std::any_of(
+        sources[i].begin(), sources[i].end(),
+        [](char ch) { return std::isspace(static_cast<unsigned char>(ch)); });
+    if (sources[i].empty() || blank || sources[i] == "pooled") {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "familiarity fit: source \"", sources[i], "\" of window ", i,
+          " is empty, has white space or is the pool's name \"pooled\""));
     }
   }
   FamiliarityModel model;
@@ -345,7 +349,13 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::FitPerSource(
     } else {
       model.left_out_ += static_cast<int>(pooled.size());
     }
-    if (model.components_.size() == before) return TooFew(c, count);
+    if (model.components_.size() == before) {
+      std::vector<const FamiliarityVector*> all;
+      for (const auto& [source, members] : by_source) {
+        all.insert(all.end(), members.begin(), members.end());
+      }
+      return TooFew(c, count, distinct(all));
+    }
   }
   model.Calibrate(calibration);
   return model;

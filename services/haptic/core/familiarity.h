@@ -70,7 +70,7 @@ class FamiliarityModel {
   // calibrates on `calibration` (windows of the same sources, not fitted
   // on). `threshold` is the familiarity below which a trace is unfamiliar;
   // `trained_on` names the sources (recorded in the file). INVALID_ARGUMENT
-  // when a class has fewer than 2 * kFamiliarityFeatures windows, the
+  // when a class has fewer than 2 * kFamiliarityFeatures distinct windows, the
   // calibration set is empty, a label is out of range, or a parameter is
   // outside its range.
   static absl::StatusOr<FamiliarityModel> Fit(
@@ -86,8 +86,9 @@ class FamiliarityModel {
   // ("pooled"); windows in a pool still smaller than that are left out of
   // the fit (left_out() counts them). INVALID_ARGUMENT
   // as Fit, when a class has no Gaussian at all, when `sources` is not one
-  // per window, or when a source name is empty or contains a space. An
-  // empty `sources` is Fit.
+  // per window, or when a source name is empty, contains white space or is
+  // "pooled". An empty `sources` is Fit. (A window the trainer alters after
+  // repeating it, with --augment for example, counts as distinct.)
   static absl::StatusOr<FamiliarityModel> FitPerSource(
       absl::Span<const FamiliarityVector> features,
       absl::Span<const int> labels, absl::Span<const std::string> sources,

@@ -116,8 +116,8 @@ ABSL_FLAG(std::string, familiarity_gaussians, "class_and_story",
           "source (each story, the recordings; docs/haptic.md, "
           "\"Familiarity\").");
 ABSL_FLAG(double, familiarity_shrinkage, 0.1,
-          "Shrinkage of each class's feature covariance towards its "
-          "diagonal.");
+          "Shrinkage of each familiarity Gaussian's feature covariance "
+          "towards its diagonal.");
 ABSL_FLAG(double, window_s, 0.05,
           "HapticNet window after contact (s), recorded in the model as "
           "bitewise.window_s, which the service and the evaluator then use.");
@@ -349,7 +349,21 @@ int FitFamiliarity(const LabelledWindows& train,
         "--familiarity_gaussians must be class or class_and_story; got \"",
         gaussians, "\""));
   }
-  if (!model.ok()) return Die(model.status().ToString());
+  if (!model.ok()) {
+    if (absl::GetFlag(FLAGS_familiarity_only)) {
+      return Die(model.status().ToString());
+    }
+    // Too few windows to fit a score is no reason not to train the network:
+    // the model is served without one (the service says so at start-up).
+    // A file left from an earlier run at this path would not belong to it.
+    std::remove(path.c_str());
+    std::printf(
+        "\nfamiliarity: not fitted (%s); no %s is written, so the service "
+        "will serve this model without a familiarity score\n",
+        std::string(model.status().message()).c_str(), path.c_str());
+    std::fflush(stdout);
+    return 0;
+  }
   std::printf(
       "\nfamiliarity (%zu Gaussians, %s, on %d trace summaries, fitted on "
       "%zu training windows%s, threshold %.3f = the share of the %zu "
