@@ -291,9 +291,12 @@ TEST(FamiliarityTest, ASourceWithFewWindowsIsPooledOrLeftOut) {
     train.sources.push_back(i < small.inputs.size() / 2 ? "recordings"
                                                         : "lab-b");
   }
-  absl::StatusOr<FamiliarityModel> model = FamiliarityModel::FitPerSource(
-      train.features, train.labels, train.sources, calibration.features, 0.05,
-      0.1, "w,m,rec");
+  auto fit = [&] {
+    return FamiliarityModel::FitPerSource(train.features, train.labels,
+                                          train.sources, calibration.features,
+                                          0.05, 0.1, "w,m,rec");
+  };
+  absl::StatusOr<FamiliarityModel> model = fit();
   ASSERT_TRUE(model.ok()) << model.status();
   ASSERT_EQ(model->components().size(), 12u);
   EXPECT_EQ(model->components()[2].source, "pooled");
@@ -302,9 +305,7 @@ TEST(FamiliarityTest, ASourceWithFewWindowsIsPooledOrLeftOut) {
   train.features.resize(train.features.size() - small.inputs.size() / 2);
   train.labels.resize(train.features.size());
   train.sources.resize(train.features.size());
-  model = FamiliarityModel::FitPerSource(train.features, train.labels,
-                                         train.sources, calibration.features,
-                                         0.05, 0.1, "w,m,rec");
+  model = fit();
   ASSERT_TRUE(model.ok()) << model.status();
   EXPECT_EQ(model->components().size(), 8u);
   EXPECT_EQ(model->left_out(), 48);
@@ -318,9 +319,7 @@ TEST(FamiliarityTest, ASourceWithFewWindowsIsPooledOrLeftOut) {
       train.sources.push_back(train.sources[i]);
     }
   }
-  model = FamiliarityModel::FitPerSource(train.features, train.labels,
-                                         train.sources, calibration.features,
-                                         0.05, 0.1, "w,m,rec");
+  model = fit();
   ASSERT_TRUE(model.ok()) << model.status();
   EXPECT_EQ(model->components().size(), 8u);
   EXPECT_EQ(model->left_out(), 480);
