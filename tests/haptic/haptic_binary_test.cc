@@ -378,6 +378,36 @@ TEST(HapticTrainerBinaryTest, CompliantArmIsCheckedAndReported) {
       log, HasSubstr("0.5 of them through a compliant arm (--compliant_arm)"));
 }
 
+// The trainer's familiarity: a density it does not know stops it before any
+// trace is drawn, naming the flag; too few distinct windows of a class (20
+// items per class, 14 of them in training) to fit one is said, the network
+// is still trained, and no familiarity file is left beside it, not even one
+// from an earlier run at that path.
+TEST(HapticTrainerBinaryTest, AFamiliarityThatCannotBeFittedLeavesNoFile) {
+  std::string log;
+  int status =
+      TrainSmall("fam_bad", {"--familiarity_gaussians=per_moon"}, &log);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  EXPECT_THAT(log, HasSubstr("--familiarity_gaussians must be class or "
+                             "class_and_story; got \"per_moon\""));
+  const std::string model = ::testing::TempDir() + "/fam_few.onnx";
+  {
+    std::ofstream stale(model + ".familiarity");
+    stale << "left from an earlier run\n";
+  }
+  status = TrainSmall("fam_few", {"--familiarity=true"}, &log);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  EXPECT_THAT(log, HasSubstr("familiarity: not fitted (familiarity fit: class "
+                             "0 has"));
+  EXPECT_THAT(log, HasSubstr("need at least 20 distinct"));
+  EXPECT_TRUE(std::ifstream(model).good());
+  EXPECT_FALSE(std::ifstream(model + ".familiarity").good());
+}
+
 // The trainer's --window_s: out of range stops it naming the flag; a valid
 // one is recorded in the model, which then loads with that window.
 TEST(HapticTrainerBinaryTest, WindowIsCheckedAndRecordedInTheModel) {

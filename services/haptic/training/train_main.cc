@@ -331,7 +331,7 @@ int FitFamiliarity(const LabelledWindows& train,
         train_features, train.labels, validation_features,
         absl::GetFlag(FLAGS_familiarity_threshold),
         absl::GetFlag(FLAGS_familiarity_shrinkage), trained_on);
-  } else if (gaussians == "class_and_story") {
+  } else {  // "class_and_story", checked at the start
     std::vector<std::string> sources;
     sources.reserve(train.sources.size());
     for (int source : train.sources) {
@@ -344,10 +344,6 @@ int FitFamiliarity(const LabelledWindows& train,
         train_features, train.labels, sources, validation_features,
         absl::GetFlag(FLAGS_familiarity_threshold),
         absl::GetFlag(FLAGS_familiarity_shrinkage), trained_on);
-  } else {
-    return Die(absl::StrCat(
-        "--familiarity_gaussians must be class or class_and_story; got \"",
-        gaussians, "\""));
   }
   if (!model.ok()) {
     if (absl::GetFlag(FLAGS_familiarity_only)) {
@@ -415,6 +411,12 @@ int main(int argc, char** argv) {
   if (!absl::GetFlag(FLAGS_ensemble_of).empty()) return AssembleEnsemble();
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
   // Checked before any trace is drawn.
+  if (const std::string g = absl::GetFlag(FLAGS_familiarity_gaussians);
+      g != "class" && g != "class_and_story") {
+    return Die(absl::StrCat(
+        "--familiarity_gaussians must be class or class_and_story; got \"", g,
+        "\""));
+  }
   std::vector<int> conv_channels;
   for (absl::string_view part : absl::StrSplit(
            absl::GetFlag(FLAGS_conv_channels), ',', absl::SkipEmpty())) {
