@@ -80,6 +80,16 @@ struct FoodDetectorOptions {
   // top ratio above): a kiwi slice's pale core and seed ring inside its
   // green flesh. Above 1: off.
   double min_enclosed_share = 0.9;
+  // A band across an item: a region of at least min_seed_px joins two of
+  // its neighbours of similar colour to each other (under
+  // min_colour_distance), whatever its own colour, when neither seam with
+  // them has a dip by the closing's lift (min_valley_mm, valley_fraction;
+  // the seam's own height is not asked, since a cut face may slope), a
+  // shaded crease or one standing on the other (max_merge_top_ratio), and
+  // the two seams make up at least this share of the watershed ridge
+  // beside it: a halved strawberry's pale core between two strips of red
+  // flesh, which reaches the outline at both ends. 0: off.
+  double min_sandwich_share = 0.6;
   // A highlight is part of the item it lies on. A glossy skin (a
   // strawberry's, a tomato's) reflects the lamp or the window, which adds
   // white light to the item's own colour: lighter, less chromatic, the same

@@ -794,11 +794,16 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     while (parent[i] != i) i = parent[i] = parent[parent[i]];
     return i;
   };
+  // Per region: its neighbours across a seam with no shaded crease, no dip
+  // by the closing's lift and neither standing on the other, with that
+  // seam's length (the band test below).
+  std::vector<std::vector<std::pair<int, int>>> flush_with(n_cores);
+  const auto colour_of = [&](int r) { return lab_sum[r] / lab_count[r]; };
   for (const auto& [pair, seam] : boundary) {
     const auto [a, b] = pair;
     if (seam.count < 3 || lab_count[a] == 0 || lab_count[b] == 0) continue;
-    const cv::Vec3d colour_a = lab_sum[a] / lab_count[a];
-    const cv::Vec3d colour_b = lab_sum[b] / lab_count[b];
+    const cv::Vec3d colour_a = colour_of(a);
+    const cv::Vec3d colour_b = colour_of(b);
     const cv::Vec3d diff = colour_a - colour_b;
     // A crease between two bodies is shaded: no merge across it, whatever
     // their colour and height (FoodDetectorOptions::min_crease_shade_l).
@@ -839,12 +844,41 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
              seam_px == longest_seam[r];
     };
     const bool enclosed = inside(a) || inside(b);
+    if (no_dip) {
+      flush_with[a].emplace_back(b, seam_px);
+      flush_with[b].emplace_back(a, seam_px);
+    }
     if (((no_valley || valley_across) &&
          cv::norm(diff) < options.min_colour_distance) ||
         (no_valley && enclosed) ||
         (no_dip &&
          IsHighlightOn(colour_a, colour_b, evidence.plate_lab, options))) {
       parent[root(a)] = root(b);
+    }
+  }
+  // A band of another colour across an item (a halved strawberry's pale
+  // core between two strips of its flesh) reaches the item's outline at
+  // both ends, so it is not inside food; it is joined with the two parts
+  // either side when they are of similar colour, neither seam has a dip,
+  // a crease or a step, and the two seams are at least min_sandwich_share
+  // of the ridge beside the band. A band smaller than a seed is a sliver
+  // of the watershed between two items, not a part of one.
+  if (options.min_sandwich_share > 0.0) {
+    for (int c = 1; c < background; ++c) {
+      if (lab_count[c] < options.min_seed_px) continue;
+      const auto& near = flush_with[c];
+      for (size_t i = 0; i < near.size(); ++i) {
+        for (size_t j = i + 1; j < near.size(); ++j) {
+          const auto [a, seam_a] = near[i];
+          const auto [b, seam_b] = near[j];
+          if (seam_a + seam_b >= options.min_sandwich_share * ridge_beside[c] &&
+              cv::norm(colour_of(a) - colour_of(b)) <
+                  options.min_colour_distance) {
+            parent[root(a)] = root(c);
+            parent[root(b)] = root(c);
+          }
+        }
+      }
     }
   }
   // A stick with another item lying across it shows as two parts, one on

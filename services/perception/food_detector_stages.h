@@ -132,7 +132,10 @@ void GrowRegions(const cv::Mat& rgb, const FoodEvidence& evidence,
 
 // Joins neighbouring regions of similar colour with no valley in height
 // along their shared boundary (one item cut in two), unless one's top stands
-// more than max_merge_top_ratio times the other's (one lies on the other).
+// more than max_merge_top_ratio times the other's (one lies on the other);
+// and, whatever their colour, a part inside an item, a highlight, a band
+// across an item and a stick's two parts under an item lying across it
+// (see FoodDetectorOptions).
 void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
                      const cv::Mat& valid, const FoodDetectorOptions& options,
                      Regions& regions);

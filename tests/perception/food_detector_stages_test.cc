@@ -453,6 +453,77 @@ TEST(DetectorStagesTest, MergeJoinsAChannelCutCrosswiseNotTwoTouchingRods) {
       2);
 }
 
+TEST(DetectorStagesTest, MergeJoinsABandAcrossAnItemNotAnItemBetweenTwo) {
+  // A halved strawberry cut face up: a flat red oval (12 mm) with a pale
+  // core running its length, from outline to outline, seeded as flesh,
+  // core, flesh. The core is not inside food (its ends meet the plate) and
+  // its colour is far from the flesh's, but it is a band between two parts
+  // of one colour: one item. A pale disc touching two red discs in a row
+  // shares only short seams with them: three items. A pale sliver smaller
+  // than a seed between two red slabs does not join them.
+  const auto items = [](const cv::Mat& height,
+                        const std::function<void(cv::Mat&)>& paint,
+                        const std::vector<cv::Rect>& seeds,
+                        const FoodDetectorOptions& options) {
+    Scene scene = MakeScene(height, height > 0.0f);
+    paint(scene.rgb);
+    scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                  scene.plate, FoodDetectorOptions());
+    return ItemLabels(GrowAndMerge(scene, seeds, options));
+  };
+  // CIELAB: the flesh (200, 60, 50) is L 47, hue 35 degrees; the core L 89,
+  // chroma 14, hue 67 degrees, too far round to be a highlight on it.
+  const cv::Scalar pale(245, 220, 200);
+  FoodDetectorOptions off;
+  off.min_sandwich_share = 0.0;
+
+  cv::Mat oval(kH, kW, CV_32FC1, cv::Scalar(0));
+  cv::ellipse(oval, {320, 240}, {50, 28}, 0, 0, 360, cv::Scalar(12.0),
+              cv::FILLED);
+  const auto core = [&](cv::Mat& rgb) {
+    rgb(cv::Rect(260, 234, 120, 12))
+        .setTo(pale, oval(cv::Rect(260, 234, 120, 12)) > 0.0f);
+  };
+  const std::vector<cv::Rect> strips = {cv::Rect(300, 218, 40, 6),
+                                        cv::Rect(300, 237, 40, 6),
+                                        cv::Rect(300, 256, 40, 6)};
+  EXPECT_EQ(items(oval, core, strips, FoodDetectorOptions()), 1);
+  EXPECT_EQ(items(oval, core, strips, off), 3)
+      << "without the rule, colour keeps the core apart";
+
+  cv::Mat row(kH, kW, CV_32FC1, cv::Scalar(0));
+  for (const int u : {262, 320, 378}) {
+    cv::circle(row, {u, 240}, 30, cv::Scalar(12.0), cv::FILLED);
+  }
+  const auto middle = [&](cv::Mat& rgb) {
+    cv::circle(rgb, {320, 240}, 30, pale, cv::FILLED);
+  };
+  const std::vector<cv::Rect> discs = {cv::Rect(257, 235, 10, 10),
+                                       cv::Rect(315, 235, 10, 10),
+                                       cv::Rect(373, 235, 10, 10)};
+  EXPECT_EQ(items(row, middle, discs, FoodDetectorOptions()), 3);
+  FoodDetectorOptions loose;  // the two seams are 30 of its 168 ridge pixels
+  loose.min_sandwich_share = 0.15;
+  EXPECT_EQ(items(row, middle, discs, loose), 1)
+      << "only the seams' share keeps the discs apart";
+
+  cv::Mat slabs(kH, kW, CV_32FC1, cv::Scalar(0));
+  slabs(cv::Rect(260, 220, 58, 40)).setTo(12.0f);
+  slabs(cv::Rect(323, 220, 58, 40)).setTo(12.0f);
+  slabs(cv::Rect(318, 238, 5, 5)).setTo(12.0f);  // 25 px, under a seed's 30
+  const auto sliver = [&](cv::Mat& rgb) {
+    rgb(cv::Rect(318, 238, 5, 5)).setTo(pale);
+  };
+  const std::vector<cv::Rect> two_and_sliver = {cv::Rect(270, 230, 10, 20),
+                                                cv::Rect(319, 239, 3, 3),
+                                                cv::Rect(360, 230, 10, 20)};
+  EXPECT_GE(items(slabs, sliver, two_and_sliver, FoodDetectorOptions()), 2);
+  FoodDetectorOptions any_band;
+  any_band.min_seed_px = 0;
+  EXPECT_EQ(items(slabs, sliver, two_and_sliver, any_band), 1)
+      << "the sliver is what would join them";
+}
+
 // Two flat items of one colour, the second partly lying on the first: the
 // lower one shows as a strip [240, 240 + shown) x [220, 260) of
 // `lower_mm`, the upper one [240 + shown, 340) x [220, 260) stands
