@@ -862,7 +862,8 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   // either side when they are of similar colour, neither seam has a dip,
   // a crease or a step, and the two seams are at least min_sandwich_share
   // of the ridge beside the band. A band smaller than a seed is a sliver
-  // of the watershed between two items, not a part of one.
+  // of the watershed between two items, not a part of one; a band darker
+  // than both parts is the shaded crease between two touching items.
   if (options.min_sandwich_share > 0.0) {
     for (int c = 1; c < background; ++c) {
       if (lab_count[c] < options.min_seed_px) continue;
@@ -871,7 +872,12 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         for (size_t j = i + 1; j < near.size(); ++j) {
           const auto [a, seam_a] = near[i];
           const auto [b, seam_b] = near[j];
-          if (seam_a + seam_b >= options.min_sandwich_share * ridge_beside[c] &&
+          const bool shaded =
+              options.min_crease_shade_l > 0.0 &&
+              colour_of(c)[0] < std::min(colour_of(a)[0], colour_of(b)[0]) -
+                                    options.min_crease_shade_l;
+          if (!shaded &&
+              seam_a + seam_b >= options.min_sandwich_share * ridge_beside[c] &&
               cv::norm(colour_of(a) - colour_of(b)) <
                   options.min_colour_distance) {
             parent[root(a)] = root(c);

@@ -458,7 +458,8 @@ TEST(DetectorStagesTest, MergeJoinsABandAcrossAnItemNotAnItemBetweenTwo) {
   // core running its length, from outline to outline, seeded as flesh,
   // core, flesh. The core is not inside food (its ends meet the plate) and
   // its colour is far from the flesh's, but it is a band between two parts
-  // of one colour: one item. A pale disc touching two red discs in a row
+  // of one colour: one item (but not when the band is darker than both: a
+  // shaded crease). A pale disc touching two red discs in a row
   // shares only short seams with them: three items. A pale sliver smaller
   // than a seed between two red slabs does not join them.
   const auto items = [](const cv::Mat& height,
@@ -490,6 +491,18 @@ TEST(DetectorStagesTest, MergeJoinsABandAcrossAnItemNotAnItemBetweenTwo) {
   EXPECT_EQ(items(oval, core, strips, FoodDetectorOptions()), 1);
   EXPECT_EQ(items(oval, core, strips, off), 3)
       << "without the rule, colour keeps the core apart";
+  // The same band, dark (L 25 against the flesh's 47): the shaded crease
+  // between two touching items grown into a region of its own.
+  const auto crease = [&](cv::Mat& rgb) {
+    rgb(cv::Rect(260, 234, 120, 12))
+        .setTo(cv::Scalar(110, 30, 28),
+               oval(cv::Rect(260, 234, 120, 12)) > 0.0f);
+  };
+  EXPECT_EQ(items(oval, crease, strips, FoodDetectorOptions()), 3);
+  FoodDetectorOptions unshaded;
+  unshaded.min_crease_shade_l = 0.0;
+  EXPECT_EQ(items(oval, crease, strips, unshaded), 1)
+      << "only its shade keeps the dark band from joining";
 
   cv::Mat row(kH, kW, CV_32FC1, cv::Scalar(0));
   for (const int u : {262, 320, 378}) {
