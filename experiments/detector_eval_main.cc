@@ -2,11 +2,12 @@
 // touch, the same food may appear twice (two carrot sticks side by side),
 // and items are drawn from the unseen foods. Reports, over all items: found
 // once (one-to-one match with IoU >= 0.5), merged with a neighbour, missed,
-// the items lost (no match with IoU >= 0.5) by how much of them shows, the
-// mean and worst IoU of matched items, and Detect's latency. (Merges are
-// judged on boxes: one detection covering at least half of two items'
-// boxes while one of them has no detection of its own.) The numbers
-// in docs/perception.md come from `--plates=200 --seed=9001`; with
+// the items lost (no match with IoU >= 0.5) by how much of them shows (and
+// those in full view by food), the mean and worst IoU of matched items, and
+// Detect's latency. (Merges are judged on boxes: one detection covering at
+// least half of two items' boxes while one of them has no detection of its
+// own.) The numbers in docs/perception.md come from
+// `--plates=200 --seed=9001`; with
 // --renderer=blind the plates come from a renderer written blind, as a test
 // only (experiments/blind_plates.h). Detect runs as in bitewise-perception:
 // the colour tables prepared first, and freed memory kept for the next plate
@@ -15,6 +16,7 @@
 #include <array>
 #include <chrono>
 #include <cstdio>
+#include <map>
 #include <random>
 #include <string>
 #include <utility>
@@ -179,6 +181,7 @@ int main(int argc, char** argv) {
     int items = 0, in_join = 0, otherwise = 0;
   };
   std::array<Band, 3> bands;
+  std::map<std::string, Band> whole_by_food;  // the items in full view
   const auto band_of = [&](double share) {
     return share >= kWholeShare ? 2 : share >= 0.5 ? 1 : 0;
   };
@@ -293,10 +296,14 @@ int main(int argc, char** argv) {
       }
       ++items;
       Band& band = bands[band_of(shown[t])];
+      Band* by_food =
+          band_of(shown[t]) == 2 ? &whole_by_food[truth_food[t]] : nullptr;
       ++band.items;
+      if (by_food != nullptr) ++by_food->items;
       if (is_merged[t]) {
         ++merged;
         band.in_join += best[t] < 0.5;
+        if (by_food != nullptr) by_food->in_join += best[t] < 0.5;
       } else if (best[t] >= 0.5) {
         ++found;
         iou_sum += best[t];
@@ -304,6 +311,7 @@ int main(int argc, char** argv) {
       } else {
         ++missed;
         ++band.otherwise;
+        if (by_food != nullptr) ++by_food->otherwise;
         if (absl::GetFlag(FLAGS_verbose)) {
           std::fprintf(stderr, "plate %d missed: %s (%.0f%%, best IoU %.2f)\n",
                        p, truth_food[t].c_str(),
@@ -357,6 +365,12 @@ int main(int argc, char** argv) {
     std::printf("lost, %s  %d of %d (in a join %d, otherwise %d)\n",
                 band_names[b], bands[b].in_join + bands[b].otherwise,
                 bands[b].items, bands[b].in_join, bands[b].otherwise);
+  }
+  for (const auto& [food, band] : whole_by_food) {
+    if (band.in_join + band.otherwise == 0) continue;
+    std::printf("  in full view: %-14s %d of %d (in a join %d, otherwise %d)\n",
+                food.c_str(), band.in_join + band.otherwise, band.items,
+                band.in_join, band.otherwise);
   }
   std::printf("extra detections            %d\n", extra);
   std::printf("IoU of found items          mean %.3f, worst %.3f\n",

@@ -87,10 +87,10 @@ struct FoodDetectorOptions {
   // the seam's own height is not asked, since a cut face may slope), a
   // shaded crease or one standing on the other (max_merge_top_ratio), and
   // the two seams make up at least this share of the watershed ridge
-  // beside it: a halved strawberry's pale core between two strips of red
-  // flesh, which reaches the outline at both ends. A band more than
-  // min_crease_shade_l darker than the darker of the two is the shaded
-  // crease between two touching items and joins nothing. 0: off.
+  // beside it (0: never joined): a halved strawberry's pale core between
+  // two strips of red flesh, which reaches the outline at both ends. A band
+  // more than min_crease_shade_l darker than the darker of the two is the
+  // shaded crease between two touching items and is not joined with them.
   double min_sandwich_share = 0.6;
   // A highlight is part of the item it lies on. A glossy skin (a
   // strawberry's, a tomato's) reflects the lamp or the window, which adds
