@@ -90,7 +90,9 @@ struct FoodDetectorOptions {
   // beside it (0: never joined): a halved strawberry's pale core between
   // two strips of red flesh, which reaches the outline at both ends. A band
   // more than min_crease_shade_l darker than the darker of the two is the
-  // shaded crease between two touching items and is not joined with them.
+  // shaded crease between two touching items and is not joined with them,
+  // and two neighbours whose own seam keeps them apart (a shaded crease,
+  // one standing on the other, a valley along it) are not joined by a band.
   double min_sandwich_share = 0.6;
   // A highlight is part of the item it lies on. A glossy skin (a
   // strawberry's, a tomato's) reflects the lamp or the window, which adds

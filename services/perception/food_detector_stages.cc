@@ -6,6 +6,7 @@
 #include <map>
 #include <optional>
 #include <random>
+#include <set>
 #include <utility>
 #include <vector>
 
@@ -798,6 +799,9 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   // by the closing's lift and neither standing on the other, with that
   // seam's length (the band test below).
   std::vector<std::vector<std::pair<int, int>>> flush_with(n_cores);
+  // The pairs the merge keeps apart by their seam: a shaded crease, one
+  // standing on the other, or a valley along the seam.
+  std::set<std::pair<int, int>> kept_apart;
   const auto colour_of = [&](int r) { return lab_sum[r] / lab_count[r]; };
   for (const auto& [pair, seam] : boundary) {
     const auto [a, b] = pair;
@@ -810,6 +814,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     if (options.min_crease_shade_l > 0.0 &&
         seam.l_sum / seam.all_count <
             std::min(colour_a[0], colour_b[0]) - options.min_crease_shade_l) {
+      kept_apart.insert(pair);
       continue;
     }
     const double seam_mm = seam.height_sum / seam.count;
@@ -819,6 +824,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     // two, whose parts are seeded at about the same height.
     if (std::max(top_mm[a], top_mm[b]) >
         options.max_merge_top_ratio * lower_top) {
+      kept_apart.insert(pair);
       continue;
     }
     // No valley between them, by the closing's lift and by height.
@@ -844,6 +850,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
              seam_px == longest_seam[r];
     };
     const bool enclosed = inside(a) || inside(b);
+    if (!no_dip && !valley_across) kept_apart.insert(pair);
     if (no_dip) {
       flush_with[a].emplace_back(b, seam_px);
       flush_with[b].emplace_back(a, seam_px);
@@ -863,7 +870,9 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   // a crease or a step, and the two seams are at least min_sandwich_share
   // of the ridge beside the band. A band smaller than a seed is a sliver
   // of the watershed between two items, not a part of one; a band darker
-  // than both parts is the shaded crease between two touching items.
+  // than both parts is the shaded crease between two touching items; and
+  // two parts that touch across a seam the merge keeps apart are two items
+  // whatever lies between them elsewhere.
   if (options.min_sandwich_share > 0.0) {
     for (int c = 1; c < background; ++c) {
       if (lab_count[c] < options.min_seed_px) continue;
@@ -877,6 +886,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
               colour_of(c)[0] < std::min(colour_of(a)[0], colour_of(b)[0]) -
                                     options.min_crease_shade_l;
           if (!shaded &&
+              kept_apart.count(std::pair<int, int>(std::minmax(a, b))) == 0 &&
               seam_a + seam_b >= options.min_sandwich_share * ridge_beside[c] &&
               cv::norm(colour_of(a) - colour_of(b)) <
                   options.min_colour_distance) {
