@@ -526,6 +526,22 @@ TEST(DetectorStagesTest, MergeJoinsABandAcrossAnItemNotAnItemBetweenTwo) {
     EXPECT_EQ(joined(lift), 1);
     lift(cv::Rect(266, 235, 18, 10)).setTo(5.0f);
     EXPECT_EQ(joined(lift), 3);
+    // So does a step: the lower strip 16 mm high, the core 13 mm, the upper
+    // strip 10 mm. Each seam of the core is flush enough (13 / 10, 16 / 13,
+    // under 1.5), but where the strips meet one stands 1.6 times the other.
+    cv::Mat steps = oval.clone();
+    steps.rowRange(0, 234).setTo(10.0f, oval.rowRange(0, 234) > 0.0f);
+    steps.rowRange(246, kH).setTo(16.0f, oval.rowRange(246, kH) > 0.0f);
+    steps.rowRange(234, 246).colRange(0, 286).setTo(
+        16.0f, oval.rowRange(234, 246).colRange(0, 286) > 0.0f);
+    steps.rowRange(234, 246).colRange(286, kW).setTo(
+        13.0f, oval.rowRange(234, 246).colRange(286, kW) > 0.0f);
+    Scene stepped = MakeScene(steps, steps > 0.0f);
+    short_core(stepped.rgb);
+    stepped.evidence =
+        FindEvidence(stepped.rgb, stepped.height_mm, stepped.valid,
+                     stepped.plate, FoodDetectorOptions());
+    EXPECT_EQ(ItemLabels(GrowAndMerge(stepped, strips, no_inside)), 3);
   }
   const auto green_below = [&](cv::Mat& rgb) {
     core(rgb);
