@@ -803,6 +803,12 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   // standing on the other, or a valley along the seam.
   std::set<std::pair<int, int>> kept_apart;
   const auto colour_of = [&](int r) { return lab_sum[r] / lab_count[r]; };
+  // A shaded crease: lightness `l` more than min_crease_shade_l below the
+  // darker of two regions' colours.
+  const auto shaded = [&](double l, const cv::Vec3d& x, const cv::Vec3d& y) {
+    return options.min_crease_shade_l > 0.0 &&
+           l < std::min(x[0], y[0]) - options.min_crease_shade_l;
+  };
   for (const auto& [pair, seam] : boundary) {
     const auto [a, b] = pair;
     if (seam.count < 3 || lab_count[a] == 0 || lab_count[b] == 0) continue;
@@ -811,9 +817,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     const cv::Vec3d diff = colour_a - colour_b;
     // A crease between two bodies is shaded: no merge across it, whatever
     // their colour and height (FoodDetectorOptions::min_crease_shade_l).
-    if (options.min_crease_shade_l > 0.0 &&
-        seam.l_sum / seam.all_count <
-            std::min(colour_a[0], colour_b[0]) - options.min_crease_shade_l) {
+    if (shaded(seam.l_sum / seam.all_count, colour_a, colour_b)) {
       kept_apart.insert(pair);
       continue;
     }
@@ -881,11 +885,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         for (size_t j = i + 1; j < near.size(); ++j) {
           const auto [a, seam_a] = near[i];
           const auto [b, seam_b] = near[j];
-          const bool shaded =
-              options.min_crease_shade_l > 0.0 &&
-              colour_of(c)[0] < std::min(colour_of(a)[0], colour_of(b)[0]) -
-                                    options.min_crease_shade_l;
-          if (!shaded &&
+          if (!shaded(colour_of(c)[0], colour_of(a), colour_of(b)) &&
               kept_apart.count(std::pair<int, int>(std::minmax(a, b))) == 0 &&
               seam_a + seam_b >= options.min_sandwich_share * ridge_beside[c] &&
               cv::norm(colour_of(a) - colour_of(b)) <
