@@ -91,7 +91,37 @@ struct Plate {
   bitewise::sim::RenderedFrame rendered;
   std::vector<std::string> food;
   std::vector<bool> lies_on_another;
+  // By item index: how many separate pieces of at least kMinPiecePx of the
+  // item show (an item under a neighbour can show on both sides of it); 0
+  // when the renderer gives no label image.
+  std::vector<int> pieces;
 };
+
+constexpr int kMinPiecePx = 30;  // the detector's smallest seed
+
+// Pieces of at least kMinPiecePx per item in a row-major label image.
+std::vector<int> CountPieces(const std::vector<int16_t>& label, int width,
+                             int height, size_t n_items) {
+  std::vector<int> pieces(n_items, 0);
+  for (size_t i = 0; i < n_items; ++i) {
+    cv::Mat mask(height, width, CV_8UC1);
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        mask.at<uint8_t>(y, x) =
+            label[static_cast<size_t>(y) * width + x] == static_cast<int>(i)
+                ? 255
+                : 0;
+      }
+    }
+    cv::Mat parts, stats, centroids;
+    const int n = cv::connectedComponentsWithStats(mask, parts, stats,
+                                                   centroids, 8, CV_32S);
+    for (int c = 1; c < n; ++c) {
+      pieces[i] += stats.at<int>(c, cv::CC_STAT_AREA) >= kMinPiecePx;
+    }
+  }
+  return pieces;
+}
 
 // A plate of the project's renderer: 2 to `max_items` unseen foods.
 Plate SimPlate(const std::vector<const bitewise::sim::FoodType*>& unseen,
@@ -107,6 +137,7 @@ Plate SimPlate(const std::vector<const bitewise::sim::FoodType*>& unseen,
   Plate plate;
   plate.rendered =
       bitewise::sim::RenderPlate(scene, bitewise::sim::D415Intrinsics(), rng());
+  plate.pieces.assign(plate.rendered.truth.size(), 0);
   for (const bitewise::sim::ItemTruth& t : plate.rendered.truth) {
     for (const bitewise::sim::SceneItem& item : scene.items) {
       if (item.id != t.id) continue;
@@ -122,8 +153,11 @@ Plate BlindPlate(uint64_t seed,
                  const bitewise::experiments::BlindPlateOptions& options) {
   bitewise::experiments::BlindPlate blind =
       bitewise::experiments::RenderBlindPlate(seed, options);
+  std::vector<int> pieces =
+      CountPieces(blind.label, blind.frame.intrinsics.width,
+                  blind.frame.intrinsics.height, blind.frame.truth.size());
   return {std::move(blind.frame), std::move(blind.food),
-          std::move(blind.lies_on_another)};
+          std::move(blind.lies_on_another), std::move(pieces)};
 }
 
 }  // namespace
@@ -179,6 +213,8 @@ int main(int argc, char** argv) {
   constexpr double kWholeShare = 0.95;
   struct Band {
     int items = 0, in_join = 0, otherwise = 0;
+    // Of those, items seen in two or more pieces, and those of them lost.
+    int in_pieces = 0, in_pieces_lost = 0;
   };
   std::array<Band, 3> bands;
   std::map<std::string, Band> whole_by_food;  // the items in full view
@@ -209,11 +245,13 @@ int main(int argc, char** argv) {
     std::vector<std::string> truth_food;  // by truth index
     std::vector<bool> required;           // by truth index: must be found
     std::vector<double> shown;            // by truth index: visible share
+    std::vector<int> pieces;              // by truth index: pieces seen
     for (size_t i = 0; i < rendered.truth.size(); ++i) {
       const bitewise::sim::ItemTruth& t = rendered.truth[i];
       if (t.visible_pixels == 0) continue;
       truth.push_back({t.x, t.y, t.width, t.height});
       truth_food.push_back(plate.food[i]);
+      pieces.push_back(plate.pieces[i]);
       shown.push_back(static_cast<double>(t.visible_pixels) /
                       std::max(1, t.footprint_pixels));
       lying_on += plate.lies_on_another[i];
@@ -280,9 +318,11 @@ int main(int argc, char** argv) {
         if (absl::GetFlag(FLAGS_verbose)) {
           std::fprintf(stderr, "plate %d merged:", p);
           for (size_t t : covered) {
-            std::fprintf(stderr, " %s (%.0f%%%s)", truth_food[t].c_str(),
-                         100.0 * std::min(1.0, shown[t]),
-                         best[t] < 0.5 ? ", lost" : "");
+            std::fprintf(stderr, " %s (%.0f%%%s%s, box %d,%d %dx%d)",
+                         truth_food[t].c_str(), 100.0 * std::min(1.0, shown[t]),
+                         best[t] < 0.5 ? ", lost" : "",
+                         pieces[t] >= 2 ? ", in pieces" : "", truth[t].x,
+                         truth[t].y, truth[t].w, truth[t].h);
           }
           std::fprintf(stderr, "\n");
         }
@@ -300,6 +340,10 @@ int main(int argc, char** argv) {
           band_of(shown[t]) == 2 ? &whole_by_food[truth_food[t]] : nullptr;
       ++band.items;
       if (by_food != nullptr) ++by_food->items;
+      if (pieces[t] >= 2) {
+        ++band.in_pieces;
+        band.in_pieces_lost += best[t] < 0.5;
+      }
       if (is_merged[t]) {
         ++merged;
         band.in_join += best[t] < 0.5;
@@ -313,9 +357,13 @@ int main(int argc, char** argv) {
         ++band.otherwise;
         if (by_food != nullptr) ++by_food->otherwise;
         if (absl::GetFlag(FLAGS_verbose)) {
-          std::fprintf(stderr, "plate %d missed: %s (%.0f%%, best IoU %.2f)\n",
+          std::fprintf(stderr,
+                       "plate %d missed: %s (%.0f%%, best IoU %.2f%s, box "
+                       "%d,%d %dx%d)\n",
                        p, truth_food[t].c_str(),
-                       100.0 * std::min(1.0, shown[t]), best[t]);
+                       100.0 * std::min(1.0, shown[t]), best[t],
+                       pieces[t] >= 2 ? ", in pieces" : "", truth[t].x,
+                       truth[t].y, truth[t].w, truth[t].h);
         }
         dump();
       }
@@ -365,6 +413,10 @@ int main(int argc, char** argv) {
     std::printf("lost, %s  %d of %d (in a join %d, otherwise %d)\n",
                 band_names[b], bands[b].in_join + bands[b].otherwise,
                 bands[b].items, bands[b].in_join, bands[b].otherwise);
+    if (b < 2 && blind) {
+      std::printf("  seen in two or more pieces: %d lost of %d\n",
+                  bands[b].in_pieces_lost, bands[b].in_pieces);
+    }
   }
   for (const auto& [food, band] : whole_by_food) {
     if (band.in_join + band.otherwise == 0) continue;
