@@ -901,14 +901,16 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   // each side of the item on it; the watershed gives them two labels and
   // neither covers the stick. Two parts (each the regions the merge above
   // made one, since a short stub is often seeded in pieces) are joined
-  // when: an item lying on them (its top more than max_merge_top_ratio
-  // times theirs) borders both; they are of similar colour and height; the
-  // straight line between their centroids runs over them and the item on
-  // them only (the stick goes on underneath); they and the item on them
-  // fill at least min_join_fill of the smallest rectangle around the two
-  // parts (one stick is a rectangle; a round slice and a stick beside it
-  // leave plate in it); and one part is not round (two whole slices either
-  // side of a tall item fill such a rectangle too).
+  // when: each borders something standing on them (its top more than
+  // max_merge_top_ratio times theirs; not necessarily the same region,
+  // since the item on them may show as two, a kiwi slice's flesh and its
+  // darker rim); they are of similar colour and height; the straight line
+  // between their centroids runs over them and what stands on them only
+  // (the stick goes on underneath); they and what stands on them fill at
+  // least min_join_fill of the smallest rectangle around the two parts
+  // (one stick is a rectangle; a round slice and a stick beside it leave
+  // plate in it); and one part is not round (two whole slices either side
+  // of a tall item fill such a rectangle too).
   if (options.min_join_fill <= 1.0) {
     std::vector<int> group(n_cores);
     for (int i = 0; i < n_cores; ++i) group[i] = root(i);
@@ -973,14 +975,18 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       neighbours[a].push_back(b);
       neighbours[b].push_back(a);
     }
-    auto in = [&](int label, int a, int b, int o) {
+    // Whether a pixel's label is part a or b, or stands on them: its part's
+    // top above `above` (an item on a stick may show as more than one
+    // region, a kiwi slice's flesh and its darker rim).
+    constexpr double kNever = std::numeric_limits<double>::infinity();
+    auto in = [&](int label, int a, int b, double above) {
       if (label <= 0 || label >= background) return false;
       const int g = group[label];
-      return g == a || g == b || g == o;
+      return g == a || g == b || part[g].top_mm > above;
     };
     // The share of the smallest rectangle around parts a and b that a, b,
     // the item o on them and the watershed's ridges cover.
-    auto fill = [&](int a, int b, int o) {
+    auto fill = [&](int a, int b, double above) {
       std::vector<cv::Point> points;
       const cv::Rect box =
           cv::Rect(cv::Point(std::min(part[a].u0, part[b].u0),
@@ -990,7 +996,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       for (int v = box.y; v < box.br().y; ++v) {
         const auto* m = markers.ptr<int>(v);
         for (int u = box.x; u < box.br().x; ++u) {
-          if (in(m[u], a, b, -1)) points.emplace_back(u, v);
+          if (in(m[u], a, b, kNever)) points.emplace_back(u, v);
         }
       }
       const cv::RotatedRect rect = cv::minAreaRect(points);
@@ -1007,49 +1013,53 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
             continue;
           }
           ++inside;
-          covered += m[u] == -1 || in(m[u], a, b, o);
+          covered += m[u] == -1 || in(m[u], a, b, above);
         }
       }
       return inside > 0 ? static_cast<double>(covered) / inside : 0.0;
     };
-    for (int o = 1; o < background; ++o) {
-      if (group[o] != o) continue;
-      const std::vector<int>& near = neighbours[o];
-      for (size_t i = 0; i < near.size(); ++i) {
-        for (size_t j = i + 1; j < near.size(); ++j) {
-          const int a = near[i], b = near[j];
-          const Part& pa = part[a];
-          const Part& pb = part[b];
-          if (pa.moments[0] < 1 || pb.moments[0] < 1 || root(a) == root(b)) {
-            continue;
-          }
-          const double lower = std::min(pa.top_mm, pb.top_mm);
-          const double upper = std::max(pa.top_mm, pb.top_mm);
-          if (upper > options.max_merge_top_ratio * lower ||
-              part[o].top_mm <= options.max_merge_top_ratio * upper) {
-            continue;
-          }
-          const cv::Vec3d diff =
-              pa.lab_sum / pa.moments[0] - pb.lab_sum / pb.moments[0];
-          if (cv::norm(diff) >= options.min_colour_distance ||
-              std::max(pa.elongation, pb.elongation) <
-                  options.min_join_elongation) {
-            continue;
-          }
-          const double du = pb.u - pa.u, dv = pb.v - pa.v;
-          const int steps = static_cast<int>(std::ceil(std::hypot(du, dv)));
-          bool covered = steps > 0;
-          for (int t = 0; t <= steps && covered; ++t) {
-            const int u = static_cast<int>(
-                std::lround(pa.u + du * t / std::max(steps, 1)));
-            const int v = static_cast<int>(
-                std::lround(pa.v + dv * t / std::max(steps, 1)));
-            const int label = markers.at<int>(v, u);
-            covered = label == -1 || in(label, a, b, o);
-          }
-          if (covered && fill(a, b, o) >= options.min_join_fill) {
-            parent[root(a)] = root(b);
-          }
+    // Per part: the highest top of the parts beside it.
+    std::vector<double> highest_beside(n_cores, 0.0);
+    for (int a = 1; a < n_cores; ++a) {
+      for (const int o : neighbours[a]) {
+        highest_beside[a] = std::max(highest_beside[a], part[o].top_mm);
+      }
+    }
+    for (int a = 1; a < n_cores; ++a) {
+      if (group[a] != a || part[a].moments[0] < 1) continue;
+      for (int b = a + 1; b < n_cores; ++b) {
+        if (group[b] != b || part[b].moments[0] < 1 || root(a) == root(b)) {
+          continue;
+        }
+        const Part& pa = part[a];
+        const Part& pb = part[b];
+        const double lower = std::min(pa.top_mm, pb.top_mm);
+        const double upper = std::max(pa.top_mm, pb.top_mm);
+        const double above = options.max_merge_top_ratio * upper;
+        if (upper > options.max_merge_top_ratio * lower ||
+            highest_beside[a] <= above || highest_beside[b] <= above) {
+          continue;
+        }
+        const cv::Vec3d diff =
+            pa.lab_sum / pa.moments[0] - pb.lab_sum / pb.moments[0];
+        if (cv::norm(diff) >= options.min_colour_distance ||
+            std::max(pa.elongation, pb.elongation) <
+                options.min_join_elongation) {
+          continue;
+        }
+        const double du = pb.u - pa.u, dv = pb.v - pa.v;
+        const int steps = static_cast<int>(std::ceil(std::hypot(du, dv)));
+        bool covered = steps > 0;
+        for (int t = 0; t <= steps && covered; ++t) {
+          const int u =
+              static_cast<int>(std::lround(pa.u + du * t / std::max(steps, 1)));
+          const int v =
+              static_cast<int>(std::lround(pa.v + dv * t / std::max(steps, 1)));
+          const int label = markers.at<int>(v, u);
+          covered = label == -1 || in(label, a, b, above);
+        }
+        if (covered && fill(a, b, above) >= options.min_join_fill) {
+          parent[root(a)] = root(b);
         }
       }
     }
@@ -1181,6 +1191,42 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
   }
 }
 
+namespace {
+
+// The centroid of an item's pixels `points` (inside `box`), unless it falls
+// off them: then the centroid of the largest of the item's pieces (8-
+// connected). A stick seen on both sides of an item lying across it is
+// aimed at its longer stub, not at the item on it.
+cv::Point2d CentreOnItem(const std::vector<cv::Point>& points,
+                         const cv::Rect& box) {
+  cv::Point2d sum(0, 0);
+  cv::Mat mask(box.size(), CV_8UC1, cv::Scalar(0));
+  for (const cv::Point& p : points) {
+    sum += cv::Point2d(p);
+    mask.at<uint8_t>(p - box.tl()) = 255;
+  }
+  const cv::Point2d centroid = sum / static_cast<double>(points.size());
+  const cv::Point at(cvRound(centroid.x), cvRound(centroid.y));
+  if (box.contains(at) && mask.at<uint8_t>(at - box.tl()) != 0) {
+    return centroid;
+  }
+  cv::Mat pieces, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(mask, pieces, stats, centroids,
+                                                 8, CV_32S);
+  if (n < 3) return centroid;  // one piece (a curved one): leave it
+  int largest = 1;
+  for (int c = 2; c < n; ++c) {
+    if (stats.at<int>(c, cv::CC_STAT_AREA) >
+        stats.at<int>(largest, cv::CC_STAT_AREA)) {
+      largest = c;
+    }
+  }
+  return cv::Point2d(box.x + centroids.at<double>(largest, 0),
+                     box.y + centroids.at<double>(largest, 1));
+}
+
+}  // namespace
+
 std::vector<DetectedFood> DescribeItems(const Regions& regions,
                                         const FoodEvidence& evidence,
                                         const cv::Mat& raw_depth,
@@ -1239,13 +1285,9 @@ std::vector<DetectedFood> DescribeItems(const Regions& regions,
     const cv::Rect box = cv::boundingRect(item.points);
     food.bbox = {box.x, box.y, box.width, box.height};
     food.area_px = static_cast<int>(item.points.size());
-    double su = 0, sv = 0;
-    for (const cv::Point& p : item.points) {
-      su += p.x;
-      sv += p.y;
-    }
-    food.center_u_px = su / food.area_px;
-    food.center_v_px = sv / food.area_px;
+    const cv::Point2d centre_px = CentreOnItem(item.points, box);
+    food.center_u_px = centre_px.x;
+    food.center_v_px = centre_px.y;
     double z_mm = Median(item.depths_mm);
     if (z_mm <= 0) {
       // No depth on the item at all: the plate's depth along its centre ray

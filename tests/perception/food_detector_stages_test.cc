@@ -788,6 +788,30 @@ TEST(DetectorStagesTest, MergeJoinsTheShortStubsOfAStickUnderAnItem) {
   EXPECT_EQ(ItemLabels(regions), 3);  // the left stub's pieces are one
 }
 
+TEST(DetectorStagesTest, MergeJoinsAStickUnderAnItemSeenAsTwoRegions) {
+  // The item across the stick shows as two regions of different colour (a
+  // kiwi slice's flesh and its dark rim), each bordering one stub: no one
+  // region borders both, but both stand on the stick.
+  Scene scene = PartsUnderAnItem(
+      {cv::Rect(250, 230, 50, 20), cv::Rect(340, 230, 50, 20)}, {});
+  scene.rgb(cv::Rect(320, 200, 20, 80)).setTo(cv::Scalar(90, 60, 40));
+  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                scene.plate, FoodDetectorOptions());
+  const std::vector<cv::Rect> seeds = {
+      cv::Rect(260, 235, 20, 10), cv::Rect(360, 235, 20, 10),
+      cv::Rect(305, 220, 10, 40), cv::Rect(325, 220, 10, 40)};
+  Regions regions = GrowAndMerge(scene, seeds, FoodDetectorOptions());
+  EXPECT_EQ(regions.markers.at<int>(240, 255),
+            regions.markers.at<int>(240, 385));
+  EXPECT_NE(regions.markers.at<int>(240, 310),
+            regions.markers.at<int>(240, 330));  // two colours: two regions
+  EXPECT_EQ(ItemLabels(regions), 3);
+  FoodDetectorOptions never;
+  never.min_join_fill = 2;
+  regions = GrowAndMerge(scene, seeds, never);
+  EXPECT_EQ(ItemLabels(regions), 4);
+}
+
 TEST(DetectorStagesTest, MergeJoinsAStubWhoseHighestPixelsAreTheItemsFlank) {
   // The stick's right stub (10 mm) has the flank of the item on it (18 mm)
   // along its inner 4 px, 13 % of it: its 90th percentile is the flank, so
@@ -964,6 +988,27 @@ TEST(DetectorStagesTest, DescribeItemsGivesBoxCentreAndDepth) {
   EXPECT_TRUE(DescribeItems(regions, scene.evidence, raw_depth, scene.plate.roi,
                             plane, k, FoodDetectorOptions())
                   .empty());
+}
+
+TEST(DetectorStagesTest, DescribeItemsAimsAnItemInPiecesAtItsLargestPiece) {
+  // A stick seen on both sides of an item lying across it (joined by the
+  // merge): the centroid of all its pixels lies on the item across it, so
+  // the centre is that of its larger stub. The box spans both.
+  const FlatPlate flat = ItemOnAFlatPlate(cv::Rect(260, 220, 110, 20));
+  Regions regions;
+  regions.markers = cv::Mat(kH, kW, CV_32SC1, cv::Scalar(2));
+  regions.markers(cv::Rect(260, 220, 30, 20)).setTo(1);
+  regions.markers(cv::Rect(350, 220, 20, 20)).setTo(1);
+  regions.background = 2;
+  const std::vector<DetectedFood> foods = DescribeItems(
+      regions, flat.scene.evidence, flat.raw_depth, flat.scene.plate.roi,
+      flat.plane, CameraIntrinsics(), FoodDetectorOptions());
+  ASSERT_EQ(foods.size(), 1u);
+  EXPECT_EQ(foods[0].bbox.x, 260);
+  EXPECT_EQ(foods[0].bbox.width, 110);
+  EXPECT_EQ(foods[0].area_px, 1000);
+  EXPECT_DOUBLE_EQ(foods[0].center_u_px, 274.5);
+  EXPECT_DOUBLE_EQ(foods[0].center_v_px, 229.5);
 }
 
 TEST(DetectorStagesTest, DescribeItemsSizesAnItemByItsOwnPixels) {
