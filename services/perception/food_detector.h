@@ -134,14 +134,14 @@ struct FoodDetectorOptions {
   int valley_flank_px = 5;
   double min_valley_flank_share = 0.8;
   // A stick with an item lying across it shows as two parts; they are
-  // joined when each borders something standing on them (the item on them
-  // may show as more than one region) and the line between them runs under
-  // it, they and what stands on them cover at least min_join_fill of the
-  // smallest rectangle around the two parts (a stick is a rectangle; a
-  // round slice beside a stick leaves plate in it), and one part has an
-  // axis ratio of at least min_join_elongation (two whole round slices
-  // either side of a tall item are two items). Above 1: never joined.
-  double min_join_fill = 0.8;
+  // joined when the item on them borders both and the line between them
+  // runs under that item, they and that item cover at least min_join_fill
+  // of the smallest rectangle around the two parts (a stick is a
+  // rectangle; a round slice beside a stick leaves plate in it), and one
+  // part has an axis ratio of at least min_join_elongation (two whole round
+  // slices either side of a tall item are two items). Above 1: never
+  // joined.
+  double min_join_fill = 0.75;
   double min_join_elongation = 1.3;
   // A part's top in that join: this quantile of its heights. Lower than the
   // merge's 0.9, because the highest pixels of a small stub are the flank of

@@ -901,16 +901,14 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   // each side of the item on it; the watershed gives them two labels and
   // neither covers the stick. Two parts (each the regions the merge above
   // made one, since a short stub is often seeded in pieces) are joined
-  // when: each borders something standing on them (its top more than
-  // max_merge_top_ratio times theirs; not necessarily the same region,
-  // since the item on them may show as two, a kiwi slice's flesh and its
-  // darker rim); they are of similar colour and height; the straight line
-  // between their centroids runs over them and what stands on them only
-  // (the stick goes on underneath); they and what stands on them fill at
-  // least min_join_fill of the smallest rectangle around the two parts
-  // (one stick is a rectangle; a round slice and a stick beside it leave
-  // plate in it); and one part is not round (two whole slices either side
-  // of a tall item fill such a rectangle too).
+  // when: an item lying on them (its top more than max_merge_top_ratio
+  // times theirs) borders both; they are of similar colour and height; the
+  // straight line between their centroids runs over them and the item on
+  // them only (the stick goes on underneath); they and the item on them
+  // fill at least min_join_fill of the smallest rectangle around the two
+  // parts (one stick is a rectangle; a round slice and a stick beside it
+  // leave plate in it); and one part is not round (two whole slices either
+  // side of a tall item fill such a rectangle too).
   if (options.min_join_fill <= 1.0) {
     std::vector<int> group(n_cores);
     for (int i = 0; i < n_cores; ++i) group[i] = root(i);
@@ -975,18 +973,14 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       neighbours[a].push_back(b);
       neighbours[b].push_back(a);
     }
-    // Whether a pixel's label is part a or b, or stands on them: its part's
-    // top above `above` (an item on a stick may show as more than one
-    // region, a kiwi slice's flesh and its darker rim).
-    constexpr double kNever = std::numeric_limits<double>::infinity();
-    auto in = [&](int label, int a, int b, double above) {
+    auto in = [&](int label, int a, int b, int o) {
       if (label <= 0 || label >= background) return false;
       const int g = group[label];
-      return g == a || g == b || part[g].top_mm > above;
+      return g == a || g == b || g == o;
     };
     // The share of the smallest rectangle around parts a and b that a, b,
     // the item o on them and the watershed's ridges cover.
-    auto fill = [&](int a, int b, double above) {
+    auto fill = [&](int a, int b, int o) {
       std::vector<cv::Point> points;
       const cv::Rect box =
           cv::Rect(cv::Point(std::min(part[a].u0, part[b].u0),
@@ -996,7 +990,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       for (int v = box.y; v < box.br().y; ++v) {
         const auto* m = markers.ptr<int>(v);
         for (int u = box.x; u < box.br().x; ++u) {
-          if (in(m[u], a, b, kNever)) points.emplace_back(u, v);
+          if (in(m[u], a, b, -1)) points.emplace_back(u, v);
         }
       }
       const cv::RotatedRect rect = cv::minAreaRect(points);
@@ -1013,53 +1007,49 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
             continue;
           }
           ++inside;
-          covered += m[u] == -1 || in(m[u], a, b, above);
+          covered += m[u] == -1 || in(m[u], a, b, o);
         }
       }
       return inside > 0 ? static_cast<double>(covered) / inside : 0.0;
     };
-    // Per part: the highest top of the parts beside it.
-    std::vector<double> highest_beside(n_cores, 0.0);
-    for (int a = 1; a < n_cores; ++a) {
-      for (const int o : neighbours[a]) {
-        highest_beside[a] = std::max(highest_beside[a], part[o].top_mm);
-      }
-    }
-    for (int a = 1; a < n_cores; ++a) {
-      if (group[a] != a || part[a].moments[0] < 1) continue;
-      for (int b = a + 1; b < n_cores; ++b) {
-        if (group[b] != b || part[b].moments[0] < 1 || root(a) == root(b)) {
-          continue;
-        }
-        const Part& pa = part[a];
-        const Part& pb = part[b];
-        const double lower = std::min(pa.top_mm, pb.top_mm);
-        const double upper = std::max(pa.top_mm, pb.top_mm);
-        const double above = options.max_merge_top_ratio * upper;
-        if (upper > options.max_merge_top_ratio * lower ||
-            highest_beside[a] <= above || highest_beside[b] <= above) {
-          continue;
-        }
-        const cv::Vec3d diff =
-            pa.lab_sum / pa.moments[0] - pb.lab_sum / pb.moments[0];
-        if (cv::norm(diff) >= options.min_colour_distance ||
-            std::max(pa.elongation, pb.elongation) <
-                options.min_join_elongation) {
-          continue;
-        }
-        const double du = pb.u - pa.u, dv = pb.v - pa.v;
-        const int steps = static_cast<int>(std::ceil(std::hypot(du, dv)));
-        bool covered = steps > 0;
-        for (int t = 0; t <= steps && covered; ++t) {
-          const int u =
-              static_cast<int>(std::lround(pa.u + du * t / std::max(steps, 1)));
-          const int v =
-              static_cast<int>(std::lround(pa.v + dv * t / std::max(steps, 1)));
-          const int label = markers.at<int>(v, u);
-          covered = label == -1 || in(label, a, b, above);
-        }
-        if (covered && fill(a, b, above) >= options.min_join_fill) {
-          parent[root(a)] = root(b);
+    for (int o = 1; o < background; ++o) {
+      if (group[o] != o) continue;
+      const std::vector<int>& near = neighbours[o];
+      for (size_t i = 0; i < near.size(); ++i) {
+        for (size_t j = i + 1; j < near.size(); ++j) {
+          const int a = near[i], b = near[j];
+          const Part& pa = part[a];
+          const Part& pb = part[b];
+          if (pa.moments[0] < 1 || pb.moments[0] < 1 || root(a) == root(b)) {
+            continue;
+          }
+          const double lower = std::min(pa.top_mm, pb.top_mm);
+          const double upper = std::max(pa.top_mm, pb.top_mm);
+          if (upper > options.max_merge_top_ratio * lower ||
+              part[o].top_mm <= options.max_merge_top_ratio * upper) {
+            continue;
+          }
+          const cv::Vec3d diff =
+              pa.lab_sum / pa.moments[0] - pb.lab_sum / pb.moments[0];
+          if (cv::norm(diff) >= options.min_colour_distance ||
+              std::max(pa.elongation, pb.elongation) <
+                  options.min_join_elongation) {
+            continue;
+          }
+          const double du = pb.u - pa.u, dv = pb.v - pa.v;
+          const int steps = static_cast<int>(std::ceil(std::hypot(du, dv)));
+          bool covered = steps > 0;
+          for (int t = 0; t <= steps && covered; ++t) {
+            const int u = static_cast<int>(
+                std::lround(pa.u + du * t / std::max(steps, 1)));
+            const int v = static_cast<int>(
+                std::lround(pa.v + dv * t / std::max(steps, 1)));
+            const int label = markers.at<int>(v, u);
+            covered = label == -1 || in(label, a, b, o);
+          }
+          if (covered && fill(a, b, o) >= options.min_join_fill) {
+            parent[root(a)] = root(b);
+          }
         }
       }
     }

@@ -788,30 +788,6 @@ TEST(DetectorStagesTest, MergeJoinsTheShortStubsOfAStickUnderAnItem) {
   EXPECT_EQ(ItemLabels(regions), 3);  // the left stub's pieces are one
 }
 
-TEST(DetectorStagesTest, MergeJoinsAStickUnderAnItemSeenAsTwoRegions) {
-  // The item across the stick shows as two regions of different colour (a
-  // kiwi slice's flesh and its dark rim), each bordering one stub: no one
-  // region borders both, but both stand on the stick.
-  Scene scene = PartsUnderAnItem(
-      {cv::Rect(250, 230, 50, 20), cv::Rect(340, 230, 50, 20)}, {});
-  scene.rgb(cv::Rect(320, 200, 20, 80)).setTo(cv::Scalar(90, 60, 40));
-  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
-                                scene.plate, FoodDetectorOptions());
-  const std::vector<cv::Rect> seeds = {
-      cv::Rect(260, 235, 20, 10), cv::Rect(360, 235, 20, 10),
-      cv::Rect(305, 220, 10, 40), cv::Rect(325, 220, 10, 40)};
-  Regions regions = GrowAndMerge(scene, seeds, FoodDetectorOptions());
-  EXPECT_EQ(regions.markers.at<int>(240, 255),
-            regions.markers.at<int>(240, 385));
-  EXPECT_NE(regions.markers.at<int>(240, 310),
-            regions.markers.at<int>(240, 330));  // two colours: two regions
-  EXPECT_EQ(ItemLabels(regions), 3);
-  FoodDetectorOptions never;
-  never.min_join_fill = 2;
-  regions = GrowAndMerge(scene, seeds, never);
-  EXPECT_EQ(ItemLabels(regions), 4);
-}
-
 TEST(DetectorStagesTest, MergeJoinsAStubWhoseHighestPixelsAreTheItemsFlank) {
   // The stick's right stub (10 mm) has the flank of the item on it (18 mm)
   // along its inner 4 px, 13 % of it: its 90th percentile is the flank, so
