@@ -143,6 +143,17 @@ struct FoodDetectorOptions {
   // joined.
   double min_join_fill = 0.75;
   double min_join_elongation = 1.3;
+  // A stick cut lengthwise into parts of one colour (a celery's two walls
+  // and its floor): starting from a part at least min_stick_seed_elongation
+  // long for its width, neighbours of similar colour at least
+  // min_stick_part_elongation long for theirs are joined to it while the
+  // parts fill at least min_stick_fill of the smallest rectangle around them
+  // and that rectangle is at least min_stick_elongation long for its width.
+  // 0: off.
+  double min_stick_seed_elongation = 3.0;
+  double min_stick_part_elongation = 2.0;
+  double min_stick_fill = 0.9;
+  double min_stick_elongation = 3.0;
   // A part's top in that join: this quantile of its heights. Lower than the
   // merge's 0.9, because the highest pixels of a small stub are the flank of
   // the item lying on it.

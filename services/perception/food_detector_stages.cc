@@ -662,6 +662,37 @@ bool IsHighlightOn(const cv::Vec3d& a, const cv::Vec3d& b,
   return hue_deg <= options.max_highlight_hue_deg;
 }
 
+// The share of the pixels of `markers` inside the rotated rectangle `rect`
+// whose label `covered(label)` accepts.
+template <typename Covered>
+double ShareOfRect(const cv::Mat& markers, const cv::RotatedRect& rect,
+                   Covered covered) {
+  const cv::Rect around =
+      rect.boundingRect() & cv::Rect(0, 0, markers.cols, markers.rows);
+  const double c = std::cos(rect.angle * kPi / 180);
+  const double s = std::sin(rect.angle * kPi / 180);
+  int inside = 0, hits = 0;
+  for (int v = around.y; v < around.br().y; ++v) {
+    const auto* m = markers.ptr<int>(v);
+    for (int u = around.x; u < around.br().x; ++u) {
+      const double x = u - rect.center.x, y = v - rect.center.y;
+      if (std::abs(x * c + y * s) > rect.size.width / 2 + 0.5 ||
+          std::abs(y * c - x * s) > rect.size.height / 2 + 0.5) {
+        continue;
+      }
+      ++inside;
+      hits += covered(m[u]);
+    }
+  }
+  return inside > 0 ? static_cast<double>(hits) / inside : 0.0;
+}
+
+// A rotated rectangle's long side over its short side.
+double Elongation(const cv::RotatedRect& rect) {
+  return std::max(rect.size.width, rect.size.height) /
+         std::max(1.0f, std::min(rect.size.width, rect.size.height));
+}
+
 }  // namespace
 
 void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
@@ -993,24 +1024,9 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
           if (in(m[u], a, b, -1)) points.emplace_back(u, v);
         }
       }
-      const cv::RotatedRect rect = cv::minAreaRect(points);
-      const cv::Rect around = rect.boundingRect() & cv::Rect(0, 0, w, h);
-      const double c = std::cos(rect.angle * kPi / 180);
-      const double s = std::sin(rect.angle * kPi / 180);
-      int inside = 0, covered = 0;
-      for (int v = around.y; v < around.br().y; ++v) {
-        const auto* m = markers.ptr<int>(v);
-        for (int u = around.x; u < around.br().x; ++u) {
-          const double x = u - rect.center.x, y = v - rect.center.y;
-          if (std::abs(x * c + y * s) > rect.size.width / 2 + 0.5 ||
-              std::abs(y * c - x * s) > rect.size.height / 2 + 0.5) {
-            continue;
-          }
-          ++inside;
-          covered += m[u] == -1 || in(m[u], a, b, o);
-        }
-      }
-      return inside > 0 ? static_cast<double>(covered) / inside : 0.0;
+      return ShareOfRect(markers, cv::minAreaRect(points), [&](int label) {
+        return label == -1 || in(label, a, b, o);
+      });
     };
     for (int o = 1; o < background; ++o) {
       if (group[o] != o) continue;
@@ -1052,6 +1068,108 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
           }
         }
       }
+    }
+  }
+  // A stick cut lengthwise (a celery's U channel: two walls and the floor
+  // between, which show a valley, a step and a shaded line, as two touching
+  // items do) is several long parts of one colour that together make one
+  // straight band. Starting from each part at least
+  // min_stick_seed_elongation long for its width, largest first,
+  // neighbours of similar colour at least min_stick_part_elongation long
+  // for their width are added one at a time, the one that leaves the parts
+  // (and the ridges between) filling the smallest rectangle around them
+  // most, while that fill is at least min_stick_fill and the rectangle at
+  // least min_stick_elongation long for its width. (A round slice at a
+  // stick's end can fill such a rectangle too, but it is not long.)
+  if (options.min_stick_seed_elongation > 0.0) {
+    std::vector<int> px_count(n_cores, 0);
+    std::vector<cv::Vec3d> colour_sum(n_cores, cv::Vec3d(0, 0, 0));
+    std::vector<std::vector<cv::Point>> hull(n_cores);
+    for (int v = 0; v < h; ++v) {
+      const auto* m = markers.ptr<int>(v);
+      const auto* px = lab.ptr<cv::Vec3f>(v);
+      for (int u = 0; u < w; ++u) {
+        if (m[u] <= 0 || m[u] >= background) continue;
+        const int g = root(m[u]);
+        ++px_count[g];
+        colour_sum[g] += cv::Vec3d(px[u][0], px[u][1], px[u][2]);
+        hull[g].emplace_back(u, v);  // made a hull below
+      }
+    }
+    std::vector<int> order;  // the parts, largest first
+    for (int g = 1; g < n_cores; ++g) {
+      if (px_count[g] < 3) continue;
+      std::vector<cv::Point> points = std::move(hull[g]);
+      cv::convexHull(points, hull[g]);
+      order.push_back(g);
+    }
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int a, int b) { return px_count[a] > px_count[b]; });
+    std::vector<std::set<int>> beside(n_cores);
+    for (const auto& [pair, seam] : boundary) {
+      const int a = root(pair.first), b = root(pair.second);
+      if (a == b) continue;
+      beside[a].insert(b);
+      beside[b].insert(a);
+    }
+    std::vector<int> band_of(n_cores, 0);  // the band a part is in, or 0
+    int band = 0;
+    for (const int g : order) {
+      if (band_of[g] != 0 || hull[g].size() < 3 ||
+          Elongation(cv::minAreaRect(hull[g])) <
+              options.min_stick_seed_elongation) {
+        continue;
+      }
+      ++band;
+      band_of[g] = band;
+      std::vector<int> members = {g};
+      std::vector<cv::Point> band_hull = hull[g];
+      cv::Vec3d band_colour = colour_sum[g];
+      int band_px = px_count[g];
+      while (true) {
+        std::set<int> candidates;
+        for (const int m : members) {
+          for (const int n : beside[m]) {
+            if (band_of[n] == 0 && px_count[n] > 0) candidates.insert(n);
+          }
+        }
+        int best = 0;
+        double best_fill = options.min_stick_fill;
+        std::vector<cv::Point> best_hull;
+        for (const int n : candidates) {
+          if (hull[n].size() < 3 ||
+              Elongation(cv::minAreaRect(hull[n])) <
+                  options.min_stick_part_elongation ||
+              cv::norm(band_colour / band_px - colour_sum[n] / px_count[n]) >=
+                  options.min_colour_distance) {
+            continue;
+          }
+          std::vector<cv::Point> points = band_hull;
+          points.insert(points.end(), hull[n].begin(), hull[n].end());
+          std::vector<cv::Point> joined_hull;
+          cv::convexHull(points, joined_hull);
+          const cv::RotatedRect rect = cv::minAreaRect(joined_hull);
+          if (Elongation(rect) < options.min_stick_elongation) continue;
+          const double fill = ShareOfRect(markers, rect, [&](int label) {
+            if (label == -1) return true;
+            if (label <= 0 || label >= background) return false;
+            const int r = root(label);
+            return r == n || band_of[r] == band;
+          });
+          if (fill >= best_fill) {
+            best_fill = fill;
+            best = n;
+            best_hull = std::move(joined_hull);
+          }
+        }
+        if (best == 0) break;
+        members.push_back(best);
+        band_of[best] = band;
+        band_hull = std::move(best_hull);
+        band_colour += colour_sum[best];
+        band_px += px_count[best];
+      }
+      for (const int m : members) parent[root(m)] = root(g);
     }
   }
   for (int v = 0; v < h; ++v) {

@@ -453,6 +453,51 @@ TEST(DetectorStagesTest, MergeJoinsAChannelCutCrosswiseNotTwoTouchingRods) {
       2);
 }
 
+TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
+  // The U channel above seeded along its length, wall, floor, wall: the
+  // floor stands 6 mm below the walls (a step, one part's top twice the
+  // other's) and the closing lifts it (a dip), so the merge keeps the three
+  // apart; together they make one straight band. A dome of the same colour
+  // touching the stick's end fills the rectangle around both as well, but
+  // it is not long: it stays apart.
+  const auto merged_items = [](const cv::Mat& height,
+                               const std::vector<cv::Rect>& seeds,
+                               const FoodDetectorOptions& options) {
+    const Scene scene = MakeScene(height, height > 0.0f);
+    const std::optional<Regions> planted =
+        PlantSeeds(scene.evidence, scene.height_mm, options);
+    EXPECT_TRUE(planted.has_value());
+    return ItemLabels(GrowAndMerge(scene, seeds, options, planted->valley_mm));
+  };
+  cv::Mat channel(kH, kW, CV_32FC1, cv::Scalar(0));
+  channel(cv::Rect(240, 220, 160, 40)).setTo(12.0f);
+  channel(cv::Rect(240, 228, 160, 24)).setTo(6.0f);
+  const std::vector<cv::Rect> lengthwise = {cv::Rect(245, 221, 150, 5),
+                                            cv::Rect(245, 232, 150, 16),
+                                            cv::Rect(245, 254, 150, 5)};
+  EXPECT_EQ(merged_items(channel, lengthwise, FoodDetectorOptions()), 1);
+  FoodDetectorOptions off;
+  off.min_stick_seed_elongation = 0.0;
+  EXPECT_EQ(merged_items(channel, lengthwise, off), 3);
+  // A dome of radius 20 px (12 mm high) against the channel's right end.
+  cv::Mat with_dome = channel.clone();
+  for (int v = 220; v < 260; ++v) {
+    for (int u = 400; u < 440; ++u) {
+      const double r = std::hypot(u - 419.5, v - 239.5) / 20.0;
+      if (r < 1.0) {
+        with_dome.at<float>(v, u) =
+            static_cast<float>(12.0 * std::sqrt(1.0 - r * r));
+      }
+    }
+  }
+  std::vector<cv::Rect> with_dome_seeds = lengthwise;
+  with_dome_seeds.push_back(cv::Rect(412, 232, 16, 16));
+  EXPECT_EQ(merged_items(with_dome, with_dome_seeds, FoodDetectorOptions()), 2);
+  FoodDetectorOptions any_part;
+  any_part.min_stick_part_elongation = 0.0;
+  EXPECT_EQ(merged_items(with_dome, with_dome_seeds, any_part), 1);
+}
+
 TEST(DetectorStagesTest, MergeJoinsABandAcrossAnItemNotAnItemBetweenTwo) {
   // A halved strawberry cut face up: a flat red oval (12 mm) with a pale
   // core running its length, from outline to outline, seeded as flesh,
