@@ -1082,6 +1082,8 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   // least min_stick_elongation long for its width. (A round slice at a
   // stick's end can fill such a rectangle too, but it is not long.)
   if (options.min_stick_seed_elongation > 0.0) {
+    std::vector<int> group_of(n_cores);  // per label: its part
+    for (int i = 0; i < n_cores; ++i) group_of[i] = root(i);
     std::vector<int> px_count(n_cores, 0);
     std::vector<cv::Vec3d> colour_sum(n_cores, cv::Vec3d(0, 0, 0));
     std::vector<std::vector<cv::Point>> hull(n_cores);
@@ -1090,10 +1092,13 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       const auto* px = lab.ptr<cv::Vec3f>(v);
       for (int u = 0; u < w; ++u) {
         if (m[u] <= 0 || m[u] >= background) continue;
-        const int g = root(m[u]);
+        const int g = group_of[m[u]];
         ++px_count[g];
         colour_sum[g] += cv::Vec3d(px[u][0], px[u][1], px[u][2]);
-        hull[g].emplace_back(u, v);  // made a hull below
+        // The ends of each row's run have the hull of all the pixels.
+        if (u == 0 || u + 1 == w || m[u - 1] != m[u] || m[u + 1] != m[u]) {
+          hull[g].emplace_back(u, v);  // made a hull below
+        }
       }
     }
     std::vector<int> order;  // the parts, largest first
@@ -1112,7 +1117,8 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       beside[a].insert(b);
       beside[b].insert(a);
     }
-    std::vector<int> band_of(n_cores, 0);  // the band a part is in, or 0
+    std::vector<int> band_of(n_cores, 0);      // the band a part is in, or 0
+    std::vector<uint8_t> in_band(n_cores, 0);  // per label: in the trial
     int band = 0;
     for (const int g : order) {
       if (band_of[g] != 0 || hull[g].size() < 3 ||
@@ -1150,11 +1156,12 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
           cv::convexHull(points, joined_hull);
           const cv::RotatedRect rect = cv::minAreaRect(joined_hull);
           if (Elongation(rect) < options.min_stick_elongation) continue;
+          for (int i = 1; i < n_cores; ++i) {
+            in_band[i] = group_of[i] == n || band_of[group_of[i]] == band;
+          }
           const double fill = ShareOfRect(markers, rect, [&](int label) {
-            if (label == -1) return true;
-            if (label <= 0 || label >= background) return false;
-            const int r = root(label);
-            return r == n || band_of[r] == band;
+            return label == -1 ||
+                   (label > 0 && label < background && in_band[label]);
           });
           if (fill >= best_fill) {
             best_fill = fill;
