@@ -411,31 +411,39 @@ TEST(DetectorStagesTest, MergeKeepsApartTwoItemsWithAShadedCreaseBetween) {
   EXPECT_EQ(items(faint, FoodDetectorOptions()), 1);
 }
 
+// Items after seeding `seeds` on a scene of `height` (every item one colour)
+// and growing and merging, with the valley lift PlantSeeds measures.
+int MergedItems(const cv::Mat& height, const std::vector<cv::Rect>& seeds,
+                const FoodDetectorOptions& options) {
+  const Scene scene = MakeScene(height, height > 0.0f);
+  const std::optional<Regions> planted =
+      PlantSeeds(scene.evidence, scene.height_mm, options);
+  EXPECT_TRUE(planted.has_value());
+  return ItemLabels(GrowAndMerge(scene, seeds, options, planted->valley_mm));
+}
+
+// A celery-like stick: a U channel 160 px long, walls 8 px wide and 12 mm
+// high either side of a floor 24 px wide at 6 mm.
+cv::Mat UChannel() {
+  cv::Mat channel(kH, kW, CV_32FC1, cv::Scalar(0));
+  channel(cv::Rect(240, 220, 160, 40)).setTo(12.0f);
+  channel(cv::Rect(240, 228, 160, 24)).setTo(6.0f);
+  return channel;
+}
+
 TEST(DetectorStagesTest, MergeJoinsAChannelCutCrosswiseNotTwoTouchingRods) {
-  // A celery-like stick: a U channel 160 px long, walls 8 px wide and 12 mm
-  // high either side of a floor 24 px wide at 6 mm, seeded at its two ends.
+  // The U channel seeded at its two ends.
   // The seam between the two halves crosses the floor, which the closing
   // lifts all along the channel: the valley runs across the seam, so the
   // halves are one item. Two round rods touching side by side, seeded one
   // each, meet in a crease that the lift follows: they stay two.
-  const auto merged_items = [](const cv::Mat& height,
-                               const std::vector<cv::Rect>& seeds,
-                               const FoodDetectorOptions& options) {
-    const Scene scene = MakeScene(height, height > 0.0f);
-    const std::optional<Regions> planted =
-        PlantSeeds(scene.evidence, scene.height_mm, options);
-    EXPECT_TRUE(planted.has_value());
-    return ItemLabels(GrowAndMerge(scene, seeds, options, planted->valley_mm));
-  };
-  cv::Mat channel(kH, kW, CV_32FC1, cv::Scalar(0));
-  channel(cv::Rect(240, 220, 160, 40)).setTo(12.0f);
-  channel(cv::Rect(240, 228, 160, 24)).setTo(6.0f);
+  const cv::Mat channel = UChannel();
   const std::vector<cv::Rect> ends = {cv::Rect(245, 222, 10, 36),
                                       cv::Rect(385, 222, 10, 36)};
-  EXPECT_EQ(merged_items(channel, ends, FoodDetectorOptions()), 1);
+  EXPECT_EQ(MergedItems(channel, ends, FoodDetectorOptions()), 1);
   FoodDetectorOptions off;
   off.min_valley_flank_share = 0.0;
-  EXPECT_EQ(merged_items(channel, ends, off), 2)
+  EXPECT_EQ(MergedItems(channel, ends, off), 2)
       << "the floor's dip keeps the halves apart without the rule";
   // Two rods of radius 20 px (12 mm high) along x, touching at v = 240.
   cv::Mat rods(kH, kW, CV_32FC1, cv::Scalar(0));
@@ -447,9 +455,9 @@ TEST(DetectorStagesTest, MergeJoinsAChannelCutCrosswiseNotTwoTouchingRods) {
     }
   }
   EXPECT_EQ(
-      merged_items(rods,
-                   {cv::Rect(250, 215, 140, 10), cv::Rect(250, 255, 140, 10)},
-                   FoodDetectorOptions()),
+      MergedItems(rods,
+                  {cv::Rect(250, 215, 140, 10), cv::Rect(250, 255, 140, 10)},
+                  FoodDetectorOptions()),
       2);
 }
 
@@ -459,26 +467,16 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   // other's) and the closing lifts it (a dip), so the merge keeps the three
   // apart; together they make one straight band. A dome of the same colour
   // touching the stick's end fills the rectangle around both as well, but
-  // it is not long: it stays apart.
-  const auto merged_items = [](const cv::Mat& height,
-                               const std::vector<cv::Rect>& seeds,
-                               const FoodDetectorOptions& options) {
-    const Scene scene = MakeScene(height, height > 0.0f);
-    const std::optional<Regions> planted =
-        PlantSeeds(scene.evidence, scene.height_mm, options);
-    EXPECT_TRUE(planted.has_value());
-    return ItemLabels(GrowAndMerge(scene, seeds, options, planted->valley_mm));
-  };
-  cv::Mat channel(kH, kW, CV_32FC1, cv::Scalar(0));
-  channel(cv::Rect(240, 220, 160, 40)).setTo(12.0f);
-  channel(cv::Rect(240, 228, 160, 24)).setTo(6.0f);
+  // it is not long: it stays apart. Two long strips side by side and
+  // staggered leave much of their rectangle empty: they stay apart.
+  const cv::Mat channel = UChannel();
   const std::vector<cv::Rect> lengthwise = {cv::Rect(245, 221, 150, 5),
                                             cv::Rect(245, 232, 150, 16),
                                             cv::Rect(245, 254, 150, 5)};
-  EXPECT_EQ(merged_items(channel, lengthwise, FoodDetectorOptions()), 1);
+  EXPECT_EQ(MergedItems(channel, lengthwise, FoodDetectorOptions()), 1);
   FoodDetectorOptions off;
   off.min_stick_seed_elongation = 0.0;
-  EXPECT_EQ(merged_items(channel, lengthwise, off), 3);
+  EXPECT_EQ(MergedItems(channel, lengthwise, off), 3);
   // A dome of radius 20 px (12 mm high) against the channel's right end.
   cv::Mat with_dome = channel.clone();
   for (int v = 220; v < 260; ++v) {
@@ -492,10 +490,22 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   }
   std::vector<cv::Rect> with_dome_seeds = lengthwise;
   with_dome_seeds.push_back(cv::Rect(412, 232, 16, 16));
-  EXPECT_EQ(merged_items(with_dome, with_dome_seeds, FoodDetectorOptions()), 2);
+  EXPECT_EQ(MergedItems(with_dome, with_dome_seeds, FoodDetectorOptions()), 2);
   FoodDetectorOptions any_part;
   any_part.min_stick_part_elongation = 0.0;
-  EXPECT_EQ(merged_items(with_dome, with_dome_seeds, any_part), 1);
+  EXPECT_EQ(MergedItems(with_dome, with_dome_seeds, any_part), 1);
+  // Two long strips, one lying on the other's half-length (12 and 6 mm, a
+  // step): both long and in line, but together they fill 0.67 of the
+  // rectangle around them.
+  cv::Mat staggered(kH, kW, CV_32FC1, cv::Scalar(0));
+  staggered(cv::Rect(240, 232, 160, 12)).setTo(6.0f);
+  staggered(cv::Rect(320, 220, 160, 12)).setTo(12.0f);
+  const std::vector<cv::Rect> strips = {cv::Rect(250, 235, 60, 6),
+                                        cv::Rect(410, 223, 60, 6)};
+  EXPECT_EQ(MergedItems(staggered, strips, FoodDetectorOptions()), 2);
+  FoodDetectorOptions any_fill;
+  any_fill.min_stick_fill = 0.0;
+  EXPECT_EQ(MergedItems(staggered, strips, any_fill), 1);
 }
 
 TEST(DetectorStagesTest, MergeJoinsABandAcrossAnItemNotAnItemBetweenTwo) {
