@@ -97,7 +97,8 @@ struct Plate {
   std::vector<int> pieces;
 };
 
-constexpr int kMinPiecePx = 30;  // the detector's smallest seed
+// The detector's smallest seed.
+const int kMinPiecePx = bitewise::perception::FoodDetectorOptions().min_seed_px;
 
 // Pieces of at least kMinPiecePx per item in a row-major label image.
 std::vector<int> CountPieces(const std::vector<int16_t>& label, int width,

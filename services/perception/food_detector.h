@@ -149,7 +149,8 @@ struct FoodDetectorOptions {
   // min_stick_part_elongation long for theirs are joined to it while the
   // parts fill at least min_stick_fill of the smallest rectangle around them
   // and that rectangle is at least min_stick_elongation long for its width.
-  // 0: off.
+  // min_stick_seed_elongation 0 turns the step off; any of the other three
+  // at 0 only drops its own test.
   double min_stick_seed_elongation = 3.0;
   double min_stick_part_elongation = 2.0;
   double min_stick_fill = 0.9;

@@ -1328,7 +1328,8 @@ cv::Point2d CentreOnItem(const std::vector<cv::Point>& points,
   cv::Mat pieces, stats, centroids;
   const int n = cv::connectedComponentsWithStats(mask, pieces, stats, centroids,
                                                  8, CV_32S);
-  if (n < 3) return centroid;  // one piece (a curved one): leave it
+  // One piece (a curved one): its centroid is the item's; leave it.
+  if (n < 3) return centroid;
   int largest = 1;
   for (int c = 2; c < n; ++c) {
     if (stats.at<int>(c, cv::CC_STAT_AREA) >

@@ -411,11 +411,18 @@ TEST(DetectorStagesTest, MergeKeepsApartTwoItemsWithAShadedCreaseBetween) {
   EXPECT_EQ(items(faint, FoodDetectorOptions()), 1);
 }
 
-// Items after seeding `seeds` on a scene of `height` (every item one colour)
-// and growing and merging, with the valley lift PlantSeeds measures.
+// Items after seeding `seeds` on a scene of `height` (every item one colour,
+// then `paint`, if given, over the RGB) and growing and merging, with the
+// valley lift PlantSeeds measures.
 int MergedItems(const cv::Mat& height, const std::vector<cv::Rect>& seeds,
-                const FoodDetectorOptions& options) {
-  const Scene scene = MakeScene(height, height > 0.0f);
+                const FoodDetectorOptions& options,
+                const std::function<void(cv::Mat&)>& paint = nullptr) {
+  Scene scene = MakeScene(height, height > 0.0f);
+  if (paint) {
+    paint(scene.rgb);
+    scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                  scene.plate, FoodDetectorOptions());
+  }
   const std::optional<Regions> planted =
       PlantSeeds(scene.evidence, scene.height_mm, options);
   EXPECT_TRUE(planted.has_value());
@@ -468,7 +475,8 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   // apart; together they make one straight band. A dome of the same colour
   // touching the stick's end fills the rectangle around both as well, but
   // it is not long: it stays apart. Two long strips side by side and
-  // staggered leave much of their rectangle empty: they stay apart.
+  // staggered leave much of their rectangle empty: they stay apart. A
+  // floor of another colour is not joined.
   const cv::Mat channel = UChannel();
   const std::vector<cv::Rect> lengthwise = {cv::Rect(245, 221, 150, 5),
                                             cv::Rect(245, 232, 150, 16),
@@ -477,6 +485,15 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   FoodDetectorOptions off;
   off.min_stick_seed_elongation = 0.0;
   EXPECT_EQ(MergedItems(channel, lengthwise, off), 3);
+  // The floor in another colour: three items, however they line up.
+  const auto green_floor = [](cv::Mat& rgb) {
+    rgb(cv::Rect(240, 228, 160, 24)).setTo(cv::Scalar(60, 170, 60));
+  };
+  EXPECT_EQ(
+      MergedItems(channel, lengthwise, FoodDetectorOptions(), green_floor), 3);
+  FoodDetectorOptions any_colour;
+  any_colour.min_colour_distance = 1000.0;
+  EXPECT_EQ(MergedItems(channel, lengthwise, any_colour, green_floor), 1);
   // A dome of radius 20 px (12 mm high) against the channel's right end.
   cv::Mat with_dome = channel.clone();
   for (int v = 220; v < 260; ++v) {
