@@ -78,8 +78,12 @@ struct FoodDetectorOptions {
   // neighbour it shares its longest seam with, whatever its colour, when
   // there is no valley between them and neither stands on the other (the
   // top ratio above): a kiwi slice's pale core and seed ring inside its
-  // green flesh. Above 1: off.
+  // green flesh. Above 1: off. Not so a region that has a larger neighbour
+  // of its own colour, open to the background, with no dip between them:
+  // that is the item it is part of (a sliver of a kiwi's flesh beside a
+  // carrot coin lying on the kiwi), when enclosed_kin is true.
   double min_enclosed_share = 0.9;
+  bool enclosed_kin = true;
   // A band across an item: a region of at least min_seed_px joins two of
   // its neighbours of similar colour to each other (under
   // min_colour_distance), whatever its own colour, when neither seam with

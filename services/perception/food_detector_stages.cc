@@ -840,6 +840,36 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     return options.min_crease_shade_l > 0.0 &&
            l < std::min(x[0], y[0]) - options.min_crease_shade_l;
   };
+  // Whether a region borders the background little: it lies inside food.
+  const auto enclosed_by_food = [&](int r) {
+    return open_beside[r] <=
+           (1.0 - options.min_enclosed_share) * ridge_beside[r];
+  };
+  // No dip by the closing's lift along a seam.
+  const auto flat_seam = [&](const Seam& seam, double lower_top) {
+    return seam.dip_sum / seam.count <=
+           std::max(options.min_valley_mm, options.valley_fraction * lower_top);
+  };
+  // Per region: a larger neighbour of similar colour, open to the
+  // background, across a seam with no dip (the item it is part of).
+  std::vector<bool> has_kin(n_cores, false);
+  if (options.enclosed_kin) {
+    for (const auto& [pair, seam] : boundary) {
+      const auto [a, b] = pair;
+      if (seam.count < 3 || lab_count[a] == 0 || lab_count[b] == 0 ||
+          !flat_seam(seam, std::min(top_mm[a], top_mm[b])) ||
+          cv::norm(colour_of(a) - colour_of(b)) >=
+              options.min_colour_distance) {
+        continue;
+      }
+      if (!enclosed_by_food(b) && lab_count[b] > lab_count[a]) {
+        has_kin[a] = true;
+      }
+      if (!enclosed_by_food(a) && lab_count[a] > lab_count[b]) {
+        has_kin[b] = true;
+      }
+    }
+  }
   for (const auto& [pair, seam] : boundary) {
     const auto [a, b] = pair;
     if (seam.count < 3 || lab_count[a] == 0 || lab_count[b] == 0) continue;
@@ -863,9 +893,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       continue;
     }
     // No valley between them, by the closing's lift and by height.
-    const bool no_dip =
-        seam.dip_sum / seam.count <=
-        std::max(options.min_valley_mm, options.valley_fraction * lower_top);
+    const bool no_dip = flat_seam(seam, lower_top);
     const bool no_valley = seam_mm > 0.8 * lower_top && no_dip;
     // Or the dip is a valley running across the seam, lifted nearly as much
     // beside it as on it (a celery stick's channel, cut crosswise); then
@@ -877,12 +905,10 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
             options.min_valley_flank_share * seam.seam_lift_sum;
     // Or one lies inside food, hardly touching the background, and this is
     // its longest seam: a part of the item of another colour (a kiwi's core
-    // or its ring of seeds), not an item of its own.
+    // or its ring of seeds), not an item of its own, unless it has kin.
     const int seam_px = seam.all_count;  // (a lambda may not capture `seam`)
     const auto inside = [&](int r) {
-      return open_beside[r] <=
-                 (1.0 - options.min_enclosed_share) * ridge_beside[r] &&
-             seam_px == longest_seam[r];
+      return enclosed_by_food(r) && seam_px == longest_seam[r] && !has_kin[r];
     };
     const bool enclosed = inside(a) || inside(b);
     if (!no_dip && !valley_across) kept_apart.insert(pair);

@@ -334,6 +334,47 @@ TEST(DetectorStagesTest, MergeJoinsAPartOfAnotherColourInsideAnItem) {
   EXPECT_NE(with.markers.at<int>(240, 375), with.markers.at<int>(240, 275));
 }
 
+TEST(DetectorStagesTest, MergeLeavesASliverOfAnItemWithItsOwnKin) {
+  // An orange coin lying over the right edge of a green slice, all 10 mm.
+  // Between them a sliver of the slice's green, a little lighter, seeded
+  // apart: it lies inside food, and its longest seam is with the coin,
+  // because the slice beside it is seeded in two halves. It is part of the
+  // slice (a larger region of its colour, open to the plate, no dip
+  // between), not of the coin: two items. Without that test the sliver is
+  // taken as a part of the coin inside it and chains coin and slice into one.
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  cv::circle(height, {300, 240}, 40, cv::Scalar(10.0), cv::FILLED);
+  cv::circle(height, {348, 240}, 20, cv::Scalar(10.0), cv::FILLED);
+  Scene scene = MakeScene(height, height > 0.0f);
+  cv::circle(scene.rgb, {300, 240}, 40, cv::Scalar(90, 170, 60), cv::FILLED);
+  for (int v = 226; v <= 254; ++v) {
+    for (int u = 300; u < 348; ++u) {
+      const double r = std::hypot(u - 348.0, v - 240.0);
+      if (r >= 20.0 && r < 24.0) {
+        scene.rgb.at<cv::Vec3b>(v, u) = cv::Vec3b(105, 178, 72);
+      }
+    }
+  }
+  cv::circle(scene.rgb, {348, 240}, 20, cv::Scalar(230, 120, 40), cv::FILLED);
+  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                scene.plate, FoodDetectorOptions());
+  const auto items = [&scene](const FoodDetectorOptions& options) {
+    return GrowAndMerge(scene,
+                        {cv::Rect(280, 215, 10, 10),   // the slice, upper
+                         cv::Rect(280, 255, 10, 10),   // the slice, lower
+                         cv::Rect(325, 236, 2, 8),     // the sliver
+                         cv::Rect(345, 235, 10, 10)},  // the coin
+                        options);
+  };
+  const Regions with = items(FoodDetectorOptions());
+  EXPECT_EQ(ItemLabels(with), 2);
+  EXPECT_EQ(with.markers.at<int>(240, 326), with.markers.at<int>(220, 285));
+  EXPECT_NE(with.markers.at<int>(240, 350), with.markers.at<int>(220, 285));
+  FoodDetectorOptions no_kin;
+  no_kin.enclosed_kin = false;
+  EXPECT_EQ(ItemLabels(items(no_kin)), 1);
+}
+
 TEST(DetectorStagesTest, MergeJoinsAHighlightToTheItemItLiesOn) {
   // A red cone (a whole strawberry, 20 mm high) whose side towards the lamp
   // shines, seeded in two halves: the skin and the shining side. Where the
