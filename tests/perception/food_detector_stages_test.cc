@@ -305,19 +305,31 @@ Regions GrowAndMerge(const Scene& scene, const std::vector<cv::Rect>& seeds,
   return regions;
 }
 
+// Flat discs 10 mm high ({u, v, radius} in pixels) on the plate, their
+// colours painted by `paint` over the scene's RGB.
+Scene FlatDiscs(const std::vector<cv::Vec3i>& discs,
+                const std::function<void(cv::Mat&)>& paint) {
+  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+  for (const cv::Vec3i& d : discs) {
+    cv::circle(height, {d[0], d[1]}, d[2], cv::Scalar(10.0), cv::FILLED);
+  }
+  Scene scene = MakeScene(height, height > 0.0f);
+  paint(scene.rgb);
+  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                scene.plate, FoodDetectorOptions());
+  return scene;
+}
+
 TEST(DetectorStagesTest, MergeJoinsAPartOfAnotherColourInsideAnItem) {
   // A flat green slice (10 mm) with a pale core of its own colour seeded
   // apart (a kiwi slice's core), and a red slice touching it outside. The
   // core is joined to the slice; the red slice, whose boundary is mostly
   // with the plate, stays apart.
-  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
-  cv::circle(height, {300, 240}, 40, cv::Scalar(10.0), cv::FILLED);
-  cv::circle(height, {370, 240}, 30, cv::Scalar(10.0), cv::FILLED);
-  Scene scene = MakeScene(height, height > 0.0f);
-  cv::circle(scene.rgb, {300, 240}, 40, cv::Scalar(90, 170, 60), cv::FILLED);
-  cv::circle(scene.rgb, {300, 240}, 12, cv::Scalar(230, 225, 170), cv::FILLED);
-  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
-                                scene.plate, FoodDetectorOptions());
+  const Scene scene =
+      FlatDiscs({{300, 240, 40}, {370, 240, 30}}, [](cv::Mat& rgb) {
+        cv::circle(rgb, {300, 240}, 40, cv::Scalar(90, 170, 60), cv::FILLED);
+        cv::circle(rgb, {300, 240}, 12, cv::Scalar(230, 225, 170), cv::FILLED);
+      });
   const auto items = [&scene](const FoodDetectorOptions& options) {
     return GrowAndMerge(scene,
                         {cv::Rect(270, 230, 8, 20),    // flesh
@@ -342,22 +354,18 @@ TEST(DetectorStagesTest, MergeLeavesASliverOfAnItemWithItsOwnKin) {
   // slice (a larger region of its colour, open to the plate, no dip
   // between), not of the coin: two items. Without that test the sliver is
   // taken as a part of the coin inside it and chains coin and slice into one.
-  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
-  cv::circle(height, {300, 240}, 40, cv::Scalar(10.0), cv::FILLED);
-  cv::circle(height, {348, 240}, 20, cv::Scalar(10.0), cv::FILLED);
-  Scene scene = MakeScene(height, height > 0.0f);
-  cv::circle(scene.rgb, {300, 240}, 40, cv::Scalar(90, 170, 60), cv::FILLED);
-  for (int v = 226; v <= 254; ++v) {
-    for (int u = 300; u < 348; ++u) {
-      const double r = std::hypot(u - 348.0, v - 240.0);
-      if (r >= 20.0 && r < 24.0) {
-        scene.rgb.at<cv::Vec3b>(v, u) = cv::Vec3b(105, 178, 72);
-      }
-    }
-  }
-  cv::circle(scene.rgb, {348, 240}, 20, cv::Scalar(230, 120, 40), cv::FILLED);
-  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
-                                scene.plate, FoodDetectorOptions());
+  const Scene scene =
+      FlatDiscs({{300, 240, 40}, {348, 240, 20}}, [](cv::Mat& rgb) {
+        cv::circle(rgb, {300, 240}, 40, cv::Scalar(90, 170, 60), cv::FILLED);
+        for (int v = 226; v <= 254; ++v) {
+          for (int u = 300; u < 348; ++u) {
+            const double r = std::hypot(u - 348.0, v - 240.0);
+            if (r >= 20.0 && r < 24.0)
+              rgb.at<cv::Vec3b>(v, u) = cv::Vec3b(105, 178, 72);
+          }
+        }
+        cv::circle(rgb, {348, 240}, 20, cv::Scalar(230, 120, 40), cv::FILLED);
+      });
   const auto items = [&scene](const FoodDetectorOptions& options) {
     return GrowAndMerge(scene,
                         {cv::Rect(280, 215, 10, 10),   // the slice, upper
