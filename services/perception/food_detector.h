@@ -79,9 +79,12 @@ struct FoodDetectorOptions {
   // there is no valley between them and neither stands on the other (the
   // top ratio above): a kiwi slice's pale core and seed ring inside its
   // green flesh. Above 1: off. Not so a region that has a larger neighbour
-  // of its own colour, open to the background, with no dip between them:
-  // that is the item it is part of (a sliver of a kiwi's flesh beside a
-  // carrot coin lying on the kiwi), when enclosed_kin is true.
+  // of similar colour (under min_colour_distance), open to the background,
+  // with no dip between them: that is the item it is part of (a sliver of a
+  // kiwi's flesh beside a carrot coin lying on the kiwi), when enclosed_kin
+  // is true. (That neighbour is not checked for a shaded crease, a step or
+  // a low seam, so the merge may still keep the two apart, and the region
+  // is left on its own.)
   double min_enclosed_share = 0.9;
   bool enclosed_kin = true;
   // A band across an item: a region of at least min_seed_px joins two of
