@@ -1127,11 +1127,14 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         }
       }
     }
-    std::vector<int> order;  // the parts, largest first
+    std::vector<int> order;                        // the parts, largest first
+    std::vector<double> elongation(n_cores, 0.0);  // of each part's hull
     for (int g = 1; g < n_cores; ++g) {
       if (px_count[g] < 3) continue;
       std::vector<cv::Point> points = std::move(hull[g]);
       cv::convexHull(points, hull[g]);
+      if (hull[g].size() >= 3)
+        elongation[g] = Elongation(cv::minAreaRect(hull[g]));
       order.push_back(g);
     }
     std::stable_sort(order.begin(), order.end(),
@@ -1148,8 +1151,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     int band = 0;
     for (const int g : order) {
       if (band_of[g] != 0 || hull[g].size() < 3 ||
-          Elongation(cv::minAreaRect(hull[g])) <
-              options.min_stick_seed_elongation) {
+          elongation[g] < options.min_stick_seed_elongation) {
         continue;
       }
       ++band;
@@ -1170,8 +1172,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         std::vector<cv::Point> best_hull;
         for (const int n : candidates) {
           if (hull[n].size() < 3 ||
-              Elongation(cv::minAreaRect(hull[n])) <
-                  options.min_stick_part_elongation ||
+              elongation[n] < options.min_stick_part_elongation ||
               cv::norm(band_colour / band_px - colour_sum[n] / px_count[n]) >=
                   options.min_colour_distance) {
             continue;
