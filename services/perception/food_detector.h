@@ -162,6 +162,12 @@ struct FoodDetectorOptions {
   double min_stick_part_elongation = 2.0;
   double min_stick_fill = 0.9;
   double min_stick_elongation = 3.0;
+  // In that fill, count every part the band may still take (long, of its
+  // colour) as well as its own: a stick cut in three, wall, floor, wall,
+  // whose floor is narrow or uneven, takes some of the far wall into the
+  // rectangle around the near wall and the floor. false: only the band's
+  // own parts (and the ridges between) fill it.
+  bool stick_fill_counts_long_parts = true;
   // A part's top in that join: this quantile of its heights. Lower than the
   // merge's 0.9, because the highest pixels of a small stub are the flank of
   // the item lying on it.

@@ -1167,16 +1167,26 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
             if (band_of[n] == 0 && px_count[n] > 0) candidates.insert(n);
           }
         }
+        // The parts the band may take: long, of its colour, in no band.
+        const auto may_join = [&](int n) {
+          return band_of[n] == 0 && px_count[n] > 0 && hull[n].size() >= 3 &&
+                 elongation[n] >= options.min_stick_part_elongation &&
+                 cv::norm(band_colour / band_px - colour_sum[n] / px_count[n]) <
+                     options.min_colour_distance;
+        };
+        // What fills the rectangle: the band's parts and, when
+        // stick_fill_counts_long_parts, every part it may take (a wall of
+        // the stick beyond the floor that the rectangle takes in).
+        std::vector<uint8_t> fills_part(n_cores, 0);
+        for (int g = 1; g < n_cores; ++g) {
+          fills_part[g] = band_of[g] == band ||
+                          (options.stick_fill_counts_long_parts && may_join(g));
+        }
         int best = 0;
         double best_fill = options.min_stick_fill;
         std::vector<cv::Point> best_hull;
         for (const int n : candidates) {
-          if (hull[n].size() < 3 ||
-              elongation[n] < options.min_stick_part_elongation ||
-              cv::norm(band_colour / band_px - colour_sum[n] / px_count[n]) >=
-                  options.min_colour_distance) {
-            continue;
-          }
+          if (!may_join(n)) continue;
           std::vector<cv::Point> points = band_hull;
           points.insert(points.end(), hull[n].begin(), hull[n].end());
           std::vector<cv::Point> joined_hull;
@@ -1184,7 +1194,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
           const cv::RotatedRect rect = cv::minAreaRect(joined_hull);
           if (Elongation(rect) < options.min_stick_elongation) continue;
           for (int i = 1; i < n_cores; ++i) {
-            in_band[i] = group_of[i] == n || band_of[group_of[i]] == band;
+            in_band[i] = group_of[i] == n || fills_part[group_of[i]];
           }
           const double fill = ShareOfRect(markers, rect, [&](int label) {
             return label == -1 ||

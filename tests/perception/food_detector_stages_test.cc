@@ -574,6 +574,34 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   EXPECT_EQ(MergedItems(staggered, strips, any_fill), 1);
 }
 
+TEST(DetectorStagesTest, MergeJoinsAStickWhoseFloorWanders) {
+  // A U channel as above, but 44 px wide, whose floor (24 px wide, 6 mm)
+  // wanders 6 px either side of the stick's axis between walls 4-16 px wide
+  // (12 mm), seeded wall, floor, wall. The rectangle around the floor and
+  // either wall takes in the far wall where the floor swings towards it, so
+  // the floor and a wall fill it only when the far wall, which the band may
+  // take next, counts.
+  cv::Mat channel(kH, kW, CV_32FC1, cv::Scalar(0));
+  channel(cv::Rect(240, 220, 160, 44)).setTo(12.0f);
+  for (int u = 240; u < 400; ++u) {
+    const int centre =
+        cvRound(242.0 + 6.0 * std::sin(CV_PI * (u - 240) / 20.0));
+    channel(cv::Rect(u, centre - 12, 1, 24)).setTo(6.0f);
+  }
+  const std::vector<cv::Rect> seeds = {cv::Rect(245, 221, 150, 3),
+                                       cv::Rect(245, 238, 150, 8),
+                                       cv::Rect(245, 260, 150, 3)};
+  // The floor a shade darker (CIELAB distance 5), so the parts end where
+  // the floor does.
+  const auto shade_floor = [&channel](cv::Mat& rgb) {
+    rgb.setTo(cv::Scalar(188, 56, 47), channel == 6.0f);
+  };
+  EXPECT_EQ(MergedItems(channel, seeds, FoodDetectorOptions(), shade_floor), 1);
+  FoodDetectorOptions own_parts_only;
+  own_parts_only.stick_fill_counts_long_parts = false;
+  EXPECT_EQ(MergedItems(channel, seeds, own_parts_only, shade_floor), 3);
+}
+
 TEST(DetectorStagesTest, MergeJoinsABandAcrossAnItemNotAnItemBetweenTwo) {
   // A halved strawberry cut face up: a flat red oval (12 mm) with a pale
   // core running its length, from outline to outline, seeded as flesh,
