@@ -168,14 +168,6 @@ struct FoodDetectorOptions {
   // rectangle around the near wall and the floor. false: only the band's
   // own parts (and the ridges between) fill it.
   bool stick_fill_counts_long_parts = true;
-  // A stick's parts face the light in different ways (a celery's walls up
-  // and out, its floor in the channel's shade), which changes their
-  // lightness and chroma but not their hue. So in that band a part is of
-  // the band's colour when within min_colour_distance of it or, both with
-  // at least 8 units of chroma (below which a hue is noise), of its hue
-  // within max_stick_hue_deg (as a highlight's, max_highlight_hue_deg).
-  // 0: colour distance only.
-  double max_stick_hue_deg = 10.0;
   // A part's top in that join: this quantile of its heights. Lower than the
   // merge's 0.9, because the highest pixels of a small stub are the flank of
   // the item lying on it.

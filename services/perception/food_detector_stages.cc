@@ -640,33 +640,26 @@ void GrowRegions(const cv::Mat& rgb, const FoodEvidence& evidence,
 
 namespace {
 
-// Below this chroma (CIELAB) a colour's hue is noise.
-constexpr double kMinHueChroma = 8.0;
-
-double Chroma(const cv::Vec3d& lab) { return std::hypot(lab[1], lab[2]); }
-
-// The angle between two colours' hues (CIELAB), in degrees.
-double HueDegrees(const cv::Vec3d& a, const cv::Vec3d& b) {
-  const double deg =
-      std::abs(std::atan2(a[2], a[1]) - std::atan2(b[2], b[1])) * 180.0 / kPi;
-  return deg > 180.0 ? 360.0 - deg : deg;
-}
-
 // Whether one of two mean colours (CIELAB) is a highlight on a surface of
 // the other (FoodDetectorOptions::max_highlight_hue_deg).
 bool IsHighlightOn(const cv::Vec3d& a, const cv::Vec3d& b,
                    const cv::Vec3f& plate, const FoodDetectorOptions& options) {
   if (options.max_highlight_hue_deg <= 0.0) return false;
+  constexpr double kMinHueChroma = 8.0;
   const cv::Vec3d& light = a[0] >= b[0] ? a : b;
   const cv::Vec3d& dark = a[0] >= b[0] ? b : a;
-  const double light_chroma = Chroma(light);
-  const double dark_chroma = Chroma(dark);
+  const double light_chroma = std::hypot(light[1], light[2]);
+  const double dark_chroma = std::hypot(dark[1], dark[2]);
   if (std::min(light_chroma, dark_chroma) < kMinHueChroma ||
       light_chroma > options.max_highlight_chroma_share * dark_chroma ||
       light[0] < plate[0] - options.max_highlight_below_plate_l) {
     return false;
   }
-  return HueDegrees(light, dark) <= options.max_highlight_hue_deg;
+  double hue_deg =
+      std::abs(std::atan2(light[2], light[1]) - std::atan2(dark[2], dark[1])) *
+      180.0 / kPi;
+  if (hue_deg > 180.0) hue_deg = 360.0 - hue_deg;
+  return hue_deg <= options.max_highlight_hue_deg;
 }
 
 // The share of the pixels of `markers` inside the rotated rectangle `rect`
@@ -1174,19 +1167,12 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
             if (band_of[n] == 0 && px_count[n] > 0) candidates.insert(n);
           }
         }
-        // The parts the band may take: long, of its colour (or of its hue:
-        // the same surface facing the light another way), in no band.
-        const cv::Vec3d colour = band_colour / band_px;
-        const auto of_band_colour = [&](const cv::Vec3d& part) {
-          return cv::norm(colour - part) < options.min_colour_distance ||
-                 (options.max_stick_hue_deg > 0.0 &&
-                  std::min(Chroma(colour), Chroma(part)) >= kMinHueChroma &&
-                  HueDegrees(colour, part) <= options.max_stick_hue_deg);
-        };
+        // The parts the band may take: long, of its colour, in no band.
         const auto may_join = [&](int n) {
           return band_of[n] == 0 && px_count[n] > 0 && hull[n].size() >= 3 &&
                  elongation[n] >= options.min_stick_part_elongation &&
-                 of_band_colour(colour_sum[n] / px_count[n]);
+                 cv::norm(band_colour / band_px - colour_sum[n] / px_count[n]) <
+                     options.min_colour_distance;
         };
         // What fills the rectangle: the band's parts and, when
         // stick_fill_counts_long_parts, every part it may take (a wall of
