@@ -168,6 +168,14 @@ struct FoodDetectorOptions {
   // rectangle around the near wall and the floor. false: only the band's
   // own parts (and the ridges between) fill it.
   bool stick_fill_counts_long_parts = true;
+  // A stick's parts face the light in different ways (a celery's walls up
+  // and out, its floor in the channel's shade). More or less light on one
+  // surface scales its X, Y and Z by one factor, and so (L + 16, a, b) in
+  // CIELAB, made of their cube roots, by one factor too. So in that band a
+  // part is of the band's colour when within min_colour_distance of it or,
+  // once the band's colour is scaled so to the part's lightness, within
+  // max_stick_shade_distance of it in a and b. 0: colour distance only.
+  double max_stick_shade_distance = 4.0;
   // A part's top in that join: this quantile of its heights. Lower than the
   // merge's 0.9, because the highest pixels of a small stub are the flank of
   // the item lying on it.

@@ -640,6 +640,15 @@ void GrowRegions(const cv::Mat& rgb, const FoodEvidence& evidence,
 
 namespace {
 
+// How far colour `b` (CIELAB) is from colour `a` in other light: more or
+// less light on one surface scales X, Y and Z by one factor, so (L + 16, a,
+// b), made of their cube roots, by one factor too. The distance in (a, b)
+// from `a` so scaled to `b`'s lightness.
+double DistanceInOtherLight(const cv::Vec3d& a, const cv::Vec3d& b) {
+  const double scale = (b[0] + 16.0) / (a[0] + 16.0);
+  return std::hypot(b[1] - scale * a[1], b[2] - scale * a[2]);
+}
+
 // Whether one of two mean colours (CIELAB) is a highlight on a surface of
 // the other (FoodDetectorOptions::max_highlight_hue_deg).
 bool IsHighlightOn(const cv::Vec3d& a, const cv::Vec3d& b,
@@ -1167,12 +1176,19 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
             if (band_of[n] == 0 && px_count[n] > 0) candidates.insert(n);
           }
         }
-        // The parts the band may take: long, of its colour, in no band.
+        // The parts the band may take: long, of its colour (or of its
+        // colour in other light: a surface facing the light another way),
+        // in no band.
+        const cv::Vec3d colour = band_colour / band_px;
         const auto may_join = [&](int n) {
-          return band_of[n] == 0 && px_count[n] > 0 && hull[n].size() >= 3 &&
-                 elongation[n] >= options.min_stick_part_elongation &&
-                 cv::norm(band_colour / band_px - colour_sum[n] / px_count[n]) <
-                     options.min_colour_distance;
+          if (band_of[n] != 0 || px_count[n] == 0 || hull[n].size() < 3 ||
+              elongation[n] < options.min_stick_part_elongation) {
+            return false;
+          }
+          const cv::Vec3d part = colour_sum[n] / px_count[n];
+          return cv::norm(colour - part) < options.min_colour_distance ||
+                 DistanceInOtherLight(colour, part) <
+                     options.max_stick_shade_distance;
         };
         // What fills the rectangle: the band's parts and, when
         // stick_fill_counts_long_parts, every part it may take (a wall of

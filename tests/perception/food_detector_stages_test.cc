@@ -525,7 +525,7 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   // touching the stick's end fills the rectangle around both as well, but
   // it is not long: it stays apart. Two long strips side by side and
   // staggered leave much of their rectangle empty: they stay apart. A
-  // floor of another colour is not joined.
+  // floor of another colour is not joined; one in the walls' shade is.
   const cv::Mat channel = UChannel();
   const std::vector<cv::Rect> lengthwise = {cv::Rect(245, 221, 150, 5),
                                             cv::Rect(245, 232, 150, 16),
@@ -543,6 +543,25 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   FoodDetectorOptions any_colour;
   any_colour.min_colour_distance = 1000.0;
   EXPECT_EQ(MergedItems(channel, lengthwise, any_colour, green_floor), 1);
+  // The floor in the walls' shade, (150, 45, 38): CIELAB L 35 against 47,
+  // 18 units from the walls' colour, but 1.9 from it in less light. One
+  // item; three when only the colour distance counts.
+  const auto shaded_floor = [](cv::Mat& rgb) {
+    rgb(cv::Rect(240, 228, 160, 24)).setTo(cv::Scalar(150, 45, 38));
+  };
+  EXPECT_EQ(
+      MergedItems(channel, lengthwise, FoodDetectorOptions(), shaded_floor), 1);
+  FoodDetectorOptions distance_only;
+  distance_only.max_stick_shade_distance = 0.0;
+  EXPECT_EQ(MergedItems(channel, lengthwise, distance_only, shaded_floor), 3);
+  // A pale floor of the walls' hue, (215, 150, 140): L 68, hue 33 degrees
+  // against 35, but chroma 28 against 67, which more light does not do: 62
+  // units from the walls' colour in that light. Three items.
+  const auto pale_floor = [](cv::Mat& rgb) {
+    rgb(cv::Rect(240, 228, 160, 24)).setTo(cv::Scalar(215, 150, 140));
+  };
+  EXPECT_EQ(MergedItems(channel, lengthwise, FoodDetectorOptions(), pale_floor),
+            3);
   // A dome of radius 20 px (12 mm high) against the channel's right end.
   cv::Mat with_dome = channel.clone();
   for (int v = 220; v < 260; ++v) {
