@@ -152,7 +152,8 @@ struct FoodDetectorOptions {
   double min_join_elongation = 1.3;
   // A stick cut lengthwise into parts of one colour (a celery's two walls
   // and its floor): starting from a part at least min_stick_seed_elongation
-  // long for its width, neighbours of similar colour at least
+  // long for its width, neighbours of similar colour (or of its colour in
+  // other light, max_stick_shade_distance below) at least
   // min_stick_part_elongation long for theirs are joined to it while the
   // parts fill at least min_stick_fill of the smallest rectangle around them
   // and that rectangle is at least min_stick_elongation long for its width.
@@ -176,9 +177,10 @@ struct FoodDetectorOptions {
   // once the band's colour is scaled so to the part's lightness, within
   // max_stick_shade_distance of it in a and b. 0: colour distance only.
   double max_stick_shade_distance = 4.0;
-  // A part's top in that join: this quantile of its heights. Lower than the
-  // merge's 0.9, because the highest pixels of a small stub are the flank of
-  // the item lying on it.
+  // A part's top in the join across an item lying on a stick (min_join_fill
+  // above): this quantile of its heights. Lower than the merge's 0.9,
+  // because the highest pixels of a small stub are the flank of the item
+  // lying on it.
   double join_top_quantile = 0.8;
   // Two touching convex items that no seed told apart grow into one
   // region with a waist. A region whose solidity (area over its convex

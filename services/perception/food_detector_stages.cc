@@ -1110,12 +1110,13 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   // items do) is several long parts of one colour that together make one
   // straight band. Starting from each part at least
   // min_stick_seed_elongation long for its width, largest first,
-  // neighbours of similar colour at least min_stick_part_elongation long
-  // for their width are added one at a time, the one that leaves the parts
-  // (and the ridges between) filling the smallest rectangle around them
-  // most, while that fill is at least min_stick_fill and the rectangle at
-  // least min_stick_elongation long for its width. (A round slice at a
-  // stick's end can fill such a rectangle too, but it is not long.)
+  // neighbours of similar colour (or of the band's colour in other light)
+  // at least min_stick_part_elongation long for their width are added one
+  // at a time, the one that leaves the parts (and the ridges between)
+  // filling the smallest rectangle around them most, while that fill is at
+  // least min_stick_fill and the rectangle at least min_stick_elongation
+  // long for its width. (A round slice at a stick's end can fill such a
+  // rectangle too, but it is not long.)
   if (options.min_stick_seed_elongation > 0.0) {
     std::vector<int> group_of(n_cores);  // per label: its part
     for (int i = 0; i < n_cores; ++i) group_of[i] = root(i);
