@@ -534,10 +534,14 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   FoodDetectorOptions off;
   off.min_stick_seed_elongation = 0.0;
   EXPECT_EQ(MergedItems(channel, lengthwise, off), 3);
-  // The floor in another colour: three items, however they line up.
-  const auto green_floor = [](cv::Mat& rgb) {
-    rgb(cv::Rect(240, 228, 160, 24)).setTo(cv::Scalar(60, 170, 60));
+  // The channel's floor painted `colour`.
+  const auto floor_in = [](const cv::Scalar& colour) {
+    return [colour](cv::Mat& rgb) {
+      rgb(cv::Rect(240, 228, 160, 24)).setTo(colour);
+    };
   };
+  // The floor in another colour: three items, however they line up.
+  const auto green_floor = floor_in(cv::Scalar(60, 170, 60));
   EXPECT_EQ(
       MergedItems(channel, lengthwise, FoodDetectorOptions(), green_floor), 3);
   FoodDetectorOptions any_colour;
@@ -546,9 +550,7 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   // The floor in the walls' shade, (150, 45, 38): CIELAB L 35 against 47,
   // 18 units from the walls' colour, but 1.9 from it in less light. One
   // item; three when only the colour distance counts.
-  const auto shaded_floor = [](cv::Mat& rgb) {
-    rgb(cv::Rect(240, 228, 160, 24)).setTo(cv::Scalar(150, 45, 38));
-  };
+  const auto shaded_floor = floor_in(cv::Scalar(150, 45, 38));
   EXPECT_EQ(
       MergedItems(channel, lengthwise, FoodDetectorOptions(), shaded_floor), 1);
   FoodDetectorOptions distance_only;
@@ -557,9 +559,7 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   // A pale floor of the walls' hue, (215, 150, 140): L 68, hue 33 degrees
   // against 35, but chroma 28 against 67, which more light does not do: 62
   // units from the walls' colour in that light. Three items.
-  const auto pale_floor = [](cv::Mat& rgb) {
-    rgb(cv::Rect(240, 228, 160, 24)).setTo(cv::Scalar(215, 150, 140));
-  };
+  const auto pale_floor = floor_in(cv::Scalar(215, 150, 140));
   EXPECT_EQ(MergedItems(channel, lengthwise, FoodDetectorOptions(), pale_floor),
             3);
   // A dome of radius 20 px (12 mm high) against the channel's right end.
