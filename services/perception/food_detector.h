@@ -172,10 +172,12 @@ struct FoodDetectorOptions {
   // A stick's parts face the light in different ways (a celery's walls up
   // and out, its floor in the channel's shade). More or less light on one
   // surface scales its X, Y and Z by one factor, and so (L + 16, a, b) in
-  // CIELAB, made of their cube roots, by one factor too. So in that band a
-  // part is of the band's colour when within min_colour_distance of it or,
-  // once the band's colour is scaled so to the part's lightness, within
-  // max_stick_shade_distance of it in a and b. 0: colour distance only.
+  // CIELAB, made of their cube roots, by one factor too (while none of X, Y,
+  // Z is below 0.8856 % of white). So in that band a part is of the band's
+  // colour when within min_colour_distance of it or when, either colour
+  // scaled by that factor to the other's lightness, the two are within
+  // max_stick_shade_distance in a and b (both ways: a dark grey is not a
+  // pale colour in shade). 0: colour distance only.
   double max_stick_shade_distance = 4.0;
   // A part's top in the join across an item lying on a stick (min_join_fill
   // above): this quantile of its heights. Lower than the merge's 0.9,

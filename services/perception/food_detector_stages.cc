@@ -640,13 +640,20 @@ void GrowRegions(const cv::Mat& rgb, const FoodEvidence& evidence,
 
 namespace {
 
-// How far colour `b` (CIELAB) is from colour `a` in other light: more or
-// less light on one surface scales X, Y and Z by one factor, so (L + 16, a,
-// b), made of their cube roots, by one factor too. The distance in (a, b)
-// from `a` so scaled to `b`'s lightness.
+// How far two colours (CIELAB) are from being one surface in other light:
+// more or less light on a surface scales X, Y and Z by one factor, so (L +
+// 16, a, b), made of their cube roots, by one factor too (while none of X,
+// Y, Z falls below 0.8856 % of white, where CIELAB's cube root becomes a
+// line). The distance in (a, b) once one is scaled to the other's
+// lightness, the larger of the two ways: scaled down, a colour's chroma
+// shrinks, so one way alone would take any dark grey for a pale colour in
+// shade.
 double DistanceInOtherLight(const cv::Vec3d& a, const cv::Vec3d& b) {
-  const double scale = (b[0] + 16.0) / (a[0] + 16.0);
-  return std::hypot(b[1] - scale * a[1], b[2] - scale * a[2]);
+  const auto one_way = [](const cv::Vec3d& from, const cv::Vec3d& to) {
+    const double scale = (to[0] + 16.0) / (from[0] + 16.0);
+    return std::hypot(to[1] - scale * from[1], to[2] - scale * from[2]);
+  };
+  return std::max(one_way(a, b), one_way(b, a));
 }
 
 // Whether one of two mean colours (CIELAB) is a highlight on a surface of
@@ -1195,9 +1202,9 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         // stick_fill_counts_long_parts, every part it may take (a wall of
         // the stick beyond the floor that the rectangle takes in).
         std::vector<uint8_t> fills_part(n_cores, 0);
-        for (int g = 1; g < n_cores; ++g) {
-          fills_part[g] = band_of[g] == band ||
-                          (options.stick_fill_counts_long_parts && may_join(g));
+        for (int p = 1; p < n_cores; ++p) {
+          fills_part[p] = band_of[p] == band ||
+                          (options.stick_fill_counts_long_parts && may_join(p));
         }
         int best = 0;
         double best_fill = options.min_stick_fill;

@@ -547,18 +547,19 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   FoodDetectorOptions any_colour;
   any_colour.min_colour_distance = 1000.0;
   EXPECT_EQ(MergedItems(channel, lengthwise, any_colour, green_floor), 1);
-  // The floor in the walls' shade, (150, 45, 38): CIELAB L 35 against 47,
-  // 18 units from the walls' colour, but 1.9 from it in less light. One
-  // item; three when only the colour distance counts.
-  const auto shaded_floor = floor_in(cv::Scalar(150, 45, 38));
+  // The floor in the walls' shade, (146, 41, 34), their colour in half the
+  // light (linear RGB): CIELAB L 34 against 47, 19 units from the walls'
+  // colour, but 0.3 from it in other light (5-7 if the 16 in L + 16 were
+  // left out). One item; three when only the colour distance counts.
+  const auto shaded_floor = floor_in(cv::Scalar(146, 41, 34));
   EXPECT_EQ(
       MergedItems(channel, lengthwise, FoodDetectorOptions(), shaded_floor), 1);
   FoodDetectorOptions distance_only;
   distance_only.max_stick_shade_distance = 0.0;
   EXPECT_EQ(MergedItems(channel, lengthwise, distance_only, shaded_floor), 3);
   // A pale floor of the walls' hue, (215, 150, 140): L 68, hue 33 degrees
-  // against 35, but chroma 28 against 67, which more light does not do: 62
-  // units from the walls' colour in that light. Three items.
+  // against 35, but chroma 28 against 67, which more light does not do: 46
+  // units from the walls' colour in other light. Three items.
   const auto pale_floor = floor_in(cv::Scalar(215, 150, 140));
   EXPECT_EQ(MergedItems(channel, lengthwise, FoodDetectorOptions(), pale_floor),
             3);
@@ -593,6 +594,34 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   EXPECT_EQ(MergedItems(staggered, strips, any_fill), 1);
 }
 
+TEST(DetectorStagesTest, MergeTakesAPaleStickFloorInShadeNotAGreyOne) {
+  // A pale beige stick, (200, 195, 185), CIELAB chroma 6, cut lengthwise:
+  // walls 16 px wide (12 mm) either side of a floor 12 px wide (6 mm), so
+  // a wall starts the band. Its floor in half the light, (146, 143, 135),
+  // is 0.4-0.5 units from the walls' colour in other light: one item. A
+  // grey floor, (70, 70, 70), is 2.7 units from it one way (the walls'
+  // colour scaled down to the grey's lightness keeps little chroma) and 5.6
+  // the other (the grey scaled up has none): three items.
+  cv::Mat channel(kH, kW, CV_32FC1, cv::Scalar(0));
+  channel(cv::Rect(240, 220, 160, 44)).setTo(12.0f);
+  channel(cv::Rect(240, 236, 160, 12)).setTo(6.0f);
+  const std::vector<cv::Rect> seeds = {cv::Rect(245, 222, 150, 10),
+                                       cv::Rect(245, 239, 150, 6),
+                                       cv::Rect(245, 251, 150, 10)};
+  const auto floor_in = [](const cv::Scalar& colour) {
+    return [colour](cv::Mat& rgb) {
+      rgb(cv::Rect(240, 220, 160, 44)).setTo(cv::Scalar(200, 195, 185));
+      rgb(cv::Rect(240, 236, 160, 12)).setTo(colour);
+    };
+  };
+  EXPECT_EQ(MergedItems(channel, seeds, FoodDetectorOptions(),
+                        floor_in(cv::Scalar(146, 143, 135))),
+            1);
+  EXPECT_EQ(MergedItems(channel, seeds, FoodDetectorOptions(),
+                        floor_in(cv::Scalar(70, 70, 70))),
+            3);
+}
+
 TEST(DetectorStagesTest, MergeJoinsAStickWhoseFloorWanders) {
   // A U channel as above, but 44 px wide, whose floor (24 px wide, 6 mm)
   // wanders 6 px either side of the stick's axis between walls 4-16 px wide
@@ -610,7 +639,7 @@ TEST(DetectorStagesTest, MergeJoinsAStickWhoseFloorWanders) {
   const std::vector<cv::Rect> seeds = {cv::Rect(245, 221, 150, 3),
                                        cv::Rect(245, 238, 150, 8),
                                        cv::Rect(245, 260, 150, 3)};
-  // The floor a shade darker (CIELAB distance 5), so the parts end where
+  // The floor a shade darker (CIELAB distance 4), so the parts end where
   // the floor does.
   const auto shade_floor = [&channel](cv::Mat& rgb) {
     rgb.setTo(cv::Scalar(188, 56, 47), channel == 6.0f);
