@@ -174,10 +174,10 @@ struct FoodDetectorOptions {
   // surface scales its X, Y and Z by one factor, and so (L + 16, a, b) in
   // CIELAB, made of their cube roots, by one factor too (while none of X, Y,
   // Z is below 0.8856 % of white). So in that band a part is of the band's
-  // colour when within min_colour_distance of it or when, either colour
+  // colour when within min_colour_distance of it or when, each colour
   // scaled by that factor to the other's lightness, the two are within
   // max_stick_shade_distance in a and b (both ways: a dark grey is not a
-  // pale colour in shade). 0: colour distance only.
+  // pale, nearly grey colour in shade). 0: colour distance only.
   double max_stick_shade_distance = 4.0;
   // A part's top in the join across an item lying on a stick (min_join_fill
   // above): this quantile of its heights. Lower than the merge's 0.9,

@@ -646,8 +646,8 @@ namespace {
 // Y, Z falls below 0.8856 % of white, where CIELAB's cube root becomes a
 // line). The distance in (a, b) once one is scaled to the other's
 // lightness, the larger of the two ways: scaled down, a colour's chroma
-// shrinks, so one way alone would take any dark grey for a pale colour in
-// shade.
+// shrinks, so one way alone would take a dark enough grey for a pale,
+// nearly grey colour in shade.
 double DistanceInOtherLight(const cv::Vec3d& a, const cv::Vec3d& b) {
   const auto one_way = [](const cv::Vec3d& from, const cv::Vec3d& to) {
     const double scale = (to[0] + 16.0) / (from[0] + 16.0);

@@ -558,7 +558,7 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   distance_only.max_stick_shade_distance = 0.0;
   EXPECT_EQ(MergedItems(channel, lengthwise, distance_only, shaded_floor), 3);
   // A pale floor of the walls' hue, (215, 150, 140): L 68, hue 33 degrees
-  // against 35, but chroma 28 against 67, which more light does not do: 46
+  // against 35, but chroma 28 against 67, which more light does not do: 62
   // units from the walls' colour in other light. Three items.
   const auto pale_floor = floor_in(cv::Scalar(215, 150, 140));
   EXPECT_EQ(MergedItems(channel, lengthwise, FoodDetectorOptions(), pale_floor),
