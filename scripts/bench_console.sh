@@ -15,7 +15,9 @@ CONSOLE="$BUILD_DIR/clients/console/bitewise-console"
 [[ -x $CONSOLE ]] || { echo "no $CONSOLE: build it first" >&2; exit 1; }
 DATA_DIR="$(mktemp -d)"
 # A port range of our own: five ports from a random base.
-BASE_PORT=$((20000 + (RANDOM % 4000) * 10))
+# Below Linux's ephemeral range (32768-60999 by default), where an outgoing
+# connection of this or any other process may hold a port.
+BASE_PORT=$((20000 + (RANDOM % 1200) * 10))
 CONSOLE_PORT=$((BASE_PORT + 5))
 
 # shellcheck source=scripts/lib/services.sh

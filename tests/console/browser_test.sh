@@ -12,7 +12,9 @@ BUILD_DIR="$(cd "${1:?usage: browser_test.sh BUILD_DIR}" && pwd)"
 export BUILD_DIR
 DATA_DIR="$(mktemp -d)"
 # A port range of our own: five ports from a random base.
-BASE_PORT=$((20000 + (RANDOM % 4000) * 10))
+# Below Linux's ephemeral range (32768-60999 by default), where an outgoing
+# connection of this or any other process may hold a port.
+BASE_PORT=$((20000 + (RANDOM % 1200) * 10))
 CONSOLE_PORT=$((BASE_PORT + 5))
 export BITEWISE_SCREENSHOT_DIR="${BITEWISE_SCREENSHOT_DIR:-$BUILD_DIR/console-screenshots}"
 mkdir -p "$BITEWISE_SCREENSHOT_DIR"
@@ -39,6 +41,13 @@ for test_file in clients/console/web/test/*.test.mjs; do
     grep -q "bitewise-console: open" "$DATA_DIR/logs/console.log" && break
     sleep 0.1
   done
+  if ! grep -q "bitewise-console: open" "$DATA_DIR/logs/console.log"; then
+    status=1
+    echo "--- bitewise-console did not open on 127.0.0.1:$CONSOLE_PORT ($test_file)" >&2
+    tail -n 20 "$DATA_DIR/logs/console.log" >&2
+    stop_services
+    continue
+  fi
   if ! (cd clients/console/web && node --test "test/$(basename "$test_file")"); then
     status=1
     echo "--- console log ($test_file)" >&2
