@@ -14,14 +14,12 @@ export BUILD_DIR
 CONSOLE="$BUILD_DIR/clients/console/bitewise-console"
 [[ -x $CONSOLE ]] || { echo "no $CONSOLE: build it first" >&2; exit 1; }
 DATA_DIR="$(mktemp -d)"
-# A port range of our own: five ports from a random base.
-# Below Linux's ephemeral range (32768-60999 by default), where an outgoing
-# connection of this or any other process may hold a port.
-BASE_PORT=$((20000 + (RANDOM % 1200) * 10))
-CONSOLE_PORT=$((BASE_PORT + 5))
 
 # shellcheck source=scripts/lib/services.sh
 source scripts/lib/services.sh
+# A port range of our own (random_base_port).
+BASE_PORT=$(random_base_port)
+CONSOLE_PORT=$((BASE_PORT + 5))
 cleanup() { stop_services; rm -rf "$DATA_DIR"; }
 trap cleanup EXIT
 

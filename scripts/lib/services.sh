@@ -9,6 +9,11 @@
 BUILD_DIR="${BUILD_DIR:-build}"
 DATA_DIR="${DATA_DIR:-${BITEWISE_DATA_DIR:-$PWD/data}}"
 BASE_PORT="${BASE_PORT:-${BITEWISE_BASE_PORT:-50051}}"
+
+# A random first port for a test's or benchmark's own six (four services, a
+# spare, the console), below Linux's ephemeral range (32768-60999 by
+# default), where an outgoing connection of any process may hold a port.
+random_base_port() { echo $((20000 + (RANDOM % 1200) * 10)); }
 mkdir -p "$DATA_DIR"
 
 # The next simulated plate's number (kept in DATA_DIR): every run gets a

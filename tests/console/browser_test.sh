@@ -11,16 +11,14 @@ cd "$(dirname "$0")/../.."
 BUILD_DIR="$(cd "${1:?usage: browser_test.sh BUILD_DIR}" && pwd)"
 export BUILD_DIR
 DATA_DIR="$(mktemp -d)"
-# A port range of our own: five ports from a random base.
-# Below Linux's ephemeral range (32768-60999 by default), where an outgoing
-# connection of this or any other process may hold a port.
-BASE_PORT=$((20000 + (RANDOM % 1200) * 10))
-CONSOLE_PORT=$((BASE_PORT + 5))
 export BITEWISE_SCREENSHOT_DIR="${BITEWISE_SCREENSHOT_DIR:-$BUILD_DIR/console-screenshots}"
 mkdir -p "$BITEWISE_SCREENSHOT_DIR"
 
 # shellcheck source=scripts/lib/services.sh
 source scripts/lib/services.sh
+# A port range of our own (random_base_port).
+BASE_PORT=$(random_base_port)
+CONSOLE_PORT=$((BASE_PORT + 5))
 cleanup() { stop_services; rm -rf "$DATA_DIR"; }
 trap cleanup EXIT
 
