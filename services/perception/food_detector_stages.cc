@@ -757,6 +757,11 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     // the seam pixels whose two flanks lie in the two regions.
     double seam_lift_sum = 0.0, flank_lift_sum = 0.0;
     int flank_count = 0;
+    // The height on the seam and the mean height of its two flanks, over
+    // the seam pixels whose two flanks lie in the two regions and where
+    // all three have depth.
+    double seam_height_sum = 0.0, flank_height_sum = 0.0;
+    int flank_height_count = 0;
   };
   std::map<std::pair<int, int>, Seam> boundary;
   // The seam pixel (u, v) between regions a and b: its lift, and the mean
@@ -765,7 +770,10 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   // and in b.
   const int flank = options.valley_flank_px;
   const auto add_flank_lift = [&](int u, int v, int a, int b, Seam& seam) {
-    if (options.min_valley_flank_share <= 0.0) return;
+    if (options.min_valley_flank_share <= 0.0 &&
+        options.min_seam_flank_height_share <= 0.0) {
+      return;
+    }
     int du = 0, dv = 0;
     for (const auto& [ou, ov] : {std::pair{-1, 0}, {1, 0}, {0, -1}, {0, 1}}) {
       const int n = markers.at<int>(v + ov, u + ou);
@@ -786,6 +794,13 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     seam.flank_lift_sum +=
         0.5 * (valley.at<float>(v1, u1) + valley.at<float>(v2, u2));
     ++seam.flank_count;
+    if (valid.at<uint8_t>(v, u) && valid.at<uint8_t>(v1, u1) &&
+        valid.at<uint8_t>(v2, u2)) {
+      seam.seam_height_sum += height_mm.at<float>(v, u);
+      seam.flank_height_sum +=
+          0.5 * (height_mm.at<float>(v1, u1) + height_mm.at<float>(v2, u2));
+      ++seam.flank_height_count;
+    }
   };
   // Per region: the ridge pixels beside it, and those of them that also
   // border the background.
@@ -910,7 +925,17 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     }
     // No valley between them, by the closing's lift and by height.
     const bool no_dip = flat_seam(seam, lower_top);
-    const bool no_valley = seam_mm > 0.8 * lower_top && no_dip;
+    // Or the seam is as high as the two regions beside it: it runs across
+    // one item's profile (a celery stick cut crosswise: its floor is low
+    // on the seam and beside it alike), where touching items meet lower
+    // down than their flanks.
+    const bool as_high_as_flanks =
+        options.min_seam_flank_height_share > 0.0 &&
+        seam.flank_height_count >= 3 &&
+        seam.seam_height_sum >=
+            options.min_seam_flank_height_share * seam.flank_height_sum;
+    const bool no_valley =
+        (seam_mm > 0.8 * lower_top || as_high_as_flanks) && no_dip;
     // Or the dip is a valley running across the seam, lifted nearly as much
     // beside it as on it (a celery stick's channel, cut crosswise); then
     // neither the dip nor the seam's height keeps the two apart.

@@ -517,6 +517,29 @@ TEST(DetectorStagesTest, MergeJoinsAChannelCutCrosswiseNotTwoTouchingRods) {
       2);
 }
 
+TEST(DetectorStagesTest, MergeJoinsARoundRodCutCrosswise) {
+  // A rod 40 px wide along x, 12 mm high at its crest, whose sides slope
+  // (a parabola across: its mean height is 2/3 of its crest, under the 0.8
+  // of the lower region's top that a seam must reach). Seeded at its two
+  // ends, the seam between the halves runs across that profile, and so do
+  // the flanks beside it: as high as the seam, with no dip anywhere.
+  cv::Mat rod(kH, kW, CV_32FC1, cv::Scalar(0));
+  for (int v = 220; v < 260; ++v) {
+    const double across = std::fabs(239.5 - v) / 20.0;
+    rod(cv::Rect(240, v, 160, 1))
+        .setTo(static_cast<float>(12.0 * (1.0 - across * across)));
+  }
+  const std::vector<cv::Rect> ends = {cv::Rect(245, 225, 10, 30),
+                                      cv::Rect(385, 225, 10, 30)};
+  EXPECT_EQ(MergedItems(rod, ends, FoodDetectorOptions()), 1);
+  FoodDetectorOptions off;
+  off.min_seam_flank_height_share = 0.0;
+  EXPECT_EQ(MergedItems(rod, ends, off), 2)
+      << "the seam's height keeps the halves apart without the rule";
+  // Two such rods side by side (MergeJoinsAChannelCutCrosswiseNotTwo-
+  // TouchingRods) meet low, in a crease their flanks rise from: still two.
+}
+
 TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   // The U channel above seeded along its length, wall, floor, wall: the
   // floor stands 6 mm below the walls (a step, one part's top twice the
@@ -581,13 +604,14 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   any_part.min_stick_part_elongation = 0.0;
   EXPECT_EQ(MergedItems(with_dome, with_dome_seeds, any_part), 1);
   // Two long strips, one lying on the other's half-length (12 and 6 mm, a
-  // step): both long and in line, but together they fill 0.67 of the
+  // step), each seeded along its length as PlantSeeds seeds them (cut at
+  // the step): both long and in line, but together they fill 0.67 of the
   // rectangle around them.
   cv::Mat staggered(kH, kW, CV_32FC1, cv::Scalar(0));
   staggered(cv::Rect(240, 232, 160, 12)).setTo(6.0f);
   staggered(cv::Rect(320, 220, 160, 12)).setTo(12.0f);
-  const std::vector<cv::Rect> strips = {cv::Rect(250, 235, 60, 6),
-                                        cv::Rect(410, 223, 60, 6)};
+  const std::vector<cv::Rect> strips = {cv::Rect(245, 235, 150, 6),
+                                        cv::Rect(325, 223, 150, 6)};
   EXPECT_EQ(MergedItems(staggered, strips, FoodDetectorOptions()), 2);
   FoodDetectorOptions any_fill;
   any_fill.min_stick_fill = 0.0;
