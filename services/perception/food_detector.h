@@ -149,14 +149,6 @@ struct FoodDetectorOptions {
   // least min_seam_flank_height_share of the flanks' mean height does not
   // keep two regions of similar colour apart either. 0: off.
   double min_seam_flank_height_share = 0.9;
-  // A neighbour's shadow cast across an item darkens part of it: less
-  // light on one surface, the same colour in other light (as
-  // max_stick_shade_distance below measures it). Two neighbours with no
-  // valley between them are merged when of similar colour or, each colour
-  // scaled to the other's lightness, within max_merge_shade_distance in a
-  // and b (the shaded-crease and top-ratio tests still apply). 0: colour
-  // distance only.
-  double max_merge_shade_distance = 4.0;
   // A stick with an item lying across it shows as two parts; they are
   // joined when the item on them borders both and the line between them
   // runs under that item, they and that item cover at least min_join_fill

@@ -957,12 +957,8 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       flush_with[a].emplace_back(b, seam_px);
       flush_with[b].emplace_back(a, seam_px);
     }
-    // Of similar colour, or of one colour in other light (a shadow cast
-    // across the item by a neighbour).
-    const bool one_colour = cv::norm(diff) < options.min_colour_distance ||
-                            DistanceInOtherLight(colour_a, colour_b) <
-                                options.max_merge_shade_distance;
-    if (((no_valley || valley_across) && one_colour) ||
+    if (((no_valley || valley_across) &&
+         cv::norm(diff) < options.min_colour_distance) ||
         (no_valley && enclosed) ||
         (no_dip &&
          IsHighlightOn(colour_a, colour_b, evidence.plate_lab, options))) {

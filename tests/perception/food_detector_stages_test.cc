@@ -460,32 +460,6 @@ TEST(DetectorStagesTest, MergeKeepsApartTwoItemsWithAShadedCreaseBetween) {
   EXPECT_EQ(items(faint, FoodDetectorOptions()), 1);
 }
 
-TEST(DetectorStagesTest, MergeJoinsAnItemAcrossANeighboursShadow) {
-  // A red slab (15 mm) seeded at its two ends, its right half in a
-  // neighbour's shadow: (146, 41, 34), its colour in half the light (linear
-  // RGB), 19 CIELAB units from it but 0.3 in other light. One item; two
-  // when only the colour distance counts. A right half of the slab's hue
-  // but pale, (215, 150, 140), is 62 units from it in other light: two.
-  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
-  height(cv::Rect(260, 220, 120, 40)).setTo(15.0f);
-  const auto items = [&height](const cv::Scalar& right_half,
-                               const FoodDetectorOptions& options) {
-    Scene scene = MakeScene(height, height > 0.0f);
-    scene.rgb(cv::Rect(320, 220, 60, 40)).setTo(right_half);
-    scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
-                                  scene.plate, FoodDetectorOptions());
-    return ItemLabels(GrowAndMerge(
-        scene, {cv::Rect(270, 230, 10, 20), cv::Rect(360, 230, 10, 20)},
-        options));
-  };
-  const cv::Scalar in_shadow(146, 41, 34), pale(215, 150, 140);
-  EXPECT_EQ(items(in_shadow, FoodDetectorOptions()), 1);
-  FoodDetectorOptions distance_only;
-  distance_only.max_merge_shade_distance = 0.0;
-  EXPECT_EQ(items(in_shadow, distance_only), 2);
-  EXPECT_EQ(items(pale, FoodDetectorOptions()), 2);
-}
-
 // Items after seeding `seeds` on a scene of `height` (every item one colour,
 // then `paint`, if given, over the RGB) and growing and merging, with the
 // valley lift PlantSeeds measures.
