@@ -142,12 +142,14 @@ struct FoodDetectorOptions {
   double min_valley_flank_share = 0.8;
   // A seam with no dip is low (on average under 0.8 of the lower region's
   // top) where two touching items meet down their rounded sides, and also
-  // where it runs across one item's profile (a celery stick cut crosswise:
-  // the seam crosses its low floor). There the flanks valley_flank_px to
-  // either side are as low as the seam. So a seam with no dip whose height,
-  // over at least 3 seam pixels with both flanks in the two regions, is at
-  // least min_seam_flank_height_share of the flanks' mean height does not
-  // keep two regions of similar colour apart either. 0: off.
+  // where it runs across one item's profile (a stick cut crosswise: the
+  // seam crosses its sloping sides and a celery's low floor). Across a
+  // profile, the points valley_flank_px to either side of the seam are as
+  // low as the seam; where two items meet, the items rise from it. So a
+  // seam with no dip whose height, over at least 3 seam pixels whose two
+  // flanks lie in the two regions (all three with depth), is at least
+  // min_seam_flank_height_share of the flanks' mean height does not keep
+  // two regions of similar colour apart either. 0: off.
   double min_seam_flank_height_share = 0.9;
   // A stick with an item lying across it shows as two parts; they are
   // joined when the item on them borders both and the line between them
