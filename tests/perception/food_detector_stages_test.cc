@@ -487,6 +487,31 @@ cv::Mat UChannel() {
   return channel;
 }
 
+// Rods 40 px wide and 160 px long along x (u 240-399), centred on the rows
+// `centres`, 12 mm high at the crest and `profile(d)` of that at d (0-1) of
+// the half width from it (the higher wins where two overlap).
+cv::Mat RodsAlongX(const std::vector<double>& centres,
+                   double (*profile)(double)) {
+  cv::Mat rods(kH, kW, CV_32FC1, cv::Scalar(0));
+  for (int v = 0; v < kH; ++v) {
+    double height = 0.0;
+    for (const double centre : centres) {
+      const double across = std::fabs(centre - v) / 20.0;
+      if (across < 1.0) height = std::max(height, 12.0 * profile(across));
+    }
+    if (height > 0.0) {
+      rods(cv::Rect(240, v, 160, 1)).setTo(static_cast<float>(height));
+    }
+  }
+  return rods;
+}
+double RoundProfile(double d) { return std::sqrt(1.0 - d * d); }
+double SlopingProfile(double d) { return 1.0 - d * d; }
+// Seeds for two rods side by side (centres 220.5 and 259.5), one each.
+std::vector<cv::Rect> RodsSideBySideSeeds() {
+  return {cv::Rect(250, 215, 140, 10), cv::Rect(250, 255, 140, 10)};
+}
+
 TEST(DetectorStagesTest, MergeJoinsAChannelCutCrosswiseNotTwoTouchingRods) {
   // The U channel seeded at its two ends.
   // The seam between the two halves crosses the floor, which the closing
@@ -501,20 +526,10 @@ TEST(DetectorStagesTest, MergeJoinsAChannelCutCrosswiseNotTwoTouchingRods) {
   off.min_valley_flank_share = 0.0;
   EXPECT_EQ(MergedItems(channel, ends, off), 2)
       << "the floor's dip keeps the halves apart without the rule";
-  // Two rods of radius 20 px (12 mm high) along x, touching at v = 240.
-  cv::Mat rods(kH, kW, CV_32FC1, cv::Scalar(0));
-  for (int v = 200; v < 280; ++v) {
-    const double across = std::fabs((v < 240 ? 220.5 : 259.5) - v) / 20.0;
-    if (across < 1.0) {
-      rods(cv::Rect(240, v, 160, 1))
-          .setTo(static_cast<float>(12.0 * std::sqrt(1.0 - across * across)));
-    }
-  }
-  EXPECT_EQ(
-      MergedItems(rods,
-                  {cv::Rect(250, 215, 140, 10), cv::Rect(250, 255, 140, 10)},
-                  FoodDetectorOptions()),
-      2);
+  // Two round rods along x, touching at v = 240.
+  EXPECT_EQ(MergedItems(RodsAlongX({220.5, 259.5}, RoundProfile),
+                        RodsSideBySideSeeds(), FoodDetectorOptions()),
+            2);
 }
 
 TEST(DetectorStagesTest, MergeJoinsARoundRodCutCrosswise) {
@@ -523,12 +538,7 @@ TEST(DetectorStagesTest, MergeJoinsARoundRodCutCrosswise) {
   // of the lower region's top that a seam must reach). Seeded at its two
   // ends, the seam between the halves runs across that profile, and so do
   // the flanks beside it: as high as the seam, with no dip anywhere.
-  cv::Mat rod(kH, kW, CV_32FC1, cv::Scalar(0));
-  for (int v = 220; v < 260; ++v) {
-    const double across = std::fabs(239.5 - v) / 20.0;
-    rod(cv::Rect(240, v, 160, 1))
-        .setTo(static_cast<float>(12.0 * (1.0 - across * across)));
-  }
+  const cv::Mat rod = RodsAlongX({239.5}, SlopingProfile);
   const std::vector<cv::Rect> ends = {cv::Rect(245, 225, 10, 30),
                                       cv::Rect(385, 225, 10, 30)};
   EXPECT_EQ(MergedItems(rod, ends, FoodDetectorOptions()), 1);
@@ -536,8 +546,11 @@ TEST(DetectorStagesTest, MergeJoinsARoundRodCutCrosswise) {
   off.min_seam_flank_height_share = 0.0;
   EXPECT_EQ(MergedItems(rod, ends, off), 2)
       << "the seam's height keeps the halves apart without the rule";
-  // Two such rods side by side (MergeJoinsAChannelCutCrosswiseNotTwo-
-  // TouchingRods) meet low, in a crease their flanks rise from: still two.
+  // Two such rods side by side, seeded one each, meet low, in a crease
+  // their flanks rise from: still two.
+  EXPECT_EQ(MergedItems(RodsAlongX({220.5, 259.5}, SlopingProfile),
+                        RodsSideBySideSeeds(), FoodDetectorOptions()),
+            2);
 }
 
 TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
