@@ -512,45 +512,40 @@ std::vector<cv::Rect> RodsSideBySideSeeds() {
   return {cv::Rect(250, 215, 140, 10), cv::Rect(250, 255, 140, 10)};
 }
 
-TEST(DetectorStagesTest, MergeJoinsAChannelCutCrosswiseNotTwoTouchingRods) {
-  // The U channel seeded at its two ends.
-  // The seam between the two halves crosses the floor, which the closing
-  // lifts all along the channel: the valley runs across the seam, so the
-  // halves are one item. Two round rods touching side by side, seeded one
-  // each, meet in a crease that the lift follows: they stay two.
-  const cv::Mat channel = UChannel();
-  const std::vector<cv::Rect> ends = {cv::Rect(245, 222, 10, 36),
-                                      cv::Rect(385, 222, 10, 36)};
-  EXPECT_EQ(MergedItems(channel, ends, FoodDetectorOptions()), 1);
-  FoodDetectorOptions off;
-  off.min_valley_flank_share = 0.0;
-  EXPECT_EQ(MergedItems(channel, ends, off), 2)
-      << "the floor's dip keeps the halves apart without the rule";
-  // Two round rods along x, touching at v = 240.
-  EXPECT_EQ(MergedItems(RodsAlongX({220.5, 259.5}, RoundProfile),
-                        RodsSideBySideSeeds(), FoodDetectorOptions()),
-            2);
-}
-
-TEST(DetectorStagesTest, MergeJoinsARoundRodCutCrosswise) {
-  // A rod 40 px wide along x, 12 mm high at its crest, whose sides slope
-  // (a parabola across: its mean height is 2/3 of its crest, under the 0.8
-  // of the lower region's top that a seam must reach). Seeded at its two
-  // ends, the seam between the halves runs across that profile, and so do
-  // the flanks beside it: as high as the seam, with no dip anywhere.
-  const cv::Mat rod = RodsAlongX({239.5}, SlopingProfile);
-  const std::vector<cv::Rect> ends = {cv::Rect(245, 225, 10, 30),
-                                      cv::Rect(385, 225, 10, 30)};
-  EXPECT_EQ(MergedItems(rod, ends, FoodDetectorOptions()), 1);
-  FoodDetectorOptions off;
-  off.min_seam_flank_height_share = 0.0;
-  EXPECT_EQ(MergedItems(rod, ends, off), 2)
-      << "the seam's height keeps the halves apart without the rule";
-  // Two such rods side by side, seeded one each, meet low, in a crease
-  // their flanks rise from: still two.
-  EXPECT_EQ(MergedItems(RodsAlongX({220.5, 259.5}, SlopingProfile),
-                        RodsSideBySideSeeds(), FoodDetectorOptions()),
-            2);
+TEST(DetectorStagesTest,
+     MergeJoinsAChannelOrRodCutCrosswiseNotTwoTouchingRods) {
+  // Each shape lies along x, seeded at its two ends: one item, and two with
+  // the rule that joins it turned off. The U channel: the seam between the
+  // two halves crosses the floor, which the closing lifts all along the
+  // channel, so the valley runs across the seam. A rod whose sides slope (a
+  // parabola across: its mean height is 2/3 of its crest, under the 0.8 of
+  // the lower region's top that a seam must reach): the seam runs across
+  // that profile, and so do the flanks beside it, as high as the seam, with
+  // no dip anywhere.
+  const auto joined_only_by_rule = [](const cv::Mat& shape,
+                                      const std::vector<cv::Rect>& ends,
+                                      const FoodDetectorOptions& off) {
+    EXPECT_EQ(MergedItems(shape, ends, FoodDetectorOptions()), 1);
+    EXPECT_EQ(MergedItems(shape, ends, off), 2)
+        << "the seam keeps the halves apart without the rule";
+  };
+  FoodDetectorOptions no_valley_across;
+  no_valley_across.min_valley_flank_share = 0.0;
+  joined_only_by_rule(UChannel(),
+                      {cv::Rect(245, 222, 10, 36), cv::Rect(385, 222, 10, 36)},
+                      no_valley_across);
+  FoodDetectorOptions no_seam_as_high;
+  no_seam_as_high.min_seam_flank_height_share = 0.0;
+  joined_only_by_rule(RodsAlongX({239.5}, SlopingProfile),
+                      {cv::Rect(245, 225, 10, 30), cv::Rect(385, 225, 10, 30)},
+                      no_seam_as_high);
+  // Two rods touching side by side, round or sloping, seeded one each, meet
+  // in a crease that the lift follows and their flanks rise from: two.
+  for (const auto profile : {RoundProfile, SlopingProfile}) {
+    EXPECT_EQ(MergedItems(RodsAlongX({220.5, 259.5}, profile),
+                          RodsSideBySideSeeds(), FoodDetectorOptions()),
+              2);
+  }
 }
 
 TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
