@@ -931,9 +931,9 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     // down than their flanks.
     const bool as_high_as_flanks =
         options.min_seam_flank_height_share > 0.0 &&
-        seam.flank_height_count >= 1000 &&
-        seam.flank_height_sum >=
-            options.min_seam_flank_height_share * seam.seam_height_sum;
+        seam.flank_height_count >= 3 &&
+        seam.seam_height_sum >=
+            options.min_seam_flank_height_share * seam.flank_height_sum;
     const bool no_valley =
         (seam_mm > 0.8 * lower_top || as_high_as_flanks) && no_dip;
     // Or the dip is a valley running across the seam, lifted nearly as much
