@@ -147,9 +147,9 @@ struct FoodDetectorOptions {
   // profile, the points valley_flank_px to either side of the seam are as
   // low as the seam; where two items meet down rounded sides, the items
   // rise from it (on the blind plates mostly not: docs/perception.md, "A
-  // seam across a stick's profile", measured afterwards). So a
-  // seam with no dip whose height, over at least 3 seam pixels whose two
-  // flanks lie in the two regions (all three with depth), is at least
+  // seam across a stick's profile", measured afterwards). So a seam with
+  // no dip whose height, over at least 3 seam pixels whose two flanks lie
+  // in the two regions (all three with depth), is at least
   // min_seam_flank_height_share of the flanks' mean height does not keep
   // two regions apart either: neither for the colour test nor for the
   // inside rule (min_enclosed_share). 0, or valley_flank_px 0: off.
