@@ -539,15 +539,16 @@ TEST(DetectorStagesTest,
   joined_only_by_rule(RodsAlongX({239.5}, SlopingProfile),
                       {cv::Rect(245, 225, 10, 30), cv::Rect(385, 225, 10, 30)},
                       no_seam_as_high);
-  // Two wedges along x meeting at their thin edges (v = 240) in a trough
-  // too gentle for the closing to lift (0.085 mm/px: 3.0 mm on the seam,
-  // 6 mm at their outer edges): no dip, a seam under 0.8 of the top, and
-  // the flanks 5 px away 1.14 times as high as the seam. Two, and one when
-  // a seam at half its flanks' height would do.
+  // Two wedges along x meeting at their thin edges in a trough (2 mm on the
+  // seam, row 240, rising 0.085 mm/px to 5 mm at their outer edges): the
+  // closing lifts the seam 1.2 mm, under the 1.5 mm limit, so no dip; the
+  // seam is under 0.8 of the top, and the flanks 5 px away are 1.2 times
+  // as high as it. Two, and one when a seam at half its flanks' height
+  // would do.
   cv::Mat wedges(kH, kW, CV_32FC1, cv::Scalar(0));
   for (int v = 205; v < 276; ++v) {
     wedges(cv::Rect(240, v, 160, 1))
-        .setTo(static_cast<float>(3.0 + 0.085 * std::fabs(v - 239.5)));
+        .setTo(static_cast<float>(2.0 + 0.085 * std::fabs(v - 239.5)));
   }
   const std::vector<cv::Rect> either_side = {cv::Rect(250, 208, 140, 10),
                                              cv::Rect(250, 262, 140, 10)};
