@@ -478,6 +478,18 @@ int MergedItems(const cv::Mat& height, const std::vector<cv::Rect>& seeds,
   return ItemLabels(GrowAndMerge(scene, seeds, options, planted->valley_mm));
 }
 
+// `height` seeded with `seeds` makes `with_defaults` items with the default
+// options and `with_changed` with `changed` (one rule's option changed).
+void ExpectItemsWithAndWithout(const cv::Mat& height,
+                               const std::vector<cv::Rect>& seeds,
+                               int with_defaults,
+                               const FoodDetectorOptions& changed,
+                               int with_changed) {
+  EXPECT_EQ(MergedItems(height, seeds, FoodDetectorOptions()), with_defaults);
+  EXPECT_EQ(MergedItems(height, seeds, changed), with_changed)
+      << "with the rule's option changed";
+}
+
 // A celery-like stick: a U channel 160 px long, walls 8 px wide and 12 mm
 // high either side of a floor 24 px wide at 6 mm.
 cv::Mat UChannel() {
@@ -522,23 +534,17 @@ TEST(DetectorStagesTest,
   // the lower region's top that a seam must reach): the seam runs across
   // that profile, and so do the flanks beside it, as high as the seam, with
   // no dip anywhere.
-  const auto joined_only_by_rule = [](const cv::Mat& shape,
-                                      const std::vector<cv::Rect>& ends,
-                                      const FoodDetectorOptions& off) {
-    EXPECT_EQ(MergedItems(shape, ends, FoodDetectorOptions()), 1);
-    EXPECT_EQ(MergedItems(shape, ends, off), 2)
-        << "the seam keeps the halves apart without the rule";
-  };
   FoodDetectorOptions no_valley_across;
   no_valley_across.min_valley_flank_share = 0.0;
-  joined_only_by_rule(UChannel(),
-                      {cv::Rect(245, 222, 10, 36), cv::Rect(385, 222, 10, 36)},
-                      no_valley_across);
+  ExpectItemsWithAndWithout(
+      UChannel(), {cv::Rect(245, 222, 10, 36), cv::Rect(385, 222, 10, 36)}, 1,
+      no_valley_across, 2);
   FoodDetectorOptions no_seam_as_high;
   no_seam_as_high.min_seam_flank_height_share = 0.0;
-  joined_only_by_rule(RodsAlongX({239.5}, SlopingProfile),
-                      {cv::Rect(245, 225, 10, 30), cv::Rect(385, 225, 10, 30)},
-                      no_seam_as_high);
+  ExpectItemsWithAndWithout(
+      RodsAlongX({239.5}, SlopingProfile),
+      {cv::Rect(245, 225, 10, 30), cv::Rect(385, 225, 10, 30)}, 1,
+      no_seam_as_high, 2);
   // Two wedges along x meeting at their thin edges in a trough (2 mm on the
   // seam, row 240, rising 0.085 mm/px to 5 mm at their outer edges): the
   // closing lifts the seam 1.2 mm, under the 1.5 mm limit, so no dip; the
@@ -550,12 +556,11 @@ TEST(DetectorStagesTest,
     wedges(cv::Rect(240, v, 160, 1))
         .setTo(static_cast<float>(2.0 + 0.085 * std::fabs(v - 239.5)));
   }
-  const std::vector<cv::Rect> either_side = {cv::Rect(250, 208, 140, 10),
-                                             cv::Rect(250, 262, 140, 10)};
-  EXPECT_EQ(MergedItems(wedges, either_side, FoodDetectorOptions()), 2);
   FoodDetectorOptions half_as_high;
   half_as_high.min_seam_flank_height_share = 0.5;
-  EXPECT_EQ(MergedItems(wedges, either_side, half_as_high), 1);
+  ExpectItemsWithAndWithout(
+      wedges, {cv::Rect(250, 208, 140, 10), cv::Rect(250, 262, 140, 10)}, 2,
+      half_as_high, 1);
   // Two rods touching side by side, round or sloping, seeded one each, meet
   // in a crease that the lift follows and their flanks rise from: two.
   for (const auto profile : {RoundProfile, SlopingProfile}) {
@@ -635,12 +640,11 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   cv::Mat staggered(kH, kW, CV_32FC1, cv::Scalar(0));
   staggered(cv::Rect(240, 232, 160, 12)).setTo(6.0f);
   staggered(cv::Rect(320, 220, 160, 12)).setTo(12.0f);
-  const std::vector<cv::Rect> strips = {cv::Rect(245, 235, 150, 6),
-                                        cv::Rect(325, 223, 150, 6)};
-  EXPECT_EQ(MergedItems(staggered, strips, FoodDetectorOptions()), 2);
   FoodDetectorOptions any_fill;
   any_fill.min_stick_fill = 0.0;
-  EXPECT_EQ(MergedItems(staggered, strips, any_fill), 1);
+  ExpectItemsWithAndWithout(
+      staggered, {cv::Rect(245, 235, 150, 6), cv::Rect(325, 223, 150, 6)}, 2,
+      any_fill, 1);
 }
 
 TEST(DetectorStagesTest, MergeTakesAPaleStickFloorInShadeNotAGreyOne) {
