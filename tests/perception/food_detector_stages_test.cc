@@ -478,15 +478,16 @@ int MergedItems(const cv::Mat& height, const std::vector<cv::Rect>& seeds,
   return ItemLabels(GrowAndMerge(scene, seeds, options, planted->valley_mm));
 }
 
-// `height` seeded with `seeds` makes `with_defaults` items with the default
-// options and `with_changed` with `changed` (one rule's option changed).
-void ExpectItemsWithAndWithout(const cv::Mat& height,
-                               const std::vector<cv::Rect>& seeds,
-                               int with_defaults,
-                               const FoodDetectorOptions& changed,
-                               int with_changed) {
-  EXPECT_EQ(MergedItems(height, seeds, FoodDetectorOptions()), with_defaults);
-  EXPECT_EQ(MergedItems(height, seeds, changed), with_changed)
+// `height` seeded with `seeds` (painted by `paint`, if given, as in
+// MergedItems) makes `with_defaults` items with the default options and
+// `with_changed` with `changed` (one rule's option changed).
+void ExpectItemsWithAndWithout(
+    const cv::Mat& height, const std::vector<cv::Rect>& seeds,
+    int with_defaults, const FoodDetectorOptions& changed, int with_changed,
+    const std::function<void(cv::Mat&)>& paint = nullptr) {
+  EXPECT_EQ(MergedItems(height, seeds, FoodDetectorOptions(), paint),
+            with_defaults);
+  EXPECT_EQ(MergedItems(height, seeds, changed, paint), with_changed)
       << "with the rule's option changed";
 }
 
@@ -583,10 +584,9 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   const std::vector<cv::Rect> lengthwise = {cv::Rect(245, 221, 150, 5),
                                             cv::Rect(245, 232, 150, 16),
                                             cv::Rect(245, 254, 150, 5)};
-  EXPECT_EQ(MergedItems(channel, lengthwise, FoodDetectorOptions()), 1);
   FoodDetectorOptions off;
   off.min_stick_seed_elongation = 0.0;
-  EXPECT_EQ(MergedItems(channel, lengthwise, off), 3);
+  ExpectItemsWithAndWithout(channel, lengthwise, 1, off, 3);
   // The channel's floor painted `colour`.
   const auto floor_in = [](const cv::Scalar& colour) {
     return [colour](cv::Mat& rgb) {
@@ -594,22 +594,18 @@ TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
     };
   };
   // The floor in another colour: three items, however they line up.
-  const auto green_floor = floor_in(cv::Scalar(60, 170, 60));
-  EXPECT_EQ(
-      MergedItems(channel, lengthwise, FoodDetectorOptions(), green_floor), 3);
   FoodDetectorOptions any_colour;
   any_colour.min_colour_distance = 1000.0;
-  EXPECT_EQ(MergedItems(channel, lengthwise, any_colour, green_floor), 1);
+  ExpectItemsWithAndWithout(channel, lengthwise, 3, any_colour, 1,
+                            floor_in(cv::Scalar(60, 170, 60)));
   // The floor in the walls' shade, (146, 41, 34), their colour in half the
   // light (linear RGB): CIELAB L 34 against 47, 19 units from the walls'
   // colour, but 0.3 from it in other light (5-7 if the 16 in L + 16 were
   // left out). One item; three when only the colour distance counts.
-  const auto shaded_floor = floor_in(cv::Scalar(146, 41, 34));
-  EXPECT_EQ(
-      MergedItems(channel, lengthwise, FoodDetectorOptions(), shaded_floor), 1);
   FoodDetectorOptions distance_only;
   distance_only.max_stick_shade_distance = 0.0;
-  EXPECT_EQ(MergedItems(channel, lengthwise, distance_only, shaded_floor), 3);
+  ExpectItemsWithAndWithout(channel, lengthwise, 1, distance_only, 3,
+                            floor_in(cv::Scalar(146, 41, 34)));
   // A pale floor of the walls' hue, (215, 150, 140): L 68, hue 33 degrees
   // against 35, but chroma 28 against 67, which more light does not do: 62
   // units from the walls' colour in other light. Three items.
