@@ -927,8 +927,10 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     const bool no_dip = flat_seam(seam, lower_top);
     // Or the seam is as high as the two regions beside it: it runs across
     // one item's profile (a celery stick cut crosswise: its floor is low
-    // on the seam and beside it alike), where touching items meet lower
-    // down than their flanks.
+    // on the seam and beside it alike). Written for touching items meeting
+    // lower down than their flanks; on the blind plates they mostly do not
+    // (docs/perception.md, "A seam across a stick's profile"), so colour
+    // keeps those apart. no_valley serves the inside rule below as well.
     const bool as_high_as_flanks =
         options.min_seam_flank_height_share > 0.0 &&
         seam.flank_height_count >= 3 &&
