@@ -173,31 +173,75 @@ TEST(DetectorStagesTest, PlantSeedsCutsTwoTouchingDomesOfOneColourApart) {
           .has_value());
 }
 
-TEST(DetectorStagesTest, PlantSeedsCutsAtASoftColourEdge) {
-  // One flat 10 mm region: red on the left, orange on the right, the colour
-  // changing over 6 px (a shaded rim), so no pixel's gradient reaches
-  // min_edge_strength and there is no valley or step.
+// One flat 10 mm region, `left` colour (RGB) up to u = 320 and `right` from
+// there, the colour changing over `ramp_px` (a shaded rim), so no pixel's
+// gradient reaches min_edge_strength and there is no valley or step. The
+// number of seeds PlantSeeds makes of it with `options`, and whether the two
+// ends got different seeds.
+struct RampSeeds {
+  int seeds = 0;
+  bool apart = false;
+};
+RampSeeds SeedsAcrossAColourRamp(const cv::Scalar& left,
+                                 const cv::Scalar& right, int ramp_px,
+                                 const FoodDetectorOptions& options) {
   cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
   const cv::Rect region(260, 220, 120, 40);
   height(region).setTo(10.0f);
   Scene scene = MakeScene(height, height > 0.0f);
-  for (int u = 320; u < 380; ++u) {
-    const double t = std::min(1.0, (u - 320) / 6.0);
-    scene.rgb(cv::Rect(u, 220, 1, 40))
-        .setTo(cv::Scalar(200, 60 + 70 * t, 50 - 10 * t));
+  for (int u = 260; u < 380; ++u) {
+    const double t =
+        std::clamp((u - 320) / static_cast<double>(ramp_px), 0.0, 1.0);
+    scene.rgb(cv::Rect(u, 220, 1, 40)).setTo(left * (1.0 - t) + right * t);
   }
   scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
                                 scene.plate, FoodDetectorOptions());
+  const std::optional<Regions> seeds =
+      PlantSeeds(scene.evidence, scene.height_mm, options);
+  if (!seeds.has_value()) return {};
+  return {seeds->background - 1,
+          seeds->markers.at<int>(240, 290) != seeds->markers.at<int>(240, 350)};
+}
+
+// The CIELAB distance between two RGB colours, as FindEvidence converts them.
+double LabDistance(const cv::Scalar& a, const cv::Scalar& b) {
+  cv::Mat rgb(1, 2, CV_8UC3);
+  rgb.at<cv::Vec3b>(0, 0) = cv::Vec3b(a[0], a[1], a[2]);
+  rgb.at<cv::Vec3b>(0, 1) = cv::Vec3b(b[0], b[1], b[2]);
+  cv::Mat f, lab;
+  rgb.convertTo(f, CV_32FC3, 1.0 / 255);
+  cv::cvtColor(f, lab, cv::COLOR_RGB2Lab);
+  return cv::norm(lab.at<cv::Vec3f>(0, 0) - lab.at<cv::Vec3f>(0, 1));
+}
+
+TEST(DetectorStagesTest, PlantSeedsCutsAtASoftColourEdge) {
+  // Red and orange, changing over 6 px.
+  const cv::Scalar red(200, 60, 50), orange(200, 130, 40);
   FoodDetectorOptions no_soft;
   no_soft.min_soft_edge_distance = 0;
-  std::optional<Regions> seeds =
-      PlantSeeds(scene.evidence, scene.height_mm, no_soft);
-  ASSERT_TRUE(seeds.has_value());
-  EXPECT_EQ(seeds->background, 2);  // the 3 px gradient sees no edge
-  seeds = PlantSeeds(scene.evidence, scene.height_mm, FoodDetectorOptions());
-  ASSERT_TRUE(seeds.has_value());
-  EXPECT_EQ(seeds->background, 3);
-  EXPECT_NE(seeds->markers.at<int>(240, 290), seeds->markers.at<int>(240, 350));
+  RampSeeds seeds = SeedsAcrossAColourRamp(red, orange, 6, no_soft);
+  EXPECT_EQ(seeds.seeds, 1);  // the 6 px ramp's gradient is no edge
+  seeds = SeedsAcrossAColourRamp(red, orange, 6, FoodDetectorOptions());
+  EXPECT_EQ(seeds.seeds, 2);
+  EXPECT_TRUE(seeds.apart);
+}
+
+TEST(DetectorStagesTest, PlantSeedsCutsBetweenAPaleCoinAndAPaleGreenWall) {
+  // A banana coin's lit face and a celery stick's lit wall, as pale as on
+  // the blind plates, at one height, changing over 3 px: 16-20 CIELAB units
+  // apart, so the soft edge cuts them at 16 and did not at 20.
+  const cv::Scalar coin(232, 222, 170), wall(172, 188, 146);
+  const double apart = LabDistance(coin, wall);
+  EXPECT_GT(apart, 16.5);
+  EXPECT_LT(apart, 19.5);
+  RampSeeds seeds =
+      SeedsAcrossAColourRamp(coin, wall, 3, FoodDetectorOptions());
+  EXPECT_EQ(seeds.seeds, 2);
+  EXPECT_TRUE(seeds.apart);
+  FoodDetectorOptions old_soft;
+  old_soft.min_soft_edge_distance = 20;
+  seeds = SeedsAcrossAColourRamp(coin, wall, 3, old_soft);
+  EXPECT_EQ(seeds.seeds, 1);
 }
 
 TEST(DetectorStagesTest, GrowAndMergeJoinOneItemSeededTwice) {
