@@ -44,9 +44,10 @@ struct FoodDetectorOptions {
   // differ by more than this (CIELAB) cut seeds too, where a shaded rim
   // spreads the change between two items over a few pixels. 0: off. (20
   // until the sixteenth session, chosen on the own renderer's plates, where
-  // 14 to 25 did alike; 16 on the blind tuning plates, where a pale banana
-  // coin and a celery stick's lit wall, about 15-19 apart, touch at one
-  // height and shared a seed: docs/perception.md, "Softer colour edges".)
+  // 14, 20 and 25 found nearly the same items; 16 on the blind tuning
+  // plates, where a pale banana coin and a celery stick's lit wall touch
+  // at one height and shared a seed: docs/perception.md, "Softer colour
+  // edges".)
   double min_soft_edge_distance = 16.0;
   // Seeds stop at height valleys (where touching items meet): a pixel that
   // a closing of this width lifts by more than max(min_valley_mm,
