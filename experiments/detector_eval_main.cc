@@ -31,6 +31,7 @@
 #include "services/common/flags_usage.h"
 #include "services/common/process_memory.h"
 #include "services/perception/food_detector.h"
+#include "services/perception/food_detector_options.h"
 #include "services/sim/food_catalog.h"
 #include "services/sim/scene.h"
 
@@ -60,6 +61,11 @@ ABSL_FLAG(std::string, renderer, "sim",
 ABSL_FLAG(std::string, dump, "",
           "Directory for plate<N>.png (truth green, detections red) of every "
           "plate with a merge, a missed item or an extra detection.");
+ABSL_FLAG(std::string, detector_options, "",
+          "DetectFood's options changed from their defaults, as "
+          "name=value,name=value with the names of FoodDetectorOptions "
+          "(services/perception/food_detector.h), e.g. "
+          "min_soft_edge_distance=20,max_merge_top_ratio=1.4.");
 ABSL_FLAG(bool, retain_freed_memory, true,
           "As bitewise-perception's flag: keep freed memory for the next "
           "plate (false: glibc's default, which returns it).");
@@ -181,7 +187,16 @@ int main(int argc, char** argv) {
     }
   }
   bitewise::perception::PrepareColourConversions();
-  const bitewise::perception::FoodDetector detector;
+  bitewise::perception::FoodDetectorOptions detector_options;
+  const std::string changed_options = absl::GetFlag(FLAGS_detector_options);
+  if (const absl::Status applied = bitewise::perception::ApplyDetectorOptions(
+          changed_options, detector_options);
+      !applied.ok()) {
+    std::fprintf(stderr, "--detector_options: %s\n",
+                 std::string(applied.message()).c_str());
+    return 2;
+  }
+  const bitewise::perception::FoodDetector detector(detector_options);
   bitewise::sim::PlateCrowding crowding;
   crowding.overlap_probability = absl::GetFlag(FLAGS_overlap);
   crowding.same_food_touch_probability = absl::GetFlag(FLAGS_same_food_touch);
@@ -393,6 +408,9 @@ int main(int argc, char** argv) {
   const auto pct = [&](double q) {
     return latency_ms[static_cast<size_t>(q * (latency_ms.size() - 1))];
   };
+  if (!changed_options.empty()) {
+    std::printf("detector options changed: %s\n", changed_options.c_str());
+  }
   std::printf(
       "plates %d, items %d (touching a neighbour %d, same food on the "
       "plate %d)\n",
