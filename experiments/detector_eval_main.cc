@@ -11,7 +11,9 @@
 // --renderer=blind the plates come from a renderer written blind, as a test
 // only (experiments/blind_plates.h). Detect runs as in bitewise-perception:
 // the colour tables prepared first, and freed memory kept for the next plate
-// (--retain_freed_memory, the service's flag).
+// (--retain_freed_memory, the service's flag). --detector_options changes
+// any of DetectFood's options by name (ApplyDetectorOptions), so a setting
+// tried on tuning seeds reruns from here.
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -195,6 +197,9 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "--detector_options: %s\n",
                  std::string(applied.message()).c_str());
     return 2;
+  }
+  if (changed_options.find('=') != std::string::npos) {
+    std::printf("detector options changed: %s\n", changed_options.c_str());
   }
   const bitewise::perception::FoodDetector detector(detector_options);
   bitewise::sim::PlateCrowding crowding;
@@ -408,9 +413,6 @@ int main(int argc, char** argv) {
   const auto pct = [&](double q) {
     return latency_ms[static_cast<size_t>(q * (latency_ms.size() - 1))];
   };
-  if (!changed_options.empty()) {
-    std::printf("detector options changed: %s\n", changed_options.c_str());
-  }
   std::printf(
       "plates %d, items %d (touching a neighbour %d, same food on the "
       "plate %d)\n",

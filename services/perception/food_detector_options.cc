@@ -2,87 +2,119 @@
 
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <set>
 #include <string>
 #include <variant>
 
+#include "absl/strings/ascii.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
-#include "absl/strings/strip.h"
 
 namespace bitewise::perception {
 namespace {
 
 using Field = std::variant<double*, int*, bool*, uint64_t*>;
 
-// Every field of FoodDetectorOptions by its name, pointing into `options`.
+// Every field of FoodDetectorOptions by its name, pointing into `options`
+// (the macro writes each name from its member, so the two cannot differ).
+// A field added to FoodDetectorOptions is added here too.
+#define BITEWISE_OPTION(field) \
+  { #field, &options.field }
 std::map<std::string, Field, std::less<>> Fields(FoodDetectorOptions& options) {
   return {
-      {"min_height_mm", &options.min_height_mm},
-      {"plate_tolerance_mm", &options.plate_tolerance_mm},
-      {"min_item_area_m2", &options.min_item_area_m2},
-      {"min_colour_distance", &options.min_colour_distance},
-      {"max_bare_plate_mm", &options.max_bare_plate_mm},
-      {"max_shadow_chroma", &options.max_shadow_chroma},
-      {"min_edge_strength", &options.min_edge_strength},
-      {"min_soft_edge_distance", &options.min_soft_edge_distance},
-      {"valley_width_px", &options.valley_width_px},
-      {"min_valley_mm", &options.min_valley_mm},
-      {"valley_fraction", &options.valley_fraction},
-      {"cliff_window_px", &options.cliff_window_px},
-      {"min_cliff_mm", &options.min_cliff_mm},
-      {"cliff_fraction", &options.cliff_fraction},
-      {"min_seed_px", &options.min_seed_px},
-      {"terrace_window_px", &options.terrace_window_px},
-      {"terrace_open_px", &options.terrace_open_px},
-      {"min_terrace_px", &options.min_terrace_px},
-      {"max_merge_top_ratio", &options.max_merge_top_ratio},
-      {"min_enclosed_share", &options.min_enclosed_share},
-      {"enclosed_kin", &options.enclosed_kin},
-      {"min_sandwich_share", &options.min_sandwich_share},
-      {"max_highlight_hue_deg", &options.max_highlight_hue_deg},
-      {"max_highlight_chroma_share", &options.max_highlight_chroma_share},
-      {"max_highlight_below_plate_l", &options.max_highlight_below_plate_l},
-      {"min_crease_shade_l", &options.min_crease_shade_l},
-      {"valley_flank_px", &options.valley_flank_px},
-      {"min_valley_flank_share", &options.min_valley_flank_share},
-      {"min_seam_flank_height_share", &options.min_seam_flank_height_share},
-      {"min_join_fill", &options.min_join_fill},
-      {"min_join_elongation", &options.min_join_elongation},
-      {"min_stick_seed_elongation", &options.min_stick_seed_elongation},
-      {"min_stick_part_elongation", &options.min_stick_part_elongation},
-      {"min_stick_fill", &options.min_stick_fill},
-      {"min_stick_elongation", &options.min_stick_elongation},
-      {"stick_fill_counts_long_parts", &options.stick_fill_counts_long_parts},
-      {"max_stick_shade_distance", &options.max_stick_shade_distance},
-      {"join_top_quantile", &options.join_top_quantile},
-      {"max_waist_solidity", &options.max_waist_solidity},
-      {"min_waist_solidity", &options.min_waist_solidity},
-      {"min_waist_depth_px", &options.min_waist_depth_px},
-      {"min_waist_part_share", &options.min_waist_part_share},
-      {"ransac_iterations", &options.ransac_iterations},
-      {"ransac_seed", &options.ransac_seed},
+      BITEWISE_OPTION(min_height_mm),
+      BITEWISE_OPTION(plate_tolerance_mm),
+      BITEWISE_OPTION(min_item_area_m2),
+      BITEWISE_OPTION(min_colour_distance),
+      BITEWISE_OPTION(max_bare_plate_mm),
+      BITEWISE_OPTION(max_shadow_chroma),
+      BITEWISE_OPTION(min_edge_strength),
+      BITEWISE_OPTION(min_soft_edge_distance),
+      BITEWISE_OPTION(valley_width_px),
+      BITEWISE_OPTION(min_valley_mm),
+      BITEWISE_OPTION(valley_fraction),
+      BITEWISE_OPTION(cliff_window_px),
+      BITEWISE_OPTION(min_cliff_mm),
+      BITEWISE_OPTION(cliff_fraction),
+      BITEWISE_OPTION(min_seed_px),
+      BITEWISE_OPTION(terrace_window_px),
+      BITEWISE_OPTION(terrace_open_px),
+      BITEWISE_OPTION(min_terrace_px),
+      BITEWISE_OPTION(max_merge_top_ratio),
+      BITEWISE_OPTION(min_enclosed_share),
+      BITEWISE_OPTION(enclosed_kin),
+      BITEWISE_OPTION(min_sandwich_share),
+      BITEWISE_OPTION(max_highlight_hue_deg),
+      BITEWISE_OPTION(max_highlight_chroma_share),
+      BITEWISE_OPTION(max_highlight_below_plate_l),
+      BITEWISE_OPTION(min_crease_shade_l),
+      BITEWISE_OPTION(valley_flank_px),
+      BITEWISE_OPTION(min_valley_flank_share),
+      BITEWISE_OPTION(min_seam_flank_height_share),
+      BITEWISE_OPTION(min_join_fill),
+      BITEWISE_OPTION(min_join_elongation),
+      BITEWISE_OPTION(min_stick_seed_elongation),
+      BITEWISE_OPTION(min_stick_part_elongation),
+      BITEWISE_OPTION(min_stick_fill),
+      BITEWISE_OPTION(min_stick_elongation),
+      BITEWISE_OPTION(stick_fill_counts_long_parts),
+      BITEWISE_OPTION(max_stick_shade_distance),
+      BITEWISE_OPTION(join_top_quantile),
+      BITEWISE_OPTION(max_waist_solidity),
+      BITEWISE_OPTION(min_waist_solidity),
+      BITEWISE_OPTION(min_waist_depth_px),
+      BITEWISE_OPTION(min_waist_part_share),
+      BITEWISE_OPTION(ransac_iterations),
+      BITEWISE_OPTION(ransac_seed),
   };
 }
+#undef BITEWISE_OPTION
 
-// Parses `text` into the field; false when it is not a finite value of the
-// field's type.
-bool Set(const Field& field, absl::string_view text) {
+// Fields whose value sizes a window or a loop: below 1 there is nothing to
+// run (OpenCV refuses an empty structuring element).
+const std::set<std::string, std::less<>>& AtLeastOne() {
+  static const auto* names = new std::set<std::string, std::less<>>{
+      "valley_width_px", "terrace_window_px", "terrace_open_px",
+      "ransac_iterations"};
+  return *names;
+}
+
+// Parses `text` into the field; otherwise what was expected.
+absl::Status Set(const Field& field, absl::string_view text, int at_least) {
   if (auto* d = std::get_if<double*>(&field)) {
     double v = 0.0;
-    if (!absl::SimpleAtod(text, &v) || !std::isfinite(v)) return false;
+    if (!absl::SimpleAtod(text, &v) || !std::isfinite(v) || v < at_least) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("expected a finite number of at least ", at_least));
+    }
     **d = v;
-    return true;
+    return absl::OkStatus();
   }
-  if (auto* i = std::get_if<int*>(&field)) return absl::SimpleAtoi(text, *i);
+  if (auto* i = std::get_if<int*>(&field)) {
+    int v = 0;
+    if (!absl::SimpleAtoi(text, &v) || v < at_least) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("expected an integer of at least ", at_least));
+    }
+    **i = v;
+    return absl::OkStatus();
+  }
   if (auto* b = std::get_if<bool*>(&field)) {
-    if (text != "true" && text != "false") return false;
+    if (text != "true" && text != "false") {
+      return absl::InvalidArgumentError("expected true or false");
+    }
     **b = text == "true";
-    return true;
+    return absl::OkStatus();
   }
-  return absl::SimpleAtoi(text, std::get<uint64_t*>(field));
+  uint64_t v = 0;
+  if (!absl::SimpleAtoi(text, &v)) {
+    return absl::InvalidArgumentError("expected a non-negative integer");
+  }
+  *std::get<uint64_t*>(field) = v;
+  return absl::OkStatus();
 }
 
 }  // namespace
@@ -115,10 +147,10 @@ absl::Status ApplyDetectorOptions(absl::string_view spec,
       return absl::InvalidArgumentError(
           absl::StrCat("detector option \"", name, "\" is given twice"));
     }
-    if (!Set(it->second, value)) {
-      return absl::InvalidArgumentError(
-          absl::StrCat("detector option \"", name, "\": \"", value,
-                       "\" is not a finite value of its type"));
+    const int at_least = AtLeastOne().count(name) ? 1 : 0;
+    if (const absl::Status set = Set(it->second, value, at_least); !set.ok()) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "detector option \"", name, "\": \"", value, "\": ", set.message()));
     }
   }
   options = changed;
