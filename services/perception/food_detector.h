@@ -14,6 +14,9 @@
 
 namespace bitewise::perception {
 
+// DetectFood's settings. Each field is also settable by its name through
+// ApplyDetectorOptions (food_detector_options.h), whose table lists them
+// all: a new field goes into that table too (its test sets every name).
 struct FoodDetectorOptions {
   // Height above the plate surface from which a pixel counts as food. Above
   // the D415's depth noise at arm's length (about 1 mm), below the flattest
