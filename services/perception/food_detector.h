@@ -162,6 +162,19 @@ struct FoodDetectorOptions {
   // two regions apart either: neither for the colour test nor for the
   // inside rule (min_enclosed_share). 0, or valley_flank_px 0: off.
   double min_seam_flank_height_share = 0.9;
+  // Two bodies touch along a short contact: round or tapered items meet at
+  // a point, so the seam between them is short against their size. One
+  // item cut in two by a crease, a colour band or a highlight is cut across
+  // its width, so the seam runs about as long as the parts are wide: for a
+  // part l long and w wide cut across, the seam over the square root of
+  // the part's pixels is sqrt(w / l), 1.6 for half a disc. Two regions that
+  // each hold at least min_contact_part_px pixels, and whose seam is
+  // shorter than min_contact_seam_share x the square root of the smaller
+  // one's pixels, are not merged by the colour, inside or highlight test
+  // (a band between them, the stick join or a third region may still join
+  // them). 0: off.
+  double min_contact_seam_share = 0.5;
+  int min_contact_part_px = 400;
   // A stick with an item lying across it shows as two parts; they are
   // joined when the item on them borders both and the line between them
   // runs under that item, they and that item cover at least min_join_fill

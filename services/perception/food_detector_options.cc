@@ -54,6 +54,8 @@ std::map<std::string, Field, std::less<>> Fields(FoodDetectorOptions& options) {
       BITEWISE_OPTION(valley_flank_px),
       BITEWISE_OPTION(min_valley_flank_share),
       BITEWISE_OPTION(min_seam_flank_height_share),
+      BITEWISE_OPTION(min_contact_seam_share),
+      BITEWISE_OPTION(min_contact_part_px),
       BITEWISE_OPTION(min_join_fill),
       BITEWISE_OPTION(min_join_elongation),
       BITEWISE_OPTION(min_stick_seed_elongation),

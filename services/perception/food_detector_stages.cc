@@ -959,11 +959,18 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       flush_with[a].emplace_back(b, seam_px);
       flush_with[b].emplace_back(a, seam_px);
     }
-    if (((no_valley || valley_across) &&
-         cv::norm(diff) < options.min_colour_distance) ||
-        (no_valley && enclosed) ||
-        (no_dip &&
-         IsHighlightOn(colour_a, colour_b, evidence.plate_lab, options))) {
+    // Two bodies touching at a short contact, not one item cut across
+    // (FoodDetectorOptions::min_contact_seam_share): not merged here.
+    const int smaller_px = std::min(lab_count[a], lab_count[b]);
+    const bool contact =
+        options.min_contact_seam_share > 0.0 &&
+        smaller_px >= options.min_contact_part_px &&
+        seam_px < options.min_contact_seam_share * std::sqrt(smaller_px);
+    if (!contact && (((no_valley || valley_across) &&
+                      cv::norm(diff) < options.min_colour_distance) ||
+                     (no_valley && enclosed) ||
+                     (no_dip && IsHighlightOn(colour_a, colour_b,
+                                              evidence.plate_lab, options)))) {
       parent[root(a)] = root(b);
     }
   }

@@ -66,6 +66,8 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
                                    "valley_flank_px=127,"
                                    "min_valley_flank_share=128.5,"
                                    "min_seam_flank_height_share=129.5,"
+                                   "min_contact_seam_share=145.5,"
+                                   "min_contact_part_px=146,"
                                    "min_join_fill=130.5,"
                                    "min_join_elongation=131.5,"
                                    "min_stick_seed_elongation=132.5,"
@@ -112,6 +114,8 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
   EXPECT_EQ(options.valley_flank_px, 127);
   EXPECT_EQ(options.min_valley_flank_share, 128.5);
   EXPECT_EQ(options.min_seam_flank_height_share, 129.5);
+  EXPECT_EQ(options.min_contact_seam_share, 145.5);
+  EXPECT_EQ(options.min_contact_part_px, 146);
   EXPECT_EQ(options.min_join_fill, 130.5);
   EXPECT_EQ(options.min_join_elongation, 131.5);
   EXPECT_EQ(options.min_stick_seed_elongation, 132.5);

@@ -618,6 +618,36 @@ TEST(DetectorStagesTest,
   }
 }
 
+TEST(DetectorStagesTest, MergeKeepsTwoDiscsTouchingAtAShortContactApart) {
+  // Two flat-topped discs (radius 28 px, 10 mm high, like banana coins)
+  // whose centres are 54 px apart touch along a chord of about 15 px: no
+  // valley, no step, one colour, so only the short contact says they are
+  // two. Seeded one each: two, and one without the rule. One disc seeded at
+  // both sides is cut by the watershed along its whole width (56 px): one.
+  // So is a flat stick seven times as long as wide (140 x 20 px) seeded at
+  // both ends: its seam is 20 px, its halves about 1,400 px each.
+  const auto discs = [](const std::vector<cv::Point>& centres) {
+    cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+    for (const cv::Point& centre : centres) {
+      cv::circle(height, centre, 28, cv::Scalar(10.0), cv::FILLED);
+    }
+    return height;
+  };
+  FoodDetectorOptions off;
+  off.min_contact_seam_share = 0.0;
+  ExpectItemsWithAndWithout(
+      discs({{290, 240}, {344, 240}}),
+      {cv::Rect(275, 230, 10, 20), cv::Rect(349, 230, 10, 20)}, 2, off, 1);
+  ExpectItemsWithAndWithout(
+      discs({{317, 240}}),
+      {cv::Rect(295, 230, 10, 20), cv::Rect(329, 230, 10, 20)}, 1, off, 1);
+  cv::Mat stick(kH, kW, CV_32FC1, cv::Scalar(0));
+  stick(cv::Rect(250, 230, 140, 20)).setTo(10.0f);
+  ExpectItemsWithAndWithout(
+      stick, {cv::Rect(255, 235, 10, 10), cv::Rect(375, 235, 10, 10)}, 1, off,
+      1);
+}
+
 TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
   // The U channel above seeded along its length, wall, floor, wall: the
   // floor stands 6 mm below the walls (a step, one part's top twice the
