@@ -172,7 +172,13 @@ struct FoodDetectorOptions {
   // shorter than min_contact_seam_share x the square root of the smaller
   // one's pixels, are not merged by the colour, inside or highlight test
   // (a band between them, the stick join or a third region may still join
-  // them). 0: off.
+  // them). At 0.5, the halves of a stick up to about eight times as long as
+  // wide are still merged. The seam's length is its ridge pixels over the
+  // larger of |cos| and |sin| of its direction (the watershed draws one
+  // pixel per step along a seam's main axis); a region's pixels leave out
+  // its outline, which is ridge, so a thin part reads a little thinner.
+  // Regions under min_contact_part_px (slivers, a highlight, a seed's
+  // crumbs) are left to the other tests. min_contact_seam_share 0: off.
   double min_contact_seam_share = 0.5;
   int min_contact_part_px = 400;
   // A stick with an item lying across it shows as two parts; they are

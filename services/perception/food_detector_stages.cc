@@ -750,8 +750,11 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   struct Seam {
     double height_sum = 0.0;
     double dip_sum = 0.0;
-    int count = 0;       // with valid depth
-    int all_count = 0;   // every ridge pixel between the two
+    int count = 0;      // with valid depth
+    int all_count = 0;  // every ridge pixel between the two
+    // Sums of those pixels' coordinates, their squares and products: the
+    // seam's direction, for its length (SeamLength).
+    double u_sum = 0.0, v_sum = 0.0, uu_sum = 0.0, vv_sum = 0.0, uv_sum = 0.0;
     double l_sum = 0.0;  // CIELAB L over all_count
     // The lift on the seam and valley_flank_px to either side of it, over
     // the seam pixels whose two flanks lie in the two regions.
@@ -832,6 +835,11 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         for (int b = a + 1; b < n_found; ++b) {
           auto& entry = boundary[std::minmax(found[a], found[b])];
           ++entry.all_count;
+          entry.u_sum += u;
+          entry.v_sum += v;
+          entry.uu_sum += static_cast<double>(u) * u;
+          entry.vv_sum += static_cast<double>(v) * v;
+          entry.uv_sum += static_cast<double>(u) * v;
           entry.l_sum += px[u][0];
           add_flank_lift(u, v, found[a], found[b], entry);
           if (ok[u]) {
@@ -960,12 +968,27 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       flush_with[b].emplace_back(a, seam_px);
     }
     // Two bodies touching at a short contact, not one item cut across
-    // (FoodDetectorOptions::min_contact_seam_share): not merged here.
+    // (FoodDetectorOptions::min_contact_seam_share): not merged here. The
+    // watershed draws a seam one pixel per step along its main axis, so a
+    // seam at 45 degrees has 1/sqrt(2) as many pixels as it is long; its
+    // length is its pixel count over the larger of |cos| and |sin| of its
+    // direction (from the second moments of its pixels).
     const int smaller_px = std::min(lab_count[a], lab_count[b]);
+    double seam_length = seam_px;
+    if (seam_px >= 2) {
+      const double n = seam_px;
+      const double mu = seam.u_sum / n, mv = seam.v_sum / n;
+      const double cuu = seam.uu_sum / n - mu * mu;
+      const double cvv = seam.vv_sum / n - mv * mv;
+      const double cuv = seam.uv_sum / n - mu * mv;
+      const double angle = 0.5 * std::atan2(2.0 * cuv, cuu - cvv);
+      seam_length /=
+          std::max(std::fabs(std::cos(angle)), std::fabs(std::sin(angle)));
+    }
     const bool contact =
         options.min_contact_seam_share > 0.0 &&
         smaller_px >= options.min_contact_part_px &&
-        seam_px < options.min_contact_seam_share * std::sqrt(smaller_px);
+        seam_length < options.min_contact_seam_share * std::sqrt(smaller_px);
     if (!contact && (((no_valley || valley_across) &&
                       cv::norm(diff) < options.min_colour_distance) ||
                      (no_valley && enclosed) ||
@@ -982,7 +1005,8 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   // of the ridge beside the band. A band smaller than a seed is a sliver
   // of the watershed between two items, not a part of one; a band darker
   // than both parts is the shaded crease between two touching items; and
-  // two parts that touch across a seam the merge keeps apart are two items
+  // two parts that touch across a seam the merge keeps apart (a crease, a
+  // step or a dip; a short contact does not count here) are two items
   // whatever lies between them elsewhere.
   if (options.min_sandwich_share > 0.0) {
     for (int c = 1; c < background; ++c) {

@@ -623,29 +623,71 @@ TEST(DetectorStagesTest, MergeKeepsTwoDiscsTouchingAtAShortContactApart) {
   // whose centres are 54 px apart touch along a chord of about 15 px: no
   // valley, no step, one colour, so only the short contact says they are
   // two. Seeded one each: two, and one without the rule. One disc seeded at
-  // both sides is cut by the watershed along its whole width (56 px): one.
-  // So is a flat stick seven times as long as wide (140 x 20 px) seeded at
-  // both ends: its seam is 20 px, its halves about 1,400 px each.
-  const auto discs = [](const std::vector<cv::Point>& centres) {
+  // both sides is cut by the watershed along its whole width (a seam of
+  // about 53 px against half discs of about 1,100 px: 1.6): one.
+  const auto discs = [](const std::vector<cv::Point>& centres, int radius) {
     cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
     for (const cv::Point& centre : centres) {
-      cv::circle(height, centre, 28, cv::Scalar(10.0), cv::FILLED);
+      cv::circle(height, centre, radius, cv::Scalar(10.0), cv::FILLED);
     }
     return height;
   };
   FoodDetectorOptions off;
   off.min_contact_seam_share = 0.0;
   ExpectItemsWithAndWithout(
-      discs({{290, 240}, {344, 240}}),
+      discs({{290, 240}, {344, 240}}, 28),
       {cv::Rect(275, 230, 10, 20), cv::Rect(349, 230, 10, 20)}, 2, off, 1);
   ExpectItemsWithAndWithout(
-      discs({{317, 240}}),
+      discs({{317, 240}}, 28),
       {cv::Rect(295, 230, 10, 20), cv::Rect(329, 230, 10, 20)}, 1, off, 1);
-  cv::Mat stick(kH, kW, CV_32FC1, cv::Scalar(0));
-  stick(cv::Rect(250, 230, 140, 20)).setTo(10.0f);
+  // Regions under min_contact_part_px are not held to it: two small discs
+  // (radius 11 px, about 330 px each once the outline is ridge) touching
+  // along a chord of about 7 px, well under half their square root, are
+  // one item by colour, and two when parts from 100 px count.
+  FoodDetectorOptions small_parts;
+  small_parts.min_contact_part_px = 100;
   ExpectItemsWithAndWithout(
-      stick, {cv::Rect(255, 235, 10, 10), cv::Rect(375, 235, 10, 10)}, 1, off,
-      1);
+      discs({{310, 240}, {331, 240}}, 11),
+      {cv::Rect(302, 238, 4, 4), cv::Rect(335, 238, 4, 4)}, 1, small_parts, 2);
+}
+
+TEST(DetectorStagesTest, MergeMeasuresAShortContactAlongTheSeam) {
+  // A flat stick 120 x 20 px (10 mm high) seeded at both ends, lying along
+  // the image's rows and at 45 degrees: its halves (about 1,100 px) meet
+  // across its width, about 19 px, 0.57-0.6 of their square root, so the
+  // colour test merges them: one. At 45 degrees the watershed draws that
+  // seam with only about 14 pixels (one per step along its main axis); read
+  // as a length that would be 0.42 and keep the halves apart. With the
+  // share at 0.7 both are two. The straight-band rule and the stick join,
+  // which could rejoin two halves of a stick, are off.
+  const auto stick = [](double angle_deg) {
+    cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
+    const cv::RotatedRect rect({320.0f, 240.0f}, {120.0f, 20.0f},
+                               static_cast<float>(angle_deg));
+    cv::Point2f corners[4];
+    rect.points(corners);
+    const std::vector<cv::Point> polygon(corners, corners + 4);
+    cv::fillConvexPoly(height, polygon, cv::Scalar(10.0));
+    // Seeds 6 x 6 px, 12 px in from either end along the axis.
+    const double c = std::cos(angle_deg * CV_PI / 180.0);
+    const double s = std::sin(angle_deg * CV_PI / 180.0);
+    const std::vector<cv::Rect> seeds = {
+        cv::Rect(cvRound(320 - 48 * c) - 3, cvRound(240 - 48 * s) - 3, 6, 6),
+        cv::Rect(cvRound(320 + 48 * c) - 3, cvRound(240 + 48 * s) - 3, 6, 6)};
+    return std::make_pair(height, seeds);
+  };
+  FoodDetectorOptions no_stick_rules;
+  no_stick_rules.min_stick_seed_elongation = 0.0;
+  no_stick_rules.min_join_fill = 2.0;
+  FoodDetectorOptions stricter = no_stick_rules;
+  stricter.min_contact_seam_share = 0.7;
+  for (const double angle : {0.0, 45.0}) {
+    const auto [height, seeds] = stick(angle);
+    EXPECT_EQ(MergedItems(height, seeds, no_stick_rules), 1)
+        << "at " << angle << " degrees";
+    EXPECT_EQ(MergedItems(height, seeds, stricter), 2)
+        << "at " << angle << " degrees, share 0.7";
+  }
 }
 
 TEST(DetectorStagesTest, MergeJoinsAStickCutLengthwiseNotASliceAtItsEnd) {
