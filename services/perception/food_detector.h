@@ -173,7 +173,8 @@ struct FoodDetectorOptions {
   // one's pixels, are not merged by the colour, inside or highlight test
   // (a band between them, the stick join or a third region may still join
   // them). At 0.5, the halves of a stick up to about eight times as long as
-  // wide are still merged. The seam's length is its ridge pixels over the
+  // wide are still merged (about seven for a 20 px wide stick, whose
+  // outline is ridge). The seam's length is its ridge pixels over the
   // larger of |cos| and |sin| of its direction (the watershed draws one
   // pixel per step along a seam's main axis); a region's pixels leave out
   // its outline, which is ridge, so a thin part reads a little thinner.

@@ -753,7 +753,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     int count = 0;      // with valid depth
     int all_count = 0;  // every ridge pixel between the two
     // Sums of those pixels' coordinates, their squares and products: the
-    // seam's direction, for its length (SeamLength).
+    // seam's direction, for its length in the short-contact test below.
     double u_sum = 0.0, v_sum = 0.0, uu_sum = 0.0, vv_sum = 0.0, uv_sum = 0.0;
     double l_sum = 0.0;  // CIELAB L over all_count
     // The lift on the seam and valley_flank_px to either side of it, over

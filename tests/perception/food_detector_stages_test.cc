@@ -654,7 +654,7 @@ TEST(DetectorStagesTest, MergeKeepsTwoDiscsTouchingAtAShortContactApart) {
 TEST(DetectorStagesTest, MergeMeasuresAShortContactAlongTheSeam) {
   // A flat stick 120 x 20 px (10 mm high) seeded at both ends, lying along
   // the image's rows and at 45 degrees: its halves (about 1,100 px) meet
-  // across its width, about 19 px, 0.57-0.6 of their square root, so the
+  // across its width, about 18 px, 0.55-0.6 of their square root, so the
   // colour test merges them: one. At 45 degrees the watershed draws that
   // seam with only about 14 pixels (one per step along its main axis); read
   // as a length that would be 0.42 and keep the halves apart. With the
