@@ -239,6 +239,18 @@ struct FoodDetectorOptions {
   // RANSAC plane fit: iterations and seed (fixed, so detection repeats).
   int ransac_iterations = 150;
   uint64_t ransac_seed = 1;
+  // RANSAC scores a plane by its points within plate_tolerance_mm minus
+  // ransac_below_weight x its points more than plate_tolerance_mm below it.
+  // The fit looks at the middle of the image, where the camera sees the
+  // plate's well, and nothing there lies below the well; a plane with points
+  // well below it is tilted through the tops of flat food (slices covering
+  // much of the middle, with bare plate on one side), which by its points
+  // alone can beat the plate's own plane and leave thin items on the far
+  // side below min_height_mm. 0: points alone. A view whose middle shows
+  // much of the table below the plate breaks the fit's premise either way:
+  // with 1, the table's plane wins once the table shows half as many points
+  // as the well (with 0, as many).
+  double ransac_below_weight = 1.0;
 };
 
 struct DetectedFood {

@@ -71,6 +71,7 @@ std::map<std::string, Field, std::less<>> Fields(FoodDetectorOptions& options) {
       BITEWISE_OPTION(min_waist_part_share),
       BITEWISE_OPTION(ransac_iterations),
       BITEWISE_OPTION(ransac_seed),
+      BITEWISE_OPTION(ransac_below_weight),
   };
 }
 #undef BITEWISE_OPTION

@@ -58,7 +58,8 @@ std::optional<Plane> FitLeastSquares(const std::vector<cv::Vec3d>& points) {
 
 // The plate's surface plane, from points in the middle of the image, where
 // the plate is when the camera looks at it. RANSAC because food covers part
-// of that window.
+// of that window; a plane's points well below it count against it
+// (FoodDetectorOptions::ransac_below_weight).
 std::optional<Plane> FitPlatePlane(const cv::Mat& depth_mm,
                                    const CameraIntrinsics& k,
                                    const FoodDetectorOptions& options) {
@@ -78,20 +79,25 @@ std::optional<Plane> FitPlatePlane(const cv::Mat& depth_mm,
         random::UniformInt(rng, 0, static_cast<int64_t>(points.size()) - 1));
   };
   std::optional<Plane> best;
-  size_t best_inliers = 0;
+  double best_score = 0.0;
   const size_t check_step = std::max<size_t>(1, points.size() / 1500);
   for (int it = 0; it < options.ransac_iterations; ++it) {
     std::optional<Plane> plane =
         PlaneThrough(points[pick()], points[pick()], points[pick()]);
     if (!plane) continue;
-    size_t inliers = 0;
+    size_t inliers = 0, below = 0;
     for (size_t i = 0; i < points.size(); i += check_step) {
-      if (std::abs(plane->Height(points[i])) < options.plate_tolerance_mm) {
+      const double height = plane->Height(points[i]);
+      if (std::abs(height) < options.plate_tolerance_mm) {
         ++inliers;
+      } else if (height < -options.plate_tolerance_mm) {
+        ++below;
       }
     }
-    if (inliers > best_inliers) {
-      best_inliers = inliers;
+    const double score =
+        static_cast<double>(inliers) - options.ransac_below_weight * below;
+    if (score > best_score) {
+      best_score = score;
       best = plane;
     }
   }

@@ -44,9 +44,10 @@ struct HeightMap {
   cv::Mat valid;      // CV_8UC1: 255 where the median-filtered depth exists
 };
 
-// The plate's plane (RANSAC over the middle of the image, then least
-// squares on its inliers) and each pixel's height above it, after a 5x5
-// median filter takes out speckle holes. nullopt when no plane is found.
+// The plate's plane (RANSAC over the middle of the image, counting points
+// well below a plane against it, then least squares on its inliers) and
+// each pixel's height above it, after a 5x5 median filter takes out speckle
+// holes. nullopt when no plane is found.
 std::optional<HeightMap> MeasureHeight(const cv::Mat& depth_mm,
                                        const CameraIntrinsics& k,
                                        const FoodDetectorOptions& options);

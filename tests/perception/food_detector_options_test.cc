@@ -82,7 +82,8 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
                                    "min_waist_depth_px=141.5,"
                                    "min_waist_part_share=142.5,"
                                    "ransac_iterations=143,"
-                                   "ransac_seed=144",
+                                   "ransac_seed=144,"
+                                   "ransac_below_weight=147.5",
                                    options)
                   .ok());
   EXPECT_EQ(options.min_height_mm, 101.5);
@@ -131,6 +132,7 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
   EXPECT_EQ(options.min_waist_part_share, 142.5);
   EXPECT_EQ(options.ransac_iterations, 143);
   EXPECT_EQ(options.ransac_seed, 144u);
+  EXPECT_EQ(options.ransac_below_weight, 147.5);
 }
 
 TEST(DetectorOptionsTest, AnEmptySpecChangesNothing) {

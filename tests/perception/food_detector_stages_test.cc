@@ -41,6 +41,36 @@ TEST(DetectorStagesTest, MeasureHeightFindsThePlaneAndEachPixelsHeight) {
   EXPECT_FALSE(MeasureHeight(empty, k, FoodDetectorOptions()).has_value());
 }
 
+// Flat slices 5 mm thick across the middle of the image, where the plane is
+// fitted (columns [192, 448) of 640): [192, 272) bare plate, [272, 352)
+// slices, [352, 416) bare plate, [416, 448) a tall item. A plane rising
+// about 8 mm from the left edge of that window to the slices' right edge
+// holds the plate on the left and the slices within the 3 mm tolerance,
+// more points than the plate's own plane holds, and leaves the plate on the
+// right well below it. Points well below a plane count against it
+// (FoodDetectorOptions::ransac_below_weight): nothing in the middle of the
+// image lies below the plate's well.
+TEST(DetectorStagesTest, MeasureHeightIsNotTiltedThroughTheTopsOfSlices) {
+  cv::Mat depth(kH, kW, CV_16UC1, cv::Scalar(400));
+  depth(cv::Rect(272, 0, 80, kH)).setTo(395);
+  depth(cv::Rect(416, 0, 32, kH)).setTo(370);
+  const CameraIntrinsics k;
+  FoodDetectorOptions inliers_only;
+  inliers_only.ransac_below_weight = 0.0;
+  const std::optional<HeightMap> tilted = MeasureHeight(depth, k, inliers_only);
+  ASSERT_TRUE(tilted.has_value());
+  EXPECT_LT(tilted->height_mm.at<float>(kH / 2, 380), -3.0f);
+
+  const std::optional<HeightMap> map =
+      MeasureHeight(depth, k, FoodDetectorOptions());
+  ASSERT_TRUE(map.has_value());
+  EXPECT_NEAR(std::abs(map->plane.n[2]), 1.0, 1e-9);
+  EXPECT_NEAR(map->plane.d, 400.0, 1e-6);
+  EXPECT_NEAR(map->height_mm.at<float>(kH / 2, 380), 0.0, 1e-3);
+  EXPECT_NEAR(map->height_mm.at<float>(kH / 2, 230), 0.0, 1e-3);
+  EXPECT_NEAR(map->height_mm.at<float>(kH / 2, 310), 5.0, 1e-3);
+}
+
 TEST(DetectorStagesTest, FindPlateIsTheLargeFlatRegionOrNothing) {
   const std::optional<HeightMap> map =
       MeasureHeight(PlateWithBox(), CameraIntrinsics(), FoodDetectorOptions());
