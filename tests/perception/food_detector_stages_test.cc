@@ -43,11 +43,11 @@ TEST(DetectorStagesTest, MeasureHeightFindsThePlaneAndEachPixelsHeight) {
 
 // Flat slices 5 mm thick across the middle of the image, where the plane is
 // fitted (columns [192, 448) of 640): [192, 272) bare plate, [272, 352)
-// slices, [352, 416) bare plate, [416, 448) a tall item. A plane rising
-// about 8 mm from the left edge of that window to the slices' right edge
-// holds the plate on the left and the slices within the 3 mm tolerance,
-// more points than the plate's own plane holds, and leaves the plate on the
-// right well below it. Points well below a plane count against it
+// slices, [352, 416) bare plate, [416, 448) a tall item. A plane rising to
+// the right across the plate on the left and the slices holds both within
+// the 3 mm tolerance (80 + 80 columns), more points than the plate's own
+// plane holds (80 + 64), and leaves the plate on the right well below it.
+// Points well below a plane count against it
 // (FoodDetectorOptions::ransac_below_weight): nothing in the middle of the
 // image lies below the plate's well.
 TEST(DetectorStagesTest, MeasureHeightIsNotTiltedThroughTheTopsOfSlices) {
