@@ -245,11 +245,14 @@ struct FoodDetectorOptions {
   // plate's well, and nothing there lies below the well; a plane with points
   // well below it is tilted through the tops of flat food (slices covering
   // much of the middle, with bare plate on one side), which by its points
-  // alone can beat the plate's own plane and leave thin items on the far
-  // side below min_height_mm. 0: points alone. A view whose middle shows
-  // much of the table below the plate breaks the fit's premise either way:
-  // with 1, the table's plane wins once the table shows half as many points
-  // as the well (with 0, as many).
+  // alone can beat the plate's own plane and leave thin items where the
+  // well lies below the plane under min_height_mm. 0: the inlier count
+  // alone (the detector before this rule). A view whose middle shows much
+  // of the table below the plate breaks the fit's premise either way: the
+  // table's plane wins once the table shows more than 1 / (1 + weight) of
+  // the well's points (half at 1; with 0, as many). When no candidate holds
+  // more points on it than weight x its points below it (the window's lowest
+  // surface never sampled), there is no plane, and Detect finds nothing.
   double ransac_below_weight = 1.0;
 };
 

@@ -47,7 +47,8 @@ struct HeightMap {
 // The plate's plane (RANSAC over the middle of the image, counting points
 // well below a plane against it, then least squares on its inliers) and
 // each pixel's height above it, after a 5x5 median filter takes out speckle
-// holes. nullopt when no plane is found.
+// holes. nullopt when no plane is found (see
+// FoodDetectorOptions::ransac_below_weight).
 std::optional<HeightMap> MeasureHeight(const cv::Mat& depth_mm,
                                        const CameraIntrinsics& k,
                                        const FoodDetectorOptions& options);

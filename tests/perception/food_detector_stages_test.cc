@@ -46,7 +46,8 @@ TEST(DetectorStagesTest, MeasureHeightFindsThePlaneAndEachPixelsHeight) {
 // slices, [352, 416) bare plate, [416, 448) a tall item. A plane rising to
 // the right across the plate on the left and the slices holds both within
 // the 3 mm tolerance (80 + 80 columns), more points than the plate's own
-// plane holds (80 + 64), and leaves the plate on the right well below it.
+// plane holds (80 + 64; the tall item keeps the plate's share under the
+// tilted plane's), and leaves the plate on the right well below it.
 // Points well below a plane count against it
 // (FoodDetectorOptions::ransac_below_weight): nothing in the middle of the
 // image lies below the plate's well.
