@@ -682,49 +682,6 @@ TEST(DetectorStagesTest, MergeKeepsTwoDiscsTouchingAtAShortContactApart) {
       {cv::Rect(302, 238, 4, 4), cv::Rect(335, 238, 4, 4)}, 1, small_parts, 2);
 }
 
-TEST(DetectorStagesTest, MergeJoinsTheLitAndShadedSidesOfATallBody) {
-  // A flat-topped disc 20 mm high (radius 28 px), its left half painted a
-  // dark red and its right half a light red (far apart in colour, as a
-  // strawberry's shaded and lit sides), seeded in each half: the seam runs
-  // across its top, as high as both parts, and together they are convex,
-  // so one item; two with the rule off.
-  const auto discs = [](const std::vector<cv::Point>& centres) {
-    cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
-    for (const cv::Point& centre : centres) {
-      cv::circle(height, centre, 28, cv::Scalar(20.0), cv::FILLED);
-    }
-    return height;
-  };
-  // Left of column `split` dark red, right of it light red, over the food.
-  const auto two_reds = [](int split) {
-    return [split](cv::Mat& rgb) {
-      const cv::Mat food = rgb != cv::Vec3b(230, 230, 230);
-      cv::Mat mask;
-      cv::cvtColor(food, mask, cv::COLOR_RGB2GRAY);
-      mask = mask > 0;
-      rgb(cv::Rect(0, 0, split, kH))
-          .setTo(cv::Scalar(90, 20, 20), mask(cv::Rect(0, 0, split, kH)));
-      rgb(cv::Rect(split, 0, kW - split, kH))
-          .setTo(cv::Scalar(230, 110, 100),
-                 mask(cv::Rect(split, 0, kW - split, kH)));
-    };
-  };
-  FoodDetectorOptions off;
-  off.min_high_seam_share = 0.0;
-  ExpectItemsWithAndWithout(
-      discs({{320, 240}}),
-      {cv::Rect(300, 235, 8, 10), cv::Rect(332, 235, 8, 10)}, 1, off, 2,
-      two_reds(320));
-  // Two such discs whose centres are 48 px apart overlap on a chord of
-  // about 29 px (not a short contact) at their full height, one dark and
-  // one light: no dip, a high seam, but a waist (by the discs' areas they
-  // fill about 0.93 of their hull): two either way.
-  ExpectItemsWithAndWithout(
-      discs({{296, 240}, {344, 240}}),
-      {cv::Rect(280, 235, 8, 10), cv::Rect(352, 235, 8, 10)}, 2, off, 2,
-      two_reds(320));
-}
-
 TEST(DetectorStagesTest, MergeMeasuresAShortContactAlongTheSeam) {
   // A flat stick 120 x 20 px (10 mm high) seeded at both ends, lying along
   // the image's rows and at 45 degrees: its halves (about 1,100 px) meet
