@@ -182,24 +182,6 @@ struct FoodDetectorOptions {
   // crumbs) are left to the other tests. min_contact_seam_share 0: off.
   double min_contact_seam_share = 0.5;
   int min_contact_part_px = 400;
-  // A tall body cut into parts by its own shading or markings (a
-  // strawberry's lit and shaded sides, its calyx) shows parts that meet on
-  // its top: their seam has no dip and stands at least min_high_seam_share
-  // of the lower part's top, which is at least min_high_seam_top_mm (flat
-  // items, whose seams with any neighbour stand as high as their tops, are
-  // left to the colour test). Such parts are merged whatever their colour
-  // when together they are one convex body: their pixels and seam fill at
-  // least min_high_seam_solidity of their convex hull (of pixel centres).
-  // Two tall bodies touching, whose seam stereo may raise to their tops,
-  // make a waist. And the body is domed: at least a quarter of the two
-  // parts' pixels stand at most max_high_seam_dome_ratio of the higher
-  // part's top (two cubes side by side meet at full height too, and make a
-  // convex box, but their tops are flat; 1: no dome test). Not across a
-  // short contact (above). min_high_seam_share 0: off.
-  double min_high_seam_share = 0.9;
-  double min_high_seam_top_mm = 18.0;
-  double min_high_seam_solidity = 0.95;
-  double max_high_seam_dome_ratio = 0.8;
   // A stick with an item lying across it shows as two parts; they are
   // joined when the item on them borders both and the line between them
   // runs under that item, they and that item cover at least min_join_fill

@@ -731,7 +731,6 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   // low down, where their rounded sides touch).
   std::vector<cv::Vec3d> lab_sum(n_cores, cv::Vec3d(0, 0, 0));
   std::vector<int> lab_count(n_cores, 0);
-  std::vector<cv::Rect> region_box(n_cores);  // the tall-body test below
   std::vector<std::vector<double>> heights(n_cores);
   for (int v = 0; v < h; ++v) {
     const auto* m = markers.ptr<int>(v);
@@ -742,7 +741,6 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       if (m[u] <= 0 || m[u] >= background) continue;
       lab_sum[m[u]] += cv::Vec3d(px[u][0], px[u][1], px[u][2]);
       ++lab_count[m[u]];
-      region_box[m[u]] |= cv::Rect(u, v, 1, 1);
       if (ok[u]) heights[m[u]].push_back(hv[u]);
     }
   }
@@ -997,40 +995,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         options.min_contact_seam_share > 0.0 &&
         smaller_px >= options.min_contact_part_px &&
         seam_length < options.min_contact_seam_share * std::sqrt(smaller_px);
-    // Parts of one tall body meeting on its top, which together are convex
-    // (FoodDetectorOptions::min_high_seam_share): merged whatever their
-    // colour.
-    bool tall_body = options.min_high_seam_share > 0.0 && !contact && no_dip &&
-                     lower_top >= options.min_high_seam_top_mm &&
-                     seam_mm >= options.min_high_seam_share * lower_top;
-    if (tall_body) {
-      std::vector<cv::Point> both;
-      const cv::Rect box = region_box[a] | region_box[b];
-      for (int v = box.y; v < box.y + box.height; ++v) {
-        const auto* m = markers.ptr<int>(v);
-        for (int u = box.x; u < box.x + box.width; ++u) {
-          if (m[u] == a || m[u] == b) both.emplace_back(u, v);
-        }
-      }
-      std::vector<cv::Point> hull;
-      cv::convexHull(both, hull);
-      const double hull_px = cv::contourArea(hull);
-      tall_body = hull_px > 0.0 && static_cast<double>(both.size() + seam_px) >=
-                                       options.min_high_seam_solidity * hull_px;
-    }
-    // And domed, not flat-topped: two cubes side by side also meet at full
-    // height and make a convex box, but their tops are flat.
-    if (tall_body && options.max_high_seam_dome_ratio < 1.0) {
-      std::vector<double> both = heights[a];
-      both.insert(both.end(), heights[b].begin(), heights[b].end());
-      const size_t q = both.size() / 4;
-      std::nth_element(both.begin(), both.begin() + q, both.end());
-      tall_body =
-          !both.empty() && both[q] <= options.max_high_seam_dome_ratio *
-                                          std::max(top_mm[a], top_mm[b]);
-    }
-    if (!contact && (tall_body ||
-                     ((no_valley || valley_across) &&
+    if (!contact && (((no_valley || valley_across) &&
                       cv::norm(diff) < options.min_colour_distance) ||
                      (no_valley && enclosed) ||
                      (no_dip && IsHighlightOn(colour_a, colour_b,

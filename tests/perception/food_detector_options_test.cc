@@ -68,10 +68,6 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
                                    "min_seam_flank_height_share=129.5,"
                                    "min_contact_seam_share=145.5,"
                                    "min_contact_part_px=146,"
-                                   "min_high_seam_share=148.5,"
-                                   "min_high_seam_top_mm=149.5,"
-                                   "min_high_seam_solidity=150.5,"
-                                   "max_high_seam_dome_ratio=151.5,"
                                    "min_join_fill=130.5,"
                                    "min_join_elongation=131.5,"
                                    "min_stick_seed_elongation=132.5,"
@@ -121,10 +117,6 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
   EXPECT_EQ(options.min_seam_flank_height_share, 129.5);
   EXPECT_EQ(options.min_contact_seam_share, 145.5);
   EXPECT_EQ(options.min_contact_part_px, 146);
-  EXPECT_EQ(options.min_high_seam_share, 148.5);
-  EXPECT_EQ(options.min_high_seam_top_mm, 149.5);
-  EXPECT_EQ(options.min_high_seam_solidity, 150.5);
-  EXPECT_EQ(options.max_high_seam_dome_ratio, 151.5);
   EXPECT_EQ(options.min_join_fill, 130.5);
   EXPECT_EQ(options.min_join_elongation, 131.5);
   EXPECT_EQ(options.min_stick_seed_elongation, 132.5);

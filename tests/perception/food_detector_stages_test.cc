@@ -682,66 +682,6 @@ TEST(DetectorStagesTest, MergeKeepsTwoDiscsTouchingAtAShortContactApart) {
       {cv::Rect(302, 238, 4, 4), cv::Rect(335, 238, 4, 4)}, 1, small_parts, 2);
 }
 
-TEST(DetectorStagesTest, MergeJoinsTheLitAndShadedSidesOfATallBody) {
-  // A domed body of radius 28 px, 20 mm high out to 0.7 of its radius and
-  // falling to 10 mm at its edge, its left half painted a dark red and its
-  // right half a light red (far apart in colour, as a strawberry's shaded
-  // and lit sides), seeded in each half: the seam runs across its top,
-  // standing 0.93 of it, together the halves are convex, and a third of
-  // their pixels stand below 0.8 of the top, so one item; two with the rule
-  // off.
-  const auto bodies = [](const std::vector<cv::Point>& centres, bool domed) {
-    cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
-    for (int v = 0; v < kH; ++v) {
-      for (int u = 0; u < kW; ++u) {
-        for (const cv::Point& centre : centres) {
-          const double r = std::hypot(u - centre.x, v - centre.y) / 28.0;
-          if (r > 1.0) continue;
-          const double mm =
-              domed && r > 0.7 ? 20.0 - 10.0 * (r - 0.7) / 0.3 : 20.0;
-          height.at<float>(v, u) =
-              std::max(height.at<float>(v, u), static_cast<float>(mm));
-        }
-      }
-    }
-    return height;
-  };
-  // Left of column `split` dark red, right of it light red, over the food.
-  const auto two_reds = [](int split) {
-    return [split](cv::Mat& rgb) {
-      const cv::Mat food = rgb != cv::Vec3b(230, 230, 230);
-      cv::Mat mask;
-      cv::cvtColor(food, mask, cv::COLOR_RGB2GRAY);
-      mask = mask > 0;
-      rgb(cv::Rect(0, 0, split, kH))
-          .setTo(cv::Scalar(90, 20, 20), mask(cv::Rect(0, 0, split, kH)));
-      rgb(cv::Rect(split, 0, kW - split, kH))
-          .setTo(cv::Scalar(230, 110, 100),
-                 mask(cv::Rect(split, 0, kW - split, kH)));
-    };
-  };
-  const std::vector<cv::Rect> halves = {cv::Rect(300, 235, 8, 10),
-                                        cv::Rect(332, 235, 8, 10)};
-  FoodDetectorOptions off;
-  off.min_high_seam_share = 0.0;
-  ExpectItemsWithAndWithout(bodies({{320, 240}}, true), halves, 1, off, 2,
-                            two_reds(320));
-  // A flat-topped body (a cube's top, or two cubes side by side) is not
-  // domed: two, unless the dome test is off.
-  FoodDetectorOptions no_dome;
-  no_dome.max_high_seam_dome_ratio = 1.0;
-  ExpectItemsWithAndWithout(bodies({{320, 240}}, false), halves, 2, no_dome, 1,
-                            two_reds(320));
-  // Two domed bodies whose centres are 48 px apart overlap on a chord of
-  // about 29 px (not a short contact) at their full height, one dark and
-  // one light: no dip, a high seam, but a waist (by the discs' areas they
-  // fill about 0.93 of their hull): two either way.
-  ExpectItemsWithAndWithout(
-      bodies({{296, 240}, {344, 240}}, true),
-      {cv::Rect(280, 235, 8, 10), cv::Rect(352, 235, 8, 10)}, 2, off, 2,
-      two_reds(320));
-}
-
 TEST(DetectorStagesTest, MergeMeasuresAShortContactAlongTheSeam) {
   // A flat stick 120 x 20 px (10 mm high) seeded at both ends, lying along
   // the image's rows and at 45 degrees: its halves (about 1,100 px) meet
