@@ -231,15 +231,11 @@ struct FoodDetectorOptions {
   // hull's) is below max_waist_solidity is cut along the segment between
   // two of its hull's concavities at least min_waist_depth_px deep, when
   // that leaves two parts, each at least min_waist_part_share of the region
-  // and at least min_waist_solidity solid. 0: never cut. With
-  // waist_fills_inner_seams, a region's own inner seams (the ridge pixels
-  // between parts the merge joined, which touch no other region) count as
-  // its pixels; without, they are notches that lower its parts' solidity.
+  // and at least min_waist_solidity solid. 0: never cut.
   double max_waist_solidity = 0.97;
   double min_waist_solidity = 0.92;
   double min_waist_depth_px = 3.0;
   double min_waist_part_share = 0.2;
-  bool waist_fills_inner_seams = true;
   // RANSAC plane fit: iterations and seed (fixed, so detection repeats).
   int ransac_iterations = 150;
   uint64_t ransac_seed = 1;

@@ -1346,16 +1346,7 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
     // Work in the item's box, with a 1 px margin so outlines close.
     const cv::Rect frame = (box + cv::Size(2, 2) - cv::Point(1, 1)) &
                            cv::Rect(0, 0, markers.cols, markers.rows);
-    cv::Mat item = mask(frame).clone();
-    if (options.waist_fills_inner_seams) {
-      // The seams between parts the merge joined are still ridge pixels;
-      // those that touch nothing but the item (and other ridge pixels) are
-      // the item, not notches in it.
-      const cv::Mat window = markers(frame);
-      cv::Mat other = (window != label) & (window != -1);
-      cv::dilate(other, other, cv::Mat());
-      item |= (window == -1) & ~other;
-    }
+    const cv::Mat item = mask(frame).clone();
     const int area = cv::countNonZero(item);
     std::vector<cv::Point> outline;
     if (Solidity(item, &outline) >= options.max_waist_solidity) continue;
