@@ -231,11 +231,21 @@ struct FoodDetectorOptions {
   // hull's) is below max_waist_solidity is cut along the segment between
   // two of its hull's concavities at least min_waist_depth_px deep, when
   // that leaves two parts, each at least min_waist_part_share of the region
-  // and at least min_waist_solidity solid. 0: never cut.
+  // and at least min_waist_solidity solid. 0: never cut. With
+  // waist_fills_inner_seams, a region's own inner seams (the ridge pixels
+  // between parts the merge joined, which touch no other region) count as
+  // its pixels; without, they are notches that lower its parts' solidity.
   double max_waist_solidity = 0.97;
   double min_waist_solidity = 0.92;
   double min_waist_depth_px = 3.0;
   double min_waist_part_share = 0.2;
+  bool waist_fills_inner_seams = true;
+  // A region at least min_stick_elongation long for its width is cut only
+  // where the cut is at most max_waist_cut_share of each part's width (the
+  // short side of its minimum-area rectangle): two items meet at a waist
+  // narrower than either, while a stick seen bent or notched, cut across,
+  // is as wide as its parts. 0: no such test.
+  double max_waist_cut_share = 0.7;
   // RANSAC plane fit: iterations and seed (fixed, so detection repeats).
   int ransac_iterations = 150;
   uint64_t ransac_seed = 1;

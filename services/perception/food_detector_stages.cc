@@ -1346,7 +1346,16 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
     // Work in the item's box, with a 1 px margin so outlines close.
     const cv::Rect frame = (box + cv::Size(2, 2) - cv::Point(1, 1)) &
                            cv::Rect(0, 0, markers.cols, markers.rows);
-    const cv::Mat item = mask(frame).clone();
+    cv::Mat item = mask(frame).clone();
+    if (options.waist_fills_inner_seams) {
+      // The seams between parts the merge joined are still ridge pixels;
+      // those that touch nothing but the item (and other ridge pixels) are
+      // the item, not notches in it.
+      const cv::Mat window = markers(frame);
+      cv::Mat other = (window != label) & (window != -1);
+      cv::dilate(other, other, cv::Mat());
+      item |= (window == -1) & ~other;
+    }
     const int area = cv::countNonZero(item);
     std::vector<cv::Point> outline;
     if (Solidity(item, &outline) >= options.max_waist_solidity) continue;
@@ -1359,6 +1368,8 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
     } catch (const cv::Exception&) {
       continue;  // a self-touching outline: leave the region whole
     }
+    const bool stick =
+        Elongation(cv::minAreaRect(outline)) >= options.min_stick_elongation;
     std::vector<cv::Point> deep;
     for (const cv::Vec4i& d : defects) {
       if (d[3] / 256.0 >= options.min_waist_depth_px) {
@@ -1394,13 +1405,28 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
             sizes[second] < options.min_waist_part_share * area) {
           continue;
         }
-        const double worst = std::min(Solidity(parts == first, nullptr),
-                                      Solidity(parts == second, nullptr));
-        if (worst > best) {
-          best = worst;
-          best_parts = parts;
-          best_second = second;
+        std::vector<cv::Point> first_outline, second_outline;
+        const double worst =
+            std::min(Solidity(parts == first, &first_outline),
+                     Solidity(parts == second, &second_outline));
+        if (worst <= best) continue;
+        // A waist is narrower than both parts: a cut as wide as a part,
+        // across a region long for its width, is across a stick, not
+        // between two items.
+        if (options.max_waist_cut_share > 0.0 && stick) {
+          const double cut = cv::norm(deep[i] - deep[j]);
+          const auto width = [](const std::vector<cv::Point>& outline) {
+            const cv::Size2f size = cv::minAreaRect(outline).size;
+            return std::min(size.width, size.height);
+          };
+          if (cut > options.max_waist_cut_share *
+                        std::min(width(first_outline), width(second_outline))) {
+            continue;
+          }
         }
+        best = worst;
+        best_parts = parts;
+        best_second = second;
       }
     }
     if (best_parts.empty()) continue;

@@ -33,7 +33,8 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
   // Each field a value of its own (the switches, true by default, false):
   // a name pointing at another field, or a field left out, fails here.
   FoodDetectorOptions options;
-  for (const char* name : {"enclosed_kin", "stick_fill_counts_long_parts"}) {
+  for (const char* name : {"enclosed_kin", "stick_fill_counts_long_parts",
+                           "waist_fills_inner_seams"}) {
     ASSERT_TRUE(
         ApplyDetectorOptions(absl::StrCat(name, "=true"), options).ok());
   }
@@ -81,6 +82,8 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
                                    "min_waist_solidity=140.5,"
                                    "min_waist_depth_px=141.5,"
                                    "min_waist_part_share=142.5,"
+                                   "waist_fills_inner_seams=false,"
+                                   "max_waist_cut_share=152.5,"
                                    "ransac_iterations=143,"
                                    "ransac_seed=144,"
                                    "ransac_below_weight=147.5",
@@ -130,6 +133,8 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
   EXPECT_EQ(options.min_waist_solidity, 140.5);
   EXPECT_EQ(options.min_waist_depth_px, 141.5);
   EXPECT_EQ(options.min_waist_part_share, 142.5);
+  EXPECT_FALSE(options.waist_fills_inner_seams);
+  EXPECT_EQ(options.max_waist_cut_share, 152.5);
   EXPECT_EQ(options.ransac_iterations, 143);
   EXPECT_EQ(options.ransac_seed, 144u);
   EXPECT_EQ(options.ransac_below_weight, 147.5);

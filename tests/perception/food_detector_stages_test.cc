@@ -1281,6 +1281,60 @@ TEST(DetectorStagesTest, SplitAtWaistsCutsTwoTouchingDiscsApart) {
   EXPECT_EQ(ItemLabels(regions), 1);
 }
 
+TEST(DetectorStagesTest, SplitAtWaistsReadsARegionsInnerSeamsAsItsOwn) {
+  // Two touching discs that grew as one region, the right one merged from
+  // three parts whose seams (ridge pixels, -1) still run inside it: a V
+  // from its outline to a point inside and back out. The seams are the
+  // item's own. Read as notches, they cut a wedge off the right disc, and
+  // what is left of it is not convex enough to be cut off at the waist.
+  const auto seamed_discs = [] {
+    Regions regions = OneRegion([](cv::Mat& m) {
+      cv::circle(m, {60, 60}, 22, cv::Scalar(255), cv::FILLED);
+      cv::circle(m, {102, 60}, 22, cv::Scalar(255), cv::FILLED);
+    });
+    cv::Mat seam(regions.markers.size(), CV_8UC1, cv::Scalar(0));
+    cv::line(seam, {98, 36}, {110, 60}, cv::Scalar(255), 1);
+    cv::line(seam, {110, 60}, {126, 56}, cv::Scalar(255), 1);
+    regions.markers.setTo(-1, seam & (regions.markers == 1));
+    return regions;
+  };
+  Regions regions = seamed_discs();
+  SplitAtWaists(FoodDetectorOptions(), regions);
+  ASSERT_EQ(ItemLabels(regions), 2);
+  EXPECT_NE(regions.markers.at<int>(60, 50), regions.markers.at<int>(60, 100));
+  EXPECT_EQ(regions.markers.at<int>(45, 112), regions.markers.at<int>(60, 100))
+      << "the wedge is the right disc's";
+
+  FoodDetectorOptions notches;
+  notches.waist_fills_inner_seams = false;
+  regions = seamed_discs();
+  SplitAtWaists(notches, regions);
+  EXPECT_EQ(ItemLabels(regions), 1);
+}
+
+TEST(DetectorStagesTest, SplitAtWaistsLeavesABentStickWhole) {
+  // A stick 24 px wide, bent in the middle (its inner side a concavity 12
+  // px deep), with a notch 4 px deep on its outer side: the segment between
+  // the two concavities leaves two straight, convex halves, but it is 20 px
+  // long, most of the stick's width, across a region long for its width. A
+  // waist between two items is narrower than both: one item; two without
+  // the test.
+  const auto bent = [](cv::Mat& m) {
+    cv::line(m, {20, 72}, {80, 60}, cv::Scalar(255), 24);
+    cv::line(m, {80, 60}, {140, 72}, cv::Scalar(255), 24);
+    const std::vector<cv::Point> notch = {{74, 48}, {86, 48}, {80, 52}};
+    cv::fillConvexPoly(m, notch, cv::Scalar(0));
+  };
+  Regions regions = OneRegion(bent);
+  SplitAtWaists(FoodDetectorOptions(), regions);
+  EXPECT_EQ(ItemLabels(regions), 1);
+  FoodDetectorOptions off;
+  off.max_waist_cut_share = 0.0;
+  regions = OneRegion(bent);
+  SplitAtWaists(off, regions);
+  EXPECT_EQ(ItemLabels(regions), 2);
+}
+
 TEST(DetectorStagesTest, SplitAtWaistsLeavesConvexItemsAndCrescentsWhole) {
   // An oval slice, a stick, and what shows of a slice half under another
   // (a crescent: one concavity, no waist) are one item each.
