@@ -231,10 +231,11 @@ struct FoodDetectorOptions {
   // hull's) is below max_waist_solidity is cut along the segment between
   // two of its hull's concavities at least min_waist_depth_px deep, when
   // that leaves two parts, each at least min_waist_part_share of the region
-  // and at least min_waist_solidity solid. 0: never cut. With
+  // and more than min_waist_solidity solid. 0: never cut. With
   // waist_fills_inner_seams, a region's own inner seams (the ridge pixels
-  // between parts the merge joined, which touch no other region) count as
-  // its pixels; without, they are notches that lower its parts' solidity.
+  // within its box between parts the merge joined, which touch no other
+  // region or the background as 8-neighbours) count as its pixels;
+  // without, they are notches that lower its parts' solidity.
   double max_waist_solidity = 0.97;
   double min_waist_solidity = 0.92;
   double min_waist_depth_px = 3.0;

@@ -1349,12 +1349,15 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
     cv::Mat item = mask(frame).clone();
     if (options.waist_fills_inner_seams) {
       // The seams between parts the merge joined are still ridge pixels;
-      // those that touch nothing but the item (and other ridge pixels) are
-      // the item, not notches in it.
+      // those that touch nothing but the item (and other ridge pixels;
+      // 8-neighbours) are the item, not notches in it. Only within the
+      // item's box, whose pixels have all their neighbours in the frame.
       const cv::Mat window = markers(frame);
       cv::Mat other = (window != label) & (window != -1);
       cv::dilate(other, other, cv::Mat());
-      item |= (window == -1) & ~other;
+      const cv::Rect inner = box - frame.tl();
+      cv::Mat inside_box = item(inner);
+      inside_box |= (window(inner) == -1) & ~other(inner);
     }
     const int area = cv::countNonZero(item);
     std::vector<cv::Point> outline;
@@ -1414,13 +1417,14 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
         // across a region long for its width, is across a stick, not
         // between two items.
         if (options.max_waist_cut_share > 0.0 && stick) {
-          const double cut = cv::norm(deep[i] - deep[j]);
-          const auto width = [](const std::vector<cv::Point>& outline) {
-            const cv::Size2f size = cv::minAreaRect(outline).size;
+          const double cut_px = cv::norm(deep[i] - deep[j]);
+          const auto width = [](const std::vector<cv::Point>& part) {
+            const cv::Size2f size = cv::minAreaRect(part).size;
             return std::min(size.width, size.height);
           };
-          if (cut > options.max_waist_cut_share *
-                        std::min(width(first_outline), width(second_outline))) {
+          if (cut_px >
+              options.max_waist_cut_share *
+                  std::min(width(first_outline), width(second_outline))) {
             continue;
           }
         }

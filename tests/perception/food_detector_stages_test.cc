@@ -1310,6 +1310,18 @@ TEST(DetectorStagesTest, SplitAtWaistsReadsARegionsInnerSeamsAsItsOwn) {
   regions = seamed_discs();
   SplitAtWaists(notches, regions);
   EXPECT_EQ(ItemLabels(regions), 1);
+
+  // A seam with another item (label 2, below the discs, across a ridge row
+  // at v = 83) is not the region's own: it stays a ridge.
+  regions = seamed_discs();
+  regions.markers.setTo(3, regions.markers == 2);
+  regions.background = 3;
+  regions.markers(cv::Rect(30, 83, 100, 1)).setTo(-1);
+  regions.markers(cv::Rect(30, 84, 100, 6)).setTo(2);
+  SplitAtWaists(FoodDetectorOptions(), regions);
+  EXPECT_EQ(ItemLabels(regions), 3);
+  EXPECT_EQ(cv::countNonZero(regions.markers(cv::Rect(30, 83, 100, 1)) != -1),
+            0);
 }
 
 TEST(DetectorStagesTest, SplitAtWaistsLeavesABentStickWhole) {
