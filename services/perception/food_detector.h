@@ -247,6 +247,15 @@ struct FoodDetectorOptions {
   // narrower than either, while a stick seen bent or notched, cut across,
   // is as wide as its parts. 0: no such test.
   double max_waist_cut_share = 0.7;
+  // A region that is a compact convex item (more than min_waist_solidity
+  // solid, at most max_tail_body_elongation long for its width) and a thin
+  // strip along it (at least min_stick_elongation long for its width, its
+  // pixels at most max_tail_width_px times its length, so that thin on
+  // average) is cut between them where no waist cut passes: a banana coin
+  // beside a celery stick takes the stick's pale lit wall by colour. The
+  // strip becomes an item of its own. max_tail_width_px 0: no such cut.
+  double max_tail_width_px = 10.0;
+  double max_tail_body_elongation = 2.0;
   // RANSAC plane fit: iterations and seed (fixed, so detection repeats).
   int ransac_iterations = 150;
   uint64_t ransac_seed = 1;

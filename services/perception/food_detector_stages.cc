@@ -1383,6 +1383,10 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
     double best = options.min_waist_solidity;
     cv::Mat best_parts;
     int best_second = 0;
+    // The cut that leaves a thin strip beside the most convex body.
+    double best_tail_body = options.min_waist_solidity;
+    cv::Mat tail_parts;
+    int tail_second = 0;
     for (size_t i = 0; i < deep.size(); ++i) {
       for (size_t j = i + 1; j < deep.size(); ++j) {
         cv::Mat cut = item.clone();
@@ -1409,29 +1413,47 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
           continue;
         }
         std::vector<cv::Point> first_outline, second_outline;
-        const double worst =
-            std::min(Solidity(parts == first, &first_outline),
-                     Solidity(parts == second, &second_outline));
-        if (worst <= best) continue;
-        // A waist is narrower than both parts: a cut as wide as a part,
-        // across a region long for its width, is across a stick, not
-        // between two items.
-        if (options.max_waist_cut_share > 0.0 && stick) {
+        const double first_solidity = Solidity(parts == first, &first_outline);
+        const double worst = std::min(
+            first_solidity, Solidity(parts == second, &second_outline));
+        if (worst > best) {
+          // A waist is narrower than both parts: a cut as wide as a part,
+          // across a region long for its width, is across a stick, not
+          // between two items.
           const double cut_px = cv::norm(deep[i] - deep[j]);
           const auto width = [](const std::vector<cv::Point>& part) {
             const cv::Size2f size = cv::minAreaRect(part).size;
             return std::min(size.width, size.height);
           };
-          if (cut_px >
-              options.max_waist_cut_share *
-                  std::min(width(first_outline), width(second_outline))) {
-            continue;
+          if (options.max_waist_cut_share <= 0.0 || !stick ||
+              cut_px <=
+                  options.max_waist_cut_share *
+                      std::min(width(first_outline), width(second_outline))) {
+            best = worst;
+            best_parts = parts;
+            best_second = second;
+          }
+        } else if (options.max_tail_width_px > 0.0 &&
+                   first_solidity > best_tail_body) {
+          // Or a compact convex body and a thin strip: the strip is of
+          // another item (FoodDetectorOptions::max_tail_width_px).
+          const cv::RotatedRect body = cv::minAreaRect(first_outline);
+          const cv::RotatedRect strip = cv::minAreaRect(second_outline);
+          const double strip_length =
+              std::max(strip.size.width, strip.size.height);
+          if (Elongation(body) <= options.max_tail_body_elongation &&
+              Elongation(strip) >= options.min_stick_elongation &&
+              sizes[second] <= options.max_tail_width_px * strip_length) {
+            best_tail_body = first_solidity;
+            tail_parts = parts;
+            tail_second = second;
           }
         }
-        best = worst;
-        best_parts = parts;
-        best_second = second;
       }
+    }
+    if (best_parts.empty() && !tail_parts.empty()) {
+      best_parts = tail_parts;
+      best_second = tail_second;
     }
     if (best_parts.empty()) continue;
     // The second part takes the background's label, the background the

@@ -84,6 +84,8 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
                                    "min_waist_part_share=142.5,"
                                    "waist_fills_inner_seams=false,"
                                    "max_waist_cut_share=152.5,"
+                                   "max_tail_width_px=153.5,"
+                                   "max_tail_body_elongation=154.5,"
                                    "ransac_iterations=143,"
                                    "ransac_seed=144,"
                                    "ransac_below_weight=147.5",
@@ -135,6 +137,8 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
   EXPECT_EQ(options.min_waist_part_share, 142.5);
   EXPECT_FALSE(options.waist_fills_inner_seams);
   EXPECT_EQ(options.max_waist_cut_share, 152.5);
+  EXPECT_EQ(options.max_tail_width_px, 153.5);
+  EXPECT_EQ(options.max_tail_body_elongation, 154.5);
   EXPECT_EQ(options.ransac_iterations, 143);
   EXPECT_EQ(options.ransac_seed, 144u);
   EXPECT_EQ(options.ransac_below_weight, 147.5);

@@ -1347,6 +1347,28 @@ TEST(DetectorStagesTest, SplitAtWaistsLeavesABentStickWhole) {
   EXPECT_EQ(ItemLabels(regions), 2);
 }
 
+TEST(DetectorStagesTest, SplitAtWaistsCutsAThinStripOffARoundItem) {
+  // A disc (radius 22 px) with a bent strip 6 px wide along its lower side
+  // and beyond (a banana coin that took the lit wall of the celery stick
+  // beside it): the strip is not convex, so no waist cut passes, but the
+  // cut along the disc leaves a convex body and a thin strip, long for its
+  // width: two items; one without the strip cut.
+  const auto coin_and_strip = [](cv::Mat& m) {
+    cv::circle(m, {60, 50}, 22, cv::Scalar(255), cv::FILLED);
+    cv::line(m, {30, 75}, {100, 75}, cv::Scalar(255), 6);
+    cv::line(m, {100, 75}, {140, 45}, cv::Scalar(255), 6);
+  };
+  Regions regions = OneRegion(coin_and_strip);
+  SplitAtWaists(FoodDetectorOptions(), regions);
+  EXPECT_EQ(ItemLabels(regions), 2);
+  EXPECT_NE(regions.markers.at<int>(50, 60), regions.markers.at<int>(75, 90));
+  FoodDetectorOptions off;
+  off.max_tail_width_px = 0.0;
+  regions = OneRegion(coin_and_strip);
+  SplitAtWaists(off, regions);
+  EXPECT_EQ(ItemLabels(regions), 1);
+}
+
 TEST(DetectorStagesTest, SplitAtWaistsLeavesConvexItemsAndCrescentsWhole) {
   // An oval slice, a stick, and what shows of a slice half under another
   // (a crescent: one concavity, no waist) are one item each.
