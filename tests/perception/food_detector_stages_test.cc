@@ -1249,6 +1249,14 @@ Regions OneRegion(const std::function<void(cv::Mat&)>& draw) {
   return regions;
 }
 
+// Items after SplitAtWaists with `options` on the region `draw` draws.
+int ItemsAfterSplit(const std::function<void(cv::Mat&)>& draw,
+                    const FoodDetectorOptions& options) {
+  Regions regions = OneRegion(draw);
+  SplitAtWaists(options, regions);
+  return ItemLabels(regions);
+}
+
 TEST(DetectorStagesTest, SplitAtWaistsCutsTwoTouchingDiscsApart) {
   // Two round slices of one food, one partly on the other, that grew as one
   // region: a waist between two convex lobes.
@@ -1276,9 +1284,7 @@ TEST(DetectorStagesTest, SplitAtWaistsCutsTwoTouchingDiscsApart) {
 
   FoodDetectorOptions off;
   off.max_waist_solidity = 0;
-  regions = OneRegion(discs);
-  SplitAtWaists(off, regions);
-  EXPECT_EQ(ItemLabels(regions), 1);
+  EXPECT_EQ(ItemsAfterSplit(discs, off), 1);
 }
 
 TEST(DetectorStagesTest, SplitAtWaistsReadsARegionsInnerSeamsAsItsOwn) {
@@ -1337,14 +1343,10 @@ TEST(DetectorStagesTest, SplitAtWaistsLeavesABentStickWhole) {
     const std::vector<cv::Point> notch = {{74, 48}, {86, 48}, {80, 52}};
     cv::fillConvexPoly(m, notch, cv::Scalar(0));
   };
-  Regions regions = OneRegion(bent);
-  SplitAtWaists(FoodDetectorOptions(), regions);
-  EXPECT_EQ(ItemLabels(regions), 1);
+  EXPECT_EQ(ItemsAfterSplit(bent, FoodDetectorOptions()), 1);
   FoodDetectorOptions off;
   off.max_waist_cut_share = 0.0;
-  regions = OneRegion(bent);
-  SplitAtWaists(off, regions);
-  EXPECT_EQ(ItemLabels(regions), 2);
+  EXPECT_EQ(ItemsAfterSplit(bent, off), 2);
 }
 
 TEST(DetectorStagesTest, SplitAtWaistsCutsAThinStripOffARoundItem) {
@@ -1364,9 +1366,7 @@ TEST(DetectorStagesTest, SplitAtWaistsCutsAThinStripOffARoundItem) {
   EXPECT_NE(regions.markers.at<int>(50, 60), regions.markers.at<int>(75, 90));
   FoodDetectorOptions off;
   off.max_tail_width_px = 0.0;
-  regions = OneRegion(coin_and_strip);
-  SplitAtWaists(off, regions);
-  EXPECT_EQ(ItemLabels(regions), 1);
+  EXPECT_EQ(ItemsAfterSplit(coin_and_strip, off), 1);
 }
 
 TEST(DetectorStagesTest, SplitAtWaistsLeavesConvexItemsAndCrescentsWhole) {
