@@ -251,9 +251,12 @@ struct FoodDetectorOptions {
   // solid, at most max_tail_body_elongation long for its width) and a thin
   // strip along it (at least min_stick_elongation long for its width, its
   // pixels at most max_tail_width_px times its length, so that thin on
-  // average) is cut between them where no waist cut passes: a banana coin
-  // beside a celery stick takes the stick's pale lit wall by colour. The
-  // strip becomes an item of its own. max_tail_width_px 0: no such cut.
+  // average) is cut between them when no waist cut is found: a banana coin
+  // beside a celery stick takes the stick's pale lit wall by colour. Only
+  // cuts that fail the waist cut's solidity test are tried so (a strip
+  // that is not convex), the body is the larger part, and the strip is at
+  // least min_waist_part_share of the region. The strip becomes an item of
+  // its own. max_tail_width_px 0: no such cut.
   double max_tail_width_px = 10.0;
   double max_tail_body_elongation = 2.0;
   // RANSAC plane fit: iterations and seed (fixed, so detection repeats).

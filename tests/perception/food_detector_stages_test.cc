@@ -1318,8 +1318,12 @@ TEST(DetectorStagesTest, SplitAtWaistsReadsARegionsInnerSeamsAsItsOwn) {
   EXPECT_EQ(ItemLabels(regions), 1);
 
   // A seam with another item (label 2, below the discs, across a ridge row
-  // at v = 83) is not the region's own: it stays a ridge.
+  // at v = 83, under flat bottoms so that the row touches nothing but the
+  // discs above it and the item below) is not the region's own: it stays a
+  // ridge.
   regions = seamed_discs();
+  regions.markers(cv::Rect(52, 76, 17, 7)).setTo(1);
+  regions.markers(cv::Rect(94, 76, 17, 7)).setTo(1);
   regions.markers.setTo(3, regions.markers == 2);
   regions.background = 3;
   regions.markers(cv::Rect(30, 83, 100, 1)).setTo(-1);
@@ -1367,6 +1371,21 @@ TEST(DetectorStagesTest, SplitAtWaistsCutsAThinStripOffARoundItem) {
   FoodDetectorOptions off;
   off.max_tail_width_px = 0.0;
   EXPECT_EQ(ItemsAfterSplit(coin_and_strip, off), 1);
+  // The strip averages about 7 px wide: not thin enough for a limit of 5.
+  FoodDetectorOptions narrow;
+  narrow.max_tail_width_px = 5.0;
+  EXPECT_EQ(ItemsAfterSplit(coin_and_strip, narrow), 1);
+  // An upright oval body 1.8 times as long as wide is compact enough for the
+  // default 2, not for 1.5.
+  const auto oval_and_strip = [](cv::Mat& m) {
+    cv::ellipse(m, {60, 47}, {15, 27}, 0, 0, 360, cv::Scalar(255), cv::FILLED);
+    cv::line(m, {30, 75}, {100, 75}, cv::Scalar(255), 6);
+    cv::line(m, {100, 75}, {140, 45}, cv::Scalar(255), 6);
+  };
+  EXPECT_EQ(ItemsAfterSplit(oval_and_strip, FoodDetectorOptions()), 2);
+  FoodDetectorOptions round;
+  round.max_tail_body_elongation = 1.5;
+  EXPECT_EQ(ItemsAfterSplit(oval_and_strip, round), 1);
 }
 
 TEST(DetectorStagesTest, SplitAtWaistsLeavesConvexItemsAndCrescentsWhole) {
