@@ -247,21 +247,18 @@ struct FoodDetectorOptions {
   // narrower than either, while a stick seen bent or notched, cut across,
   // is as wide as its parts. 0: no such test.
   double max_waist_cut_share = 0.7;
-  // A region that is a convex item (more than min_waist_solidity solid,
-  // and at most max_tail_body_elongation long for its width unless that is
-  // 0) and a thin strip along it (at least min_stick_elongation long for
-  // its width, its pixels at most max_tail_width_px times its length, so
-  // that thin on average) is cut between them when no waist cut is found:
-  // a banana coin beside a celery stick takes the stick's pale lit wall by
-  // colour, and so does the end of another celery stick. Only cuts that
-  // fail the waist cut's solidity test are tried so (a strip that is not
-  // convex), the body is the larger part, and the strip is at least
-  // min_waist_part_share of the region. The strip becomes an item of its
-  // own. max_tail_width_px 0: no such cut. (max_tail_body_elongation was 2,
-  // a compact body only, until the twentieth session: docs/perception.md,
-  // "A thin strip cut off a stick".)
+  // A region that is a compact convex item (more than min_waist_solidity
+  // solid, at most max_tail_body_elongation long for its width) and a thin
+  // strip along it (at least min_stick_elongation long for its width, its
+  // pixels at most max_tail_width_px times its length, so that thin on
+  // average) is cut between them when no waist cut is found: a banana coin
+  // beside a celery stick takes the stick's pale lit wall by colour. Only
+  // cuts that fail the waist cut's solidity test are tried so (a strip
+  // that is not convex), the body is the larger part, and the strip is at
+  // least min_waist_part_share of the region. The strip becomes an item of
+  // its own. max_tail_width_px 0: no such cut.
   double max_tail_width_px = 10.0;
-  double max_tail_body_elongation = 0.0;
+  double max_tail_body_elongation = 2.0;
   // RANSAC plane fit: iterations and seed (fixed, so detection repeats).
   int ransac_iterations = 150;
   uint64_t ransac_seed = 1;

@@ -1435,14 +1435,13 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
           }
         } else if (options.max_tail_width_px > 0.0 &&
                    first_solidity > best_tail_body) {
-          // Or a convex body and a thin strip: the strip is of another
-          // item (FoodDetectorOptions::max_tail_width_px).
+          // Or a compact convex body and a thin strip: the strip is of
+          // another item (FoodDetectorOptions::max_tail_width_px).
           const cv::RotatedRect body = cv::minAreaRect(first_outline);
           const cv::RotatedRect strip = cv::minAreaRect(second_outline);
           const double strip_length =
               std::max(strip.size.width, strip.size.height);
-          if ((options.max_tail_body_elongation <= 0.0 ||
-               Elongation(body) <= options.max_tail_body_elongation) &&
+          if (Elongation(body) <= options.max_tail_body_elongation &&
               Elongation(strip) >= options.min_stick_elongation &&
               sizes[second] <= options.max_tail_width_px * strip_length) {
             best_tail_body = first_solidity;
