@@ -70,6 +70,7 @@ std::map<std::string, Field, std::less<>> Fields(FoodDetectorOptions& options) {
       BITEWISE_OPTION(min_waist_depth_px),
       BITEWISE_OPTION(min_waist_part_share),
       BITEWISE_OPTION(waist_fills_inner_seams),
+      BITEWISE_OPTION(max_waist_crumb_px),
       BITEWISE_OPTION(max_waist_cut_share),
       BITEWISE_OPTION(max_tail_width_px),
       BITEWISE_OPTION(max_tail_body_elongation),

@@ -1333,12 +1333,96 @@ double Solidity(const cv::Mat& mask, std::vector<cv::Point>* contour) {
   return std::min(1.0, area / hull_area);
 }
 
+// The pixels (255) of `frame` that belong to crumbs of region `label`:
+// regions of at most `max_px` pixels (by `sizes`) with pixels in `inner`
+// (the region's box, in `frame`'s coordinates) that border `label` and no
+// region but `label`, other crumbs and the background (8-neighbours of the
+// ridge pixels around them, looked for within their `boxes`). Only their
+// pixels within `inner` and within the convex hull of `label`'s own
+// pixels. `max_px` 0: none.
+cv::Mat Crumbs(const cv::Mat& markers, const cv::Rect& frame,
+               const cv::Rect& inner, int label, int background,
+               const std::vector<int>& sizes,
+               const std::vector<cv::Rect>& boxes, int max_px) {
+  cv::Mat crumbs(frame.size(), CV_8UC1, cv::Scalar(0));
+  if (max_px <= 0) return crumbs;
+  const cv::Mat window = markers(frame);
+  const auto small = [&](int m) {
+    return m > 0 && m < background && m != label && sizes[m] <= max_px;
+  };
+  std::set<int> candidates;
+  for (int v = inner.y; v < inner.br().y; ++v) {
+    const int* m = window.ptr<int>(v);
+    for (int u = inner.x; u < inner.br().x; ++u) {
+      if (small(m[u])) candidates.insert(m[u]);
+    }
+  }
+  const cv::Rect image(0, 0, markers.cols, markers.rows);
+  std::set<int> taken;
+  for (const int c : candidates) {
+    // The ridge pixels beside c: what else they border.
+    const cv::Rect around =
+        (boxes[c] + cv::Size(2, 2) - cv::Point(1, 1)) & image;
+    bool mine = false, theirs = false;
+    for (int v = around.y; v < around.br().y && !theirs; ++v) {
+      for (int u = around.x; u < around.br().x; ++u) {
+        if (markers.at<int>(v, u) != -1) continue;
+        bool beside_c = false, beside_label = false, beside_other = false;
+        for (int dv = -1; dv <= 1; ++dv) {
+          for (int du = -1; du <= 1; ++du) {
+            if (!image.contains({u + du, v + dv})) continue;
+            const int m = markers.at<int>(v + dv, u + du);
+            beside_c |= m == c;
+            beside_label |= m == label;
+            beside_other |= m > 0 && m < background && m != label && !small(m);
+          }
+        }
+        if (!beside_c) continue;
+        mine |= beside_label;
+        theirs |= beside_other;
+      }
+    }
+    if (mine && !theirs) taken.insert(c);
+  }
+  if (taken.empty()) return crumbs;
+  // Only within the region's own convex hull: a crumb fills a notch, it
+  // does not widen the outline.
+  cv::Mat hull_mask(frame.size(), CV_8UC1, cv::Scalar(0));
+  std::vector<cv::Point> own, hull;
+  cv::findNonZero(window == label, own);
+  cv::convexHull(own, hull);
+  cv::fillConvexPoly(hull_mask, hull, cv::Scalar(255));
+  for (int v = inner.y; v < inner.br().y; ++v) {
+    const int* m = window.ptr<int>(v);
+    const uint8_t* in_hull = hull_mask.ptr<uint8_t>(v);
+    uint8_t* out = crumbs.ptr<uint8_t>(v);
+    for (int u = inner.x; u < inner.br().x; ++u) {
+      if (in_hull[u] && taken.count(m[u]) > 0) out[u] = 255;
+    }
+  }
+  return crumbs;
+}
+
 }  // namespace
 
 void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
   if (options.max_waist_solidity <= 0.0) return;
   cv::Mat& markers = regions.markers;
   const int n_items = regions.background;
+  // Each region's pixels and a box around them (for crumbs), kept up to
+  // date as regions are cut (a part keeps the box of the whole).
+  std::vector<int> sizes(regions.background + 1, 0);
+  std::vector<cv::Rect> boxes(regions.background + 1);
+  if (options.max_waist_crumb_px > 0) {
+    for (int v = 0; v < markers.rows; ++v) {
+      const int* m = markers.ptr<int>(v);
+      for (int u = 0; u < markers.cols; ++u) {
+        if (m[u] <= 0 || m[u] >= regions.background) continue;
+        ++sizes[m[u]];
+        boxes[m[u]] |= cv::Rect(u, v, 1, 1);
+      }
+    }
+  }
   for (int label = 1; label < n_items; ++label) {
     const cv::Mat mask = markers == label;
     const cv::Rect box = cv::boundingRect(mask);
@@ -1347,15 +1431,22 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
     const cv::Rect frame = (box + cv::Size(2, 2) - cv::Point(1, 1)) &
                            cv::Rect(0, 0, markers.cols, markers.rows);
     cv::Mat item = mask(frame).clone();
+    const cv::Mat window = markers(frame);
+    const cv::Rect inner = box - frame.tl();
+    // Crumbs: small regions wholly in the box that border this region and
+    // no other but crumbs (FoodDetectorOptions::max_waist_crumb_px). They
+    // count as the region's in the solidity tests, and keep their labels.
+    const cv::Mat crumbs =
+        Crumbs(markers, frame, inner, label, regions.background, sizes, boxes,
+               options.max_waist_crumb_px);
+    item |= crumbs;
     if (options.waist_fills_inner_seams) {
       // The seams between parts the merge joined are still ridge pixels;
       // those that touch nothing but the item (and other ridge pixels;
       // 8-neighbours) are the item, not notches in it. Only within the
       // item's box, whose pixels have all their neighbours in the frame.
-      const cv::Mat window = markers(frame);
-      cv::Mat other = (window != label) & (window != -1);
+      cv::Mat other = (window != label) & (window != -1) & ~crumbs;
       cv::dilate(other, other, cv::Mat());
-      const cv::Rect inner = box - frame.tl();
       cv::Mat inside_box = item(inner);
       inside_box |= (window(inner) == -1) & ~other(inner);
     }
@@ -1466,13 +1557,17 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
         if (m[u] == regions.background) m[u] = new_background;
       }
     }
+    int moved = 0, taken = 0;  // pixels to the new label, of them the region's
     for (int v = 0; v < frame.height; ++v) {
       const int* p = best_parts.ptr<int>(v);
       const uint8_t* inside = item.ptr<uint8_t>(v);
+      const uint8_t* crumb = crumbs.ptr<uint8_t>(v);
       int* m = markers.ptr<int>(frame.y + v) + frame.x;
       for (int u = 0; u < frame.width; ++u) {
-        if (!inside[u]) continue;
+        if (!inside[u] || crumb[u]) continue;
         if (p[u] == best_second) {
+          taken += m[u] == label;
+          ++moved;
           m[u] = new_label;
         } else if (p[u] == 0) {
           m[u] = -1;
@@ -1480,6 +1575,11 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
       }
     }
     regions.background = new_background;
+    sizes.resize(new_background + 1, 0);
+    boxes.resize(new_background + 1);
+    sizes[label] -= taken;
+    sizes[new_label] = moved;
+    boxes[new_label] = boxes[label];
   }
 }
 

@@ -83,6 +83,7 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
                                    "min_waist_depth_px=141.5,"
                                    "min_waist_part_share=142.5,"
                                    "waist_fills_inner_seams=false,"
+                                   "max_waist_crumb_px=155,"
                                    "max_waist_cut_share=152.5,"
                                    "max_tail_width_px=153.5,"
                                    "max_tail_body_elongation=154.5,"
@@ -136,6 +137,7 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
   EXPECT_EQ(options.min_waist_depth_px, 141.5);
   EXPECT_EQ(options.min_waist_part_share, 142.5);
   EXPECT_FALSE(options.waist_fills_inner_seams);
+  EXPECT_EQ(options.max_waist_crumb_px, 155);
   EXPECT_EQ(options.max_waist_cut_share, 152.5);
   EXPECT_EQ(options.max_tail_width_px, 153.5);
   EXPECT_EQ(options.max_tail_body_elongation, 154.5);

@@ -1334,6 +1334,54 @@ TEST(DetectorStagesTest, SplitAtWaistsReadsARegionsInnerSeamsAsItsOwn) {
             0);
 }
 
+TEST(DetectorStagesTest, SplitAtWaistsReadsACrumbInARegionAsItsOwn) {
+  // Two touching discs that grew as one region (label 1), as in the first
+  // waist test, and a crumb of the right one (label 2: its shaded side or
+  // its calyx, left on its own by the merge) at its right edge, a ridge
+  // around it. Read as a notch, the crumb leaves the right disc under
+  // min_waist_solidity, and the discs are not cut apart.
+  const auto crumbed = [](cv::Point crumb_at, bool beside_another) {
+    Regions regions = OneRegion([](cv::Mat& m) {
+      cv::circle(m, {60, 60}, 22, cv::Scalar(255), cv::FILLED);
+      cv::circle(m, {96, 60}, 18, cv::Scalar(255), cv::FILLED);
+    });
+    regions.markers.setTo(4, regions.markers == 2);
+    regions.background = 4;
+    cv::Mat crumb(regions.markers.size(), CV_8UC1, cv::Scalar(0));
+    crumb(cv::Rect(crumb_at, cv::Size(14, 16))).setTo(255);
+    crumb &= regions.markers == 1;
+    cv::Mat ring;
+    cv::dilate(crumb, ring, cv::Mat());
+    regions.markers.setTo(-1, ring & ~crumb);
+    regions.markers.setTo(2, crumb);
+    if (beside_another) {
+      // Another item (label 3) right of the crumb, across the ridge.
+      regions.markers(cv::Rect(crumb_at.x + 12, 44, 20, 32)).setTo(3);
+    }
+    return regions;
+  };
+  // Crumb pixels and the labels beside it after the split.
+  const auto split = [](Regions regions, const FoodDetectorOptions& options) {
+    const int crumb_px = cv::countNonZero(regions.markers == 2);
+    SplitAtWaists(options, regions);
+    EXPECT_EQ(cv::countNonZero(regions.markers == 2), crumb_px)
+        << "the crumb keeps its label and its pixels";
+    return ItemLabels(regions);
+  };
+  const cv::Point at(104, 52);
+  EXPECT_EQ(split(crumbed(at, false), FoodDetectorOptions()), 3)
+      << "the two discs and the crumb";
+  FoodDetectorOptions off;
+  off.max_waist_crumb_px = 0;
+  EXPECT_EQ(split(crumbed(at, false), off), 2) << "a notch: not cut";
+  FoodDetectorOptions tiny;
+  tiny.max_waist_crumb_px = 50;
+  EXPECT_EQ(split(crumbed(at, false), tiny), 2) << "too large to be a crumb";
+  EXPECT_EQ(split(crumbed(at, true), FoodDetectorOptions()), 3)
+      << "it borders another item: not a crumb, the discs stay one "
+         "(with the crumb and the other item, three labels)";
+}
+
 TEST(DetectorStagesTest, SplitAtWaistsLeavesABentStickWhole) {
   // A stick 24 px wide, bent in the middle (its inner side a concavity 12
   // px deep), with a notch 4 px deep on its outer side: the segment between
