@@ -254,8 +254,13 @@ struct FoodDetectorOptions {
   // the region's hull (the crescent of an item mostly hidden under it, or
   // the rest of a neighbour the merge wrongly joined), it is not read as a
   // crumb there. The crumbs keep their labels when the region is cut. 0:
-  // none. (Without the hull, reported twice and not kept: docs/perception.md,
-  // "Three rules tried on the tuning seeds, none kept".)
+  // none. Needs waist_fills_inner_seams: without it, the ridge around a
+  // crumb is left unfilled, and the crumb stays apart from the outline.
+  // Limit: a cut's parts are measured with their crumbs (for
+  // min_waist_part_share too), so a part that is mostly a crumb can be cut
+  // off, leaving its new item a sliver of the region's own pixels. (Without the
+  // hull, reported twice and not kept: docs/perception.md, "Crumbs in a waist,
+  // and two rules not kept".)
   int max_waist_crumb_px = 600;
   // A region at least min_stick_elongation long for its width is cut only
   // where the cut is at most max_waist_cut_share of each part's width (the

@@ -1336,10 +1336,10 @@ double Solidity(const cv::Mat& mask, std::vector<cv::Point>* contour) {
 // The pixels (255) of `frame` that belong to crumbs of region `label`:
 // regions of at most `max_px` pixels (by `sizes`) with pixels in `inner`
 // (the region's box, in `frame`'s coordinates) that border `label` and no
-// region but `label`, other crumbs and the background (8-neighbours of the
-// ridge pixels around them, looked for within their `boxes`). Only their
-// pixels within `inner` and within the convex hull of `label`'s own
-// pixels. `max_px` 0: none.
+// region but `label`, other regions of at most `max_px` pixels and the
+// background (8-neighbours of the ridge pixels around them, looked for
+// within their `boxes`). Only their pixels within `inner` and within the
+// convex hull of `label`'s own pixels. `max_px` 0: none.
 cv::Mat Crumbs(const cv::Mat& markers, const cv::Rect& frame,
                const cv::Rect& inner, int label, int background,
                const std::vector<int>& sizes,
@@ -1433,9 +1433,10 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
     cv::Mat item = mask(frame).clone();
     const cv::Mat window = markers(frame);
     const cv::Rect inner = box - frame.tl();
-    // Crumbs: small regions wholly in the box that border this region and
-    // no other but crumbs (FoodDetectorOptions::max_waist_crumb_px). They
-    // count as the region's in the solidity tests, and keep their labels.
+    // Crumbs: small regions that border this region and no other but small
+    // ones, their pixels within its box and its own convex hull
+    // (FoodDetectorOptions::max_waist_crumb_px). They count as the
+    // region's in the solidity tests, and keep their labels.
     const cv::Mat crumbs =
         Crumbs(markers, frame, inner, label, regions.background, sizes, boxes,
                options.max_waist_crumb_px);
@@ -1484,23 +1485,23 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
         cv::line(cut, deep[i], deep[j], cv::Scalar(0), 2);
         cv::Mat parts;
         const int n = cv::connectedComponents(cut, parts, 4, CV_32S);
-        std::vector<int> sizes(n, 0);
+        std::vector<int> part_px(n, 0);
         for (int v = 0; v < parts.rows; ++v) {
           const int* p = parts.ptr<int>(v);
-          for (int u = 0; u < parts.cols; ++u) ++sizes[p[u]];
+          for (int u = 0; u < parts.cols; ++u) ++part_px[p[u]];
         }
         // The two largest parts besides the outside (label 0).
         int first = 0, second = 0;
         for (int c = 1; c < n; ++c) {
-          if (first == 0 || sizes[c] > sizes[first]) {
+          if (first == 0 || part_px[c] > part_px[first]) {
             second = first;
             first = c;
-          } else if (second == 0 || sizes[c] > sizes[second]) {
+          } else if (second == 0 || part_px[c] > part_px[second]) {
             second = c;
           }
         }
         if (second == 0 ||
-            sizes[second] < options.min_waist_part_share * area) {
+            part_px[second] < options.min_waist_part_share * area) {
           continue;
         }
         std::vector<cv::Point> first_outline, second_outline;
@@ -1534,7 +1535,7 @@ void SplitAtWaists(const FoodDetectorOptions& options, Regions& regions) {
               std::max(strip.size.width, strip.size.height);
           if (Elongation(body) <= options.max_tail_body_elongation &&
               Elongation(strip) >= options.min_stick_elongation &&
-              sizes[second] <= options.max_tail_width_px * strip_length) {
+              part_px[second] <= options.max_tail_width_px * strip_length) {
             best_tail_body = first_solidity;
             tail_parts = parts;
             tail_second = second;

@@ -1360,7 +1360,8 @@ TEST(DetectorStagesTest, SplitAtWaistsReadsACrumbInARegionAsItsOwn) {
     }
     return regions;
   };
-  // Crumb pixels and the labels beside it after the split.
+  // The item labels after the split (and a check that the crumb keeps its
+  // pixels and its label).
   const auto split = [](Regions regions, const FoodDetectorOptions& options) {
     const int crumb_px = cv::countNonZero(regions.markers == 2);
     SplitAtWaists(options, regions);
