@@ -66,20 +66,6 @@ struct FoodDetectorOptions {
   double cliff_fraction = 0.25;
   // A cut seed counts as a part when it keeps at least this many pixels.
   int min_seed_px = 30;
-  // A rim on a seed: where touching sticks meet end to side, one stick's
-  // seed ran on along the lit rim of the other (a celery stick is a trough:
-  // its two rims are seeded apart, on either side of its floor), and the
-  // other stick's rim went to the wrong item. So a seed that has a body
-  // (what an opening of width rim_open_px keeps, at least min_seed_px) and
-  // a thin strip (what the opening drops) at least min_rim_length_px long
-  // and min_stick_elongation long for its width (by its minimum-area
-  // rectangle) is cut between them: the strip's pixels next to the body
-  // are dropped, and the strip is a seed of its own, which the merge may
-  // join again. The body of at least min_seed_px need only be in the same
-  // seed as the strip; pixels next to any body are dropped. 0 or 1: never
-  // cut.
-  int rim_open_px = 15;
-  int min_rim_length_px = 50;
   // Terraces: an item partly under another (a slice lying on a slice) shows
   // as a lower step beside the upper one, below half the local top and so
   // with no seed. Pixels that are at least half as high as the highest point

@@ -40,8 +40,6 @@ std::map<std::string, Field, std::less<>> Fields(FoodDetectorOptions& options) {
       BITEWISE_OPTION(min_cliff_mm),
       BITEWISE_OPTION(cliff_fraction),
       BITEWISE_OPTION(min_seed_px),
-      BITEWISE_OPTION(rim_open_px),
-      BITEWISE_OPTION(min_rim_length_px),
       BITEWISE_OPTION(terrace_window_px),
       BITEWISE_OPTION(terrace_open_px),
       BITEWISE_OPTION(min_terrace_px),

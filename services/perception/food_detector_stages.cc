@@ -408,67 +408,6 @@ cv::Mat MorphByRows(const cv::Mat& image, const cv::Mat& element) {
   return out;
 }
 
-// Cuts the long thin strips off seeds that have a body
-// (FoodDetectorOptions::rim_open_px): the strip's pixels next to the body
-// are dropped, so that the two are seeds of their own.
-void CutRims(const FoodDetectorOptions& options, cv::Mat& cores) {
-  cv::Mat body;
-  cv::morphologyEx(
-      cores, body, cv::MORPH_OPEN,
-      cv::getStructuringElement(cv::MORPH_ELLIPSE,
-                                {options.rim_open_px, options.rim_open_px}));
-  cv::Mat whole;
-  const int n_whole = cv::connectedComponents(cores, whole, 8, CV_32S);
-  cv::Mat bodies, body_stats, body_centroids;
-  cv::connectedComponentsWithStats(body, bodies, body_stats, body_centroids, 8,
-                                   CV_32S);
-  // Seeds with a body of at least min_seed_px.
-  std::vector<uint8_t> has_body(n_whole, 0);
-  for (int v = 0; v < cores.rows; ++v) {
-    const int* b = bodies.ptr<int>(v);
-    const int* c = whole.ptr<int>(v);
-    for (int u = 0; u < cores.cols; ++u) {
-      if (b[u] > 0 &&
-          body_stats.at<int>(b[u], cv::CC_STAT_AREA) >= options.min_seed_px) {
-        has_body[c[u]] = 1;
-      }
-    }
-  }
-  const cv::Mat thin = cores & ~body;
-  cv::Mat strips;
-  const int n_strips = cv::connectedComponents(thin, strips, 8, CV_32S);
-  std::vector<std::vector<cv::Point>> points(n_strips);
-  std::vector<int> owner(n_strips, 0);
-  for (int v = 0; v < cores.rows; ++v) {
-    const int* s = strips.ptr<int>(v);
-    const int* c = whole.ptr<int>(v);
-    for (int u = 0; u < cores.cols; ++u) {
-      if (s[u] > 0) {
-        points[s[u]].emplace_back(u, v);
-        owner[s[u]] = c[u];
-      }
-    }
-  }
-  cv::Mat near_body;
-  cv::dilate(body, near_body, cv::Mat());
-  for (int s = 1; s < n_strips; ++s) {
-    if (!has_body[owner[s]] ||
-        static_cast<int>(points[s].size()) < options.min_seed_px) {
-      continue;
-    }
-    const cv::Size2f size = cv::minAreaRect(points[s]).size;
-    const float length = std::max(size.width, size.height);
-    if (length < options.min_rim_length_px ||
-        length < options.min_stick_elongation *
-                     std::max(1.0f, std::min(size.width, size.height))) {
-      continue;
-    }
-    for (const cv::Point& p : points[s]) {
-      if (near_body.at<uint8_t>(p)) cores.at<uint8_t>(p) = 0;
-    }
-  }
-}
-
 }  // namespace
 
 cv::Mat CloseByRows(const cv::Mat& image, const cv::Mat& element) {
@@ -618,7 +557,6 @@ std::optional<Regions> PlantSeeds(const FoodEvidence& evidence,
     }
     cores = cut;
   }
-  if (options.rim_open_px > 1) CutRims(options, cores);
   // Terraces: the visible part of an item partly under another is about
   // half as high as the item on it, so the half-height rule over 21 px
   // gives it no seed and the watershed would hand it to the item on top.

@@ -234,66 +234,6 @@ RampSeeds SeedsAcrossAColourRamp(const cv::Scalar& left,
           seeds->markers.at<int>(240, 290) != seeds->markers.at<int>(240, 350)};
 }
 
-// A flat 10 mm slab 24 px wide and a flat strip 8 px wide and `strip_px`
-// long along its end, flush with the slab's lower side and running up past
-// its upper one, of one colour and height, so that no valley, step or
-// colour edge lies between them: one stick's end against the other's rim.
-// The number of seeds, and whether the slab and the strip's far end have
-// different ones.
-RampSeeds SeedsOfASlabAndAStrip(int strip_px,
-                                const FoodDetectorOptions& options) {
-  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
-  height(cv::Rect(180, 228, 120, 24)).setTo(10.0f);
-  height(cv::Rect(300, 252 - strip_px, 8, strip_px)).setTo(10.0f);
-  const Scene scene = MakeScene(height, height > 0.0f);
-  const std::optional<Regions> seeds =
-      PlantSeeds(scene.evidence, scene.height_mm, options);
-  if (!seeds.has_value()) return {};
-  return {seeds->background - 1,
-          seeds->markers.at<int>(240, 240) !=
-              seeds->markers.at<int>(252 - strip_px + 4, 304)};
-}
-
-TEST(DetectorStagesTest, PlantSeedsCutsALongRimOffABody) {
-  RampSeeds seeds = SeedsOfASlabAndAStrip(120, FoodDetectorOptions());
-  EXPECT_EQ(seeds.seeds, 2);
-  EXPECT_TRUE(seeds.apart);
-  FoodDetectorOptions no_rims;
-  no_rims.rim_open_px = 0;
-  seeds = SeedsOfASlabAndAStrip(120, no_rims);
-  EXPECT_EQ(seeds.seeds, 1);
-  EXPECT_FALSE(seeds.apart);
-  // Past the slab, a strip of 50 px is about 30 px beyond the body the
-  // opening keeps (which takes the strip's pixels beside the slab's end):
-  // shorter than min_rim_length_px, it stays with the body.
-  seeds = SeedsOfASlabAndAStrip(50, FoodDetectorOptions());
-  EXPECT_EQ(seeds.seeds, 1);
-  FoodDetectorOptions shorter;
-  shorter.min_rim_length_px = 20;
-  seeds = SeedsOfASlabAndAStrip(50, shorter);
-  EXPECT_EQ(seeds.seeds, 2);
-  EXPECT_TRUE(seeds.apart);
-  // Long enough, but not min_stick_elongation long for its width.
-  FoodDetectorOptions less_elongated = shorter;
-  less_elongated.min_stick_elongation = 6.0;
-  seeds = SeedsOfASlabAndAStrip(50, less_elongated);
-  EXPECT_EQ(seeds.seeds, 1);
-  // A slab alone, and a strip alone, are one seed each.
-  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
-  height(cv::Rect(180, 228, 120, 24)).setTo(10.0f);
-  Scene scene = MakeScene(height, height > 0.0f);
-  std::optional<Regions> alone =
-      PlantSeeds(scene.evidence, scene.height_mm, FoodDetectorOptions());
-  ASSERT_TRUE(alone.has_value());
-  EXPECT_EQ(alone->background, 2);
-  height.setTo(0.0f);
-  height(cv::Rect(300, 180, 8, 120)).setTo(10.0f);
-  scene = MakeScene(height, height > 0.0f);
-  alone = PlantSeeds(scene.evidence, scene.height_mm, FoodDetectorOptions());
-  ASSERT_TRUE(alone.has_value());
-  EXPECT_EQ(alone->background, 2);
-}
-
 // The CIELAB distance between two RGB colours, as FindEvidence converts them.
 double LabDistance(const cv::Scalar& a, const cv::Scalar& b) {
   cv::Mat rgb(1, 2, CV_8UC3);
