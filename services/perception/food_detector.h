@@ -95,6 +95,11 @@ struct FoodDetectorOptions {
   // is left on its own.)
   double min_enclosed_share = 0.9;
   bool enclosed_kin = true;
+  // The inside rule joins two regions only when the higher one's median
+  // height is at most this times the lower one's: a kiwi's seed ring at the
+  // foot of a carrot coin lying on the kiwi, whose top (by the percentile
+  // above) the coin's edge had raised, was joined to the coin. 0: off.
+  double max_enclosed_median_ratio = 1.5;
   // A band across an item: a region of at least min_seed_px joins two of
   // its neighbours of similar colour to each other (under
   // min_colour_distance), whatever its own colour, when neither seam with

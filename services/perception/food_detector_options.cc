@@ -46,6 +46,7 @@ std::map<std::string, Field, std::less<>> Fields(FoodDetectorOptions& options) {
       BITEWISE_OPTION(max_merge_top_ratio),
       BITEWISE_OPTION(min_enclosed_share),
       BITEWISE_OPTION(enclosed_kin),
+      BITEWISE_OPTION(max_enclosed_median_ratio),
       BITEWISE_OPTION(min_sandwich_share),
       BITEWISE_OPTION(max_highlight_hue_deg),
       BITEWISE_OPTION(max_highlight_chroma_share),

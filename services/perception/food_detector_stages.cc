@@ -744,13 +744,18 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
       if (ok[u]) heights[m[u]].push_back(hv[u]);
     }
   }
-  std::vector<double> top_mm(n_cores, 0.0);
+  // Per region: its top (the 90th percentile of its heights) and its
+  // median height.
+  std::vector<double> top_mm(n_cores, 0.0), median_mm(n_cores, 0.0);
   for (int i = 1; i < background; ++i) {
     std::vector<double>& hs = heights[i];
     if (hs.empty()) continue;
     const size_t q = hs.size() * 9 / 10;
     std::nth_element(hs.begin(), hs.begin() + q, hs.end());
     top_mm[i] = hs[q];
+    const size_t half = hs.size() / 2;
+    std::nth_element(hs.begin(), hs.begin() + half, hs.begin() + q);
+    median_mm[i] = hs[half];
   }
   // Boundary statistics per pair of neighbouring regions.
   struct Seam {
@@ -967,6 +972,13 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     const auto inside = [&](int r) {
       return enclosed_by_food(r) && seam_px == longest_seam[r] && !has_kin[r];
     };
+    // A part of an item lies about as high as the item; a small region at
+    // the foot of an item standing on another is lower by that item's
+    // height (FoodDetectorOptions::max_enclosed_median_ratio).
+    const bool level = options.max_enclosed_median_ratio <= 0.0 ||
+                       std::max(median_mm[a], median_mm[b]) <=
+                           options.max_enclosed_median_ratio *
+                               std::min(median_mm[a], median_mm[b]);
     const bool enclosed = inside(a) || inside(b);
     if (!no_dip && !valley_across) kept_apart.insert(pair);
     if (no_dip) {
@@ -997,7 +1009,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         seam_length < options.min_contact_seam_share * std::sqrt(smaller_px);
     if (!contact && (((no_valley || valley_across) &&
                       cv::norm(diff) < options.min_colour_distance) ||
-                     (no_valley && enclosed) ||
+                     (no_valley && enclosed && level) ||
                      (no_dip && IsHighlightOn(colour_a, colour_b,
                                               evidence.plate_lab, options)))) {
       parent[root(a)] = root(b);

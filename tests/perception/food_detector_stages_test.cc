@@ -461,6 +461,58 @@ TEST(DetectorStagesTest, MergeLeavesASliverOfAnItemWithItsOwnKin) {
   EXPECT_EQ(ItemLabels(items(no_kin)), 1);
 }
 
+TEST(DetectorStagesTest, MergeLeavesARegionAtTheFootOfACoinOnAnItemApart) {
+  // An orange coin standing 20 mm high on the right edge of a green slice
+  // (10 mm), and at its foot a sliver of another green, seeded apart, whose
+  // inner pixels the coin's edge raises to 14.5 mm (depth mixed at the
+  // edge), so that its top (90th percentile) is within max_merge_top_ratio
+  // of the coin's and of the slice's. It lies inside food and its longest
+  // seam is with the coin; with no kin to claim it, the inside rule would
+  // take it for a part of the coin, and the colour test joins it to the
+  // slice: coin and slice one item. Its median height, the slice's, is
+  // half the coin's: it is not joined to the coin.
+  Scene scene = FlatDiscs({{300, 240, 40}, {348, 240, 20}}, [](cv::Mat& rgb) {
+    cv::circle(rgb, {300, 240}, 40, cv::Scalar(90, 170, 60), cv::FILLED);
+    for (int v = 226; v <= 254; ++v) {
+      for (int u = 300; u < 348; ++u) {
+        const double r = std::hypot(u - 348.0, v - 240.0);
+        if (r >= 20.0 && r < 24.0)
+          rgb.at<cv::Vec3b>(v, u) = cv::Vec3b(105, 178, 72);
+      }
+    }
+    cv::circle(rgb, {348, 240}, 20, cv::Scalar(230, 120, 40), cv::FILLED);
+  });
+  for (int v = 200; v <= 280; ++v) {
+    for (int u = 300; u < 380; ++u) {
+      const double r = std::hypot(u - 348.0, v - 240.0);
+      if (r < 20.0) {
+        scene.height_mm.at<float>(v, u) = 20.0f;
+      } else if (r < 21.0 && u < 348) {
+        scene.height_mm.at<float>(v, u) = 14.5f;
+      }
+    }
+  }
+  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
+                                scene.plate, FoodDetectorOptions());
+  const auto items = [&scene](FoodDetectorOptions options) {
+    options.enclosed_kin = false;
+    return GrowAndMerge(scene,
+                        {cv::Rect(280, 215, 10, 10),   // the slice, upper
+                         cv::Rect(280, 255, 10, 10),   // the slice, lower
+                         cv::Rect(325, 236, 2, 8),     // the sliver
+                         cv::Rect(345, 235, 10, 10)},  // the coin
+                        options);
+  };
+  const Regions with = items(FoodDetectorOptions());
+  EXPECT_NE(with.markers.at<int>(240, 350), with.markers.at<int>(220, 285));
+  EXPECT_EQ(with.markers.at<int>(240, 326), with.markers.at<int>(220, 285));
+  FoodDetectorOptions off;
+  off.max_enclosed_median_ratio = 0.0;
+  const Regions without = items(off);
+  EXPECT_EQ(without.markers.at<int>(240, 350),
+            without.markers.at<int>(220, 285));
+}
+
 TEST(DetectorStagesTest, MergeJoinsAHighlightToTheItemItLiesOn) {
   // A red cone (a whole strawberry, 20 mm high) whose side towards the lamp
   // shines, seeded in two halves: the skin and the shining side. Where the
