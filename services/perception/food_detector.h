@@ -129,12 +129,6 @@ struct FoodDetectorOptions {
   double max_highlight_hue_deg = 10.0;
   double max_highlight_chroma_share = 0.5;
   double max_highlight_below_plate_l = 15.0;
-  // Not so a lighter region that has kin (enclosed_kin's sense: a larger
-  // neighbour of similar colour, open to the background, no dip between
-  // them): it is part of that neighbour, not a highlight on this one (a
-  // crumb of a pale celery stick beside a kiwi's green flesh, which is
-  // that flesh's hue, lighter and less chromatic). false: off.
-  bool highlight_kin = true;
   // Two bodies that touch shade the crease between them: each hides part of
   // the room's light from it. (On blind tuning plates, over the pairs the
   // merge joined, seams between two items were a median 8.3 L darker than

@@ -51,7 +51,6 @@ std::map<std::string, Field, std::less<>> Fields(FoodDetectorOptions& options) {
       BITEWISE_OPTION(max_highlight_hue_deg),
       BITEWISE_OPTION(max_highlight_chroma_share),
       BITEWISE_OPTION(max_highlight_below_plate_l),
-      BITEWISE_OPTION(highlight_kin),
       BITEWISE_OPTION(min_crease_shade_l),
       BITEWISE_OPTION(valley_flank_px),
       BITEWISE_OPTION(min_valley_flank_share),

@@ -903,7 +903,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
   // Per region: a larger neighbour of similar colour, open to the
   // background, across a seam with no dip (the item it is part of).
   std::vector<bool> has_kin(n_cores, false);
-  if (options.enclosed_kin || options.highlight_kin) {
+  if (options.enclosed_kin) {
     for (const auto& [pair, seam] : boundary) {
       const auto [a, b] = pair;
       if (seam.count < 3 || lab_count[a] == 0 || lab_count[b] == 0 ||
@@ -970,8 +970,7 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
     // or its ring of seeds), not an item of its own, unless it has kin.
     const int seam_px = seam.all_count;  // (a lambda may not capture `seam`)
     const auto inside = [&](int r) {
-      return enclosed_by_food(r) && seam_px == longest_seam[r] &&
-             !(options.enclosed_kin && has_kin[r]);
+      return enclosed_by_food(r) && seam_px == longest_seam[r] && !has_kin[r];
     };
     // A part of an item lies about as high as the item; a small region at
     // the foot of an item standing on another is lower by that item's
@@ -1008,14 +1007,11 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
         options.min_contact_seam_share > 0.0 &&
         smaller_px >= options.min_contact_part_px &&
         seam_length < options.min_contact_seam_share * std::sqrt(smaller_px);
-    if (!contact &&
-        (((no_valley || valley_across) &&
-          cv::norm(diff) < options.min_colour_distance) ||
-         (no_valley && enclosed && level) ||
-         (no_dip &&
-          !(options.highlight_kin &&
-            has_kin[colour_a[0] >= colour_b[0] ? a : b]) &&
-          IsHighlightOn(colour_a, colour_b, evidence.plate_lab, options)))) {
+    if (!contact && (((no_valley || valley_across) &&
+                      cv::norm(diff) < options.min_colour_distance) ||
+                     (no_valley && enclosed && level) ||
+                     (no_dip && IsHighlightOn(colour_a, colour_b,
+                                              evidence.plate_lab, options)))) {
       parent[root(a)] = root(b);
     }
   }

@@ -562,42 +562,6 @@ TEST(DetectorStagesTest, MergeJoinsAHighlightToTheItemItLiesOn) {
       << "chroma 18, hue 31 degrees, but L 50, far darker than the plate";
 }
 
-TEST(DetectorStagesTest, MergeTakesNoPartOfAPaleStickForAHighlight) {
-  // A green slice (a kiwi's flesh: L 58, chroma 66, hue 125 degrees) and,
-  // touching its side, a pale green stick (a celery stick: L 79, chroma
-  // 32, hue 124 degrees), both flat and 10 mm high, the stick seeded in
-  // two: its end against the slice and the rest. By colour alone the end
-  // is a highlight on the slice (lighter, about half the chroma, the same
-  // hue); but it has kin, the rest of the stick (a larger neighbour of its
-  // colour, open to the plate, no dip between): it is part of the stick.
-  cv::Mat height(kH, kW, CV_32FC1, cv::Scalar(0));
-  cv::circle(height, {300, 240}, 40, cv::Scalar(10.0), cv::FILLED);
-  const cv::Rect stick(338, 228, 100, 24);
-  height(stick).setTo(10.0f);
-  Scene scene = MakeScene(height, height > 0.0f);
-  cv::circle(scene.rgb, {300, 240}, 40, cv::Scalar(98, 154, 31), cv::FILLED);
-  scene.rgb(stick).setTo(cv::Scalar(180, 203, 145));
-  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
-                                scene.plate, FoodDetectorOptions());
-  const auto items = [&scene](const FoodDetectorOptions& options) {
-    return GrowAndMerge(scene,
-                        {cv::Rect(290, 230, 10, 20),   // the slice
-                         cv::Rect(340, 236, 4, 8),     // the stick's end
-                         cv::Rect(400, 234, 20, 12)},  // the rest of it
-                        options);
-  };
-  const Regions with = items(FoodDetectorOptions());
-  EXPECT_EQ(ItemLabels(with), 2);
-  EXPECT_NE(with.markers.at<int>(240, 295), with.markers.at<int>(240, 342));
-  EXPECT_EQ(with.markers.at<int>(240, 342), with.markers.at<int>(240, 410));
-  FoodDetectorOptions off;
-  off.highlight_kin = false;
-  EXPECT_EQ(ItemLabels(items(off)), 1) << "the highlight test joins them";
-  FoodDetectorOptions no_highlight = off;
-  no_highlight.max_highlight_hue_deg = 0.0;
-  EXPECT_EQ(ItemLabels(items(no_highlight)), 2);
-}
-
 TEST(DetectorStagesTest, MergeKeepsApartTwoItemsWithAShadedCreaseBetween) {
   // Two red slabs (15 mm) side by side, seeded at their far ends: nothing in
   // height or colour tells them from one slab seeded twice. Where two items
