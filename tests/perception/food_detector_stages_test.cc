@@ -424,54 +424,11 @@ TEST(DetectorStagesTest, MergeJoinsAPartOfAnotherColourInsideAnItem) {
   EXPECT_NE(with.markers.at<int>(240, 375), with.markers.at<int>(240, 275));
 }
 
-TEST(DetectorStagesTest, MergeLeavesASliverOfAnItemWithItsOwnKin) {
-  // An orange coin lying over the right edge of a green slice, all 10 mm.
-  // Between them a sliver of the slice's green, a little lighter, seeded
-  // apart: it lies inside food, and its longest seam is with the coin,
-  // because the slice beside it is seeded in two halves. It is part of the
-  // slice (a larger region of its colour, open to the plate, no dip
-  // between), not of the coin: two items. Without that test the sliver is
-  // taken as a part of the coin inside it and chains coin and slice into one.
-  const Scene scene =
-      FlatDiscs({{300, 240, 40}, {348, 240, 20}}, [](cv::Mat& rgb) {
-        cv::circle(rgb, {300, 240}, 40, cv::Scalar(90, 170, 60), cv::FILLED);
-        for (int v = 226; v <= 254; ++v) {
-          for (int u = 300; u < 348; ++u) {
-            const double r = std::hypot(u - 348.0, v - 240.0);
-            if (r >= 20.0 && r < 24.0)
-              rgb.at<cv::Vec3b>(v, u) = cv::Vec3b(105, 178, 72);
-          }
-        }
-        cv::circle(rgb, {348, 240}, 20, cv::Scalar(230, 120, 40), cv::FILLED);
-      });
-  const auto items = [&scene](const FoodDetectorOptions& options) {
-    return GrowAndMerge(scene,
-                        {cv::Rect(280, 215, 10, 10),   // the slice, upper
-                         cv::Rect(280, 255, 10, 10),   // the slice, lower
-                         cv::Rect(325, 236, 2, 8),     // the sliver
-                         cv::Rect(345, 235, 10, 10)},  // the coin
-                        options);
-  };
-  const Regions with = items(FoodDetectorOptions());
-  EXPECT_EQ(ItemLabels(with), 2);
-  EXPECT_EQ(with.markers.at<int>(240, 326), with.markers.at<int>(220, 285));
-  EXPECT_NE(with.markers.at<int>(240, 350), with.markers.at<int>(220, 285));
-  FoodDetectorOptions no_kin;
-  no_kin.enclosed_kin = false;
-  EXPECT_EQ(ItemLabels(items(no_kin)), 1);
-}
-
-TEST(DetectorStagesTest, MergeLeavesARegionAtTheFootOfACoinOnAnItemApart) {
-  // An orange coin standing 20 mm high on the right edge of a green slice
-  // (10 mm), and at its foot a sliver of another green, seeded apart, whose
-  // inner pixels the coin's edge raises to 14.5 mm (depth mixed at the
-  // edge), so that its top (90th percentile) is within max_merge_top_ratio
-  // of the coin's and of the slice's. It lies inside food and its longest
-  // seam is with the coin; with no kin to claim it, the inside rule would
-  // take it for a part of the coin, and the colour test joins it to the
-  // slice: coin and slice one item. Its median height, the slice's, is
-  // half the coin's: it is not joined to the coin.
-  Scene scene = FlatDiscs({{300, 240, 40}, {348, 240, 20}}, [](cv::Mat& rgb) {
+// A green slice with an orange coin over its right edge, all 10 mm high,
+// and between them a ring of the slice's green, a little lighter (a sliver
+// of the slice beside the coin).
+Scene CoinOverASlice() {
+  return FlatDiscs({{300, 240, 40}, {348, 240, 20}}, [](cv::Mat& rgb) {
     cv::circle(rgb, {300, 240}, 40, cv::Scalar(90, 170, 60), cv::FILLED);
     for (int v = 226; v <= 254; ++v) {
       for (int u = 300; u < 348; ++u) {
@@ -482,6 +439,48 @@ TEST(DetectorStagesTest, MergeLeavesARegionAtTheFootOfACoinOnAnItemApart) {
     }
     cv::circle(rgb, {348, 240}, 20, cv::Scalar(230, 120, 40), cv::FILLED);
   });
+}
+
+// CoinOverASlice's regions grown and merged from seeds on the slice (in two
+// halves, so that the sliver's longest seam is with the coin), the sliver
+// and the coin.
+Regions MergeSliceSliverCoin(const Scene& scene,
+                             const FoodDetectorOptions& options) {
+  return GrowAndMerge(scene,
+                      {cv::Rect(280, 215, 10, 10),   // the slice, upper
+                       cv::Rect(280, 255, 10, 10),   // the slice, lower
+                       cv::Rect(325, 236, 2, 8),     // the sliver
+                       cv::Rect(345, 235, 10, 10)},  // the coin
+                      options);
+}
+
+TEST(DetectorStagesTest, MergeLeavesASliverOfAnItemWithItsOwnKin) {
+  // The sliver lies inside food, and its longest seam is with the coin. It
+  // is part of the slice (a larger region of its colour, open to the
+  // plate, no dip between), not of the coin: two items. Without that test
+  // the sliver is taken as a part of the coin inside it and chains coin and
+  // slice into one.
+  const Scene scene = CoinOverASlice();
+  const Regions with = MergeSliceSliverCoin(scene, FoodDetectorOptions());
+  EXPECT_EQ(ItemLabels(with), 2);
+  EXPECT_EQ(with.markers.at<int>(240, 326), with.markers.at<int>(220, 285));
+  EXPECT_NE(with.markers.at<int>(240, 350), with.markers.at<int>(220, 285));
+  FoodDetectorOptions no_kin;
+  no_kin.enclosed_kin = false;
+  EXPECT_EQ(ItemLabels(MergeSliceSliverCoin(scene, no_kin)), 1);
+}
+
+TEST(DetectorStagesTest, MergeLeavesARegionAtTheFootOfACoinOnAnItemApart) {
+  // The coin stands 20 mm high on the slice (10 mm), and the sliver at its
+  // foot has its inner pixels raised to 14.5 mm by the coin's edge (depth
+  // mixed at the edge), so that its top (90th percentile) is within
+  // max_merge_top_ratio of the coin's and of the slice's. It lies inside
+  // food and its longest seam is with the coin; with no kin to claim it
+  // (enclosed_kin off), the inside rule would take it for a part of the
+  // coin, and the colour test joins it to the slice: coin and slice one
+  // item. Its median height, the slice's, is half the coin's: it is not
+  // joined to the coin.
+  Scene scene = CoinOverASlice();
   for (int v = 200; v <= 280; ++v) {
     for (int u = 300; u < 380; ++u) {
       const double r = std::hypot(u - 348.0, v - 240.0);
@@ -494,21 +493,14 @@ TEST(DetectorStagesTest, MergeLeavesARegionAtTheFootOfACoinOnAnItemApart) {
   }
   scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
                                 scene.plate, FoodDetectorOptions());
-  const auto items = [&scene](FoodDetectorOptions options) {
-    options.enclosed_kin = false;
-    return GrowAndMerge(scene,
-                        {cv::Rect(280, 215, 10, 10),   // the slice, upper
-                         cv::Rect(280, 255, 10, 10),   // the slice, lower
-                         cv::Rect(325, 236, 2, 8),     // the sliver
-                         cv::Rect(345, 235, 10, 10)},  // the coin
-                        options);
-  };
-  const Regions with = items(FoodDetectorOptions());
+  FoodDetectorOptions no_kin;
+  no_kin.enclosed_kin = false;
+  const Regions with = MergeSliceSliverCoin(scene, no_kin);
   EXPECT_NE(with.markers.at<int>(240, 350), with.markers.at<int>(220, 285));
   EXPECT_EQ(with.markers.at<int>(240, 326), with.markers.at<int>(220, 285));
-  FoodDetectorOptions off;
+  FoodDetectorOptions off = no_kin;
   off.max_enclosed_median_ratio = 0.0;
-  const Regions without = items(off);
+  const Regions without = MergeSliceSliverCoin(scene, off);
   EXPECT_EQ(without.markers.at<int>(240, 350),
             without.markers.at<int>(220, 285));
 }
