@@ -85,20 +85,22 @@ struct FoodDetectorOptions {
   // beside it borders other regions, not the background) is part of the
   // neighbour it shares its longest seam with, whatever its colour, when
   // there is no valley between them and neither stands on the other (the
-  // top ratio above): a kiwi slice's pale core and seed ring inside its
-  // green flesh. Above 1: off. Not so a region that has a larger neighbour
-  // of similar colour (under min_colour_distance), open to the background,
-  // with no dip between them: that is the item it is part of (a sliver of a
-  // kiwi's flesh beside a carrot coin lying on the kiwi), when enclosed_kin
-  // is true. (That neighbour is not checked for a shaded crease, a step or
-  // a low seam, so the merge may still keep the two apart, and the region
-  // is left on its own.)
+  // top ratio above; and max_enclosed_median_ratio below): a kiwi slice's
+  // pale core and seed ring inside its green flesh. Above 1: off. Not so a
+  // region that has a larger neighbour of similar colour (under
+  // min_colour_distance), open to the background, with no dip between
+  // them: that is the item it is part of (a sliver of a kiwi's flesh beside
+  // a carrot coin lying on the kiwi), when enclosed_kin is true. (That
+  // neighbour is not checked for a shaded crease, a step or a low seam, so
+  // the merge may still keep the two apart, and the region is left on its
+  // own.)
   double min_enclosed_share = 0.9;
   bool enclosed_kin = true;
   // The inside rule joins two regions only when the higher one's median
-  // height is at most this times the lower one's: a kiwi's seed ring at the
-  // foot of a carrot coin lying on the kiwi, whose top (by the percentile
-  // above) the coin's edge had raised, was joined to the coin. 0: off.
+  // height is at most this times the lower one's: a region of a kiwi's seed
+  // ring at the foot of a carrot coin lying on the kiwi, whose top (the
+  // 90th percentile of its heights, which the top ratio above compares) the
+  // coin's edge had raised, was joined to the coin. 0: off.
   double max_enclosed_median_ratio = 1.5;
   // A band across an item: a region of at least min_seed_px joins two of
   // its neighbours of similar colour to each other (under

@@ -59,6 +59,7 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
                                    "max_merge_top_ratio=119.5,"
                                    "min_enclosed_share=120.5,"
                                    "enclosed_kin=false,"
+                                   "max_enclosed_median_ratio=156.5,"
                                    "min_sandwich_share=122.5,"
                                    "max_highlight_hue_deg=123.5,"
                                    "max_highlight_chroma_share=124.5,"
@@ -113,6 +114,7 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
   EXPECT_EQ(options.max_merge_top_ratio, 119.5);
   EXPECT_EQ(options.min_enclosed_share, 120.5);
   EXPECT_FALSE(options.enclosed_kin);
+  EXPECT_EQ(options.max_enclosed_median_ratio, 156.5);
   EXPECT_EQ(options.min_sandwich_share, 122.5);
   EXPECT_EQ(options.max_highlight_hue_deg, 123.5);
   EXPECT_EQ(options.max_highlight_chroma_share, 124.5);

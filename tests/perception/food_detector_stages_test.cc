@@ -425,7 +425,7 @@ TEST(DetectorStagesTest, MergeJoinsAPartOfAnotherColourInsideAnItem) {
 }
 
 // A green slice with an orange coin over its right edge, all 10 mm high,
-// and between them a ring of the slice's green, a little lighter (a sliver
+// and between them an arc of the slice's green, a little lighter (a sliver
 // of the slice beside the coin).
 Scene CoinOverASlice() {
   return FlatDiscs({{300, 240, 40}, {348, 240, 20}}, [](cv::Mat& rgb) {
@@ -471,22 +471,24 @@ TEST(DetectorStagesTest, MergeLeavesASliverOfAnItemWithItsOwnKin) {
 }
 
 TEST(DetectorStagesTest, MergeLeavesARegionAtTheFootOfACoinOnAnItemApart) {
-  // The coin stands 20 mm high on the slice (10 mm), and the sliver at its
-  // foot has its inner pixels raised to 14.5 mm by the coin's edge (depth
-  // mixed at the edge), so that its top (90th percentile) is within
+  // The coin stands 20 mm high on the slice (10 mm), and the sliver's
+  // pixels next to the coin are raised to 14.5 mm (depth mixed at the
+  // coin's edge), so that the sliver's top (90th percentile) is within
   // max_merge_top_ratio of the coin's and of the slice's. It lies inside
-  // food and its longest seam is with the coin; with no kin to claim it
-  // (enclosed_kin off), the inside rule would take it for a part of the
+  // food and its longest seam is with the coin; with the kin test off (the
+  // slice is its kin), the inside rule would take it for a part of the
   // coin, and the colour test joins it to the slice: coin and slice one
   // item. Its median height, the slice's, is half the coin's: it is not
   // joined to the coin.
   Scene scene = CoinOverASlice();
+  const cv::Vec3b sliver(105, 178, 72);
   for (int v = 200; v <= 280; ++v) {
     for (int u = 300; u < 380; ++u) {
       const double r = std::hypot(u - 348.0, v - 240.0);
       if (r < 20.0) {
         scene.height_mm.at<float>(v, u) = 20.0f;
-      } else if (r < 21.0 && u < 348) {
+      } else if (r < 21.0 && scene.rgb.at<cv::Vec3b>(v, u) == sliver &&
+                 scene.height_mm.at<float>(v, u) > 0.0f) {
         scene.height_mm.at<float>(v, u) = 14.5f;
       }
     }
