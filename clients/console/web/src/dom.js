@@ -62,7 +62,7 @@ export function show(el, visible) {
 /**
  * Rebuilds `container`'s children with build() only when `key` changed since
  * the last call. If the focus was on a child carrying data-focus-key, the
- * rebuilt child with the same data-focus-key gets it back.
+ * rebuilt child with the same data-focus-key gets it back, without scrolling.
  */
 export function keyed(container, key, build) {
   if (container.__key === key) return false;
@@ -72,7 +72,9 @@ export function keyed(container, key, build) {
     active && container.contains(active) ? active.closest('[data-focus-key]')?.dataset.focusKey : undefined;
   container.replaceChildren(...[build()].flat(Infinity).filter(Boolean));
   if (focusKey !== undefined) {
-    container.querySelector(`[data-focus-key="${CSS.escape(focusKey)}"]`)?.focus();
+    // The child is where its predecessor was; scrolling to it would pull the
+    // page away from whatever the person is reading (a question, the bite).
+    container.querySelector(`[data-focus-key="${CSS.escape(focusKey)}"]`)?.focus({ preventScroll: true });
   }
   return true;
 }

@@ -1,8 +1,9 @@
 // The table view, played through a simulated meal on a real bitewise-console:
 // choose someone new and start by keyboard alone, bite an item by keyboard,
-// tap an item, reload mid-bite, answer the operator's question (when the
-// console asks, BITEWISE_CONSOLE_OPERATOR=1), STOP during DESCEND, and the
-// meal's summary. axe-core checks every state, and each state is
+// follow the bite down the page while the plate is drawn again (the page
+// stays put), tap an item, reload mid-bite, answer the operator's question
+// (when the console asks, BITEWISE_CONSOLE_OPERATOR=1), STOP during DESCEND,
+// and the meal's summary. axe-core checks every state, and each state is
 // screenshotted at 360x740 and 1024x768.
 
 import assert from 'node:assert/strict';
@@ -157,7 +158,26 @@ describe('table view', { skip: SKIP }, () => {
     await screenshot(page, 'table-03-biting', '.bite');
     await checkAxe(page, 'a bite in DESCEND');
 
+    // The person scrolls down to follow the bite; the keyboard's focus stays
+    // on the item, now above the screen. When the plate is drawn again (the
+    // bite's end, the next look), the focus comes back to the item without
+    // pulling the page up to it.
+    const where = () =>
+      page.evaluate(() => ({
+        bite: document.querySelector('.bite').getBoundingClientRect().top,
+        item: document.activeElement.closest('.plate-overlay .item')?.getBoundingClientRect().bottom ?? null,
+        y: scrollY,
+      }));
+    await page.evaluate(() => document.querySelector('.bite').scrollIntoView({ block: 'start' }));
+    const before = await where();
+    assert.ok(before.item !== null && before.item <= 0, `the item is above the screen (${JSON.stringify(before)})`);
     state = await waitForVerdict(1);
+    await waitForPlate();
+    const after = await where();
+    const moved = JSON.stringify({ before, after });
+    assert.ok(after.item !== null, `the focus came back to an item on the plate (${moved})`);
+    assert.ok(after.item <= 0, `the page was not pulled up to the focused item (${moved})`);
+    assert.ok(Math.abs(after.bite - before.bite) < 100, `the bite stayed where the person put it (${moved})`);
     const seen = await page.evaluate(() => window.__phasesSeen);
     const order = seen.map((p) => PHASE_ORDER.indexOf(p));
     assert.deepEqual([...order].sort((a, b) => a - b), order, `phases in order: ${seen}`);
