@@ -196,13 +196,9 @@ struct FoodDetectorOptions {
   // rectangle; a round slice beside a stick leaves plate in it), and one
   // part has an axis ratio of at least min_join_elongation (two whole round
   // slices either side of a tall item are two items). Above 1: never
-  // joined. The two parts are of similar colour, or, with
-  // join_in_other_light, of one colour in other light (within
-  // max_stick_shade_distance, as in the stick band below): the item on the
-  // stick shades the stub beside it.
+  // joined.
   double min_join_fill = 0.75;
   double min_join_elongation = 1.3;
-  bool join_in_other_light = true;
   // A stick cut lengthwise into parts of one colour (a celery's two walls
   // and its floor): starting from a part at least min_stick_seed_elongation
   // long for its width, neighbours of similar colour (or of its colour in

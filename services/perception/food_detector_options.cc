@@ -59,7 +59,6 @@ std::map<std::string, Field, std::less<>> Fields(FoodDetectorOptions& options) {
       BITEWISE_OPTION(min_contact_part_px),
       BITEWISE_OPTION(min_join_fill),
       BITEWISE_OPTION(min_join_elongation),
-      BITEWISE_OPTION(join_in_other_light),
       BITEWISE_OPTION(min_stick_seed_elongation),
       BITEWISE_OPTION(min_stick_part_elongation),
       BITEWISE_OPTION(min_stick_fill),

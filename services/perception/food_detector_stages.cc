@@ -1163,15 +1163,11 @@ void MergeSplitItems(const FoodEvidence& evidence, const cv::Mat& height_mm,
               part[o].top_mm <= options.max_merge_top_ratio * upper) {
             continue;
           }
-          const cv::Vec3d colour_a = pa.lab_sum / pa.moments[0];
-          const cv::Vec3d colour_b = pb.lab_sum / pb.moments[0];
-          const bool alike =
-              cv::norm(colour_a - colour_b) < options.min_colour_distance ||
-              (options.join_in_other_light &&
-               DistanceInOtherLight(colour_a, colour_b) <
-                   options.max_stick_shade_distance);
-          if (!alike || std::max(pa.elongation, pb.elongation) <
-                            options.min_join_elongation) {
+          const cv::Vec3d diff =
+              pa.lab_sum / pa.moments[0] - pb.lab_sum / pb.moments[0];
+          if (cv::norm(diff) >= options.min_colour_distance ||
+              std::max(pa.elongation, pb.elongation) <
+                  options.min_join_elongation) {
             continue;
           }
           const double du = pb.u - pa.u, dv = pb.v - pa.v;

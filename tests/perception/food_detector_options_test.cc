@@ -72,7 +72,6 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
                                    "min_contact_part_px=146,"
                                    "min_join_fill=130.5,"
                                    "min_join_elongation=131.5,"
-                                   "join_in_other_light=false,"
                                    "min_stick_seed_elongation=132.5,"
                                    "min_stick_part_elongation=133.5,"
                                    "min_stick_fill=134.5,"
@@ -128,7 +127,6 @@ TEST(DetectorOptionsTest, EveryFieldIsSetByItsOwnName) {
   EXPECT_EQ(options.min_contact_part_px, 146);
   EXPECT_EQ(options.min_join_fill, 130.5);
   EXPECT_EQ(options.min_join_elongation, 131.5);
-  EXPECT_FALSE(options.join_in_other_light);
   EXPECT_EQ(options.min_stick_seed_elongation, 132.5);
   EXPECT_EQ(options.min_stick_part_elongation, 133.5);
   EXPECT_EQ(options.min_stick_fill, 134.5);

@@ -1252,31 +1252,6 @@ TEST(DetectorStagesTest, MergeJoinsAStubWhoseHighestPixelsAreTheItemsFlank) {
   EXPECT_EQ(ItemLabels(regions), 3);
 }
 
-TEST(DetectorStagesTest, MergeJoinsAStickWhoseStubIsInTheItemsShade) {
-  // The item lying across the stick shades its right stub: the stick's red
-  // (200, 60, 50) with half the light, each linear RGB channel halved
-  // (146, 41, 34). That is further than min_colour_distance from the lit
-  // stub, and the same colour in other light.
-  const cv::Rect shaded(340, 230, 100, 20);
-  Scene scene = PartsUnderAnItem({cv::Rect(200, 230, 100, 20), shaded}, {});
-  scene.rgb(shaded).setTo(cv::Scalar(146, 41, 34));
-  scene.evidence = FindEvidence(scene.rgb, scene.height_mm, scene.valid,
-                                scene.plate, FoodDetectorOptions());
-  const std::vector<cv::Rect> seeds = {cv::Rect(220, 235, 20, 10),
-                                       cv::Rect(400, 235, 20, 10),
-                                       cv::Rect(310, 220, 20, 40)};
-  Regions regions = GrowAndMerge(scene, seeds, FoodDetectorOptions());
-  EXPECT_EQ(ItemLabels(regions), 2);
-  EXPECT_EQ(regions.markers.at<int>(240, 210),
-            regions.markers.at<int>(240, 430));
-  EXPECT_NE(regions.markers.at<int>(240, 210),
-            regions.markers.at<int>(240, 320));
-  FoodDetectorOptions colour_only;
-  colour_only.join_in_other_light = false;
-  regions = GrowAndMerge(scene, seeds, colour_only);
-  EXPECT_EQ(ItemLabels(regions), 3);
-}
-
 TEST(DetectorStagesTest, MergeKeepsARoundSliceApartFromAStickUnderAnItem) {
   // A stick on the left of the item and a round slice partly under its
   // right side, in line: the rectangle around both holds plate above and
