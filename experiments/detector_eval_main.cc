@@ -25,7 +25,6 @@
 #include <vector>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "experiments/blind_plates.h"
 #include "opencv2/imgcodecs.hpp"
@@ -175,7 +174,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "DetectFood on rendered plates with touching and repeated foods.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
   const int plates = absl::GetFlag(FLAGS_plates);
   const int max_items = std::max(2, absl::GetFlag(FLAGS_max_items));
   std::mt19937_64 rng(absl::GetFlag(FLAGS_seed));

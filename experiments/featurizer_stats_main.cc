@@ -15,7 +15,6 @@
 #include <vector>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/status/statusor.h"
 #include "absl/strings/str_format.h"
@@ -241,7 +240,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Writes the default featurizer's seen-food statistics.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
   const int plates = absl::GetFlag(FLAGS_plates);
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
   if (plates < 10) return Fail("--plates must be at least 10");

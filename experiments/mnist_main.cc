@@ -10,7 +10,6 @@
 #include <vector>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
@@ -206,6 +205,6 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "MNIST post hoc bandit experiment (docs/experiments.md) on IDX files.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
   return bitewise::experiments::Run();
 }

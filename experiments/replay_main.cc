@@ -12,7 +12,6 @@
 #include <vector>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_format.h"
@@ -192,6 +191,6 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Offline tuning of alpha and the ridges by replaying a logged history.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
   return bitewise::experiments::Run();
 }

@@ -15,7 +15,6 @@
 #include <vector>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
@@ -608,6 +607,6 @@ int main(int argc, char** argv) {
       "Simulated meals: post hoc vs context-only LinUCB failures on the 8 "
       "unseen foods (docs/experiments.md).");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
   return bitewise::experiments::Run();
 }

@@ -18,7 +18,6 @@
 #include <vector>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
@@ -118,7 +117,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Runs simulated bites for one user against a BanditService.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
   const std::string posthoc_kind = absl::GetFlag(FLAGS_posthoc);
   if (posthoc_kind != "logprob" && posthoc_kind != "prob") {
     std::fprintf(stderr, "--posthoc: expected logprob or prob, got %s\n",

@@ -10,7 +10,6 @@
 #include <string>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
@@ -100,7 +99,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Serves the table view and the researcher view of bitewise meals.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
 
   if (absl::GetFlag(FLAGS_hash_password)) {
     std::string password;

@@ -10,7 +10,6 @@
 #include <string>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
@@ -195,7 +194,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Runs bites for one user through the bitewise services.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
   const std::string confirm = absl::GetFlag(FLAGS_confirm);
   const std::string posthoc = absl::GetFlag(FLAGS_posthoc);
   if (confirm != "robot" && confirm != "operator") {

@@ -7,7 +7,6 @@
 #include <string>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "services/bandit/bandit_service.h"
@@ -27,8 +26,9 @@ ABSL_FLAG(std::string, db, "bitewise-bandit.db",
           "sqlite:PATH) or a PostgreSQL database (postgresql://USER@HOST/DB, "
           "password in ~/.pgpass or PGPASSWORD).");
 ABSL_FLAG(int, db_connections, 8,
-          "PostgreSQL: connections kept open for the store's work, and "
-          "as many again for users' locks across replicas.");
+          "PostgreSQL: connections kept open for the store's work (one "
+          "call holds one for its transaction), plus one for the health "
+          "check.");
 ABSL_FLAG(bool, sqlite_fsync, true,
           "fsync every commit (synchronous=FULL). false still survives a "
           "crash of the process, but not a power loss.");
@@ -127,7 +127,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "BanditService: per-user post hoc contextual bandits over gRPC.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
 
   absl::StatusOr<bitewise::bandit::BanditConfig> defaults = DefaultsFromFlags();
   if (!defaults.ok()) {

@@ -6,7 +6,6 @@
 #include <string>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "services/common/flags_usage.h"
@@ -59,7 +58,7 @@ int main(int argc, char** argv) {
       "HapticService: classifies food from the fork's force/torque trace "
       "(HapticNet) over gRPC.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
 
   bitewise::haptic::HapticPipelineOptions options;
   options.contact.tare_s = absl::GetFlag(FLAGS_tare_s);

@@ -5,7 +5,6 @@
 #include <string>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "services/common/flags_usage.h"
@@ -58,7 +57,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "PerceptionService: food detection and visual features over gRPC.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
 
   const std::string which = absl::GetFlag(FLAGS_featurizer);
   std::unique_ptr<bitewise::perception::Featurizer> featurizer;

@@ -4,7 +4,6 @@
 #include <string>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "services/common/flags_usage.h"
 #include "services/perception/spanet_onnx.h"
@@ -16,7 +15,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Writes an untrained SPANet with seeded weights as ONNX.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
   bitewise::perception::SpanetOnnxOptions options;
   options.seed = absl::GetFlag(FLAGS_seed);
   const std::string out = absl::GetFlag(FLAGS_out);

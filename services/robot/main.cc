@@ -9,7 +9,6 @@
 #include <vector>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
@@ -259,7 +258,7 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "RobotService: the JACO2 with the Forque, or the simulated world.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
 
   absl::StatusOr<bitewise::robot::RobotBackendOptions> options =
       OptionsFromFlags();

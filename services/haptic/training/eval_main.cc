@@ -17,7 +17,6 @@
 #include <vector>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/match.h"
 #include "absl/strings/str_cat.h"
@@ -106,7 +105,7 @@ int main(int argc, char** argv) {
       "Evaluates a HapticNet model on fresh simulated traces: the world "
       "model under several sensor conditions, and each trace story.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
   if (!(absl::GetFlag(FLAGS_force_limit_n) >= 0.0)) {
     std::fprintf(stderr,
                  "bitewise-haptic-eval: --force_limit_n must be 0 (none) or "

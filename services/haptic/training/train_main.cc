@@ -15,7 +15,6 @@
 #include <vector>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
@@ -407,7 +406,7 @@ int main(int argc, char** argv) {
       "traces per class from each of the world and piecewise stories, seed "
       "1, model to ./hapticnet.onnx.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
   if (!absl::GetFlag(FLAGS_ensemble_of).empty()) return AssembleEnsemble();
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
   // Checked before any trace is drawn.
