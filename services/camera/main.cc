@@ -1,13 +1,13 @@
 // bitewise-camera: the wrist camera's publisher (CameraService), run on the
 // computer the D415 is plugged into. Flags are parsed here and nowhere
 // else.
+#include <cstdint>
 #include <cstdio>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "absl/flags/flag.h"
-#include "absl/flags/parse.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_split.h"
@@ -79,6 +79,28 @@ absl::StatusOr<std::unique_ptr<bitewise::camera::FrameSource>> MakeSource() {
       "--source: unknown source \"", source, "\" (realsense, replay or sim)"));
 }
 
+// A frame goes out whole in one message: 3 bytes of colour and 2 of depth a
+// pixel, and a few hundred bytes more. At a size whose frame is over
+// --max_message_bytes the publisher would start and report SERVING, and
+// every GetFrame would fail with gRPC's "Sent message larger than max"; so
+// it does not start. (The replay and sim sources' sizes are their
+// recording's and the simulated camera's, 640x480 as shipped.)
+absl::Status FrameFitsAMessage() {
+  if (absl::GetFlag(FLAGS_source) != "realsense") return absl::OkStatus();
+  const int64_t width = absl::GetFlag(FLAGS_width);
+  const int64_t height = absl::GetFlag(FLAGS_height);
+  constexpr int64_t kFrameOverheadBytes = 1024;
+  const int64_t bytes = width * height * 5 + kFrameOverheadBytes;
+  const int64_t limit = absl::GetFlag(FLAGS_max_message_bytes);
+  if (width <= 0 || height <= 0 || bytes <= limit) return absl::OkStatus();
+  return absl::InvalidArgumentError(absl::StrCat(
+      "--width=", width, " --height=", height, ": a frame is about ", bytes,
+      " bytes, over --max_message_bytes (", limit,
+      "); give --max_message_bytes of at least ", bytes,
+      " here, to bitewise-robot (which sends the frame on) and to "
+      "bitewise-perception (which receives it)"));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -86,8 +108,12 @@ int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "CameraService: the wrist camera's newest RGB-D frame over gRPC.");
   bitewise::ShowOwnFlagsInHelp();
-  absl::ParseCommandLine(argc, argv);
+  bitewise::ParseFlagsOnly(argc, argv);
 
+  if (absl::Status fits = FrameFitsAMessage(); !fits.ok()) {
+    return bitewise::ReportFatal(kProgram, "cannot serve frames of that size",
+                                 fits);
+  }
   auto source = MakeSource();
   if (!source.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot open the camera",

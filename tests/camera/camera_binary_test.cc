@@ -1,7 +1,8 @@
 // The real bitewise-camera binary as a child process: on the RealSense
 // path (the fake SDK library) it serves the camera's frames to the
 // RobotService's client and records them when asked; a missing SDK stops
-// the start naming the library; SIGTERM drains.
+// the start naming the library, and so does a frame size over
+// --max_message_bytes; SIGTERM drains.
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -95,6 +96,52 @@ TEST(CameraBinaryTest, MissingSdkStopsTheStartNamingIt) {
   ASSERT_TRUE(WIFEXITED(*status)) << DescribeWaitStatus(*status);
   EXPECT_NE(WEXITSTATUS(*status), 0);
   EXPECT_THAT(child.log(), HasSubstr("/nonexistent/librealsense2.so.2.54"));
+}
+
+// 1280x720 frames are 4.6 MB, over the default 4 MiB message: the start
+// stops, naming the size and every binary whose limit must be raised.
+TEST(CameraBinaryTest, AFrameOverTheMessageLimitStopsTheStart) {
+  ChildProcess child;
+  ASSERT_NO_FATAL_FAILURE(Spawn(
+      child, {"--source=realsense",
+              absl::StrCat("--realsense_library=", BITEWISE_FAKE_REALSENSE),
+              "--width=1280", "--height=720", "--listen=127.0.0.1:0"}));
+  const absl::StatusOr<int> status = child.Wait(absl::Seconds(30));
+  ASSERT_TRUE(status.ok()) << status.status();
+  ASSERT_TRUE(WIFEXITED(*status)) << DescribeWaitStatus(*status);
+  EXPECT_EQ(WEXITSTATUS(*status), 1);
+  EXPECT_THAT(child.log(),
+              HasSubstr("--width=1280 --height=720: a frame is about 4609024 "
+                        "bytes, over --max_message_bytes (4194304); give "
+                        "--max_message_bytes of at least 4609024 here, to "
+                        "bitewise-robot"));
+}
+
+// With the limit raised as that message says, the frame is served whole.
+TEST(CameraBinaryTest, ServesA1280x720FrameUnderARaisedLimit) {
+  const absl::StatusOr<int> port = bitewise::testing::PickFreePort();
+  ASSERT_TRUE(port.ok());
+  ChildProcess child;
+  ASSERT_NO_FATAL_FAILURE(Spawn(
+      child, {"--source=realsense",
+              absl::StrCat("--realsense_library=", BITEWISE_FAKE_REALSENSE),
+              "--width=1280", "--height=720", "--max_message_bytes=4609024",
+              absl::StrCat("--listen=127.0.0.1:", *port)}));
+  const std::string address = absl::StrCat("127.0.0.1:", *port);
+  auto channel = MakeChannel(address, {});
+  ASSERT_TRUE(channel.ok());
+  const absl::Status serving =
+      WaitForServing(*channel, kService, absl::Seconds(30));
+  ASSERT_TRUE(serving.ok()) << serving << "; log:\n" << child.log();
+  robot::CameraClientOptions options;
+  options.address = address;
+  options.channel.max_message_bytes = 64 << 20;  // as bitewise-robot's
+  auto client = robot::CameraClient::Create(options);
+  ASSERT_TRUE(client.ok());
+  absl::StatusOr<domain::RgbdFrame> frame = (*client)->Capture();
+  ASSERT_TRUE(frame.ok()) << frame.status() << "; log:\n" << child.log();
+  EXPECT_EQ(frame->intrinsics.width, 1280);
+  EXPECT_EQ(frame->intrinsics.height, 720);
 }
 
 }  // namespace
