@@ -76,6 +76,11 @@ absl::StatusOr<std::unique_ptr<RobotBackend>> RobotBackend::MakeHardwareBackend(
   }
   backend->camera_ = options.hardware.camera;
   ASSIGN_OR_RETURN(backend->ft_, netft::NetFtRdtClient::Connect(options.ft));
+  // Homing is the SDK's own motion, which no force limit or watchdog of
+  // ours watches: it starts only once the sensor is fit to move an arm (as
+  // an Acquire would require), or the start stops naming what is wrong.
+  RETURN_IF_ERROR(backend->WaitForFitSensor(options.ft_start_timeout_s,
+                                            "move the JACO2 home"));
   RETURN_IF_ERROR(backend->StartRobot(backend->jaco2_arm_.get(),
                                       backend->hardware_judge_.get(),
                                       options.acquisition));
@@ -102,6 +107,22 @@ absl::Status RobotBackend::WaitForSimulatedStream(double timeout_s) {
           " after ", timeout_s, " s"));
     }
     absl::SleepFor(absl::Milliseconds(5));
+  }
+  return absl::OkStatus();
+}
+
+absl::Status RobotBackend::WaitForFitSensor(double timeout_s,
+                                            absl::string_view action) {
+  const double deadline_s = SteadyNowS() + timeout_s;
+  absl::Status live = ft_->CheckLive();
+  while (!live.ok()) {
+    if (SteadyNowS() > deadline_s) {
+      return absl::UnavailableError(
+          absl::StrCat("refusing to ", action, ": ", live.message(),
+                       " (waited ", timeout_s, " s for the F/T sensor)"));
+    }
+    absl::SleepFor(absl::Milliseconds(5));
+    live = ft_->CheckLive();
   }
   return absl::OkStatus();
 }

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 #include "absl/synchronization/mutex.h"
 #include "services/domain/rgbd_frame.h"
 #include "services/robot/jaco2/jaco2_arm.h"
@@ -73,7 +74,9 @@ struct RobotBackendOptions {
   // The F/T client. For kSim, host and port are the simulated box's.
   netft::NetFtRdtClientOptions ft;
   AcquisitionConfig acquisition;
-  // kSim: how long to wait for the first F/T data at start.
+  // How long to wait at start for the F/T data: kSim, for the first data
+  // and the counter's verdict; kJaco2, for a sensor fit to move the arm
+  // (NetFtRdtClient::CheckLive OK) before the JACO2 is sent home.
   double ft_start_timeout_s = 10.0;
 };
 
@@ -81,7 +84,9 @@ class RobotBackend {
  public:
   // Errors: INVALID_ARGUMENT for unknown foods or bad rates; the errors of
   // Jaco2Arm::Open, NetFtRdtClient::Connect and SimNetFtBox::Start;
-  // UNAVAILABLE if the simulated box sends nothing in ft_start_timeout_s.
+  // UNAVAILABLE if the simulated box sends nothing in ft_start_timeout_s,
+  // or if the real sensor is not fit to move the arm by then (nothing has
+  // moved: the JACO2 is sent home only after).
   // Create is MakeSimBackend or MakeHardwareBackend by options.kind.
   static absl::StatusOr<std::unique_ptr<RobotBackend>> Create(
       const RobotBackendOptions& options);
@@ -120,6 +125,9 @@ class RobotBackend {
   // Until the simulated box streams and its counter has a verdict;
   // UNAVAILABLE after `timeout_s`.
   absl::Status WaitForSimulatedStream(double timeout_s);
+  // OK once ft_->CheckLive() is; else UNAVAILABLE after timeout_s, saying
+  // "refusing to <action>" and the sensor's problem.
+  absl::Status WaitForFitSensor(double timeout_s, absl::string_view action);
   // Homes `arm` and builds the Robot over it and the F/T client.
   absl::Status StartRobot(Arm* arm, SuccessJudge* judge,
                           const AcquisitionConfig& acquisition);

@@ -21,6 +21,7 @@
 #include "services/common/rpc_environment.h"
 #include "services/common/server.h"
 #include "services/common/server_flags.h"
+#include "services/common/status_macros.h"
 #include "services/domain/steady_time.h"
 #include "services/robot/backend.h"
 #include "services/robot/camera_client.h"
@@ -133,26 +134,53 @@ absl::StatusOr<bitewise::robot::RobotBackendOptions> OptionsFromFlags() {
   // The simulated box shares two cores with everything else on a
   // development or CI machine, where a scheduling hiccup is not a sensor
   // fault; real hardware keeps the tight 100 ms.
-  const double silence_default_s = backend == "sim" ? 1.0 : 0.1;
+  const bool sim = backend == "sim";
+  const double silence_default_s = sim ? 1.0 : 0.1;
+  // Each of these is how long the arm may move on a sensor that has gone
+  // silent or reads nothing. On the JACO2 at most kMaxJaco2SensorTimeoutS:
+  // at the approach speed (0.15 m/s) that is under 4 cm moved blind, 1.25 cm
+  // in the descent; the defaults are 0.1 s. The simulated box, which shares
+  // two cores with everything else, may wait up to kMaxSimSensorTimeoutS.
+  constexpr double kMaxJaco2SensorTimeoutS = 0.25;
+  constexpr double kMaxSimSensorTimeoutS = 2.0;
+  const double max_timeout_s =
+      sim ? kMaxSimSensorTimeoutS : kMaxJaco2SensorTimeoutS;
+  // `zero`: what 0 means for the flag, or null where 0 is refused.
+  const auto check_timeout = [&](const char* flag, double value,
+                                 const char* zero) -> absl::Status {
+    if (std::isfinite(value) && value <= max_timeout_s &&
+        (value > 0.0 || (value == 0.0 && zero != nullptr))) {
+      return absl::OkStatus();
+    }
+    return absl::InvalidArgumentError(absl::StrCat(
+        "--", flag, " must be ",
+        zero != nullptr ? absl::StrCat("0 (", zero, ") or ") : "",
+        "above 0 and at most ", max_timeout_s, " s on --backend=", backend,
+        ", got ", value,
+        ": the arm may move that long on a sensor that is silent or reads "
+        "nothing"));
+  };
   const double silence_s = absl::GetFlag(FLAGS_ft_silence_timeout_s);
   const double watchdog_s = absl::GetFlag(FLAGS_watchdog_s);
-  if (silence_s < 0.0 || watchdog_s < 0.0) {
-    return absl::InvalidArgumentError(
-        "--ft_silence_timeout_s and --watchdog_s must be >= 0");
-  }
+  RETURN_IF_ERROR(
+      check_timeout("ft_silence_timeout_s", silence_s, "the default"));
+  RETURN_IF_ERROR(check_timeout("watchdog_s", watchdog_s, "the default"));
   options.ft.silence_timeout_s =
       silence_s > 0.0 ? silence_s : silence_default_s;
   options.ft.frozen_after_s = absl::GetFlag(FLAGS_ft_frozen_after_s);
-  if (!(options.ft.frozen_after_s >= 0.0) ||
-      !std::isfinite(options.ft.frozen_after_s)) {
-    return absl::InvalidArgumentError(
-        absl::StrCat("--ft_frozen_after_s must be >= 0 (0: off), got ",
-                     options.ft.frozen_after_s));
-  }
+  // 0 turns the frozen-gauge check off: in the simulation only.
+  RETURN_IF_ERROR(check_timeout("ft_frozen_after_s", options.ft.frozen_after_s,
+                                sim ? "off" : nullptr));
   options.acquisition.watchdog_timeout_s =
       watchdog_s > 0.0 ? watchdog_s : silence_default_s;
+  const double camera_height_m = absl::GetFlag(FLAGS_camera_height_m);
+  if (!(camera_height_m > 0.0 && camera_height_m <= 2.0)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("--camera_height_m must be above 0 and at most 2 m, got ",
+                     camera_height_m));
+  }
   options.acquisition.X_TaskCamera =
-      bitewise::robot::CameraLookingDown(absl::GetFlag(FLAGS_camera_height_m));
+      bitewise::robot::CameraLookingDown(camera_height_m);
   options.hardware.arm.sdk_library = absl::GetFlag(FLAGS_jaco2_sdk);
   const std::string transport = absl::GetFlag(FLAGS_jaco2_transport);
   if (transport == "usb") {
@@ -170,9 +198,16 @@ absl::StatusOr<bitewise::robot::RobotBackendOptions> OptionsFromFlags() {
         "--task_origin_in_base_m must be three comma-separated numbers");
   }
   for (int i = 0; i < 3; ++i) {
-    if (!absl::SimpleAtod(origin[i], &options.hardware.arm.p_BaseTask_m[i])) {
+    double& x = options.hardware.arm.p_BaseTask_m[i];
+    if (!absl::SimpleAtod(origin[i], &x)) {
       return absl::InvalidArgumentError(absl::StrCat(
           "--task_origin_in_base_m: \"", origin[i], "\" is not a number"));
+    }
+    // The JACO2 reaches 0.9 m from its base.
+    if (!(std::abs(x) <= 1.0)) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          "--task_origin_in_base_m: ", origin[i],
+          " m is not a finite number within 1 m of the arm's base"));
     }
   }
   options.hardware.static_load_threshold_n =

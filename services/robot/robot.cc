@@ -173,33 +173,17 @@ class Robot::Run {
     for (int k = 1; k <= ticks; ++k) {
       bool over_limit = false;
       RETURN_IF_ERROR(AwaitTick(phase, &over_limit));
-      // Extraction moves the tines out of the food, which unloads them: the
-      // limit guards the pushing phases only.
-      if (over_limit && (dry_run_ || phase != AcquirePhase::kExtract)) {
-        if (dry_run_ || phase != AcquirePhase::kDescend) {
-          RETURN_IF_ERROR(HaltArm());
-          absl::Status tripped = absl::AbortedError(absl::StrFormat(
-              "force %.1f N exceeded the %s%s limit of %.1f N during %s "
-              "(a collision?); arm halted",
-              ft_.last_force_n(), action_.name, dry_run_ ? " dry-run" : "",
-              action_.max_force_n, AcquirePhaseName(phase)));
-          tripped.SetPayload(kForceLimitTripPayload, absl::Cord("1"));
-          return tripped;
-        }
-        RETURN_IF_ERROR(HaltArm());
-        *force_stop = true;
-        return absl::OkStatus();
+      if (over_limit && LimitGuards(phase)) {
+        return OverLimit(phase, force_stop);
       }
       ForkPose next = Interpolate(start, goal, static_cast<double>(k) / ticks);
       RETURN_IF_ERROR(Send(next, velocity));
     }
-    // One more period so the arm reaches the last set point.
+    // One more period so the arm reaches the last set point; a force over
+    // the limit in it counts as in any other period of the phase.
     bool over_limit = false;
     RETURN_IF_ERROR(AwaitTick(phase, &over_limit));
-    if (over_limit && phase == AcquirePhase::kDescend) {
-      RETURN_IF_ERROR(HaltArm());
-      *force_stop = true;
-    }
+    if (over_limit && LimitGuards(phase)) return OverLimit(phase, force_stop);
     return absl::OkStatus();
   }
 
@@ -209,9 +193,46 @@ class Robot::Run {
     for (int k = 0; k < ticks; ++k) {
       bool over_limit = false;
       RETURN_IF_ERROR(AwaitTick(phase, &over_limit));
+      if (over_limit && LimitGuards(phase)) {
+        bool unused = false;
+        return OverLimit(phase, &unused);
+      }
       RETURN_IF_ERROR(Send(setpoint_, ForkVelocity()));
     }
     return absl::OkStatus();
+  }
+
+  // Extraction moves the tines out of the food, which unloads them: the
+  // limit guards the pushing phases only, and every phase of a dry run,
+  // which never means to touch anything.
+  bool LimitGuards(AcquirePhase phase) const {
+    return dry_run_ || phase != AcquirePhase::kExtract;
+  }
+
+  // The force went over the action's limit in `phase`: the arm halts. In a
+  // real descent that is the food pushing back, and the descent ends there
+  // (*force_stop); anywhere else, and in any phase of a dry run, it is a
+  // collision, and the Acquire ends ABORTED.
+  absl::Status OverLimit(AcquirePhase phase, bool* force_stop) {
+    if (!dry_run_ && phase == AcquirePhase::kDescend) {
+      if (absl::Status halted = HaltArm(); !halted.ok()) {
+        return absl::Status(
+            halted.code(),
+            absl::StrFormat("force %.1f N reached the %s limit of %.1f N "
+                            "during descend; halting the arm failed: %s",
+                            ft_.last_force_n(), action_.name,
+                            action_.max_force_n, halted.message()));
+      }
+      *force_stop = true;
+      return absl::OkStatus();
+    }
+    absl::Status tripped = absl::AbortedError(absl::StrFormat(
+        "force %.1f N exceeded the %s%s limit of %.1f N during %s "
+        "(a collision?); arm halted",
+        ft_.last_force_n(), action_.name, dry_run_ ? " dry-run" : "",
+        action_.max_force_n, AcquirePhaseName(phase)));
+    tripped.SetPayload(kForceLimitTripPayload, absl::Cord("1"));
+    return HaltFor(std::move(tripped));
   }
 
   // Waits for the next control period (waking at once on Stop), then reads
@@ -242,23 +263,20 @@ class Robot::Run {
     *over_limit = ft_.TakeMaxForceSinceLastCall() >= action_.max_force_n;
     const netft::StreamHealth health = robot_->ft_->Health();
     if (health.silent_for_s > config_.watchdog_timeout_s) {
-      RETURN_IF_ERROR(HaltArm());
-      return absl::UnavailableError(absl::StrFormat(
+      return HaltFor(absl::UnavailableError(absl::StrFormat(
           "%s: no F/T data for %.0f ms during %s (watchdog %.0f ms); arm "
           "stopped",
           robot_->ft_->name(), 1e3 * health.silent_for_s,
-          AcquirePhaseName(phase), 1e3 * config_.watchdog_timeout_s));
+          AcquirePhaseName(phase), 1e3 * config_.watchdog_timeout_s)));
     }
     // Wrong sensing stops the arm as surely as absent sensing: a fault
     // status word from the box, or a counter that cannot be trusted.
     if (absl::Status sane = robot_->ft_->CheckDuringMotion(); !sane.ok()) {
-      RETURN_IF_ERROR(HaltArm());
-      return absl::UnavailableError(absl::StrCat(
-          sane.message(), "; arm stopped during ", AcquirePhaseName(phase)));
+      return HaltFor(absl::UnavailableError(absl::StrCat(
+          sane.message(), "; arm stopped during ", AcquirePhaseName(phase))));
     }
     if (!Report(phase, /*force=*/false)) {
-      RETURN_IF_ERROR(HaltArm());
-      return absl::CancelledError("Acquire cancelled by the caller");
+      return HaltFor(absl::CancelledError("Acquire cancelled by the caller"));
     }
     return absl::OkStatus();
   }
@@ -274,6 +292,21 @@ class Robot::Run {
   absl::Status HaltArm() {
     std::lock_guard<std::mutex> lock(robot_->mu_);
     return robot_->arm_->Halt();
+  }
+
+  // Halts the arm and returns `why`, the reason it was halted. If the halt
+  // fails too, the reason (the sensor, the limit) still comes first, with
+  // its code and payloads, and the halt's error is added to its message.
+  absl::Status HaltFor(absl::Status why) {
+    const absl::Status halted = HaltArm();
+    if (halted.ok()) return why;
+    absl::Status both(why.code(),
+                      absl::StrCat(why.message(), "; halting the arm failed: ",
+                                   halted.message()));
+    why.ForEachPayload([&both](absl::string_view url, const absl::Cord& p) {
+      both.SetPayload(url, p);
+    });
+    return both;
   }
 
   absl::Status StoppedError() const {

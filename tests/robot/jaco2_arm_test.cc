@@ -7,15 +7,20 @@
 #include <dlfcn.h>
 
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <string>
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/robot/backend.h"
+#include "services/robot/sim/sim_netft_box.h"
 
 namespace bitewise::jaco2 {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 using ::testing::StartsWith;
 
 // The fake SDK's test hooks, resolved in the already loaded library.
@@ -163,6 +168,88 @@ TEST(Jaco2ArmTest, SdkErrorCodesNameTheCall) {
   // The API was opened, so it is closed again.
   EXPECT_THAT(sdk.Calls(), HasSubstr("CloseAPI;"));
   sdk.Reset();
+}
+
+// Halt's zero velocity is what brakes the arm: it is sent even when the
+// erase before it fails, and the error names the failed call.
+TEST(Jaco2ArmTest, HaltSendsZeroVelocityEvenWhenTheEraseFails) {
+  FakeSdk sdk(BITEWISE_FAKE_KINOVA_USB);
+  ASSERT_TRUE(sdk.ok());
+  sdk.Reset("EraseAllTrajectories");
+  auto arm = Jaco2Arm::Open(UsbOptions());
+  ASSERT_TRUE(arm.ok()) << arm.status();
+  const absl::Status halted = (*arm)->Halt();
+  EXPECT_FALSE(halted.ok());
+  EXPECT_THAT(halted.message(), HasSubstr("EraseAllTrajectories"));
+  kinova::TrajectoryPoint point{};
+  EXPECT_EQ(sdk.LastPoint(&point), 1);
+  EXPECT_EQ(point.Position.Type, kinova::kCartesianVelocity);
+  EXPECT_EQ(point.Position.CartesianPosition.X, 0.0f);
+  EXPECT_EQ(point.Position.CartesianPosition.Z, 0.0f);
+}
+
+// A NaN passes every clip (NaN > max is false); it never reaches the arm.
+TEST(Jaco2ArmTest, ANonFiniteCommandSendsNothing) {
+  FakeSdk sdk(BITEWISE_FAKE_KINOVA_USB);
+  ASSERT_TRUE(sdk.ok());
+  sdk.Reset();
+  auto arm = Jaco2Arm::Open(UsbOptions());
+  ASSERT_TRUE(arm.ok()) << arm.status();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  absl::StatusOr<robot::ForkPose> pose = (*arm)->MeasuredPose();
+  ASSERT_TRUE(pose.ok());
+  robot::ForkPose setpoint = *pose;
+  setpoint.p_TaskTip_m.x() = nan;
+  EXPECT_EQ((*arm)->Command(setpoint, robot::ForkVelocity()).code(),
+            absl::StatusCode::kInvalidArgument);
+  robot::ForkVelocity velocity;
+  velocity.yaw_rate_radps = nan;
+  EXPECT_EQ((*arm)->Command(*pose, velocity).code(),
+            absl::StatusCode::kInvalidArgument);
+  kinova::TrajectoryPoint point{};
+  EXPECT_EQ(sdk.LastPoint(&point), 0);
+}
+
+robot::RobotBackendOptions HardwareOptions() {
+  robot::RobotBackendOptions options;
+  options.kind = robot::BackendKind::kJaco2;
+  options.hardware.arm = UsbOptions();
+  options.ft.host = "127.0.0.1";
+  options.ft_start_timeout_s = 0.5;
+  return options;
+}
+
+// Homing is the SDK's own motion, watched by no force limit of ours: with a
+// sensor that sends nothing, the start stops naming it, and the arm has not
+// been sent home.
+TEST(Jaco2BackendTest, TheArmIsNotSentHomeWhileTheSensorIsSilent) {
+  FakeSdk sdk(BITEWISE_FAKE_KINOVA_USB);
+  ASSERT_TRUE(sdk.ok());
+  sdk.Reset();
+  robot::RobotBackendOptions options = HardwareOptions();
+  options.ft.port = 9;  // discard: nothing answers
+  auto backend = robot::RobotBackend::Create(options);
+  ASSERT_FALSE(backend.ok());
+  EXPECT_EQ(backend.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(backend.status().message(),
+              HasSubstr("refusing to move the JACO2 home: "));
+  EXPECT_THAT(backend.status().message(), HasSubstr("127.0.0.1:9"));
+  EXPECT_THAT(sdk.Calls(), Not(HasSubstr("MoveHome")));
+}
+
+// With a sensor that streams sane readings, the arm is sent home.
+TEST(Jaco2BackendTest, TheArmIsSentHomeOnceTheSensorIsFit) {
+  FakeSdk sdk(BITEWISE_FAKE_KINOVA_USB);
+  ASSERT_TRUE(sdk.ok());
+  sdk.Reset();
+  auto box = sim::SimNetFtBox::Start(sim::SimNetFtBoxOptions(), nullptr);
+  ASSERT_TRUE(box.ok()) << box.status();
+  robot::RobotBackendOptions options = HardwareOptions();
+  options.ft.port = (*box)->port();
+  options.ft_start_timeout_s = 10.0;
+  auto backend = robot::RobotBackend::Create(options);
+  ASSERT_TRUE(backend.ok()) << backend.status();
+  EXPECT_THAT(sdk.Calls(), HasSubstr("MoveHome"));
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <thread>
 #include <vector>
@@ -219,11 +220,25 @@ TEST_F(HandWrittenBoxTest, BiasCountAndStopRequestsAreExactBytes) {
 TEST(NetFtRdtClientOptionsTest, RejectsBadConfiguration) {
   NetFtRdtClientOptions options;
   options.host = "127.0.0.1";
-  options.counts_per_force = 0.0;
-  absl::Status status = NetFtRdtClient::Connect(options).status();
-  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
-  EXPECT_THAT(status.message(), HasSubstr("counts_per_force"));
+  absl::Status status;
+  // 0, a count coarser than 0.1 N, a range under 50 N (no force limit could
+  // be judged), infinite, NaN.
+  for (double counts :
+       {0.0, 5.0, 1e9, 1e300, std::numeric_limits<double>::infinity(),
+        std::numeric_limits<double>::quiet_NaN()}) {
+    options.counts_per_force = counts;
+    status = NetFtRdtClient::Connect(options).status();
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << counts;
+    EXPECT_THAT(status.message(),
+                HasSubstr("counts_per_force must be between 10 and"))
+        << counts;
+  }
   options.counts_per_force = 1e6;
+  options.counts_per_torque = std::numeric_limits<double>::infinity();
+  status = NetFtRdtClient::Connect(options).status();
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(status.message(), HasSubstr("counts_per_torque"));
+  options.counts_per_torque = 1e6;
   options.frozen_after_s = -0.1;
   status = NetFtRdtClient::Connect(options).status();
   EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);

@@ -8,12 +8,14 @@
 #include <grpcpp/client_context.h>
 #include <signal.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <fstream>
 #include <memory>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/strings/match.h"
@@ -64,7 +66,43 @@ TEST(RobotBinaryTest, RefusesANegativeFrozenReadingsThreshold) {
   ASSERT_TRUE(exit.ok()) << exit.status();
   EXPECT_NE(*exit, 0);
   EXPECT_THAT(child.log(),
-              HasSubstr("--ft_frozen_after_s must be >= 0 (0: off), got -0.5"));
+              HasSubstr("--ft_frozen_after_s must be 0 (off) or above 0 and "
+                        "at most 2 s on --backend=sim, got -0.5"));
+}
+
+// Flags that would let the JACO2 move longer on a silent or frozen sensor,
+// or toward a non-finite place, stop the start naming the flag (before any
+// SDK or sensor is opened).
+TEST(RobotBinaryTest, RefusesSettingsThatWouldLetTheArmMoveBlind) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"--watchdog_s=0.5",
+       "--watchdog_s must be 0 (the default) or above 0 and at most 0.25 s on "
+       "--backend=jaco2, got 0.5"},
+      {"--ft_silence_timeout_s=nan",
+       "--ft_silence_timeout_s must be 0 (the default) or above 0 and at most "
+       "0.25 s on --backend=jaco2, got nan"},
+      {"--ft_frozen_after_s=0",
+       "--ft_frozen_after_s must be above 0 and at most 0.25 s on "
+       "--backend=jaco2, got 0"},
+      {"--task_origin_in_base_m=0,nan,0",
+       "--task_origin_in_base_m: nan m is not a finite number within 1 m"},
+      {"--camera_height_m=-1",
+       "--camera_height_m must be above 0 and at most 2 m, got -1"},
+  };
+  for (const auto& [flag, message] : cases) {
+    testing::ChildProcess child;
+    const std::string log = ::testing::TempDir() + "/robot_blind_flag.log";
+    unlink(log.c_str());
+    ASSERT_TRUE(child
+                    .Start({BITEWISE_ROBOT_BINARY, "--listen=127.0.0.1:0",
+                            "--backend=jaco2", flag},
+                           log)
+                    .ok());
+    absl::StatusOr<int> exit = child.Wait(absl::Seconds(30));
+    ASSERT_TRUE(exit.ok()) << exit.status();
+    EXPECT_NE(*exit, 0) << flag;
+    EXPECT_THAT(child.log(), HasSubstr(message)) << flag;
+  }
 }
 
 TEST(RobotBinaryTest, SimulatedRobotEndToEnd) {

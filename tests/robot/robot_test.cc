@@ -191,6 +191,37 @@ TEST_F(RobotTest, AnyForceInADryRunStopsTheArm) {
   EXPECT_EQ(backend_->robot().Status().acquisitions_failed, 1);
 }
 
+// The settling hold after the extraction is part of a dry run too: a force
+// over the dry run's limit there stops it (the hold used to ignore it).
+TEST_F(RobotTest, AForceWhileADryRunSettlesStopsIt) {
+  Start({"carrot"});
+  AcquireOptions options;
+  options.dry_run = true;
+  bool pressed = false;
+  std::optional<ForkPose> last;
+  absl::StatusOr<AcquireOutcome> dry = backend_->robot().Acquire(
+      TargetOfItem(0), "TV0",
+      [&](const AcquireProgressEvent& event) {
+        if (event.phase != AcquirePhase::kExtract || pressed) return true;
+        // The extraction's move is over when the arm stands still between
+        // two reports: the settling hold has begun.
+        const ForkPose now = *backend_->sim_arm()->MeasuredPose();
+        if (last.has_value() &&
+            (now.p_TaskTip_m - last->p_TaskTip_m).norm() < 1e-5) {
+          pressed = true;
+          SetFault([](sim::SimNetFtFaults* f) { f->press_n = 15.0; });
+        }
+        last = now;
+        return true;
+      },
+      options);
+  ASSERT_TRUE(pressed) << "the dry run ended before its settling hold";
+  EXPECT_EQ(dry.status().code(), absl::StatusCode::kAborted) << dry.status();
+  EXPECT_THAT(dry.status().message(),
+              HasSubstr("TV0 dry-run limit of 10.0 N during extract"));
+  EXPECT_TRUE(ArmFrozen());
+}
+
 TEST_F(RobotTest, TheSeedDecidesTheOutcome) {
   std::vector<bool> first, second;
   for (std::vector<bool>* run : {&first, &second}) {

@@ -150,6 +150,16 @@ absl::Status Jaco2Arm::SendVelocityLocked(
 
 absl::Status Jaco2Arm::Command(const robot::ForkPose& setpoint,
                                const robot::ForkVelocity& velocity) {
+  // A NaN passes every clip below (NaN > max is false) and would reach the
+  // arm as a velocity; nothing is sent.
+  if (!setpoint.p_TaskTip_m.allFinite() || !std::isfinite(setpoint.yaw_rad) ||
+      !std::isfinite(setpoint.pitch_rad) ||
+      !velocity.v_TaskTip_mps.allFinite() ||
+      !std::isfinite(velocity.yaw_rate_radps) ||
+      !std::isfinite(velocity.pitch_rate_radps)) {
+    return absl::InvalidArgumentError(
+        "JACO2: set point or velocity not finite; nothing sent");
+  }
   absl::MutexLock lock(&mu_);
   ASSIGN_OR_RETURN(const robot::ForkPose measured, MeasuredPoseLocked());
   const double k = options_.position_gain_per_s;
@@ -178,8 +188,15 @@ absl::Status Jaco2Arm::Command(const robot::ForkPose& setpoint,
 absl::Status Jaco2Arm::Halt() {
   absl::MutexLock lock(&mu_);
   // Drop anything queued, then command zero velocity so the arm brakes now.
-  RETURN_IF_ERROR(Check("EraseAllTrajectories", api_.erase_all_trajectories()));
-  return SendVelocityLocked(kinova::CartesianInfo{});
+  // The zero velocity is sent even when the erase fails: it is what stops
+  // the arm.
+  absl::Status erased =
+      Check("EraseAllTrajectories", api_.erase_all_trajectories());
+  absl::Status zeroed = SendVelocityLocked(kinova::CartesianInfo{});
+  if (erased.ok()) return zeroed;
+  if (zeroed.ok()) return erased;
+  return absl::Status(erased.code(),
+                      absl::StrCat(erased.message(), "; ", zeroed.message()));
 }
 
 absl::StatusOr<ArmWrench> Jaco2Arm::EstimatedWrench() {

@@ -54,9 +54,23 @@ const char* StreamStateName(StreamState state) {
 
 absl::StatusOr<std::unique_ptr<NetFtRdtClient>> NetFtRdtClient::Connect(
     const NetFtRdtClientOptions& options) {
-  if (!(options.counts_per_force > 0.0) || !(options.counts_per_torque > 0.0)) {
+  // A reading is an int32 count over the calibration. The force's range
+  // must cover kMinForceRangeN, or a fork pressed harder than that reads a
+  // saturated count and no force limit (the largest is 25 N) could be
+  // judged; and a count must resolve at least kMaxForceStepN, a tenth of
+  // the 1 N contact threshold. (ATI ships 1,000,000 counts per N.)
+  constexpr double kMaxCount = 2147483647.0;
+  constexpr double kMinForceRangeN = 50.0;
+  constexpr double kMaxForceStepN = 0.1;
+  if (!(options.counts_per_force >= 1.0 / kMaxForceStepN &&
+        options.counts_per_force <= kMaxCount / kMinForceRangeN) ||
+      !(options.counts_per_torque > 0.0 &&
+        std::isfinite(options.counts_per_torque))) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "counts_per_force and counts_per_torque must be positive, got ",
+        "counts_per_force must be between ", 1.0 / kMaxForceStepN, " and ",
+        kMaxCount / kMinForceRangeN,
+        " (a count of at most 0.1 N; a range of at least 50 N), and "
+        "counts_per_torque positive and finite; got ",
         options.counts_per_force, " and ", options.counts_per_torque));
   }
   if (absl::Status valid = CounterClock::Validate(options.counter);
