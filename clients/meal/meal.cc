@@ -374,6 +374,11 @@ absl::Status Meal::Bite(std::optional<int> item_index) {
       return absl::FailedPreconditionError(
           absl::StrCat("meal ", state_.meal_id(), " is over"));
     }
+    // A STOP pressed before this bite was asked for does not cancel it (as
+    // the robot treats a Stop while idle); one pressed from here on does,
+    // until the arm is back (Acquire below).
+    stop_requested_ = false;
+    state_.set_stopped(false);
   }
   std::optional<v1::Frame> frame = plate_frame();
   if (!frame.has_value()) {
@@ -398,9 +403,7 @@ absl::Status Meal::Bite(std::optional<int> item_index) {
     item = state_.items(*chosen_index);
     state_.set_bite(state_.bite() + 1);
     state_.set_phase("biting");
-    state_.set_stopped(false);
     state_.clear_error();
-    stop_requested_ = false;
     update_.reset();
     // Earlier bites keep their outcome, not their force samples and steps,
     // so the state a UI is sent stays small through a long meal.
@@ -613,9 +616,39 @@ absl::StatusOr<v1::AcquireResult> Meal::Acquire(const v1::FoodItem& item,
       item.major_axis_angle_rad());
   *request.mutable_target()->mutable_bbox() = item.bbox();
   request.set_action(*number);
+  // A STOP pressed while this bite was being chosen (Featurize, Select: the
+  // arm idle, so the robot's Stop did not carry over) ends it here, before
+  // the arm moves.
+  bool stopped_before = false;
+  {
+    absl::MutexLock lock(&mu_);
+    stopped_before = stop_requested_;
+  }
+  if (stopped_before) {
+    const absl::Status stopped =
+        absl::AbortedError("Stopped by STOP before the arm moved");
+    Fail(mealpb::STEP_ACQUIRE, stopped, "stopped",
+         "nothing is learned from this bite (it stays pending)")
+        .IgnoreError();
+    return stopped;
+  }
   Emit(mealpb::STEP_ACQUIRE, mealpb::STEP_STATE_STARTED, "The arm is moving.");
+  // And one pressed between that check and the robot's start (its Stop
+  // found the arm idle) is sent again at the first progress report, which
+  // the robot sends as the approach begins.
+  bool stop_sent_again = false;
   absl::StatusOr<v1::AcquireResult> result = clients_->robot.Acquire(
       request, [&](const v1::AcquireProgress& progress) {
+        bool stop_now = false;
+        {
+          absl::MutexLock lock(&mu_);
+          stop_now = stop_requested_ && !stop_sent_again;
+        }
+        if (stop_now) {
+          stop_sent_again = true;
+          clients_->robot.Stop()
+              .IgnoreError();  // the Acquire says how it ended
+        }
         if (!progress.has_result()) EmitProgress(progress);
       });
   if (!result.ok()) {

@@ -879,6 +879,66 @@ TEST_F(MealTest, StopDuringTheDescentEndsTheBiteAsStopped) {
   EXPECT_EQ(meal->state().current().learned(), "learned");
 }
 
+// STOP pressed after a bite was asked for, while it is being chosen (the
+// arm idle, so the robot's own Stop finds nothing to stop), ends the bite
+// before the arm moves.
+TEST_F(MealTest, StopWhileTheBiteIsChosenEndsItBeforeTheArmMoves) {
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  std::optional<absl::StatusOr<v1::StopResponse>> stopped;
+  listener_.SetHook([&](const mealpb::BiteEvent& e) {
+    if (e.step() == mealpb::STEP_CHOOSE && !stopped.has_value()) {
+      stopped = meal->Stop();
+    }
+  });
+  EXPECT_THAT(meal->Bite(std::nullopt),
+              StatusIs(absl::StatusCode::kAborted,
+                       HasSubstr("Stopped by STOP before the arm moved")));
+  listener_.SetHook(nullptr);
+  ASSERT_TRUE(stopped.has_value());
+  ASSERT_OK(stopped->status());
+  EXPECT_FALSE((*stopped)->was_moving());
+  const mealpb::MealState state = meal->state();
+  EXPECT_TRUE(state.stopped());
+  EXPECT_EQ(state.current().outcome(), "stopped");
+  EXPECT_EQ(state.current().learned(), "not learned");
+  EXPECT_EQ(state.summary().attempts(), 0);
+  for (const mealpb::BiteEvent& step : state.current().steps()) {
+    EXPECT_NE(step.state(), mealpb::STEP_STATE_PROGRESS) << "the arm moved";
+  }
+  ASSERT_EQ(Events().size(), 1u);
+  EXPECT_FALSE(Events()[0].completed());
+  // The next bite is not cancelled by that STOP.
+  ASSERT_OK(meal->LookAtPlate());
+  ASSERT_OK(meal->Bite(std::nullopt));
+  EXPECT_EQ(meal->state().current().learned(), "learned");
+}
+
+// STOP pressed as the arm is told to start (the robot still idle, so its
+// Stop does not carry over) is sent again at the robot's first progress
+// report: the bite ends stopped in its approach.
+TEST_F(MealTest, StopAsTheArmStartsIsSentAgainAndStopsIt) {
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  std::optional<absl::StatusOr<v1::StopResponse>> stopped;
+  listener_.SetHook([&](const mealpb::BiteEvent& e) {
+    if (e.step() == mealpb::STEP_ACQUIRE &&
+        e.state() == mealpb::STEP_STATE_STARTED && !stopped.has_value()) {
+      stopped = meal->Stop();
+    }
+  });
+  EXPECT_THAT(meal->Bite(std::nullopt),
+              StatusIs(absl::StatusCode::kAborted, ::testing::_));
+  listener_.SetHook(nullptr);
+  ASSERT_TRUE(stopped.has_value());
+  ASSERT_OK(stopped->status());
+  EXPECT_FALSE((*stopped)->was_moving());
+  const mealpb::MealState state = meal->state();
+  EXPECT_EQ(state.current().outcome(), "stopped");
+  EXPECT_THAT(state.message(), HasSubstr("Stopped by STOP during approach"));
+  EXPECT_EQ(state.summary().attempts(), 0);
+}
+
 TEST_F(MealTest, ASecondBiteWhileOneRunsIsRefused) {
   auto meal = NewMeal();
   ASSERT_OK(meal->LookAtPlate());
