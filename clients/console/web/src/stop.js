@@ -5,6 +5,10 @@
 
 import { postJSON } from './api.js';
 
+// With no reply this long, the page tells the person to use the robot's own
+// emergency stop (the request stays open, and its reply still shows).
+export const STOP_NO_REPLY_MS = 2000;
+
 export function initStop(button, status) {
   let pressSent = false; // this pointer press already sent its POST
   let latest = 0; // the newest press owns the status line
@@ -17,6 +21,13 @@ export function initStop(button, status) {
     status.className = 'stop-status sending';
     status.textContent = 'Stopping…';
     delete status.dataset.wasMoving;
+    const noReply = setTimeout(() => {
+      if (press !== latest) return;
+      status.className = 'stop-status failed';
+      status.textContent =
+        `No reply to STOP after ${STOP_NO_REPLY_MS / 1000} s: use the robot's own emergency stop. ` +
+        '(Still waiting for the console.)';
+    }, STOP_NO_REPLY_MS);
     try {
       // High priority, and keepalive: the request goes out even if the page is
       // being closed or reloaded at that moment.
@@ -38,6 +49,7 @@ export function initStop(button, status) {
       status.className = 'stop-status failed';
       status.textContent = `STOP did not go through: ${err.message}. Use the robot's own emergency stop.`;
     } finally {
+      clearTimeout(noReply);
       if (press === latest) button.removeAttribute('aria-busy');
     }
   }

@@ -296,6 +296,29 @@ describe('table view', { skip: SKIP }, () => {
     await checkAxe(page, 'the summary');
   });
 
+  it('tells the person to use the emergency stop when STOP has no reply', async () => {
+    // The console's reply is held back 3 s (the page's fetch, wrapped): a
+    // console that cannot answer, as a loaded or hung one would.
+    await page.evaluate(() => {
+      const real = window.fetch;
+      window.__realFetch = real;
+      window.fetch = (input, init) =>
+        String(input).endsWith('/api/stop')
+          ? new Promise((resolve) => setTimeout(resolve, 3000)).then(() => real(input, init))
+          : real(input, init);
+    });
+    await page.click('#stop-button');
+    await waitIn(page, () => /^No reply to STOP after 2 s: use the robot's own emergency stop/.test(
+      document.querySelector('#stop-status').textContent), null, 10000);
+    assert.equal(await page.$eval('#stop-status', (e) => e.className), 'stop-status failed');
+    // The late reply still shows.
+    await waitIn(page, () => /^Stopped: the arm was not moving/.test(
+      document.querySelector('#stop-status').textContent), null, 10000);
+    await page.evaluate(() => {
+      window.fetch = window.__realFetch;
+    });
+  });
+
   it('left the console only for its own origin, with no page errors', async () => {
     assert.deepEqual(record.offOrigin, []);
     assert.deepEqual(record.errors, []);
