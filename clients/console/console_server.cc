@@ -113,6 +113,16 @@ bool IsLoopback(const std::string& host) {
   return false;
 }
 
+bool HostIsLoopback(absl::string_view host_header) {
+  std::string host(host_header);
+  if (absl::StartsWith(host, "[")) {
+    host = host.substr(0, host.find(']') + 1);  // "[::1]:8080" -> "[::1]"
+  } else if (const size_t colon = host.rfind(':'); colon != std::string::npos) {
+    host = host.substr(0, colon);
+  }
+  return !host.empty() && IsLoopback(host);
+}
+
 absl::StatusOr<std::unique_ptr<ConsoleServer>> ConsoleServer::Start(
     ConsoleServerOptions options, MealHost* host,
     meals::ServiceClients* clients) {
@@ -194,7 +204,21 @@ void ConsoleServer::Route() {
   // The caller's role, or a reply already written (401).
   auto authenticate = [access](const httplib::Request& req,
                                httplib::Response& res) -> std::optional<Role> {
-    if (access == nullptr) return Role::kLocal;
+    if (access == nullptr) {
+      // Every caller is `local` here, and a page from another site could be
+      // one: its name re-pointed at 127.0.0.1 (DNS rebinding), its Origin
+      // and the Host it sends agree. That Host names the site, not a
+      // loopback address, so only loopback names are answered.
+      if (!HostIsLoopback(req.get_header_value("Host"))) {
+        Error(res, absl::PermissionDeniedError(absl::StrCat(
+                       "without an access file the console answers only "
+                       "requests addressed to localhost, 127.x.x.x or [::1] "
+                       "(Host: \"",
+                       req.get_header_value("Host").substr(0, 100), "\")")));
+        return std::nullopt;
+      }
+      return Role::kLocal;
+    }
     const std::string header = req.get_header_value("Authorization");
     std::string decoded;
     absl::string_view encoded = header;

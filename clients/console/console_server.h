@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "absl/status/statusor.h"
+#include "absl/strings/string_view.h"
 #include "clients/console/access_list.h"
 #include "clients/console/meal_host.h"
 #include "clients/meal/service_clients.h"
@@ -58,6 +59,12 @@ struct ConsoleServerOptions {
 
 // True for 127.0.0.0/8, ::1 and "localhost".
 bool IsLoopback(const std::string& host);
+
+// Whether an HTTP Host header ("name", "name:port", "[v6]:port") names a
+// loopback host (IsLoopback). Without an access file only such requests are
+// answered: a page served by another name may have re-pointed that name at
+// 127.0.0.1 (DNS rebinding).
+bool HostIsLoopback(absl::string_view host_header);
 
 class ConsoleServer {
  public:

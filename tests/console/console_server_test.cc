@@ -273,6 +273,39 @@ TEST_F(ConsoleServerTest, TwoBrowsersSeeTheSameMeal) {
   }
 }
 
+TEST(HostIsLoopbackTest, OnlyLoopbackNamesWithOrWithoutAPort) {
+  EXPECT_TRUE(HostIsLoopback("127.0.0.1:8080"));
+  EXPECT_TRUE(HostIsLoopback("127.0.0.1"));
+  EXPECT_TRUE(HostIsLoopback("localhost:8080"));
+  EXPECT_TRUE(HostIsLoopback("[::1]:8080"));
+  EXPECT_FALSE(HostIsLoopback(""));
+  EXPECT_FALSE(HostIsLoopback("evil.example:8080"));
+  EXPECT_FALSE(HostIsLoopback("127.0.0.1.evil.example:8080"));
+  EXPECT_FALSE(HostIsLoopback("[::2]:8080"));
+}
+
+// Without an access file every caller is `local`: a page whose own name was
+// re-pointed at 127.0.0.1 (DNS rebinding) sends that name as Host, and is
+// refused, for reading and for acting alike.
+TEST_F(ConsoleServerTest, WithoutAnAccessFileOnlyLoopbackNamesAreAnswered) {
+  StartServer();
+  const std::string rebound = absl::StrCat("evil.example:", server_->port());
+  httplib::Headers post = kPost;
+  post.emplace("Host", rebound);
+  post.emplace("Origin", absl::StrCat("http://", rebound));
+  auto started = Client().Post("/api/meals", post, "{}", "application/json");
+  ASSERT_TRUE(started);
+  EXPECT_EQ(started->status, 403);
+  EXPECT_THAT(started->body, HasSubstr("addressed to localhost, 127.x.x.x or "
+                                       "[::1] (Host: \\\"evil.example"));
+  auto read = Client().Get("/api/people", {{"Host", rebound}});
+  ASSERT_TRUE(read);
+  EXPECT_EQ(read->status, 403);
+  auto own = Client().Get("/api/people");
+  ASSERT_TRUE(own);
+  EXPECT_EQ(own->status, 200) << own->body;
+}
+
 TEST_F(ConsoleServerTest, StopAnswersWithOrWithoutAMeal) {
   StartServer();
   auto stopped = Client().Post("/api/stop", kPost, "", "application/json");
