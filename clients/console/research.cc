@@ -3,6 +3,8 @@
 #include <google/protobuf/util/time_util.h>
 
 #include <map>
+#include <string>
+#include <string_view>
 
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
@@ -25,10 +27,19 @@ std::string Doubles(const google::protobuf::RepeatedField<double>& values) {
   });
 }
 
-// A CSV cell: quoted when it holds a separator, a quote or a line break.
+// A CSV cell of text: quoted when it holds a separator, a quote or a line
+// break. Text that a spreadsheet would run as a formula (it begins with =,
+// +, -, @, a tab or a carriage return: a meal id given on the orchestrator's
+// command line can be anything) gets a leading ' and is quoted, so that
+// opening events.csv shows it instead of running it.
 std::string Cell(const std::string& text) {
-  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
-  std::string quoted = "\"";
+  const bool formula =
+      !text.empty() &&
+      std::string_view("=+-@\t\r").find(text[0]) != std::string_view::npos;
+  if (!formula && text.find_first_of(",\"\r\n") == std::string::npos) {
+    return text;
+  }
+  std::string quoted = formula ? "\"'" : "\"";
   for (char c : text) {
     if (c == '"') quoted += '"';
     quoted += c;

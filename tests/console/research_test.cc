@@ -98,6 +98,17 @@ TEST(EventsCsvTest, OneRowPerEventWithCellsQuotedWhereTheyMustBe) {
             header + ",context\r\n" + done_row + ",0.33333333333333331;2\r\n" +
                 pending_row + ",\r\n");
   EXPECT_EQ(EventsCsv({}, false), header + "\r\n");
+
+  // Text a spreadsheet would run as a formula is shown, not run.
+  v1::Event formula = MakeEvent("9", "=HYPERLINK(\"http://x/\",\"open\")",
+                                false, 0.0, 1700000003);
+  formula.set_item_label("-1+2");
+  formula.set_propensity(1.0);
+  EXPECT_EQ(EventsCsv({formula}, false),
+            header +
+                "\r\n9,rita,\"'=HYPERLINK(\"\"http://x/"
+                "\"\",\"\"open\"\")\",\"'-1+2\","
+                "0,1,false,0,,0,2023-11-14T22:13:23Z,\r\n");
 }
 
 // A person's events in a real BanditService (of the four services).
