@@ -7,6 +7,7 @@
 #include <functional>
 #include <utility>
 
+#include "absl/strings/ascii.h"
 #include "absl/strings/escaping.h"
 #include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
@@ -531,24 +532,33 @@ void ConsoleServer::Route() {
         Json(res, *page);
       }));
 
-  http.Get(person + "/events.csv",
-           person_route([this, flag](const httplib::Request& req,
-                                     httplib::Response& res,
-                                     const std::string& user) {
-             const std::string meal = req.get_param_value("meal_id");
-             bool withheld = false;
-             const bool contexts = flag(req, "contexts");
-             absl::StatusOr<std::vector<v1::Event>> events =
-                 AllEvents(*research_, user, meal, contexts, &withheld);
-             if (!events.ok()) return Error(res, events.status());
-             res.set_header("Cache-Control", "no-store");
-             res.set_header(
-                 "Content-Disposition",
-                 absl::StrCat("attachment; filename=\"", user,
-                              meal.empty() ? "" : "-", meal, "-events.csv\""));
-             res.set_content(EventsCsv(*events, contexts && !withheld),
-                             "text/csv; charset=utf-8");
-           }));
+  http.Get(
+      person + "/events.csv",
+      person_route([this, flag](const httplib::Request& req,
+                                httplib::Response& res,
+                                const std::string& user) {
+        const std::string meal = req.get_param_value("meal_id");
+        bool withheld = false;
+        const bool contexts = flag(req, "contexts");
+        absl::StatusOr<std::vector<v1::Event>> events =
+            AllEvents(*research_, user, meal, contexts, &withheld);
+        if (!events.ok()) return Error(res, events.status());
+        res.set_header("Cache-Control", "no-store");
+        // The file's name from the ids, with anything but letters,
+        // digits, '.', '_' and '-' (a quote would end the name) as '_'.
+        std::string name =
+            absl::StrCat(user, meal.empty() ? "" : "-", meal, "-events.csv");
+        for (char& c : name) {
+          if (!absl::ascii_isalnum(static_cast<unsigned char>(c)) && c != '.' &&
+              c != '_' && c != '-') {
+            c = '_';
+          }
+        }
+        res.set_header("Content-Disposition",
+                       absl::StrCat("attachment; filename=\"", name, "\""));
+        res.set_content(EventsCsv(*events, contexts && !withheld),
+                        "text/csv; charset=utf-8");
+      }));
 
   http.Get(person + "/model",
            person_route([this](const httplib::Request&, httplib::Response& res,

@@ -355,6 +355,13 @@ TEST_F(ConsoleServerTest, ResearchersNumbersAreListEvents) {
   EXPECT_THAT(rows[0], ::testing::StartsWith("event_id,user_id,meal_id"));
   EXPECT_THAT(rows[1], HasSubstr(",rita,lunch,"));
   EXPECT_THAT(rows[0], ::testing::Not(HasSubstr("context")));
+  EXPECT_EQ(csv->get_header_value("Content-Disposition"),
+            "attachment; filename=\"rita-lunch-events.csv\"");
+  // A quote in the meal id cannot end the file's name early.
+  auto quoted = client.Get("/api/people/rita/events.csv?meal_id=a%22b%3Bc");
+  ASSERT_TRUE(quoted);
+  EXPECT_EQ(quoted->get_header_value("Content-Disposition"),
+            "attachment; filename=\"rita-a_b_c-events.csv\"");
   auto with_contexts =
       client.Get("/api/people/rita/events.csv?meal_id=lunch&contexts=1");
   ASSERT_TRUE(with_contexts);
