@@ -50,6 +50,32 @@ TEST(ContactDetectorTest, FindsRampStartAndOffsetExactly) {
   }
 }
 
+// A trace that packs 150,000 samples into 0.15 ms (a valid average rate
+// over its 20 s) under a force the rising edge walks back through. The
+// edge's smoothing window is found by binary search; walking over the
+// window at every step of the edge, this trace took 15 s, 19 ms now (once,
+// 2026-12-07; speed is not asserted here). The edge reaches back through
+// the packed samples: its line, extrapolated to zero force, starts before
+// them.
+TEST(ContactDetectorTest, AFewMillisecondsPackedWithSamplesCostsLittle) {
+  std::vector<TimedWrench> trace;
+  auto add = [&](double t_s, double fz_n) {
+    TimedWrench s;
+    s.t_s = t_s;
+    Channel(s.wrench, 2) = fz_n;
+    trace.push_back(s);
+  };
+  for (int i = 0; i < 50; ++i) add(i * 1e-3, 0.0);
+  for (int i = 0; i < 150000; ++i) add(0.0505 + i * 1e-9, 0.8);
+  for (int i = 0; i < 100; ++i) add(0.0515 + i * 1e-3, 5.0);
+  add(20.0, 5.0);
+  absl::StatusOr<ContactResult> contact =
+      ContactDetector(ContactDetectorOptions()).Detect(trace);
+  ASSERT_TRUE(contact.ok()) << contact.status();
+  EXPECT_LT(contact->contact_time_s, 0.0505);
+  EXPECT_GT(contact->contact_time_s, 0.045);
+}
+
 TEST(ContactDetectorTest, SingleSampleSpikeIsNotContact) {
   auto trace = Ramp(0.3, 500.0, 1000.0, 0.5, {});
   // A 5 N spike in free motion, one sample long.

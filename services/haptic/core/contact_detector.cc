@@ -108,11 +108,28 @@ absl::StatusOr<ContactResult> ContactDetector::Detect(
   // release_n; then forward to the first raw sample above it.
   std::vector<double> prefix(n + 1, 0.0);
   for (int i = 0; i < n; ++i) prefix[i + 1] = prefix[i] + magnitude[i];
+  // The window's ends by binary search over the (strictly increasing)
+  // timestamps, with the same comparisons as a walk: a trace that packs
+  // many samples into a few milliseconds costs a logarithm, not a walk
+  // over them at every step of the edge.
   auto smoothed = [&](int i) {
-    int lo = i, hi = i;
-    while (lo > 0 && trace[i].t_s - trace[lo - 1].t_s <= kSmoothingS) --lo;
-    while (hi + 1 < n && trace[hi + 1].t_s - trace[i].t_s <= kSmoothingS) {
-      ++hi;
+    int lo = 0, lo_end = i;  // first j in [0, i] within kSmoothingS of i
+    while (lo < lo_end) {
+      const int mid = lo + (lo_end - lo) / 2;
+      if (trace[i].t_s - trace[mid].t_s <= kSmoothingS) {
+        lo_end = mid;
+      } else {
+        lo = mid + 1;
+      }
+    }
+    int hi = i, hi_end = n - 1;  // last j in [i, n) within kSmoothingS of i
+    while (hi < hi_end) {
+      const int mid = hi + (hi_end - hi + 1) / 2;
+      if (trace[mid].t_s - trace[i].t_s <= kSmoothingS) {
+        hi = mid;
+      } else {
+        hi_end = mid - 1;
+      }
     }
     return (prefix[hi + 1] - prefix[lo]) / (hi - lo + 1);
   };
