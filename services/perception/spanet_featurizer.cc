@@ -116,6 +116,12 @@ absl::StatusOr<std::unique_ptr<SpanetFeaturizer>> SpanetFeaturizer::Load(
         absl::StrCat("SPANet model file \"", model_path,
                      "\" does not have SPANet's interface: ", probe.message()));
   }
+  if (!cv::checkRange(features) || !cv::checkRange(scores)) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("SPANet model file \"", model_path,
+                     "\" gives outputs that are not finite numbers on a black "
+                     "image (weights that are NaN or infinite?)"));
+  }
   return featurizer;
 }
 
@@ -151,13 +157,29 @@ absl::Status SpanetFeaturizer::Run(const cv::Mat& canvas, FoodLocation location,
   return absl::OkStatus();
 }
 
+absl::Status SpanetFeaturizer::RunFinite(const cv::Mat& canvas,
+                                         FoodLocation location,
+                                         cv::Mat* features,
+                                         cv::Mat* scores) const {
+  RETURN_IF_ERROR(Run(canvas, location, features, scores));
+  // A model that loaded (its probe was finite) can still give NaN or
+  // infinity on some crop; a context that is not a number is the model's
+  // fault, never sent on.
+  if (!cv::checkRange(*features) || !cv::checkRange(*scores)) {
+    return absl::InternalError(
+        "SPANet gave outputs that are not finite numbers for this crop; the "
+        "model is at fault");
+  }
+  return absl::OkStatus();
+}
+
 absl::StatusOr<Features> SpanetFeaturizer::Featurize(
     const DecodedFrame& frame, const PixelBox& box,
     FoodLocation location) const {
   RETURN_IF_ERROR(ValidateBox(box, frame.width(), frame.height()));
   const cv::Mat crop = frame.rgb(cv::Rect(box.x, box.y, box.width, box.height));
   cv::Mat features, scores;
-  RETURN_IF_ERROR(Run(SpanetCanvas(crop), location, &features, &scores));
+  RETURN_IF_ERROR(RunFinite(SpanetCanvas(crop), location, &features, &scores));
   Features out;
   out.context.reserve(kSpanetFeatureDim);
   // OpenCV's ReLU yields -0 for negative inputs; report a plain 0.

@@ -72,6 +72,9 @@ class SpanetFeaturizer final : public Featurizer {
   // Runs the network on one canvas; features and scores as float rows.
   absl::Status Run(const cv::Mat& canvas, FoodLocation location,
                    cv::Mat* features, cv::Mat* scores) const;
+  // Run, and INTERNAL when an output is not a finite number.
+  absl::Status RunFinite(const cv::Mat& canvas, FoodLocation location,
+                         cv::Mat* features, cv::Mat* scores) const;
 
   const double context_msn_;
   mutable absl::Mutex mu_;

@@ -6,8 +6,10 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <string>
 #include <utility>
@@ -234,6 +236,38 @@ absl::Status LoadEdited(const std::string& name,
     model.SerializeToOstream(&out);
   }
   return SpanetFeaturizer::Load(path).status();
+}
+
+// A model whose weights are not numbers loads as ONNX and has SPANet's
+// interface, but every context it gave would be NaN: the start stops. (The
+// build's model with the first value of each weight set to NaN.)
+TEST(SpanetLoadTest, NonFiniteWeightsAreRefusedAtLoad) {
+  onnx::ModelProto model;
+  {
+    std::ifstream in(BITEWISE_SPANET_MODEL, std::ios::binary);
+    ASSERT_TRUE(model.ParseFromIstream(&in));
+  }
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (onnx::TensorProto& w : *model.mutable_graph()->mutable_initializer()) {
+    if (w.data_type() != onnx::TensorProto::FLOAT) continue;
+    if (w.raw_data().size() >= sizeof(float)) {
+      std::memcpy(&(*w.mutable_raw_data())[0], &nan, sizeof(float));
+    } else if (w.float_data_size() > 0) {
+      w.set_float_data(0, nan);
+    }
+  }
+  const std::string path = TempPath("nan.onnx");
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    ASSERT_TRUE(model.SerializeToOstream(&out));
+  }
+  model.Clear();
+  auto loaded = SpanetFeaturizer::Load(path);
+  std::remove(path.c_str());
+  ASSERT_FALSE(loaded.ok());
+  EXPECT_EQ(loaded.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(loaded.status().message()),
+              HasSubstr("nan.onnx\" gives outputs that are not finite"));
 }
 
 TEST(SpanetLoadTest, GraphExportedInTrainingModeIsRefusedNamingTheNode) {
