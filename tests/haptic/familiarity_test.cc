@@ -165,8 +165,22 @@ TEST(FamiliarityTest, AMalformedFileIsAClearErrorNamingTheFileAndLine) {
       bad_threshold.find('\n', bad_threshold.find("threshold ")) -
           bad_threshold.find("threshold "),
       "threshold 7");
+  // A precision matrix of zeros: every distance 0, every trace familiar.
+  std::string zero_precision = text;
+  {
+    const size_t at = zero_precision.find("\nprecision 0 ") + 1;
+    const size_t end = zero_precision.find('\n', at);
+    std::string zeros = "precision 0";
+    for (int i = 0; i < kFamiliarityFeatures * kFamiliarityFeatures; ++i) {
+      zeros += " 0";
+    }
+    zero_precision.replace(at, end - at, zeros);
+  }
   const std::vector<Case> cases = {
       {"", "line 1: the file is empty"},
+      {zero_precision,
+       "line 6: the precision matrix of class 0 is not symmetric positive "
+       "definite"},
       {"hello\n",
        "line 1: expected \"bitewise-haptic-familiarity 1\" or "
        "\"bitewise-haptic-familiarity 2\""},

@@ -93,6 +93,36 @@ double SquaredMahalanobis(const FamiliarityComponent& cls,
   return std::max(0.0, sum);
 }
 
+// Whether the row-major `m` is symmetric (to a relative 1e-6: it was
+// written as the inverse of a covariance) and positive definite (its
+// Cholesky factor exists). A precision matrix that is not gives distances
+// that are 0 or negative, and every trace would read as familiar.
+bool IsSymmetricPositiveDefinite(const std::array<double, kD * kD>& m) {
+  for (int i = 0; i < kD; ++i) {
+    for (int j = 0; j < i; ++j) {
+      const double a = m[i * kD + j], b = m[j * kD + i];
+      if (std::abs(a - b) >
+          1e-6 * std::max({std::abs(a), std::abs(b), std::abs(m[i * kD + i]),
+                           std::abs(m[j * kD + j])})) {
+        return false;
+      }
+    }
+  }
+  std::array<double, kD * kD> l{};
+  for (int j = 0; j < kD; ++j) {
+    double diagonal = m[j * kD + j];
+    for (int k = 0; k < j; ++k) diagonal -= l[j * kD + k] * l[j * kD + k];
+    if (!(diagonal > 0.0)) return false;
+    l[j * kD + j] = std::sqrt(diagonal);
+    for (int i = j + 1; i < kD; ++i) {
+      double sum = m[i * kD + j];
+      for (int k = 0; k < j; ++k) sum -= l[i * kD + k] * l[j * kD + k];
+      l[i * kD + j] = sum / l[j * kD + j];
+    }
+  }
+  return true;
+}
+
 absl::Status ParseError(const std::string& source, int line,
                         const std::string& what) {
   return absl::InvalidArgumentError(
@@ -546,6 +576,15 @@ absl::StatusOr<FamiliarityModel> FamiliarityModel::FromText(
                                       g.precision.data());
         !s.ok()) {
       return s;
+    }
+    if (!IsSymmetricPositiveDefinite(g.precision)) {
+      return ParseError(
+          source, mean_line + 1,
+          absl::StrCat(
+              "the precision matrix of class ", g.label,
+              g.source.empty() ? "" : absl::StrCat(" (", g.source, ")"),
+              " is not symmetric positive definite, so distances "
+              "from it would mean nothing"));
     }
     seen[g.label] = true;
     model.components_.push_back(std::move(g));
