@@ -120,6 +120,19 @@ absl::StatusOr<cv::Mat> DecodeRgb(const FrameBytes& bytes, int width,
         " but frame.width x frame.height is ", width, "x", height,
         " (not decoded)"));
   }
+  // OpenCV decodes a baseline JPEG cut short inside its image data, filling
+  // the missing rows with junk; a whole JPEG ends with its end-of-image
+  // marker (FF D9), which some encoders follow with padding.
+  if (bytes.encoding == ImageEncoding::kJpeg) {
+    constexpr size_t kMaxPaddingBytes = 1024;
+    const size_t eoi = bytes.rgb.rfind("\xFF\xD9");
+    if (eoi == absl::string_view::npos ||
+        bytes.rgb.size() - eoi > kMaxPaddingBytes) {
+      return Invalid(
+          "frame.rgb: JPEG data without its end-of-image marker (cut "
+          "short?)");
+    }
+  }
   cv::Mat bgr;
   try {
     const cv::Mat buffer(1, static_cast<int>(bytes.rgb.size()), CV_8UC1,
@@ -170,13 +183,24 @@ absl::StatusOr<DecodedFrame> DecodeFrame(const FrameBytes& bytes) {
   const int width = static_cast<int>(bytes.width);
   const int height = static_cast<int>(bytes.height);
   const CameraIntrinsics& k = bytes.intrinsics;
-  if (!std::isfinite(k.fx) || !std::isfinite(k.fy) || k.fx <= 0 || k.fy <= 0) {
+  // Focal lengths in pixels: a D415 has about 615 at 640x480; 1 to 10^6
+  // covers any lens. Outside it the featurizer's metres per pixel
+  // overflow (1e-200 squared is 0) and a context would hold NaN.
+  constexpr double kMinFocalPx = 1.0;
+  constexpr double kMaxFocalPx = 1e6;
+  if (!(k.fx >= kMinFocalPx && k.fx <= kMaxFocalPx && k.fy >= kMinFocalPx &&
+        k.fy <= kMaxFocalPx)) {
     return Invalid(absl::StrCat(
-        "frame.intrinsics.fx and fy must be finite and > 0 (got fx=", k.fx,
-        ", fy=", k.fy, ")"));
+        "frame.intrinsics.fx and fy must be focal lengths of ", kMinFocalPx,
+        " to ", kMaxFocalPx, " pixels (got fx=", k.fx, ", fy=", k.fy, ")"));
   }
-  if (!std::isfinite(k.cx) || !std::isfinite(k.cy)) {
-    return Invalid("frame.intrinsics.cx and cy must be finite");
+  // The principal point lies on the image, or near it.
+  if (!(std::abs(k.cx - width / 2.0) <= width &&
+        std::abs(k.cy - height / 2.0) <= height)) {
+    return Invalid(absl::StrCat(
+        "frame.intrinsics.cx and cy must be finite and within a frame's "
+        "width and height of its centre (got cx=",
+        k.cx, ", cy=", k.cy, " for ", width, "x", height, ")"));
   }
 
   DecodedFrame frame;

@@ -86,6 +86,14 @@ TEST_F(FrameTest, TruncatedJpegIsInvalidArgument) {
   ExpectInvalid(proto, "corrupt IMAGE_ENCODING_JPEG");
 }
 
+// Cut inside its image data, after the header: OpenCV would decode it with
+// junk rows; its missing end-of-image marker gives it away.
+TEST_F(FrameTest, JpegCutShortInItsImageDataIsInvalidArgument) {
+  v1::Frame proto = Proto(v1::IMAGE_ENCODING_JPEG);
+  proto.set_rgb(proto.rgb().substr(0, proto.rgb().size() / 2));
+  ExpectInvalid(proto, "JPEG data without its end-of-image marker");
+}
+
 TEST_F(FrameTest, BytesOfAnotherFormatAreInvalidArgument) {
   v1::Frame proto = Proto(v1::IMAGE_ENCODING_JPEG);
   proto.set_rgb_encoding(v1::IMAGE_ENCODING_PNG);
@@ -159,6 +167,16 @@ TEST_F(FrameTest, BadSizesEncodingAndIntrinsicsAreInvalidArgument) {
   proto = Proto(v1::IMAGE_ENCODING_RGB8);
   proto.mutable_intrinsics()->set_cy(std::nan(""));
   ExpectInvalid(proto, "frame.intrinsics.cx and cy");
+  // Focal lengths whose square underflows, or absurd ones; a principal
+  // point far off the image.
+  for (double fx : {1e-200, 0.5, 1e7}) {
+    proto = Proto(v1::IMAGE_ENCODING_RGB8);
+    proto.mutable_intrinsics()->set_fx(fx);
+    ExpectInvalid(proto, "frame.intrinsics.fx and fy must be focal lengths");
+  }
+  proto = Proto(v1::IMAGE_ENCODING_RGB8);
+  proto.mutable_intrinsics()->set_cx(1e6);
+  ExpectInvalid(proto, "frame.intrinsics.cx and cy must be finite and within");
 }
 
 TEST(ValidateBoxTest, AcceptsBoxesInsideAndRejectsOthers) {
