@@ -1,6 +1,7 @@
 #include "services/robot/camera_client.h"
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <utility>
 
@@ -51,6 +52,13 @@ absl::StatusOr<domain::RgbdFrame> CameraClient::Capture() {
     const absl::Status s = FromGrpcStatus(status);
     return absl::Status(
         s.code(), absl::StrCat("camera at ", address_, ": ", s.message()));
+  }
+  // An age that is not a number, or negative, says nothing about how old
+  // the frame is: never used.
+  if (!(reply.age_s() >= 0.0 && std::isfinite(reply.age_s()))) {
+    return absl::InternalError(
+        absl::StrCat("camera at ", address_, " sent a frame whose age_s is ",
+                     reply.age_s(), ": not used for a bite"));
   }
   const double age_s = reply.age_s() + round_trip_s;
   if (age_s > max_age_s_) {

@@ -7,6 +7,7 @@
 // repeated frame.
 #include <dlfcn.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <memory>
@@ -308,6 +309,36 @@ TEST_F(CameraLinkTest, TheSameFrameIsNeverUsedForTwoBites) {
   absl::StatusOr<domain::RgbdFrame> again = client_->Capture();
   EXPECT_EQ(again.status().code(), absl::StatusCode::kFailedPrecondition);
   EXPECT_THAT(again.status().message(), HasSubstr("again"));
+}
+
+// A publisher that says its frame's age is not a number (or negative): the
+// age says nothing, so the frame is never used for a bite.
+TEST(CameraClientTest, AFrameWhoseAgeIsNotANumberIsNotUsed) {
+  class BadAge final : public v1::CameraService::Service {
+   public:
+    double age_s = 0.0;
+    grpc::Status GetFrame(grpc::ServerContext*, const v1::GetFrameRequest*,
+                          v1::CameraFrame* reply) override {
+      reply->set_age_s(age_s);
+      return grpc::Status::OK;
+    }
+  };
+  RpcEnvironment env;
+  BadAge service;
+  auto server = ServiceServer::Start(ServerOptions(), &env, {&service},
+                                     {"bitewise.v1.CameraService"});
+  ASSERT_TRUE(server.ok()) << server.status();
+  robot::CameraClientOptions options;
+  options.address = (*server)->address();
+  auto client = robot::CameraClient::Create(options);
+  ASSERT_TRUE(client.ok());
+  for (double age : {std::nan(""), -1.0}) {
+    service.age_s = age;
+    absl::StatusOr<domain::RgbdFrame> frame = (*client)->Capture();
+    EXPECT_EQ(frame.status().code(), absl::StatusCode::kInternal) << age;
+    EXPECT_THAT(frame.status().message(), HasSubstr("whose age_s is"));
+  }
+  (*server)->Shutdown();
 }
 
 TEST_F(CameraLinkTest, NoCameraAtTheAddressIsUnavailable) {
