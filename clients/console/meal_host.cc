@@ -228,8 +228,11 @@ absl::Status MealHost::Bite(std::optional<int> item_index) {
                      meals::Count(state.items_size(), "item", "items"), ")"));
   }
   std::shared_ptr<meals::Meal> meal = meal_;
-  return Enqueue([meal, item_index] {
-    (void)meal->Bite(item_index);  // a failure is in the meal's state
+  // A STOP from now on, while the bite waits in the queue, ends it before
+  // the arm moves.
+  const uint64_t stops = meal->stops();
+  return Enqueue([meal, item_index, stops] {
+    (void)meal->Bite(item_index, stops);  // a failure is in the meal's state
     if (meal->state().running()) (void)meal->LookAtPlate();
   });
 }

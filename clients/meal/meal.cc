@@ -363,7 +363,8 @@ absl::StatusOr<int> Meal::ChooseItem(std::optional<int> item_index) {
       items.begin());
 }
 
-absl::Status Meal::Bite(std::optional<int> item_index) {
+absl::Status Meal::Bite(std::optional<int> item_index,
+                        std::optional<uint64_t> stops_when_asked) {
   if (!busy_mu_.TryLock()) {
     return absl::FailedPreconditionError("a bite is already running");
   }
@@ -375,10 +376,11 @@ absl::Status Meal::Bite(std::optional<int> item_index) {
           absl::StrCat("meal ", state_.meal_id(), " is over"));
     }
     // A STOP pressed before this bite was asked for does not cancel it (as
-    // the robot treats a Stop while idle); one pressed from here on does,
-    // until the arm is back (Acquire below).
-    stop_requested_ = false;
-    state_.set_stopped(false);
+    // the robot treats a Stop while idle); one pressed since does, until
+    // the arm is back (Acquire below).
+    stop_requested_ =
+        stops_when_asked.has_value() && stops_ > *stops_when_asked;
+    if (!stop_requested_) state_.set_stopped(false);
   }
   std::optional<v1::Frame> frame = plate_frame();
   if (!frame.has_value()) {
@@ -1051,9 +1053,15 @@ void Meal::ConfirmAnswer() {
   Emit(mealpb::STEP_LEARN, mealpb::STEP_STATE_DONE, text);
 }
 
+uint64_t Meal::stops() const {
+  absl::MutexLock lock(&mu_);
+  return stops_;
+}
+
 absl::StatusOr<v1::StopResponse> Meal::Stop() {
   {
     absl::MutexLock lock(&mu_);
+    ++stops_;
     stop_requested_ = true;
     state_.set_stopped(true);
   }

@@ -37,6 +37,7 @@
 #ifndef BITEWISE_CLIENTS_MEAL_MEAL_H_
 #define BITEWISE_CLIENTS_MEAL_MEAL_H_
 
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <string>
@@ -152,7 +153,14 @@ class Meal {
   // the plate; FAILED_PRECONDITION before LookAtPlate, on an empty plate,
   // after Finish or while another bite runs. Other errors name the service
   // and call that failed; the bite then says what was kept (above).
-  absl::Status Bite(std::optional<int> item_index);
+  // `stops_when_asked`: stops() when the bite was asked for (a console
+  // queues it); a STOP after that ends it before the arm moves. Without it,
+  // a STOP from the start of this call on does.
+  absl::Status Bite(std::optional<int> item_index,
+                    std::optional<uint64_t> stops_when_asked = std::nullopt);
+
+  // How many times Stop was called.
+  uint64_t stops() const;
 
   // The operator's answer to the current bite's question (`event_id` names
   // it). Saved in the journal at once; learned when the next bite starts
@@ -241,6 +249,7 @@ class Meal {
   // (poLinUCB; empty for other learners), sent when the bite has none.
   std::vector<double> predicted_posthoc_ ABSL_GUARDED_BY(mu_);
   bool stop_requested_ ABSL_GUARDED_BY(mu_) = false;
+  uint64_t stops_ ABSL_GUARDED_BY(mu_) = 0;
 };
 
 }  // namespace bitewise::meals

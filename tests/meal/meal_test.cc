@@ -914,6 +914,26 @@ TEST_F(MealTest, StopWhileTheBiteIsChosenEndsItBeforeTheArmMoves) {
   EXPECT_EQ(meal->state().current().learned(), "learned");
 }
 
+// A console queues a bite: a STOP pressed after it was asked for but before
+// it started running ends it before the arm moves.
+TEST_F(MealTest, StopWhileTheBiteWaitsToStartEndsItBeforeTheArmMoves) {
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  const uint64_t asked = meal->stops();
+  absl::StatusOr<v1::StopResponse> stopped = meal->Stop();
+  ASSERT_OK(stopped.status());
+  EXPECT_FALSE(stopped->was_moving());
+  EXPECT_THAT(meal->Bite(std::nullopt, asked),
+              StatusIs(absl::StatusCode::kAborted,
+                       HasSubstr("Stopped by STOP before the arm moved")));
+  EXPECT_TRUE(meal->state().stopped());
+  EXPECT_EQ(meal->state().summary().attempts(), 0);
+  // Asked for after that STOP, the next bite runs.
+  ASSERT_OK(meal->LookAtPlate());
+  ASSERT_OK(meal->Bite(std::nullopt, meal->stops()));
+  EXPECT_EQ(meal->state().current().learned(), "learned");
+}
+
 // STOP pressed as the arm is told to start (the robot still idle, so its
 // Stop does not carry over) is sent again at the robot's first progress
 // report: the bite ends stopped in its approach.
