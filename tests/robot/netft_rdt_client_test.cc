@@ -230,7 +230,7 @@ TEST(NetFtRdtClientOptionsTest, RejectsBadConfiguration) {
     status = NetFtRdtClient::Connect(options).status();
     EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << counts;
     EXPECT_THAT(status.message(),
-                HasSubstr("counts_per_force must be between 10 and"))
+                HasSubstr("counts_per_force must be between 10 and 42949672 "))
         << counts;
   }
   options.counts_per_force = 1e6;

@@ -9,6 +9,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <utility>
 
@@ -67,8 +68,9 @@ absl::StatusOr<std::unique_ptr<NetFtRdtClient>> NetFtRdtClient::Connect(
       !(options.counts_per_torque > 0.0 &&
         std::isfinite(options.counts_per_torque))) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "counts_per_force must be between ", 1.0 / kMaxForceStepN, " and ",
-        kMaxCount / kMinForceRangeN,
+        "counts_per_force must be between ",
+        static_cast<int64_t>(1.0 / kMaxForceStepN), " and ",
+        static_cast<int64_t>(kMaxCount / kMinForceRangeN),
         " (a count of at most 0.1 N; a range of at least 50 N), and "
         "counts_per_torque positive and finite; got ",
         options.counts_per_force, " and ", options.counts_per_torque));
