@@ -12,12 +12,14 @@
 #include "services/common/channel.h"
 #include "services/common/server.h"
 #include "services/haptic/converters.h"
+#include "services/haptic/core/contact_detector.h"
 #include "services/haptic/core/familiarity.h"
 #include "services/haptic/core/haptic_classifier.h"
 #include "services/haptic/default_model.h"
 #include "services/haptic/haptic_service.h"
 #include "services/haptic/training/haptic_net_weights.h"
 #include "services/haptic/training/labelled_traces.h"
+#include "tests/haptic/haptic_test_traces.h"
 
 namespace bitewise::haptic {
 namespace {
@@ -106,6 +108,20 @@ void BM_ContactAndWindow(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_ContactAndWindow)->Unit(benchmark::kMicrosecond);
+
+// The contact detector on PackedTrace (tests/haptic/haptic_test_traces.h):
+// 150,000 samples in 0.15 ms under a force its rising edge walks back
+// through; the edge's smoothing window is found by binary search
+// (docs/benchmarks.md).
+void BM_ContactOnAPackedTrace(benchmark::State& state) {
+  const std::vector<TimedWrench> trace = PackedTrace();
+  const ContactDetector detector{ContactDetectorOptions()};
+  for (auto _ : state) {
+    auto contact = detector.Detect(trace);
+    benchmark::DoNotOptimize(contact);
+  }
+}
+BENCHMARK(BM_ContactOnAPackedTrace)->Unit(benchmark::kMillisecond);
 
 void BM_HapticNetForward(benchmark::State& state) {
   const auto classifier = DefaultClassifier();

@@ -58,17 +58,7 @@ TEST(ContactDetectorTest, FindsRampStartAndOffsetExactly) {
 // the packed samples: its line, extrapolated to zero force, starts before
 // them.
 TEST(ContactDetectorTest, AFewMillisecondsPackedWithSamplesCostsLittle) {
-  std::vector<TimedWrench> trace;
-  auto add = [&](double t_s, double fz_n) {
-    TimedWrench s;
-    s.t_s = t_s;
-    Channel(s.wrench, 2) = fz_n;
-    trace.push_back(s);
-  };
-  for (int i = 0; i < 50; ++i) add(i * 1e-3, 0.0);
-  for (int i = 0; i < 150000; ++i) add(0.0505 + i * 1e-9, 0.8);
-  for (int i = 0; i < 100; ++i) add(0.0515 + i * 1e-3, 5.0);
-  add(20.0, 5.0);
+  const std::vector<TimedWrench> trace = PackedTrace();
   absl::StatusOr<ContactResult> contact =
       ContactDetector(ContactDetectorOptions()).Detect(trace);
   ASSERT_TRUE(contact.ok()) << contact.status();
