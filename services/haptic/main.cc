@@ -65,6 +65,7 @@ int main(int argc, char** argv) {
   options.contact.threshold_n = absl::GetFlag(FLAGS_contact_threshold_n);
   options.contact.release_n = absl::GetFlag(FLAGS_contact_release_n);
   options.contact.min_contact_s = absl::GetFlag(FLAGS_min_contact_s);
+  options.contact.require_free_tare = true;
   options.window.min_window_samples = absl::GetFlag(FLAGS_min_window_samples);
   using bitewise::haptic::HapticNet;
   const std::string model_path = absl::GetFlag(FLAGS_model);

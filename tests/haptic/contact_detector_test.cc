@@ -66,6 +66,25 @@ TEST(ContactDetectorTest, AFewMillisecondsPackedWithSamplesCostsLittle) {
   EXPECT_GT(contact->contact_time_s, 0.045);
 }
 
+// The tare window must be free motion: a force rising from 20 ms on puts
+// contact inside it, which the service refuses (the offset would be the
+// median of a rising force) and training, which leaves the option off, does
+// not see.
+TEST(ContactDetectorTest, ContactInsideTheTareWindowIsRefusedWhenAsked) {
+  const auto trace = Ramp(0.02, 1000.0, 1000.0, 0.3, {});
+  ContactDetectorOptions options;
+  ASSERT_TRUE(ContactDetector(options).Detect(trace).ok());
+  options.require_free_tare = true;
+  absl::StatusOr<ContactResult> refused =
+      ContactDetector(options).Detect(trace);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(refused.status().message(),
+              HasSubstr("the trace must begin with 50 ms of free motion"));
+  // Contact after the tare window passes.
+  EXPECT_TRUE(
+      ContactDetector(options).Detect(Ramp(0.2, 1000.0, 1000.0, 0.5, {})).ok());
+}
+
 TEST(ContactDetectorTest, SingleSampleSpikeIsNotContact) {
   auto trace = Ramp(0.3, 500.0, 1000.0, 0.5, {});
   // A 5 N spike in free motion, one sample long.

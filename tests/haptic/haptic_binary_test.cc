@@ -140,6 +140,35 @@ TEST(HapticBinaryTest, ServesTheEmbeddedModelWithNoModelFlags) {
                         "threshold 0.05"));
 }
 
+// The service asks for the trace's first 50 ms to be free motion: a trace
+// whose force rises from 20 ms on is INVALID_ARGUMENT, saying so.
+TEST(HapticBinaryTest, AContactInsideTheTareWindowIsRefused) {
+  HapticProcess process("early_contact");
+  ASSERT_NO_FATAL_FAILURE(process.Spawn({}));
+  ASSERT_TRUE(process.WaitServingLine().ok()) << process.log();
+  auto channel = MakeChannel(process.address(), ChannelOptions());
+  ASSERT_TRUE(channel.ok());
+  ASSERT_TRUE(WaitForServing(*channel, kServiceName, absl::Seconds(20)).ok());
+  std::vector<TimedWrench> trace;
+  for (int i = 0; i < 300; ++i) {
+    TimedWrench s;
+    s.t_s = i * 1e-3;
+    Channel(s.wrench, 2) = std::min(30.0, std::max(0.0, s.t_s - 0.02) * 1000);
+    trace.push_back(s);
+  }
+  v1::ClassifyRequest request;
+  TraceToProto(trace, &request);
+  v1::ClassifyResponse response;
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() +
+                       std::chrono::seconds(20));
+  const grpc::Status status = v1::HapticService::NewStub(*channel)->Classify(
+      &context, request, &response);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(),
+              HasSubstr("must begin with 50 ms of free motion"));
+}
+
 TEST(HapticBinaryTest, ServesAModelFileGivenByFlag) {
   HapticProcess process("model_flag");
   ASSERT_NO_FATAL_FAILURE(

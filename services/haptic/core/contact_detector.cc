@@ -174,6 +174,13 @@ absl::StatusOr<ContactResult> ContactDetector::Detect(
   }
   // Never after the edge's first sample, never before the trace.
   contact = std::clamp(contact, trace[0].t_s, t_ref);
+  if (options_.require_free_tare && contact - trace[0].t_s < options_.tare_s) {
+    return absl::InvalidArgumentError(absl::StrFormat(
+        "samples: contact at t = %.4f s, %.1f ms after the first sample; the "
+        "trace must begin with %.0f ms of free motion, from which the sensor "
+        "offset is taken",
+        contact, 1e3 * (contact - trace[0].t_s), 1e3 * options_.tare_s));
+  }
   result.contact_time_s = contact;
   return result;
 }

@@ -30,6 +30,12 @@ struct ContactDetectorOptions {
   // A contact must hold for this long (s) and for at least two samples;
   // shorter excursions above the threshold are noise. Default 0.003 s.
   double min_contact_s = 0.003;
+  // Refuse (INVALID_ARGUMENT) a trace whose contact comes less than tare_s
+  // after its first sample: its tare window held contact, so the offset,
+  // and every force after it, is wrong. The service sets it; training and
+  // the evaluation tools, whose simulated traces are built with the free
+  // motion first, leave it off.
+  bool require_free_tare = false;
 };
 
 // INVALID_ARGUMENT naming the field if the options are inconsistent.
