@@ -195,6 +195,21 @@ TEST_F(HandWrittenBoxTest, StatusWordFaultIsNotLive) {
               HasSubstr("fault status 0x80001000"));
 }
 
+// A fault flagged in one record and cleared in the next still stops the
+// arm: the stream must run without one for a second.
+TEST_F(HandWrittenBoxTest, AFaultClearedAtOnceIsStillNotLive) {
+  auto client = Connect();
+  ASSERT_NE(client, nullptr);
+  Send(1, 7, {}, 0x80001000u);
+  Send(2, 14, {}, 0);
+  ASSERT_TRUE(WaitFor([&] { return client->stats().samples_accepted == 2; }));
+  EXPECT_EQ(client->stats().last_status, 0u);
+  EXPECT_THAT(client->CheckDuringMotion().message(),
+              HasSubstr("reported fault status 0x80001000"));
+  EXPECT_THAT(client->CheckLive().message(),
+              HasSubstr("it must stream without a fault for 1000 ms"));
+}
+
 TEST_F(HandWrittenBoxTest, BiasCountAndStopRequestsAreExactBytes) {
   auto client = Connect();
   ASSERT_NE(client, nullptr);

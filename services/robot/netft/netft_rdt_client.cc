@@ -227,7 +227,11 @@ void NetFtRdtClient::HandleDatagram(const uint8_t* data, size_t size,
     last_ft_sequence_ = record->ft_sequence;
     clock_.Observe(now_s, delta);
   }
-  if (record->status != 0) ++stats_.status_errors;
+  if (record->status != 0) {
+    ++stats_.status_errors;
+    last_fault_status_ = record->status;
+    last_fault_s_ = now_s;
+  }
   stats_.last_status = record->status;
   if (stats_.samples_accepted > 0 && record->counts == last_counts_) {
     ++unchanged_records_;
@@ -317,6 +321,17 @@ absl::Status NetFtRdtClient::CheckDuringMotion() const {
   if (stats_.last_status != 0) {
     return absl::UnavailableError(absl::StrFormat(
         "%s reports fault status 0x%08x", name_, stats_.last_status));
+  }
+  // A fault the box flagged and cleared between two checks (the control
+  // loop looks every 10 ms, the box sends up to 7 records a millisecond)
+  // is not forgotten: the stream must run without one for kFaultHoldS.
+  constexpr double kFaultHoldS = 1.0;
+  if (last_sample_time_s_ - last_fault_s_ < kFaultHoldS) {
+    return absl::UnavailableError(absl::StrFormat(
+        "%s reported fault status 0x%08x %.0f ms ago; it must stream "
+        "without a fault for %.0f ms",
+        name_, last_fault_status_, 1e3 * (last_sample_time_s_ - last_fault_s_),
+        1e3 * kFaultHoldS));
   }
   const CounterClockReport counter = clock_.Report();
   if (counter.state != CounterClockState::kOk) {

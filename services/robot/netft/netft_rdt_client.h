@@ -217,6 +217,11 @@ class NetFtRdtClient {
   // (arrival time) and how many records since repeated them exactly.
   std::array<int32_t, 6> last_counts_ ABSL_GUARDED_BY(mu_){};
   double counts_changed_s_ ABSL_GUARDED_BY(mu_) = 0.0;
+  // The last record with a non-zero status word, and when it arrived: a
+  // fault flagged between two checks, then cleared, still counts for
+  // kFaultHoldS.
+  uint32_t last_fault_status_ ABSL_GUARDED_BY(mu_) = 0;
+  double last_fault_s_ ABSL_GUARDED_BY(mu_) = -1e300;
   uint64_t unchanged_records_ ABSL_GUARDED_BY(mu_) = 0;
 };
 
