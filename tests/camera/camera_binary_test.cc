@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -45,29 +46,42 @@ void Spawn(ChildProcess& child, const std::vector<std::string>& args) {
   ASSERT_TRUE(started.ok()) << started;
 }
 
-TEST(CameraBinaryTest, ServesAndRecordsTheRealSensePath) {
+// Starts the binary on the RealSense path (the fake SDK) on a free port with
+// `flags`, waits until it serves, and connects the RobotService's client,
+// whose channel accepts `max_message_bytes`.
+void ServeRealSense(ChildProcess& child, const std::vector<std::string>& flags,
+                    int max_message_bytes,
+                    std::unique_ptr<robot::CameraClient>* client) {
   const absl::StatusOr<int> port = bitewise::testing::PickFreePort();
   ASSERT_TRUE(port.ok());
-  const std::string dir = ::testing::TempDir() + "/camera_binary_recording";
-  std::filesystem::remove_all(dir);
-  ChildProcess child;
-  ASSERT_NO_FATAL_FAILURE(Spawn(
-      child, {"--source=realsense",
-              absl::StrCat("--realsense_library=", BITEWISE_FAKE_REALSENSE),
-              "--fps=30", absl::StrCat("--record=", dir),
-              absl::StrCat("--listen=127.0.0.1:", *port)}));
+  std::vector<std::string> args = {
+      "--source=realsense",
+      absl::StrCat("--realsense_library=", BITEWISE_FAKE_REALSENSE),
+      absl::StrCat("--listen=127.0.0.1:", *port)};
+  args.insert(args.end(), flags.begin(), flags.end());
+  ASSERT_NO_FATAL_FAILURE(Spawn(child, args));
   const std::string address = absl::StrCat("127.0.0.1:", *port);
   auto channel = MakeChannel(address, {});
   ASSERT_TRUE(channel.ok());
   const absl::Status serving =
       WaitForServing(*channel, kService, absl::Seconds(30));
   ASSERT_TRUE(serving.ok()) << serving << "; log:\n" << child.log();
-
   robot::CameraClientOptions options;
   options.address = address;
-  auto client = robot::CameraClient::Create(options);
-  ASSERT_TRUE(client.ok());
-  absl::StatusOr<domain::RgbdFrame> frame = (*client)->Capture();
+  options.channel.max_message_bytes = max_message_bytes;
+  auto created = robot::CameraClient::Create(options);
+  ASSERT_TRUE(created.ok()) << created.status();
+  *client = *std::move(created);
+}
+
+TEST(CameraBinaryTest, ServesAndRecordsTheRealSensePath) {
+  const std::string dir = ::testing::TempDir() + "/camera_binary_recording";
+  std::filesystem::remove_all(dir);
+  ChildProcess child;
+  std::unique_ptr<robot::CameraClient> client;
+  ASSERT_NO_FATAL_FAILURE(ServeRealSense(
+      child, {"--fps=30", absl::StrCat("--record=", dir)}, 4 << 20, &client));
+  absl::StatusOr<domain::RgbdFrame> frame = client->Capture();
   ASSERT_TRUE(frame.ok()) << frame.status() << "; log:\n" << child.log();
   EXPECT_FLOAT_EQ(frame->intrinsics.fx, 612.3f);  // the fake SDK's
   EXPECT_EQ(frame->depth_mm[10], 400);
@@ -119,26 +133,12 @@ TEST(CameraBinaryTest, AFrameOverTheMessageLimitStopsTheStart) {
 
 // With the limit raised as that message says, the frame is served whole.
 TEST(CameraBinaryTest, ServesA1280x720FrameUnderARaisedLimit) {
-  const absl::StatusOr<int> port = bitewise::testing::PickFreePort();
-  ASSERT_TRUE(port.ok());
   ChildProcess child;
-  ASSERT_NO_FATAL_FAILURE(Spawn(
-      child, {"--source=realsense",
-              absl::StrCat("--realsense_library=", BITEWISE_FAKE_REALSENSE),
-              "--width=1280", "--height=720", "--max_message_bytes=4609024",
-              absl::StrCat("--listen=127.0.0.1:", *port)}));
-  const std::string address = absl::StrCat("127.0.0.1:", *port);
-  auto channel = MakeChannel(address, {});
-  ASSERT_TRUE(channel.ok());
-  const absl::Status serving =
-      WaitForServing(*channel, kService, absl::Seconds(30));
-  ASSERT_TRUE(serving.ok()) << serving << "; log:\n" << child.log();
-  robot::CameraClientOptions options;
-  options.address = address;
-  options.channel.max_message_bytes = 64 << 20;  // as bitewise-robot's
-  auto client = robot::CameraClient::Create(options);
-  ASSERT_TRUE(client.ok());
-  absl::StatusOr<domain::RgbdFrame> frame = (*client)->Capture();
+  std::unique_ptr<robot::CameraClient> client;
+  ASSERT_NO_FATAL_FAILURE(ServeRealSense(
+      child, {"--width=1280", "--height=720", "--max_message_bytes=4609024"},
+      64 << 20 /* as bitewise-robot's */, &client));
+  absl::StatusOr<domain::RgbdFrame> frame = client->Capture();
   ASSERT_TRUE(frame.ok()) << frame.status() << "; log:\n" << child.log();
   EXPECT_EQ(frame->intrinsics.width, 1280);
   EXPECT_EQ(frame->intrinsics.height, 720);
