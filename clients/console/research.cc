@@ -2,7 +2,9 @@
 
 #include <google/protobuf/util/time_util.h>
 
+#include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -10,6 +12,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_join.h"
+#include "services/common/status_macros.h"
 #include "services/domain/user_id.h"
 
 namespace bitewise::console {
@@ -70,15 +73,19 @@ absl::StatusOr<v1::ListUsersResponse> AllUsers(meals::BanditClient& bandit) {
   return absl::ResourceExhaustedError("more users than the console lists");
 }
 
-absl::StatusOr<std::vector<v1::Event>> AllEvents(meals::BanditClient& bandit,
-                                                 const std::string& user_id,
-                                                 const std::string& meal_id,
-                                                 bool with_contexts,
-                                                 bool* contexts_withheld) {
+namespace {
+
+// Every event of `user_id` (of `meal_id`, if not empty), a page of ListEvents
+// at a time, each given to `take` until it returns false; so a caller that
+// looks for one event holds one page, not a person's whole history (at d =
+// 2048, 16 KB of context an event).
+absl::Status ForEachEvent(meals::BanditClient& bandit,
+                          const std::string& user_id,
+                          const std::string& meal_id, bool* contexts_withheld,
+                          const std::function<bool(v1::Event&&)>& take) {
   if (absl::Status valid = domain::ValidateUserId(user_id); !valid.ok()) {
     return valid;
   }
-  std::vector<v1::Event> events;
   v1::ListEventsRequest request;
   request.set_user_id(user_id);
   request.set_meal_id(meal_id);
@@ -92,14 +99,30 @@ absl::StatusOr<std::vector<v1::Event>> AllEvents(meals::BanditClient& bandit,
       *contexts_withheld = true;
     }
     for (v1::Event& event : *response->mutable_events()) {
-      if (!with_contexts) event.clear_context();
-      events.push_back(std::move(event));
+      if (!take(std::move(event))) return absl::OkStatus();
     }
-    if (response->next_page_token().empty()) return events;
+    if (response->next_page_token().empty()) return absl::OkStatus();
     request.set_page_token(response->next_page_token());
   }
   return absl::ResourceExhaustedError(
       absl::StrCat("more events of ", user_id, " than the console lists"));
+}
+
+}  // namespace
+
+absl::StatusOr<std::vector<v1::Event>> AllEvents(meals::BanditClient& bandit,
+                                                 const std::string& user_id,
+                                                 const std::string& meal_id,
+                                                 bool with_contexts,
+                                                 bool* contexts_withheld) {
+  std::vector<v1::Event> events;
+  RETURN_IF_ERROR(ForEachEvent(bandit, user_id, meal_id, contexts_withheld,
+                               [&](v1::Event&& event) {
+                                 if (!with_contexts) event.clear_context();
+                                 events.push_back(std::move(event));
+                                 return true;
+                               }));
+  return events;
 }
 
 consolepb::MealsReply MealsOf(const std::string& user_id,
@@ -156,14 +179,14 @@ absl::StatusOr<consolepb::EstimatesReply> EstimatesFor(
                      event_id.substr(0, 64), "\""));
   }
   bool withheld = false;
-  absl::StatusOr<std::vector<v1::Event>> events =
-      AllEvents(bandit, user_id, "", true, &withheld);
-  if (!events.ok()) return events.status();
-  const v1::Event* event = nullptr;
-  for (const v1::Event& e : *events) {
-    if (e.event_id() == event_id) event = &e;
-  }
-  if (event == nullptr) {
+  std::optional<v1::Event> event;
+  RETURN_IF_ERROR(
+      ForEachEvent(bandit, user_id, "", &withheld, [&](v1::Event&& e) {
+        if (e.event_id() != event_id) return true;
+        event = std::move(e);
+        return false;
+      }));
+  if (!event.has_value()) {
     return absl::NotFoundError(
         absl::StrCat("event ", event_id, " is not one of ", user_id, "'s"));
   }
