@@ -147,14 +147,28 @@ absl::StatusOr<Role> AccessList::Check(const std::string& name,
   {
     absl::MutexLock lock(&mu_);
     if (verified_.count(key) > 0) return it->second.role;
+    if (checks_running_ > 0) {
+      if (checks_waiting_ >= kMaxWaitingChecks) {
+        return absl::ResourceExhaustedError(
+            absl::StrCat("too many password checks at once (one running, ",
+                         checks_waiting_, " waiting): try again in a moment"));
+      }
+      ++checks_waiting_;
+      mu_.Await(absl::Condition(this, &AccessList::NoCheckRunning));
+      --checks_waiting_;
+      // The check that ran may have been this password's.
+      if (verified_.count(key) > 0) return it->second.role;
+    }
+    ++checks_running_;
   }
   absl::StatusOr<std::string> hash =
       Pbkdf2(password, it->second.salt, it->second.iterations);
+  absl::MutexLock lock(&mu_);
+  --checks_running_;
   if (!hash.ok()) return hash.status();
   if (CRYPTO_memcmp(hash->data(), it->second.hash.data(), kHashBytes) != 0) {
     return wrong;
   }
-  absl::MutexLock lock(&mu_);
   verified_.insert(key);
   return it->second.role;
 }

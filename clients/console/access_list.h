@@ -11,7 +11,11 @@
 //
 // Thread-safe: Check may be called from many request threads; a verified
 // password is remembered (as its SHA-256) so that PBKDF2 runs once per
-// credential, not once per request.
+// credential, not once per request. PBKDF2 runs for one password at a time,
+// with at most kMaxWaitingChecks more waiting; beyond that Check refuses at
+// once. So wrong passwords sent in bulk hold at most one core and a few
+// request threads, and a person whose password is already verified (STOP
+// above all) is answered without waiting behind them.
 #ifndef BITEWISE_CLIENTS_CONSOLE_ACCESS_LIST_H_
 #define BITEWISE_CLIENTS_CONSOLE_ACCESS_LIST_H_
 
@@ -44,8 +48,13 @@ class AccessList {
 
   AccessList(const AccessList& other);
 
+  // Checks of new passwords that may wait while one runs.
+  static constexpr int kMaxWaitingChecks = 16;
+
   // The role of `name` if `password` is its password; UNAUTHENTICATED
-  // (saying only that the name or password is wrong) otherwise.
+  // (saying only that the name or password is wrong) otherwise;
+  // RESOURCE_EXHAUSTED when the password is not yet verified and one check
+  // runs with kMaxWaitingChecks already waiting.
   absl::StatusOr<Role> Check(const std::string& name,
                              const std::string& password) const;
 
@@ -59,11 +68,17 @@ class AccessList {
     std::string hash;  // bytes
   };
   AccessList() = default;
+  bool NoCheckRunning() const ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
+    return checks_running_ == 0;
+  }
 
   std::map<std::string, Entry> entries_;
   mutable absl::Mutex mu_;
   // SHA-256 of "name\0password" for passwords already verified.
   mutable std::set<std::string> verified_ ABSL_GUARDED_BY(mu_);
+  // PBKDF2 checks running (0 or 1) and waiting to run.
+  mutable int checks_running_ ABSL_GUARDED_BY(mu_) = 0;
+  mutable int checks_waiting_ ABSL_GUARDED_BY(mu_) = 0;
 };
 
 }  // namespace bitewise::console

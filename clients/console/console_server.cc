@@ -158,8 +158,12 @@ absl::StatusOr<std::unique_ptr<ConsoleServer>> ConsoleServer::Start(
   } else {
     server->server_ = std::make_unique<httplib::Server>();
   }
-  // Event streams each hold a thread for as long as a browser watches.
-  server->server_->new_task_queue = [] { return new httplib::ThreadPool(64); };
+  // A STOP must find a free thread: event streams are capped
+  // (kMaxEventStreams), so are password checks (AccessList), and the rest
+  // are browsers' connections, a few per page.
+  server->server_->new_task_queue = [] {
+    return new httplib::ThreadPool(kRequestThreads);
+  };
   server->server_->set_payload_max_length(64 * 1024);
   // Small replies (STOP's above all) go out at once, not after a delayed
   // ACK.
@@ -230,6 +234,10 @@ void ConsoleServer::Route() {
         absl::StatusOr<Role> role =
             access->Check(decoded.substr(0, colon), decoded.substr(colon + 1));
         if (role.ok()) return *role;
+        if (!absl::IsUnauthenticated(role.status())) {  // 429: checks queued
+          Error(res, role.status());
+          return std::nullopt;
+        }
       }
     }
     res.set_header("WWW-Authenticate",
@@ -335,17 +343,31 @@ void ConsoleServer::Route() {
   http.Get("/api/meal/stream",
            guard(Need::kAny, false,
                  [this](const httplib::Request&, httplib::Response& res, Role) {
+                   // Counts this stream until its reply is destroyed.
+                   std::shared_ptr<void> ticket(
+                       event_streams_.get(),
+                       [streams = event_streams_](std::atomic<int>*) {
+                         streams->fetch_sub(1);
+                       });
+                   if (event_streams_->fetch_add(1) >= kMaxEventStreams) {
+                     return Error(
+                         res, absl::UnavailableError(absl::StrCat(
+                                  kMaxEventStreams,
+                                  " pages already watch the meal; close one "
+                                  "(each holds a connection to the console)")));
+                   }
                    std::shared_ptr<Subscription> subscription =
                        host_->Subscribe();
                    res.set_header("Cache-Control", "no-store");
                    res.set_header("X-Accel-Buffering", "no");
                    res.set_chunked_content_provider(
                        "text/event-stream",
-                       [subscription](size_t, httplib::DataSink& sink) {
+                       [subscription, ticket](size_t, httplib::DataSink& sink) {
                          if (subscription->closed()) return false;
                          std::optional<std::string> frame =
-                             subscription->Next(absl::Seconds(10));
-                         // A comment keeps idle connections open.
+                             subscription->Next(absl::Seconds(2));
+                         // A comment every 2 s keeps an idle stream open and finds a page
+                         // that has gone (its write fails), freeing its place.
                          const std::string data =
                              frame.has_value() ? *frame : ":\n\n";
                          if (subscription->closed() && !frame.has_value()) {

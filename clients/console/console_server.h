@@ -17,6 +17,7 @@
 
 #include <grpcpp/channel.h>
 
+#include <atomic>
 #include <memory>
 #include <optional>
 #include <string>
@@ -77,6 +78,13 @@ class ConsoleServer {
       meals::ServiceClients* clients);
   ~ConsoleServer();
 
+  // Event streams (/api/meal/stream) open at once; more are refused (503),
+  // so that watching pages cannot hold every request thread.
+  static constexpr int kMaxEventStreams = 32;
+  // Request threads: each open connection holds one, an event stream for as
+  // long as its page watches, an idle keep-alive connection for up to 5 s.
+  static constexpr int kRequestThreads = 256;
+
   int port() const { return port_; }
   // "http://127.0.0.1:8080/" or https.
   std::string url() const;
@@ -94,6 +102,8 @@ class ConsoleServer {
   std::unique_ptr<httplib::Server> server_;
   std::thread thread_;
   int port_ = 0;
+  std::shared_ptr<std::atomic<int>> event_streams_ =
+      std::make_shared<std::atomic<int>>(0);
 };
 
 }  // namespace bitewise::console

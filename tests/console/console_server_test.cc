@@ -5,7 +5,11 @@
 // the researcher's numbers against ListEvents.
 #include "clients/console/console_server.h"
 
+#include <arpa/inet.h>
 #include <httplib.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <memory>
@@ -314,6 +318,82 @@ TEST_F(ConsoleServerTest, StopAnswersWithOrWithoutAMeal) {
   EXPECT_THAT(stopped->body, HasSubstr("\"was_moving\":false"));
 }
 
+// A raw TCP connection to the console that sends `request` (maybe nothing)
+// and is held open until destroyed.
+class HeldConnection {
+ public:
+  HeldConnection(int port, const std::string& request) {
+    fd_ = socket(AF_INET, SOCK_STREAM, 0);
+    sockaddr_in address{};
+    address.sin_family = AF_INET;
+    address.sin_port = htons(port);
+    address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    connected_ = fd_ >= 0 &&
+                 connect(fd_, reinterpret_cast<sockaddr*>(&address),
+                         sizeof(address)) == 0 &&
+                 send(fd_, request.data(), request.size(), MSG_NOSIGNAL) ==
+                     static_cast<ssize_t>(request.size());
+  }
+  ~HeldConnection() {
+    if (fd_ >= 0) close(fd_);
+  }
+  bool connected() const { return connected_; }
+  // The reply's first line ("HTTP/1.1 200 OK"), read within 10 s.
+  std::string StatusLine() {
+    timeval timeout{10, 0};
+    setsockopt(fd_, SOL_SOCKET, SO_RCVTIMEO, &timeout, sizeof(timeout));
+    std::string line;
+    char c;
+    while (line.size() < 200 && recv(fd_, &c, 1, 0) == 1 && c != '\n') {
+      if (c != '\r') line += c;
+    }
+    return line;
+  }
+
+ private:
+  int fd_ = -1;
+  bool connected_ = false;
+};
+
+TEST_F(ConsoleServerTest, StopFindsAThreadWhilePagesHoldConnections) {
+  StartServer();
+  const std::string stream_request =
+      "GET /api/meal/stream HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n";
+  std::vector<std::unique_ptr<HeldConnection>> held;
+  for (int i = 0; i < ConsoleServer::kMaxEventStreams; ++i) {
+    held.push_back(
+        std::make_unique<HeldConnection>(server_->port(), stream_request));
+    ASSERT_TRUE(held.back()->connected());
+    EXPECT_EQ(held.back()->StatusLine(), "HTTP/1.1 200 OK") << i;
+  }
+  HeldConnection one_more(server_->port(), stream_request);
+  ASSERT_TRUE(one_more.connected());
+  EXPECT_EQ(one_more.StatusLine(), "HTTP/1.1 503 Service Unavailable");
+  // Connections that send nothing, as idle keep-alive connections and
+  // half-open requests do: each holds a request thread for up to 5 s.
+  for (int i = 0; i < 100; ++i) {
+    held.push_back(std::make_unique<HeldConnection>(server_->port(), ""));
+    ASSERT_TRUE(held.back()->connected());
+  }
+  // Before the thread pool outgrew the held connections, STOP waited for
+  // one of them to time out (5 s).
+  httplib::Client client = Client();
+  client.set_read_timeout(3, 0);
+  auto stopped = client.Post("/api/stop", kPost, "", "application/json");
+  ASSERT_TRUE(stopped) << httplib::to_string(stopped.error());
+  EXPECT_EQ(stopped->status, 200);
+  // A stream closed frees its place.
+  held.erase(held.begin());
+  // (The server sees the close at its next keep-alive comment, within 4 s.)
+  for (int attempt = 0; attempt < 150; ++attempt) {
+    HeldConnection again(server_->port(), stream_request);
+    ASSERT_TRUE(again.connected());
+    if (again.StatusLine() == "HTTP/1.1 200 OK") return;
+    absl::SleepFor(absl::Milliseconds(100));
+  }
+  ADD_FAILURE() << "a closed stream's place was not freed";
+}
+
 TEST_F(ConsoleServerTest, ResearchersNumbersAreListEvents) {
   StartServer();
   // Two short meals for one person, through the meal library.
@@ -460,6 +540,66 @@ TEST_F(ConsoleServerTest, WithAnAccessFileEverythingNeedsCredentials) {
       researcher.Post("/api/stop", kPost, "", "application/json");
   ASSERT_TRUE(researcher_stop);
   EXPECT_EQ(researcher_stop->status, 200);
+}
+
+TEST_F(ConsoleServerTest, WrongPasswordsInBulkDoNotHoldUpStop) {
+  const std::string path = absl::StrCat(services_->dir(), "/access-bulk");
+  {
+    // 10^6 iterations: a check takes a quarter of a second or more here, so
+    // the wrong passwords below all arrive while the first is checked.
+    absl::StatusOr<std::string> carer = HashPassword("table-pass", 1000000);
+    ASSERT_TRUE(carer.ok());
+    std::ofstream out(path);
+    out << "carol caregiver " << *carer << "\n";
+  }
+  absl::StatusOr<AccessList> access = AccessList::Load(path);
+  ASSERT_TRUE(access.ok()) << access.status();
+  ConsoleServerOptions options;
+  options.access = std::make_shared<const AccessList>(*access);
+  StartServer(options);
+  httplib::Client carer = Client();
+  carer.set_basic_auth("carol", "table-pass");
+  auto session = carer.Get("/api/session");  // verifies the password once
+  ASSERT_TRUE(session);
+  ASSERT_EQ(session->status, 200);
+
+  constexpr int kGuesses = 40;
+  std::vector<int> statuses(kGuesses, 0);
+  std::vector<std::string> bodies(kGuesses);
+  std::vector<std::thread> guessers;
+  for (int i = 0; i < kGuesses; ++i) {
+    guessers.emplace_back([this, i, &statuses, &bodies] {
+      httplib::Client guesser = Client();
+      guesser.set_basic_auth("carol", absl::StrCat("guess-", i));
+      if (auto reply = guesser.Get("/api/session")) {
+        statuses[i] = reply->status;
+        bodies[i] = reply->body;
+        if (reply->status == 429) {
+          EXPECT_FALSE(reply->has_header("WWW-Authenticate"));
+        }
+      }
+    });
+  }
+  absl::SleepFor(absl::Milliseconds(100));
+  // A verified password is not queued behind the guesses.
+  auto stopped = carer.Post("/api/stop", kPost, "", "application/json");
+  for (std::thread& guesser : guessers) guesser.join();
+  ASSERT_TRUE(stopped);
+  EXPECT_EQ(stopped->status, 200);
+  int refused_at_once = 0;
+  for (int i = 0; i < kGuesses; ++i) {
+    if (statuses[i] == 429) {
+      ++refused_at_once;
+      EXPECT_THAT(bodies[i], HasSubstr("too many password checks at once"));
+    } else {
+      EXPECT_EQ(statuses[i], 401) << i;
+    }
+  }
+  // One check runs and AccessList::kMaxWaitingChecks wait; the rest are
+  // refused without running PBKDF2.
+  EXPECT_GE(refused_at_once, 1);
+  EXPECT_LE(kGuesses - refused_at_once, 1 + AccessList::kMaxWaitingChecks + 8)
+      << "more checks ran than the queue allows (late arrivals aside)";
 }
 
 TEST(AccessListTest, MalformedFilesAreRefusedNamingTheLine) {
