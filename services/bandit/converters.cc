@@ -94,13 +94,22 @@ absl::StatusOr<BanditConfig> ConfigFromProto(const v1::UserConfig& proto,
   if (proto.has_lambda_p()) config.lambda_p = proto.lambda_p();
   if (proto.has_epsilon()) config.epsilon = proto.epsilon();
   if (proto.has_phi_radius()) config.phi_radius = proto.phi_radius();
+  // Checked here, on the value sent, so that the message names it (an int
+  // cannot hold every uint32); ValidateConfig checks the rest.
+  if (proto.context_dim() > (1u << 16)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("config.context_dim: must be in [1, 65536], got ",
+                     proto.context_dim()));
+  }
+  if (proto.posthoc_dim() > 1024) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "config.posthoc_dim: must be in [0, 1024], got ", proto.posthoc_dim()));
+  }
   if (proto.context_dim() > 0) {
-    config.context_dim =
-        static_cast<int>(std::min<uint32_t>(proto.context_dim(), 1u << 30));
+    config.context_dim = static_cast<int>(proto.context_dim());
   }
   if (proto.posthoc_dim() > 0) {
-    config.posthoc_dim =
-        static_cast<int>(std::min<uint32_t>(proto.posthoc_dim(), 1u << 30));
+    config.posthoc_dim = static_cast<int>(proto.posthoc_dim());
   }
   if (proto.action_names_size() > 0) {
     config.action_names.assign(proto.action_names().begin(),

@@ -472,6 +472,15 @@ size_t ModelReplyBytes(const BanditConfig& config) {
 
 namespace {
 
+// CheckEstimatesFinite, naming the user.
+absl::Status FiniteFor(const std::string& user_id,
+                       const std::vector<ActionEstimate>& estimates) {
+  absl::Status finite = CheckEstimatesFinite(estimates);
+  if (finite.ok()) return finite;
+  return absl::Status(finite.code(), absl::StrCat("user \"", user_id,
+                                                  "\": ", finite.message()));
+}
+
 // INVALID_ARGUMENT naming the configuration, the limit and its flag when a
 // model of `config` could grow to `bytes`, beyond `limit`.
 absl::Status CheckModelFits(const BanditConfig& config, size_t bytes,
@@ -574,7 +583,13 @@ absl::StatusOr<PoolRecord> BanditEngine::BuildPopulationPool(
       RETURN_IF_ERROR(synced);
       const LearnerModel& model = *(*slot)->model;
       if (model.TotalRounds() > 0 && pool.Accepts(model)) {
-        RETURN_IF_ERROR(pool.Add(model));
+        if (absl::Status added = pool.Add(model); !added.ok()) {
+          return absl::Status(
+              added.code(),
+              absl::StrCat("user \"", user.user_id, "\": ", added.message(),
+                           "; nothing pooled (CheckStore, then ResetUser if "
+                           "it persists)"));
+        }
       }
     }
     if (users.next_page_token.empty()) break;
@@ -699,6 +714,7 @@ absl::StatusOr<std::optional<SelectResult>> BanditEngine::TrySelect(
   SelectResult result;
   SelectProducts products;
   result.estimates = model.Estimate(input.context, &products);
+  RETURN_IF_ERROR(FiniteFor(input.user_id, result.estimates));
   result.predicted_posthoc = model.PredictedPosthoc(input.context);
   std::mt19937_64 rng = SelectRng(slot.record.config.seed, slot.select_count);
   const Choice choice = ChooseAction(model.config(), result.estimates, rng);
@@ -909,6 +925,7 @@ absl::StatusOr<EstimateResult> BanditEngine::Estimate(
   RETURN_IF_ERROR(model.ValidateContext(context));
   EstimateResult result;
   result.estimates = model.Estimate(context);
+  RETURN_IF_ERROR(FiniteFor(user_id, result.estimates));
   result.predicted_posthoc = model.PredictedPosthoc(context);
   result.action_names = model.config().action_names;
   result.model_version = model.TotalRounds();

@@ -144,8 +144,8 @@ TEST(ConvertersTest, BadConfigsAreInvalidArgumentNamingTheField) {
       {"config.alpha", [](v1::UserConfig* p) { p->set_alpha(-1); }},
       {"config.lambda_c", [](v1::UserConfig* p) { p->set_lambda_c(0); }},
       {"config.epsilon", [](v1::UserConfig* p) { p->set_epsilon(2); }},
-      // Huge dimensions are clamped before the check, not wrapped negative.
-      {"config.context_dim: must be in [1, 65536], got 1073741824",
+      // Huge dimensions are named as sent, not clamped or wrapped negative.
+      {"config.context_dim: must be in [1, 65536], got 4294967295",
        [](v1::UserConfig* p) { p->set_context_dim(0xffffffffu); }},
       {"config.posthoc_dim: must be in [0, 1024], got 2000",
        [](v1::UserConfig* p) { p->set_posthoc_dim(2000); }},

@@ -721,7 +721,15 @@ TEST(LinUcbTest, HugeFiniteInputsAreRefusedAndChangeNothing) {
   round.posthoc = {0.0, -1e155, 1.0, 0.0};
   EXPECT_EQ(model.ValidateRound(round).message(),
             "posthoc[1]: magnitude must be at most 1e+06, got -1e+155");
-  round.posthoc = {0.0, -1e6, 1.0, 0.0};  // the bound itself is accepted
+  // Within the magnitude bound, the squared norm is held to 1e10 times the
+  // ridge (lambda_p = 1 here): beyond, the model's pivots would cancel to
+  // rounding noise.
+  round.posthoc = {0.0, -1e6, 1.0, 0.0};
+  EXPECT_EQ(model.ValidateRound(round).message(),
+            "posthoc: squared norm 1e+12 is over 1e+10 times lambda_p (1), "
+            "beyond what double precision keeps exact in the model; scale "
+            "the values down or create the user with a larger lambda_p");
+  round.posthoc = {0.0, -9e4, 1.0, 0.0};
   EXPECT_TRUE(model.ValidateRound(round).ok());
   EXPECT_EQ(model.Estimate(ok)[0].lcb, before[0].lcb);
 }

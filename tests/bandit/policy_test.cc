@@ -4,6 +4,7 @@
 // draw reproducible from its select index.
 #include "services/bandit/core/policy.h"
 
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -23,6 +24,23 @@ TEST(PolicyTest, LinUcbTiesGoToTheLowestIndex) {
   const Choice choice = ChooseAction(config, est, rng);
   EXPECT_EQ(choice.action, 3);
   EXPECT_EQ(choice.propensity, 1.0);
+}
+
+// A NaN estimate loses every comparison: an argmin would pick action 0 (or
+// never the NaN action) without a word. The engine checks first.
+TEST(PolicyTest, ANonFiniteEstimateIsRefusedNamingTheAction) {
+  std::vector<ActionEstimate> est(6);
+  for (int a = 0; a < 6; ++a) est[a].lcb = est[a].predicted_loss = 0.1 * a;
+  EXPECT_TRUE(CheckEstimatesFinite(est).ok());
+  est[3].width = std::numeric_limits<double>::quiet_NaN();
+  absl::Status refused = CheckEstimatesFinite(est);
+  EXPECT_EQ(refused.code(), absl::StatusCode::kInternal);
+  EXPECT_NE(refused.message().find("estimate for action 3 is not finite"),
+            absl::string_view::npos)
+      << refused.message();
+  est[3].width = 0;
+  est[5].lcb = -std::numeric_limits<double>::infinity();
+  EXPECT_EQ(CheckEstimatesFinite(est).code(), absl::StatusCode::kInternal);
 }
 
 TEST(PolicyTest, EpsilonGreedyPropensityAndFrequency) {

@@ -115,5 +115,37 @@ TEST(PopulationPriorTest, RejectsUnlikeModelsAndBadPriorsNamingTheField) {
   EXPECT_TRUE(ValidateConfig(bad).ok());
 }
 
+// A model that is not finite (here made by an Update that skipped
+// ValidateRound, with a value whose square overflows) is refused whole,
+// and the pool keeps what it had: one NaN would make every later user's
+// prior NaN.
+TEST(PopulationPriorTest, ANonFiniteModelIsRefusedAndThePoolUnchanged) {
+  BanditConfig config;
+  config.context_dim = 4;
+  LinUcbModel good = *LinUcbModel::Create(config);
+  LinUcbModel broken = *LinUcbModel::Create(config);
+  Round round;
+  round.context = {0.1, 0.2, 0.3, 0.4};
+  round.posthoc = {0.0, 0.0, 1.0, 0.0};
+  round.action = 2;
+  round.loss = 1.0;
+  good.Update(round, nullptr);
+  round.context[1] = 1e200;  // never through ValidateRound
+  broken.Update(round, nullptr);
+  ASSERT_FALSE(broken.Theta(2).allFinite());
+  PriorPool pool(config);
+  ASSERT_TRUE(pool.Add(good).ok());
+  const absl::Status refused = pool.Add(broken);
+  EXPECT_EQ(refused.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(refused.message(),
+              ::testing::HasSubstr("estimate for action 2 is not finite"));
+  EXPECT_EQ(pool.users(), 1);
+  absl::StatusOr<PopulationPrior> prior = pool.Finish(1.0, 1);
+  ASSERT_TRUE(prior.ok()) << prior.status();
+  for (const auto& theta : prior->theta0) {
+    for (double v : theta) EXPECT_TRUE(std::isfinite(v));
+  }
+}
+
 }  // namespace
 }  // namespace bitewise::bandit

@@ -164,8 +164,9 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Create(const BanditConfig& config,
 
 absl::Status LinUcbModel::ValidateContext(
     absl::Span<const double> context) const {
-  return ValidateVector("context", context, static_cast<size_t>(d_),
-                        kMaxInputMagnitude);
+  RETURN_IF_ERROR(ValidateVector("context", context, static_cast<size_t>(d_),
+                                 kMaxInputMagnitude));
+  return ValidateRidgeScale("context", context, "lambda_c", config_.lambda_c);
 }
 
 absl::Status LinUcbModel::ValidateOutcome(
@@ -175,9 +176,10 @@ absl::Status LinUcbModel::ValidateOutcome(
         absl::StrCat("loss: must be in [0, 1], got ", loss));
   }
   if (!this->posthoc() && posthoc.empty()) return absl::OkStatus();
-  return ValidateVector("posthoc", posthoc,
-                        static_cast<size_t>(config_.posthoc_dim),
-                        kMaxInputMagnitude);
+  RETURN_IF_ERROR(ValidateVector("posthoc", posthoc,
+                                 static_cast<size_t>(config_.posthoc_dim),
+                                 kMaxInputMagnitude));
+  return ValidateRidgeScale("posthoc", posthoc, "lambda_p", config_.lambda_p);
 }
 
 absl::Status LinUcbModel::ValidateRound(const Round& round) const {
@@ -189,9 +191,14 @@ absl::Status LinUcbModel::ValidateRound(const Round& round) const {
     return absl::InvalidArgumentError(
         absl::StrCat("weight: must be finite and > 0, got ", round.weight));
   }
-  absl::Status status = ValidateContext(round.context);
-  if (!status.ok()) return status;
-  return ValidateOutcome(round.loss, round.posthoc);
+  RETURN_IF_ERROR(ValidateContext(round.context));
+  RETURN_IF_ERROR(ValidateOutcome(round.loss, round.posthoc));
+  if (round.weight == 1.0) return absl::OkStatus();
+  RETURN_IF_ERROR(ValidateRidgeScale("context", round.context, "lambda_c",
+                                     config_.lambda_c, round.weight));
+  if (!posthoc()) return absl::OkStatus();
+  return ValidateRidgeScale("posthoc", round.posthoc, "lambda_p",
+                            config_.lambda_p, round.weight);
 }
 
 int LinUcbModel::ConversionStart() const {
@@ -708,8 +715,11 @@ void LinUcbModel::Apply(const Round& round, const SelectProducts* products,
     // of W is (x - W^T l) / delta.
     const VectorXd l = sw * v;
     const double delta2 = lambda_a_ + x.squaredNorm() - l.squaredNorm();
-    // K is lambda-regularised, so delta2 >= lambda > 0 up to rounding.
-    const double delta = std::sqrt(std::max(delta2, lambda_a_ * 1e-300));
+    // K is lambda-regularised, so delta2 >= lambda exactly (a Schur
+    // complement of lambda I + X X^T). In floating point it cancels to
+    // noise when lambda / |x|^2 is below the rounding error, even below
+    // zero; lambda is then the true value's floor, and keeps W finite.
+    const double delta = std::sqrt(std::max(delta2, lambda_a_));
     w_row = (m > 0 ? VectorXd(x - WTranspose(taken, l)) : VectorXd(x)) / delta;
     if (caches && m > 0) taken.wb.noalias() += (w * round.loss) * v;
     std::copy(w_row.data(), w_row.data() + d_, taken.w.Append(1));

@@ -1,7 +1,9 @@
 #include "services/bandit/core/policy.h"
 
 #include <algorithm>
+#include <cmath>
 
+#include "absl/strings/str_cat.h"
 #include "services/domain/random.h"
 
 namespace bitewise::bandit {
@@ -38,6 +40,21 @@ int ArgMin(const std::vector<double>& values) {
     if (values[i] < values[best]) best = static_cast<int>(i);
   }
   return best;
+}
+
+absl::Status CheckEstimatesFinite(
+    const std::vector<ActionEstimate>& estimates) {
+  for (size_t a = 0; a < estimates.size(); ++a) {
+    const ActionEstimate& e = estimates[a];
+    if (!std::isfinite(e.predicted_loss) || !std::isfinite(e.width) ||
+        !std::isfinite(e.lcb)) {
+      return absl::InternalError(absl::StrCat(
+          "the model's estimate for action ", a, " is not finite (loss ",
+          e.predicted_loss, ", width ", e.width, ", lcb ", e.lcb,
+          "): nothing chosen; CheckStore, then ResetUser if it persists"));
+    }
+  }
+  return absl::OkStatus();
 }
 
 Choice ChooseAction(const BanditConfig& config,

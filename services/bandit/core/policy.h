@@ -8,6 +8,7 @@
 #include <random>
 #include <vector>
 
+#include "absl/status/status.h"
 #include "services/bandit/core/config.h"
 #include "services/bandit/core/linucb.h"
 
@@ -28,7 +29,13 @@ std::mt19937_64 SelectRng(uint64_t seed, int64_t select_index);
 // Index of the smallest value, ties to the lowest index.
 int ArgMin(const std::vector<double>& values);
 
-// Chooses an action by `config.strategy`:
+// INTERNAL naming the action and its numbers unless every estimate is
+// finite. ChooseAction must not see a NaN: every comparison with it is
+// false, so an argmin would pick action 0, or never the NaN one, silently.
+absl::Status CheckEstimatesFinite(const std::vector<ActionEstimate>& estimates);
+
+// Chooses an action by `config.strategy` (estimates that pass
+// CheckEstimatesFinite):
 //  - LinUCB: argmin lcb; greedy: argmin predicted loss;
 //  - epsilon-greedy: uniform with probability epsilon, else greedy;
 //  - Thompson: argmin of theta~^T c with theta~ ~ N(theta_a, v^2 Sigma_a),

@@ -224,24 +224,43 @@ absl::Status PoLinUcbModel::ValidateContext(
 absl::Status PoLinUcbModel::ValidateOutcome(
     double loss, absl::Span<const double> posthoc) const {
   RETURN_IF_ERROR(contexts_.ValidateOutcome(loss, {}));
-  return ValidateVector("posthoc", posthoc, static_cast<size_t>(q_),
-                        kMaxInputMagnitude);
+  RETURN_IF_ERROR(ValidateVector("posthoc", posthoc, static_cast<size_t>(q_),
+                                 kMaxInputMagnitude));
+  return ValidateRidgeScale("posthoc", posthoc, "lambda_p", config_.lambda_p);
 }
 
 absl::Status PoLinUcbModel::ValidateRound(const Round& round) const {
   RETURN_IF_ERROR(
       contexts_.ValidateRound(ContextRound(round, round.action, round.weight)));
-  return ValidateOutcome(round.loss, round.posthoc);
+  RETURN_IF_ERROR(ValidateOutcome(round.loss, round.posthoc));
+  if (round.weight == 1.0) return absl::OkStatus();
+  return ValidateRidgeScale("posthoc", round.posthoc, "lambda_p",
+                            config_.lambda_p, round.weight);
 }
 
 void PoLinUcbModel::Refresh(ActionState& s) {
   MatrixXd schur = s.p - s.e.transpose() * s.g;
   schur = (schur + schur.transpose()) / 2;  // symmetric to rounding
+  // S = P - E^T C^-1 E >= ridge I exactly (the data's part is a Schur
+  // complement of a positive semi-definite matrix). When the ridge is below
+  // the rounding error of the inputs' squares, the subtraction cancels and
+  // leaves eigenvalues below the ridge, even negative (a failed Cholesky,
+  // NaN estimates); they are raised to the ridge, their true floor.
+  const double ridge = config_.lambda_p + config_.prior.kappa_p();
+  double smallest =
+      Eigen::SelfAdjointEigenSolver<MatrixXd>(schur, Eigen::EigenvaluesOnly)
+          .eigenvalues()(0);
+  if (!(smallest >= ridge)) {
+    const Eigen::SelfAdjointEigenSolver<MatrixXd> eigen(schur);
+    const VectorXd floored = eigen.eigenvalues().cwiseMax(ridge);
+    schur = eigen.eigenvectors() * floored.asDiagonal() *
+            eigen.eigenvectors().transpose();
+    schur = (schur + schur.transpose()) / 2;
+    smallest = floored.minCoeff();
+  }
   s.s_llt.compute(schur);
   s.beta = s.s_llt.solve(s.bp - s.e.transpose() * s.theta_c);
-  const Eigen::SelfAdjointEigenSolver<MatrixXd> eigen(schur,
-                                                      Eigen::EigenvaluesOnly);
-  s.s_inv_max = 1.0 / eigen.eigenvalues()(0);
+  s.s_inv_max = 1.0 / smallest;
 }
 
 bool PoLinUcbModel::AllDual() const {
@@ -367,8 +386,10 @@ void PoLinUcbModel::GrowFactors(const Round& round, const VectorXd& v,
   const double lambda_x = pooled_.ridge();
   double* row = factors_.pooled.AppendRow();
   std::copy(u.data(), u.data() + n, row);
-  row[n] = std::sqrt(std::max(lambda_x + c.squaredNorm() - u.squaredNorm(),
-                              lambda_x * 1e-300));
+  // delta^2 >= lambda exactly; its floor when rounding cancels it
+  // (LinUcbModel::Update).
+  row[n] = std::sqrt(
+      std::max(lambda_x + c.squaredNorm() - u.squaredNorm(), lambda_x));
   // L_a's, as LinUcbModel's Update computes it: [l^T delta] with
   // l = sqrt(w) W_a c.
   const int a = round.action;
@@ -381,7 +402,7 @@ void PoLinUcbModel::GrowFactors(const Round& round, const VectorXd& v,
   const int m = factor.rows();
   row = factor.AppendRow();
   std::copy(l.data(), l.data() + m, row);
-  row[m] = std::sqrt(std::max(delta2, lambda_a * 1e-300));
+  row[m] = std::sqrt(std::max(delta2, lambda_a));
   factors_.row[a].push_back(n);
   factors_.scale[a].push_back(1.0 / sw);
 }

@@ -27,6 +27,17 @@ absl::Status PriorPool::Add(const LearnerModel& model) {
         "the model differs from the pool in learner, dimensions or actions; "
         "only like models can be pooled");
   }
+  // Checked whole before anything is added: one model's NaN would make
+  // every later user's prior NaN.
+  for (int a = 0; a < config_.num_actions(); ++a) {
+    if (model.Count(a) == 0) continue;
+    if (!model.Theta(a).allFinite() ||
+        (UsesPosthoc(config_.learner) && !model.Phi(a).allFinite())) {
+      return absl::FailedPreconditionError(
+          absl::StrCat("the model's estimate for action ", a,
+                       " is not finite; it cannot be pooled"));
+    }
+  }
   for (int a = 0; a < config_.num_actions(); ++a) {
     const int64_t n = model.Count(a);
     if (n == 0) continue;

@@ -44,6 +44,18 @@ struct InputScale {
 // c c^T and would turn every later estimate into NaN for good.
 inline constexpr double kMaxInputMagnitude = 1e6;
 
+// Largest ||x||^2 / lambda accepted for a context against lambda_c, or a
+// post hoc context against lambda_p. A Cholesky pivot lambda + |x|^2 - |l|^2
+// is at least lambda exactly, but in double precision it cancels to noise
+// when lambda is below |x|^2 times the rounding error (1e-16): with
+// lambda_c = 1e-6 and values of 1e6 the model turned to NaN within ten
+// rounds. 1e10 keeps about six digits of every pivot. Defaults: lambda_c
+// 1000, lambda_p 1, and features of order 1 to 100, far inside.
+inline constexpr double kMaxSquaredNormPerRidge = 1e10;
+// An Update's importance weight w scales the row to w ||x||^2; it may take
+// the bound this many times over before the Update is refused.
+inline constexpr double kWeightHeadroom = 100;
+
 // A vector of doubles (a context, a post hoc context) seen as an Eigen
 // vector, without a copy.
 inline Eigen::Map<const Eigen::VectorXd> AsVector(absl::Span<const double> v) {
