@@ -105,21 +105,23 @@ void EraseUnreferenced(ContextFile& contexts, ContextRanges ranges) {
   }
 }
 
-// The database's contexts file, opened knowing how far its rows point (so a
+// The database's contexts file (named from the real database file,
+// `files_base`), opened knowing how far its rows point (so a
 // missing file is told from one never used). With `check`, what no row
 // points at is erased now (reading every event's location); otherwise by
 // RunDeferredChecks.
 absl::StatusOr<std::unique_ptr<ContextFile>> OpenContextFile(
-    sqlite3* db, const std::string& path, bool check) {
+    sqlite3* db, const std::string& path, const std::string& files_base,
+    bool check) {
   const std::string op = absl::StrCat("opening ", path);
+  const std::string contexts_path = files_base + ".contexts";
   if (!check) {
     ASSIGN_OR_RETURN(const int64_t end, NewestContextEnd(db, op));
-    return ContextFile::Open(path + ".contexts", end);
+    return ContextFile::Open(contexts_path, end);
   }
   ASSIGN_OR_RETURN(ContextRanges ranges, ReadContextRanges(db, op));
-  ASSIGN_OR_RETURN(
-      std::unique_ptr<ContextFile> contexts,
-      ContextFile::Open(path + ".contexts", ranges.referenced_end));
+  ASSIGN_OR_RETURN(std::unique_ptr<ContextFile> contexts,
+                   ContextFile::Open(contexts_path, ranges.referenced_end));
   EraseUnreferenced(*contexts, std::move(ranges));
   return contexts;
 }
@@ -166,7 +168,9 @@ absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
   sqlite3_busy_timeout(db.get(), static_cast<int>(timeout_ms));
   // One process per file: a second one would serve models that miss the
   // first one's updates.
-  ASSIGN_OR_RETURN(const int lock_fd, LockStoreFile(options.path));
+  // Named from the real file, so that a link to it is the same store.
+  const std::string files_base = sqlite::StoreFilesBase(options.path);
+  ASSIGN_OR_RETURN(const int lock_fd, LockStoreFile(options.path, files_base));
   // A private store is as small as a test makes it: checked now.
   const bool check_now = options.check_at_open || options.path == ":memory:";
   absl::Status ready = InitializeDatabase(db.get(), options);
@@ -174,7 +178,7 @@ absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
   std::unique_ptr<ContextFile> contexts;
   if (ready.ok() && options.path != ":memory:") {
     absl::StatusOr<std::unique_ptr<ContextFile>> opened =
-        OpenContextFile(db.get(), options.path, check_now);
+        OpenContextFile(db.get(), options.path, files_base, check_now);
     ready = opened.status();
     if (ready.ok()) contexts = *std::move(opened);
   }

@@ -6,6 +6,8 @@
 
 #include <cerrno>
 #include <cstring>
+#include <filesystem>
+#include <string>
 #include <vector>
 
 #include "absl/strings/ascii.h"
@@ -529,9 +531,18 @@ absl::Status InitializeDatabase(sqlite3* db,
 // it. ":memory:" needs none (-1). FAILED_PRECONDITION naming the holder when
 // another process has the store open; UNAVAILABLE if the lock file cannot
 // be made.
-absl::StatusOr<int> LockStoreFile(const std::string& path) {
+std::string StoreFilesBase(const std::string& path) {
+  if (path == ":memory:") return path;
+  std::error_code error;
+  const std::filesystem::path real =
+      std::filesystem::weakly_canonical(path, error);
+  return error ? path : real.string();
+}
+
+absl::StatusOr<int> LockStoreFile(const std::string& path,
+                                  const std::string& real_path) {
   if (path == ":memory:") return -1;
-  const std::string lock_path = path + ".lock";
+  const std::string lock_path = real_path + ".lock";
   const int fd = open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
   if (fd < 0) {
     return absl::UnavailableError(absl::StrCat(

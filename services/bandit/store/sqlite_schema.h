@@ -37,7 +37,17 @@ absl::Status InitializeDatabase(sqlite3* db, const SqliteStoreOptions& options);
 // ":memory:" needs none (-1). FAILED_PRECONDITION naming the holder when
 // another process has the store open; UNAVAILABLE if the lock file cannot be
 // made.
-absl::StatusOr<int> LockStoreFile(const std::string& path);
+//
+// `real_path` is the file `path` names with every symbolic link resolved
+// (StoreFilesBase): the lock and the contexts file are named from it, so a
+// second name for the same file (a link) finds the same lock.
+absl::StatusOr<int> LockStoreFile(const std::string& path,
+                                  const std::string& real_path);
+
+// The database file's name with its links resolved (the file need not exist
+// yet: its directory's are); `path` itself for ":memory:", or when the
+// name cannot be resolved (the open then fails naming `path`).
+std::string StoreFilesBase(const std::string& path);
 
 // PRAGMA integrity_check: DATA_LOSS naming the path and SQLite's first
 // findings when the file's structure is damaged.

@@ -85,6 +85,29 @@ TEST_F(SqliteEventStoreTest, ASecondStoreOnTheSameFileIsRefused) {
   EXPECT_TRUE(third.ok()) << third.status();
 }
 
+// A second name for the file (a symbolic link) is the same store: its
+// lock and its contexts file are named from the real file. Before, a
+// service on the link took a lock and a contexts file of its own, and the
+// two wrote contexts over each other (DATA_LOSS at the next read).
+TEST_F(SqliteEventStoreTest, ALinkToAnOpenStoreIsRefusedToo) {
+  const std::string link = path_ + "-link.db";
+  std::filesystem::create_symlink(path_, link);
+  SqliteStoreOptions options;
+  options.path = link;
+  auto second = SqliteEventStore::Open(options);
+  EXPECT_EQ(second.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(second.status().message(),
+              HasSubstr("already open in another process"));
+  EXPECT_THAT(second.status().message(),
+              HasSubstr(std::filesystem::canonical(path_).string() + ".lock"));
+  store_.reset();
+  auto through_link = SqliteEventStore::Open(options);
+  ASSERT_TRUE(through_link.ok()) << through_link.status();
+  EXPECT_FALSE(std::filesystem::exists(link + ".lock"));
+  EXPECT_FALSE(std::filesystem::exists(link + ".contexts"));
+  std::filesystem::remove(link);
+}
+
 // A database file removed (or replaced) under a running service: writes
 // would be acknowledged and lost at the next start, so none is accepted.
 TEST_F(SqliteEventStoreTest, WritesAreRefusedOnceTheFileIsRemoved) {
