@@ -437,6 +437,42 @@ TEST(HapticTrainerBinaryTest, AFamiliarityThatCannotBeFittedLeavesNoFile) {
   EXPECT_FALSE(std::ifstream(model + ".familiarity").good());
 }
 
+// A run that fails after its familiarity was fitted (here: a batch size of
+// 0, refused by the trainer) leaves the model at --out and its familiarity
+// file as they were, and no staged file. Before, the familiarity file was
+// replaced (or removed) before the network was trained, so the old model
+// was served with a score that was not its own. A run without a score of
+// its own (--familiarity=false) removes the old model's.
+TEST(HapticTrainerBinaryTest,
+     AFailedRunChangesNothingAndAModelNeverKeepsAnotherOnesScore) {
+  std::string log;
+  const std::string model = ::testing::TempDir() + "/keep.onnx";
+  int status = TrainSmall("keep", {}, &log);
+  ASSERT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << log;
+  const std::string before = ReadFile(model);
+  ASSERT_FALSE(before.empty());
+  {
+    std::ofstream own(model + ".familiarity");
+    own << "the score fitted with keep.onnx\n";
+  }
+  status = TrainSmall("keep", {"--familiarity=true", "--batch_size=0"}, &log);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
+      << DescribeWaitStatus(status) << "\n"
+      << log;
+  EXPECT_EQ(ReadFile(model), before);
+  EXPECT_EQ(ReadFile(model + ".familiarity"),
+            "the score fitted with keep.onnx\n");
+  EXPECT_FALSE(std::ifstream(model + ".tmp").good());
+  EXPECT_FALSE(std::ifstream(model + ".familiarity.tmp").good());
+
+  status = TrainSmall("keep", {"--seed=2"}, &log);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << log;
+  EXPECT_NE(ReadFile(model), before);
+  EXPECT_FALSE(std::ifstream(model + ".familiarity").good());
+  EXPECT_THAT(log, HasSubstr("removed " + model + ".familiarity"));
+  EXPECT_FALSE(std::ifstream(model + ".tmp").good());
+}
+
 // The trainer's --window_s: out of range stops it naming the flag; a valid
 // one is recorded in the model, which then loads with that window.
 TEST(HapticTrainerBinaryTest, WindowIsCheckedAndRecordedInTheModel) {

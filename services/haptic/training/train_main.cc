@@ -2,9 +2,15 @@
 // (simulated by default, or a CSV file) and writes the ONNX model. Flags are
 // parsed here and nowhere else. The shipped model is regenerated, bit for
 // bit, by running this with its defaults (docs/haptic.md).
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <filesystem>
 #include <iterator>
 #include <map>
 #include <memory>
@@ -152,29 +158,110 @@ absl::StatusOr<std::string> ReadFile(const std::string& path) {
   return bytes;
 }
 
-int WriteModel(const std::string& out, const std::string& bytes) {
-  std::FILE* file = std::fopen(out.c_str(), "wb");
-  if (file == nullptr ||
-      std::fwrite(bytes.data(), 1, bytes.size(), file) != bytes.size() ||
-      std::fclose(file) != 0) {
-    return Die(absl::StrCat("cannot write ", out));
+// Outputs are written beside their final name ("<path>.tmp"), flushed to
+// disk and checked, and only then renamed over it: a failed write (a full
+// disk), a failed check or a killed run leaves the model that was there,
+// and its familiarity file, as they were.
+std::string Staged(const std::string& path) { return path + ".tmp"; }
+
+int StageFile(const std::string& path, const std::string& bytes) {
+  const std::string staged = Staged(path);
+  const int fd =
+      open(staged.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  bool ok = fd >= 0;
+  for (size_t done = 0; ok && done < bytes.size();) {
+    const ssize_t n = write(fd, bytes.data() + done, bytes.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    ok = n > 0;
+    if (ok) done += static_cast<size_t>(n);
+  }
+  const int error = ok ? 0 : errno;
+  ok = ok && fsync(fd) == 0;
+  if (fd >= 0 && close(fd) != 0) ok = false;
+  if (!ok) {
+    std::remove(staged.c_str());
+    return Die(absl::StrCat("cannot write ", staged, ": ",
+                            std::strerror(error != 0 ? error : errno),
+                            "; nothing at ", path, " was changed"));
   }
   return 0;
 }
 
-// Says what was written and how far OpenCV DNN on the file is from the
-// trainer's reference pass (`on` names the windows); a difference over 1e-5
-// fails.
-int ReportWritten(const std::string& out, size_t size, const HapticNet& net,
-                  double max_difference, const char* on) {
+// Renames the staged file over `path` and flushes the directory entry.
+int CommitFile(const std::string& path) {
+  if (std::rename(Staged(path).c_str(), path.c_str()) != 0) {
+    return Die(absl::StrCat("cannot rename ", Staged(path), " to ", path, ": ",
+                            std::strerror(errno)));
+  }
+  const std::string dir = std::filesystem::path(path).parent_path().string();
+  const int fd = open(dir.empty() ? "." : dir.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd >= 0) {
+    fsync(fd);
+    close(fd);
+  }
+  return 0;
+}
+
+// Gives up on the staged model at `out`: removes it, says why.
+int Abandon(const std::string& out, const absl::Status& why) {
+  std::remove(Staged(out).c_str());
+  return Die(why.ToString());
+}
+
+// Stages the model `bytes` for `out` and loads the staged file as the
+// service will (nullptr after Die, the staged file removed, on failure).
+std::unique_ptr<HapticNet> StageModel(const std::string& out,
+                                      const std::string& bytes) {
+  if (StageFile(out, bytes) != 0) return nullptr;
+  absl::StatusOr<std::unique_ptr<HapticNet>> net =
+      HapticNet::FromOnnxFile(Staged(out));
+  if (!net.ok()) {
+    Abandon(out, net.status());
+    return nullptr;
+  }
+  return *std::move(net);
+}
+
+// What a run does with "<model>.familiarity" once its model is in place.
+struct FamiliarityOutput {
+  enum { kLeave, kWrite, kRemove } action = kLeave;
+  std::string text;  // kWrite
+};
+
+// The staged model checked (OpenCV DNN on the file against the trainer's
+// reference pass, `on` naming the windows; a difference over 1e-5 fails
+// and removes it), then the familiarity file and the model put in place.
+int CheckAndCommit(const std::string& out, size_t size, const HapticNet& net,
+                   double max_difference, const char* on,
+                   const FamiliarityOutput& familiarity) {
   std::printf(
       "\nwrote %s (%zu bytes, %s); OpenCV DNN vs reference%s: max |dp| = "
       "%.2e\n",
       out.c_str(), size, net.fingerprint().c_str(), on, max_difference);
   if (max_difference > 1e-5) {
-    return Die("the exported model disagrees with the trainer");
+    std::remove(Staged(out).c_str());
+    return Die(absl::StrCat("the exported model disagrees with the trainer; ",
+                            "nothing at ", out, " was changed"));
   }
-  return 0;
+  const std::string familiarity_path = FamiliarityPathFor(out);
+  if (familiarity.action == FamiliarityOutput::kWrite) {
+    if (int failed = StageFile(familiarity_path, familiarity.text);
+        failed != 0) {
+      std::remove(Staged(out).c_str());
+      return failed;
+    }
+    if (int failed = CommitFile(familiarity_path); failed != 0) return failed;
+    std::printf("wrote %s (%zu bytes)\n", familiarity_path.c_str(),
+                familiarity.text.size());
+  } else if (familiarity.action == FamiliarityOutput::kRemove) {
+    // A file left from an earlier model at this path is not this one's.
+    std::error_code error;
+    if (std::filesystem::remove(familiarity_path, error)) {
+      std::printf("removed %s (it belonged to the model replaced)\n",
+                  familiarity_path.c_str());
+    }
+  }
+  return CommitFile(out);
 }
 
 // --ensemble_of: the members' weights, one ensemble file, its score on
@@ -214,9 +301,8 @@ int AssembleEnsemble() {
   };
   const std::string bytes = HapticEnsembleToOnnx(members, metadata);
   const std::string out = absl::GetFlag(FLAGS_out);
-  if (int failed = WriteModel(out, bytes); failed != 0) return failed;
-  absl::StatusOr<std::unique_ptr<HapticNet>> net = HapticNet::FromOnnxFile(out);
-  if (!net.ok()) return Die(net.status().ToString());
+  const std::unique_ptr<HapticNet> net = StageModel(out, bytes);
+  if (net == nullptr) return 1;
   std::printf("ensemble of %zu members:\n  %s\n", members.size(),
               absl::StrJoin(names, "\n  ").c_str());
   HapticPipelineOptions pipeline;
@@ -233,8 +319,8 @@ int AssembleEnsemble() {
     for (size_t w = 0; w < windows.inputs.size(); ++w) {
       probabilities.push_back(
           ReferenceEnsembleProbabilities(members, windows.inputs[w]));
-      absl::StatusOr<HapticNetOutput> output = (*net)->Run(windows.inputs[w]);
-      if (!output.ok()) return Die(output.status().ToString());
+      absl::StatusOr<HapticNetOutput> output = net->Run(windows.inputs[w]);
+      if (!output.ok()) return Abandon(out, output.status());
       for (int k = 0; k < kHapticClasses; ++k) {
         max_difference = std::max(
             max_difference,
@@ -254,7 +340,8 @@ int AssembleEnsemble() {
         score.overconfidence[2], score.overconfidence[3],
         score.confusion.ToString().c_str());
   }
-  return ReportWritten(out, bytes.size(), **net, max_difference, "");
+  return CheckAndCommit(out, bytes.size(), *net, max_difference, "",
+                        FamiliarityOutput());
 }
 
 std::vector<FamiliarityVector> FamiliarityOf(const LabelledWindows& windows) {
@@ -319,7 +406,8 @@ int FitFamiliarity(const LabelledWindows& train,
                    const std::vector<TraceStory>& held_out,
                    uint64_t held_out_seed,
                    const HapticPipelineOptions& pipeline,
-                   const std::string& trained_on, const std::string& path) {
+                   const std::string& trained_on, const std::string& path,
+                   FamiliarityOutput* output) {
   const std::vector<FamiliarityVector> train_features = FamiliarityOf(train);
   const std::vector<FamiliarityVector> validation_features =
       FamiliarityOf(validation);
@@ -350,8 +438,9 @@ int FitFamiliarity(const LabelledWindows& train,
     }
     // Too few windows to fit a score is no reason not to train the network:
     // the model is served without one (the service says so at start-up).
-    // A file left from an earlier run at this path would not belong to it.
-    std::remove(path.c_str());
+    // A file left from an earlier run at this path would not belong to it:
+    // it is removed when the new model is put in place.
+    output->action = FamiliarityOutput::kRemove;
     std::printf(
         "\nfamiliarity: not fitted (%s); no %s is written, so the service "
         "will serve this model without a familiarity score\n",
@@ -386,14 +475,9 @@ int FitFamiliarity(const LabelledWindows& train,
         static_cast<unsigned long>(held_out_seed),
         FamiliarityLine(*model, windows, &test_distances, nullptr).c_str());
   }
-  std::FILE* file = std::fopen(path.c_str(), "wb");
-  const std::string text = model->ToText();
-  if (file == nullptr ||
-      std::fwrite(text.data(), 1, text.size(), file) != text.size() ||
-      std::fclose(file) != 0) {
-    return Die(absl::StrCat("cannot write ", path));
-  }
-  std::printf("wrote %s (%zu bytes)\n", path.c_str(), text.size());
+  // Written with the model, once it is trained and checked.
+  output->action = FamiliarityOutput::kWrite;
+  output->text = model->ToText();
   std::fflush(stdout);
   return 0;
 }
@@ -403,12 +487,17 @@ int FitFamiliarity(const LabelledWindows& train,
 int main(int argc, char** argv) {
   absl::SetProgramUsageMessage(
       "Trains HapticNet and writes it as ONNX. With no flags: 3000 simulated "
-      "traces per class from each of the world and piecewise stories, seed "
-      "1, model to ./hapticnet.onnx.");
+      "traces per class from each story of --stories (world, piecewise, "
+      "mechanics, compliant, puncture, poroelastic), seed 1, model to "
+      "./hapticnet.onnx.");
   bitewise::ShowOwnFlagsInHelp();
   bitewise::ParseFlagsOnly(argc, argv);
   if (!absl::GetFlag(FLAGS_ensemble_of).empty()) return AssembleEnsemble();
   const uint64_t seed = absl::GetFlag(FLAGS_seed);
+  if (absl::GetFlag(FLAGS_traces_repeat) < 1) {
+    return Die(absl::StrCat("--traces_repeat must be at least 1; got ",
+                            absl::GetFlag(FLAGS_traces_repeat)));
+  }
   // Checked before any trace is drawn.
   if (const std::string g = absl::GetFlag(FLAGS_familiarity_gaussians);
       g != "class" && g != "class_and_story") {
@@ -623,18 +712,32 @@ int main(int argc, char** argv) {
       source.c_str(), train_windows.inputs.size(),
       validation_windows.inputs.size(), test_windows.inputs.size(),
       skipped_train, skipped_validation, skipped_test);
+  // Without a score of its own, the new model must not be served with the
+  // old one's (--familiarity=false, or too few windows to fit one).
+  FamiliarityOutput familiarity;
+  familiarity.action = FamiliarityOutput::kRemove;
   if (absl::GetFlag(FLAGS_familiarity) ||
       absl::GetFlag(FLAGS_familiarity_only)) {
+    const std::string path = FamiliarityPathFor(absl::GetFlag(FLAGS_out));
     if (int failed =
             FitFamiliarity(train_windows, validation_windows, test_windows,
                            held_out, seed + 1000, pipeline,
                            names.empty() ? std::string("recordings")
                                          : absl::StrJoin(names, ","),
-                           FamiliarityPathFor(absl::GetFlag(FLAGS_out)));
+                           path, &familiarity);
         failed != 0) {
       return failed;
     }
-    if (absl::GetFlag(FLAGS_familiarity_only)) return 0;
+    if (absl::GetFlag(FLAGS_familiarity_only)) {
+      // For the model already at --out: written now.
+      if (int failed = StageFile(path, familiarity.text); failed != 0) {
+        return failed;
+      }
+      if (int failed = CommitFile(path); failed != 0) return failed;
+      std::printf("wrote %s (%zu bytes)\n", path.c_str(),
+                  familiarity.text.size());
+      return 0;
+    }
   }
 
   TrainerOptions options;
@@ -768,22 +871,19 @@ int main(int argc, char** argv) {
   }
   const std::string bytes = HapticNetToOnnx(result->weights, metadata);
   const std::string out = absl::GetFlag(FLAGS_out);
-  if (int failed = WriteModel(out, bytes); failed != 0) return failed;
-
   // The file as the service will load it: OpenCV must agree with the
   // trainer on every held-out window.
-  absl::StatusOr<std::unique_ptr<HapticNet>> net = HapticNet::FromOnnxFile(out);
-  if (!net.ok()) return Die(net.status().ToString());
+  const std::unique_ptr<HapticNet> net = StageModel(out, bytes);
+  if (net == nullptr) return 1;
   double max_difference = 0.0;
   for (size_t i = 0; i < test_windows.inputs.size(); ++i) {
-    absl::StatusOr<HapticNetOutput> output =
-        (*net)->Run(test_windows.inputs[i]);
-    if (!output.ok()) return Die(output.status().ToString());
+    absl::StatusOr<HapticNetOutput> output = net->Run(test_windows.inputs[i]);
+    if (!output.ok()) return Abandon(out, output.status());
     for (int k = 0; k < kHapticClasses; ++k) {
       max_difference = std::max(
           max_difference, std::abs(output->probabilities[k] - reference[i][k]));
     }
   }
-  return ReportWritten(out, bytes.size(), **net, max_difference,
-                       " on the test set");
+  return CheckAndCommit(out, bytes.size(), *net, max_difference,
+                        " on the test set", familiarity);
 }
