@@ -187,6 +187,11 @@ int main(int argc, char** argv) {
 
   console::MealHostOptions host_options;
   host_options.journal_path = absl::GetFlag(FLAGS_journal);
+  if (absl::Status writable =
+          meals::UpdateJournal(host_options.journal_path).CheckWritable();
+      !writable.ok()) {
+    return Fail(absl::StrCat("--journal: ", writable.ToString()));
+  }
   meals::MealOptions& defaults = host_options.defaults;
   defaults.posthoc = posthoc == "logprob"
                          ? meals::PosthocMode::kLogProbabilities

@@ -1,12 +1,14 @@
 #include "clients/meal/update_journal.h"
 
 #include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 #include "absl/container/flat_hash_map.h"
@@ -51,14 +53,50 @@ absl::Status WriteAllAndSync(int fd, const std::string& data,
 
 absl::Status UpdateJournal::Append(const JournaledUpdate& update) {
   absl::MutexLock lock(&mu_);
-  const int fd = ::open(path_.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0600);
+  const int fd = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0600);
   if (fd < 0) {
     return absl::FailedPreconditionError(absl::StrCat(
         "cannot open journal ", path_, ": ", std::strerror(errno)));
   }
-  absl::Status status = WriteAllAndSync(fd, FormatLine(update), path_);
+  // Where the last whole line ends: a line cut short by a failed write or
+  // a crash mid-write (never acknowledged) is cut off, so that this one
+  // does not run on from it.
+  struct stat file {};
+  off_t end = ::fstat(fd, &file) == 0 ? file.st_size : -1;
+  char c = '\n';
+  while (end > 0 && ::pread(fd, &c, 1, end - 1) == 1 && c != '\n') --end;
+  absl::Status status =
+      end < 0 ? absl::InternalError(absl::StrCat("cannot read journal ", path_,
+                                                 ": ", std::strerror(errno)))
+              : absl::OkStatus();
+  if (status.ok() && end != file.st_size && ::ftruncate(fd, end) != 0) {
+    status = absl::InternalError(
+        absl::StrCat("cannot cut journal ", path_, ": ", std::strerror(errno)));
+  }
+  if (status.ok() && ::lseek(fd, end, SEEK_SET) != end) {
+    status = absl::InternalError(absl::StrCat("cannot seek journal ", path_,
+                                              ": ", std::strerror(errno)));
+  }
+  if (status.ok()) status = WriteAllAndSync(fd, FormatLine(update), path_);
+  // A write that failed part way (a full disk) leaves nothing behind.
+  if (!status.ok() && end >= 0 && ::ftruncate(fd, end) == 0) ::fsync(fd);
   ::close(fd);
   return status;
+}
+
+absl::Status UpdateJournal::CheckWritable() const {
+  absl::MutexLock lock(&mu_);
+  const bool existed = ::access(path_.c_str(), F_OK) == 0;
+  const int fd =
+      ::open(path_.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0600);
+  if (fd < 0) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "cannot open journal ", path_, " for writing: ", std::strerror(errno),
+        "; an update the BanditService cannot take would be lost"));
+  }
+  ::close(fd);
+  if (!existed) ::unlink(path_.c_str());
+  return absl::OkStatus();
 }
 
 absl::StatusOr<std::vector<JournaledUpdate>> UpdateJournal::ReadAll() const {
@@ -75,12 +113,17 @@ absl::StatusOr<std::vector<JournaledUpdate>> UpdateJournal::ReadAllLocked()
     return absl::FailedPreconditionError(absl::StrCat(
         "cannot read journal ", path_, ": ", std::strerror(errno)));
   }
-  std::string line;
+  const std::string text{std::istreambuf_iterator<char>(in),
+                         std::istreambuf_iterator<char>()};
+  std::vector<absl::string_view> lines = absl::StrSplit(text, '\n');
+  // After the last newline: empty, or a line cut short by a write that
+  // failed or a crash (never acknowledged), which is not read.
+  lines.pop_back();
   int number = 0;
-  while (std::getline(in, line)) {
+  for (absl::string_view line : lines) {
     ++number;
     if (line.empty()) continue;
-    const std::vector<std::string> fields = absl::StrSplit(line, '\t');
+    const std::vector<absl::string_view> fields = absl::StrSplit(line, '\t');
     JournaledUpdate update;
     bool ok = fields.size() >= 2 && !fields[0].empty() &&
               absl::SimpleAtod(fields[1], &update.loss);
@@ -93,7 +136,7 @@ absl::StatusOr<std::vector<JournaledUpdate>> UpdateJournal::ReadAllLocked()
       return absl::DataLossError(
           absl::StrCat("journal ", path_, " line ", number, " is malformed"));
     }
-    update.event_id = fields[0];
+    update.event_id = std::string(fields[0]);
     out.push_back(std::move(update));
   }
   return out;

@@ -35,11 +35,21 @@ class UpdateJournal {
 
   const std::string& path() const { return path_; }
 
-  // Appends one update and flushes it to disk (fsync) before returning.
+  // Appends one update and flushes it to disk (fsync) before returning. A
+  // write that fails part way is cut off again, and so is a line left cut
+  // short before (a crash mid-write), so no line runs on from another.
   absl::Status Append(const JournaledUpdate& update);
 
+  // FAILED_PRECONDITION naming the file unless the journal can be opened
+  // for writing (a file made for the check is removed again). Callers check
+  // at start: a journal found unwritable only when the BanditService is
+  // down would lose the update it was for.
+  absl::Status CheckWritable() const;
+
   // Every journaled update, oldest first. An absent file is an empty
-  // journal; a malformed line is DATA_LOSS naming the line number.
+  // journal; a malformed line is DATA_LOSS naming the line number; text
+  // after the last newline (a line cut short, never acknowledged) is not
+  // read.
   absl::StatusOr<std::vector<JournaledUpdate>> ReadAll() const;
 
   // Calls `deliver` for the last journaled update of each event, in order,

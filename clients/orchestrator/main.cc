@@ -293,6 +293,10 @@ int main(int argc, char** argv) {
   }
 
   meals::UpdateJournal journal(absl::GetFlag(FLAGS_journal));
+  if (absl::Status writable = journal.CheckWritable(); !writable.ok()) {
+    std::fprintf(stderr, "--journal: %s\n", writable.ToString().c_str());
+    return 2;
+  }
   TerminalListener listener;
   // A new user's context dimension follows the featurizer in use, so the
   // user is found or created at the first bite.

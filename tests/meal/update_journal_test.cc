@@ -1,9 +1,12 @@
 #include "clients/meal/update_journal.h"
 
+#include <signal.h>
 #include <stdlib.h>
+#include <sys/resource.h>
 
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <string>
 #include <vector>
@@ -102,6 +105,72 @@ TEST(UpdateJournalTest, MalformedLineIsDataLossNamingTheLine) {
   EXPECT_EQ(all.status().code(), absl::StatusCode::kDataLoss);
   EXPECT_NE(all.status().message().find("line 2"), std::string::npos)
       << all.status();
+}
+
+// A line cut short (a crash mid-write, never acknowledged) is not read,
+// even when what is left parses (here the post hoc value -0.12 of what was
+// -0.125), and the next Append cuts it off rather than running on from it.
+TEST(UpdateJournalTest, ALineCutShortIsNotReadAndIsCutOffByTheNextAppend) {
+  const std::string path = TempPath();
+  std::ofstream(path) << "5\t1\t-0.5\n6\t0.25\t-0.12";
+  UpdateJournal journal(path);
+  absl::StatusOr<std::vector<JournaledUpdate>> all = journal.ReadAll();
+  ASSERT_TRUE(all.ok()) << all.status();
+  ASSERT_EQ(all->size(), 1u);
+  EXPECT_EQ((*all)[0].event_id, "5");
+  ASSERT_TRUE(journal.Append({"7", 0.0, {-2.5}}).ok());
+  all = journal.ReadAll();
+  ASSERT_TRUE(all.ok()) << all.status();
+  ASSERT_EQ(all->size(), 2u);
+  EXPECT_EQ((*all)[1].event_id, "7");
+  EXPECT_EQ((*all)[1].posthoc, std::vector<double>{-2.5});
+  std::ifstream in(path);
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}),
+            "5\t1\t-0.5\n7\t0\t-2.5\n");
+}
+
+// A write that fails part way (here the file size limit, as a full disk
+// does) is refused and leaves the file as it was.
+TEST(UpdateJournalTest, AWriteThatFailsPartWayLeavesNothingBehind) {
+  const std::string path = TempPath();
+  UpdateJournal journal(path);
+  ASSERT_TRUE(journal.Append({"5", 1.0, {-0.5}}).ok());
+  std::ifstream before_in(path);
+  const std::string before(std::istreambuf_iterator<char>(before_in), {});
+  signal(SIGXFSZ, SIG_IGN);
+  rlimit old_limit{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &old_limit), 0);
+  rlimit limit = old_limit;
+  limit.rlim_cur = before.size() + 10;  // the next line is longer
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
+  const absl::Status failed =
+      journal.Append({"6", 0.0, {-0.123456789, 0.987654321}});
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &old_limit), 0);
+  signal(SIGXFSZ, SIG_DFL);
+  EXPECT_FALSE(failed.ok());
+  EXPECT_NE(failed.message().find("cannot write journal"), std::string::npos)
+      << failed;
+  std::ifstream after_in(path);
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(after_in), {}), before);
+  ASSERT_TRUE(journal.Append({"7", 0.0, {}}).ok());
+  absl::StatusOr<std::vector<JournaledUpdate>> all = journal.ReadAll();
+  ASSERT_TRUE(all.ok()) << all.status();
+  ASSERT_EQ(all->size(), 2u);
+  EXPECT_EQ((*all)[1].event_id, "7");
+}
+
+// A journal that cannot be written is found at start, not when the
+// BanditService is down and the update has nowhere else to go.
+TEST(UpdateJournalTest, CheckWritableNamesAJournalThatCannotBeWritten) {
+  const std::string path = TempPath();
+  EXPECT_TRUE(UpdateJournal(path).CheckWritable().ok());
+  EXPECT_FALSE(std::ifstream(path).good());  // the check left no file
+  const std::string missing = path + ".d/none/updates.journal";
+  const absl::Status refused = UpdateJournal(missing).CheckWritable();
+  EXPECT_EQ(refused.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_NE(refused.message().find("cannot open journal " + missing),
+            std::string::npos)
+      << refused;
 }
 
 }  // namespace
