@@ -1,6 +1,7 @@
 #include "clients/meal/trace_recording.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -15,6 +16,7 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
+#include "absl/strings/strip.h"
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "absl/types/span.h"
@@ -83,14 +85,17 @@ absl::StatusOr<int> OpenCsv(const std::string& path,
   }
   size_t longest = 0;
   for (absl::string_view h : headers) longest = std::max(longest, h.size());
-  std::string first(longest + 1, '\0');
+  std::string first(longest + 2, '\0');  // the header, "\r\n" at most
   const ssize_t n = pread(fd, first.data(), first.size(), 0);
   first.resize(n > 0 ? static_cast<size_t>(n) : 0);
   const size_t end = first.find('\n');
-  const auto found = end == std::string::npos
-                         ? headers.end()
-                         : std::find(headers.begin(), headers.end(),
-                                     absl::string_view(first).substr(0, end));
+  // A spreadsheet may have saved it with CRLF line ends.
+  const auto found =
+      end == std::string::npos
+          ? headers.end()
+          : std::find(headers.begin(), headers.end(),
+                      absl::StripSuffix(absl::string_view(first).substr(0, end),
+                                        "\r"));
   if (found == headers.end()) {
     close(fd);
     std::string message = absl::StrCat(
@@ -124,6 +129,57 @@ absl::StatusOr<int> OpenCsv(const std::string& path,
   return fd;
 }
 
+// Cuts off traces.csv's last rows whose trace id is above `last_bite`: a
+// trace whose bites.csv row was never written (a crash between the two
+// writes) has no outcome, label or answer, and half of it may be missing.
+// The rows of one trace are together at the end, so the file is read
+// backwards a block at a time until a row of an earlier trace.
+absl::Status CutTracesWithoutABite(int fd, const std::string& path,
+                                   int64_t last_bite) {
+  struct stat st;
+  if (fstat(fd, &st) != 0)
+    return absl::InternalError(Errno("cannot stat", path));
+  off_t cut = st.st_size;
+  off_t pos = st.st_size;
+  std::string buffer;  // the file from `pos` to its end, read so far
+  bool done = false;
+  while (!done && pos > 0) {
+    const off_t start = pos > 65536 ? pos - 65536 : 0;
+    std::string block(static_cast<size_t>(pos - start), '\0');
+    if (pread(fd, block.data(), block.size(), start) !=
+        static_cast<ssize_t>(block.size())) {
+      return absl::InternalError(Errno("cannot read", path));
+    }
+    buffer.insert(0, block);
+    pos = start;
+    // Whole lines of `buffer` before `cut`, last first: [begin, end) with
+    // its newline at end - 1 (the file ends with one: OpenCsv cut off a row
+    // cut short). The first line is whole only at the file's start.
+    size_t end = static_cast<size_t>(cut - pos);
+    while (end > 0) {
+      const size_t newline =
+          end >= 2 ? buffer.rfind('\n', end - 2) : std::string::npos;
+      if (newline == std::string::npos && pos > 0) break;  // read more
+      const size_t begin = newline == std::string::npos ? 0 : newline + 1;
+      const absl::string_view line =
+          absl::string_view(buffer).substr(begin, end - 1 - begin);
+      int64_t id;
+      if (!absl::SimpleAtoi(line.substr(0, line.find(',')), &id) ||
+          id <= last_bite) {
+        done = true;
+        break;
+      }
+      cut = pos + static_cast<off_t>(begin);
+      end = begin;
+    }
+    if (end == 0) done = true;
+  }
+  if (cut < st.st_size && (ftruncate(fd, cut) != 0 || fsync(fd) != 0)) {
+    return absl::InternalError(Errno("cannot repair", path));
+  }
+  return absl::OkStatus();
+}
+
 // A field of bites.csv: ids are checked by the services (no commas), but
 // food names and outcomes come from elsewhere.
 std::string Field(const std::string& text) {
@@ -155,13 +211,29 @@ absl::StatusOr<std::unique_ptr<TraceRecording>> TraceRecording::Open(
   if (mkdir(dir.c_str(), 0755) != 0 && errno != EEXIST) {
     return absl::InternalError(Errno("cannot create the directory", dir));
   }
+  // One process records into a directory at a time, and its lock is taken
+  // before anything is read or repaired: two would give two bites one id
+  // (the trainer's --labels then refuses the file), and one would cut off
+  // the other's row as it is being written.
+  const int lock_fd = open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (lock_fd < 0) return absl::InternalError(Errno("cannot open", dir));
+  if (flock(lock_fd, LOCK_EX | LOCK_NB) != 0) {
+    close(lock_fd);
+    return absl::FailedPreconditionError(absl::StrCat(
+        "the recording in ", dir,
+        " is open in another process (an orchestrator or console recording "
+        "there): record into another directory"));
+  }
   int64_t last_trace = -1, last_bite = -1;
   int traces_header = 0, bites_header = 0;
   const absl::string_view trace_headers[] = {domain::kTraceCsvHeader};
   absl::StatusOr<int> traces =
       OpenCsv(absl::StrCat(dir, "/", kTracesFile), trace_headers,
               &traces_header, &last_trace);
-  if (!traces.ok()) return traces.status();
+  if (!traces.ok()) {
+    close(lock_fd);
+    return traces.status();
+  }
   const absl::string_view bite_headers[] = {kBitesHeader,
                                             kBitesHeaderBeforeForceLimit,
                                             kBitesHeaderBeforeFamiliarity};
@@ -169,18 +241,32 @@ absl::StatusOr<std::unique_ptr<TraceRecording>> TraceRecording::Open(
                                       bite_headers, &bites_header, &last_bite);
   if (!bites.ok()) {
     close(*traces);
+    close(lock_fd);
     return bites.status();
   }
+  if (last_trace > last_bite) {
+    if (absl::Status cut = CutTracesWithoutABite(
+            *traces, absl::StrCat(dir, "/", kTracesFile), last_bite);
+        !cut.ok()) {
+      close(*traces);
+      close(*bites);
+      close(lock_fd);
+      return cut;
+    }
+    last_trace = last_bite;
+  }
   return std::unique_ptr<TraceRecording>(new TraceRecording(
-      dir, *traces, *bites, std::max(last_trace, last_bite) + 1,
+      dir, lock_fd, *traces, *bites, std::max(last_trace, last_bite) + 1,
       /*records_familiarity=*/bites_header <= 1,
       /*records_force_limit=*/bites_header == 0));
 }
 
-TraceRecording::TraceRecording(std::string dir, int traces_fd, int bites_fd,
-                               int64_t next_id, bool records_familiarity,
+TraceRecording::TraceRecording(std::string dir, int lock_fd, int traces_fd,
+                               int bites_fd, int64_t next_id,
+                               bool records_familiarity,
                                bool records_force_limit)
     : dir_(std::move(dir)),
+      lock_fd_(lock_fd),
       records_familiarity_(records_familiarity),
       records_force_limit_(records_force_limit),
       note_(records_force_limit ? ""
@@ -205,6 +291,7 @@ TraceRecording::~TraceRecording() {
   absl::MutexLock lock(&mu_);
   close(traces_fd_);
   close(bites_fd_);
+  close(lock_fd_);  // the directory's lock goes last
 }
 
 int64_t TraceRecording::recorded() const {
@@ -266,16 +353,31 @@ absl::StatusOr<std::string> TraceRecording::Record(
     absl::StrAppend(&row, ",", bite.force_limit_reached ? "1" : "0");
   }
   row.push_back('\n');
-  if (!WriteAll(traces_fd_, rows)) {
+  // A bite is both files' rows or neither's: a write that fails part way
+  // (a full disk) is cut off again in both.
+  struct stat traces_st, bites_st;
+  if (fstat(traces_fd_, &traces_st) != 0 || fstat(bites_fd_, &bites_st) != 0) {
     broken_ = true;
-    return absl::InternalError(
-        Errno("cannot write", absl::StrCat(dir_, "/", kTracesFile)));
+    return absl::InternalError(Errno("cannot stat the recording in", dir_));
   }
-  if (!WriteAll(bites_fd_, row)) {
+  auto undo = [&](const char* file) {
+    const std::string message =
+        Errno("cannot write", absl::StrCat(dir_, "/", file));
     broken_ = true;
+    if (ftruncate(traces_fd_, traces_st.st_size) != 0 ||
+        ftruncate(bites_fd_, bites_st.st_size) != 0) {
+      return absl::InternalError(
+          absl::StrCat(message,
+                       "; and cannot cut the bite's rows off again (the next "
+                       "open of the recording does)"));
+    }
+    fdatasync(traces_fd_);
+    fdatasync(bites_fd_);
     return absl::InternalError(
-        Errno("cannot write", absl::StrCat(dir_, "/", kBitesFile)));
-  }
+        absl::StrCat(message, "; this bite's rows were cut off again"));
+  };
+  if (!WriteAll(traces_fd_, rows)) return undo(kTracesFile);
+  if (!WriteAll(bites_fd_, row)) return undo(kBitesFile);
   ++next_id_;
   ++recorded_;
   return id;

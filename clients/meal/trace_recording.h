@@ -75,16 +75,20 @@ class TraceRecording {
   // Opens (creating it and its files if need be) the recording in `dir`.
   // A bites.csv with the header of an earlier release is appended to in its
   // own format. INVALID_ARGUMENT naming the file if a
-  // file there has any other header; INTERNAL naming the file if it cannot
-  // be created or read.
+  // file there has any other header (a header saved with CRLF line ends
+  // is its own); FAILED_PRECONDITION if another process records there
+  // (the directory is flock'ed while open); INTERNAL naming the file if it
+  // cannot be created or read. Trace rows without their bites.csv row (a
+  // crash between the two writes) and a last row cut short are cut off.
   static absl::StatusOr<std::unique_ptr<TraceRecording>> Open(
       const std::string& dir);
   ~TraceRecording();
 
   // Appends `trace` with `bite`. Returns the trace's id. INVALID_ARGUMENT
   // for an empty trace or an id field holding a comma or a newline;
-  // INTERNAL naming the file if a write or fsync fails (the recording is
-  // then unusable: what was written before stays readable).
+  // INTERNAL naming the file if a write or fsync fails (the bite's rows
+  // are cut off again in both files, and the recording is then unusable:
+  // what was written before stays readable).
   absl::StatusOr<std::string> Record(
       const RecordedBite& bite,
       const google::protobuf::RepeatedPtrField<v1::WrenchSample>& trace);
@@ -101,10 +105,12 @@ class TraceRecording {
   const std::string& note() const { return note_; }
 
  private:
-  TraceRecording(std::string dir, int traces_fd, int bites_fd, int64_t next_id,
-                 bool records_familiarity, bool records_force_limit);
+  TraceRecording(std::string dir, int lock_fd, int traces_fd, int bites_fd,
+                 int64_t next_id, bool records_familiarity,
+                 bool records_force_limit);
 
   const std::string dir_;
+  const int lock_fd_;  // the directory, flock'ed while it is recorded into
   const bool records_familiarity_;
   const bool records_force_limit_;
   const std::string note_;

@@ -4,11 +4,14 @@
 // directories and traces refused by name.
 #include "clients/meal/trace_recording.h"
 
+#include <signal.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -176,6 +179,103 @@ TEST(TraceRecordingTest, IdsContinueAcrossRunsAndACutRowIsDropped) {
   EXPECT_EQ((*traces)[2].id, "2");
   EXPECT_EQ((*traces)[2].samples.size(), 20u);
   EXPECT_EQ(Lines(dir + "/bites.csv").size(), 4u);
+}
+
+std::string FileText(const std::string& path) {
+  std::ifstream in(path);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+// A crash between a bite's two writes leaves whole rows of a trace in
+// traces.csv and no row in bites.csv: no outcome, no label, and maybe half
+// the trace. The next open cuts them off (here 2,000 rows, more than one
+// 64 KiB block read backwards), and the id is used again. Before, the
+// trainer read them as a whole labelled trace.
+TEST(TraceRecordingTest, ATraceWithoutItsBiteRowIsCutOffAtOpen) {
+  const std::string dir = TempDir();
+  {
+    auto recording = TraceRecording::Open(dir);
+    ASSERT_THAT(recording.status(), IsOk());
+    ASSERT_THAT((*recording)->Record(Bite("e1", true), Trace(3000, 1)).status(),
+                IsOk());
+    ASSERT_THAT((*recording)->Record(Bite("e2", true), Trace(3000, 2)).status(),
+                IsOk());
+  }
+  const std::string whole = FileText(dir + "/traces.csv");
+  {
+    std::ofstream out(dir + "/traces.csv", std::ios::app);
+    for (int i = 0; i < 2000; ++i)
+      out << "2,hard_skin," << 0.001 * i << ",1,2,3,4,5,6\n";
+  }
+  auto recording = TraceRecording::Open(dir);
+  ASSERT_THAT(recording.status(), IsOk());
+  EXPECT_EQ(FileText(dir + "/traces.csv"), whole);
+  absl::StatusOr<std::string> id =
+      (*recording)->Record(Bite("e3", true), Trace(20, 3));
+  ASSERT_THAT(id.status(), IsOk());
+  EXPECT_EQ(*id, "2");
+  auto traces = haptic::ReadRecordedTraces(dir + "/traces.csv");
+  ASSERT_THAT(traces.status(), IsOk());
+  ASSERT_EQ(traces->size(), 3u);
+  EXPECT_EQ((*traces)[2].samples.size(), 20u);
+}
+
+// A write that fails part way (the file size limit here, as a full disk)
+// leaves neither file with part of the bite, and says so.
+TEST(TraceRecordingTest,
+     AWriteThatFailsPartWayLeavesNeitherFileWithPartOfTheBite) {
+  const std::string dir = TempDir();
+  auto recording = TraceRecording::Open(dir);
+  ASSERT_THAT(recording.status(), IsOk());
+  ASSERT_THAT((*recording)->Record(Bite("e1", true), Trace(20, 1)).status(),
+              IsOk());
+  const std::string traces_before = FileText(dir + "/traces.csv");
+  const std::string bites_before = FileText(dir + "/bites.csv");
+  signal(SIGXFSZ, SIG_IGN);
+  rlimit old_limit{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &old_limit), 0);
+  rlimit limit = old_limit;
+  limit.rlim_cur = traces_before.size() + 4096;
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
+  const absl::StatusOr<std::string> failed =
+      (*recording)->Record(Bite("e2", true), Trace(3000, 1));
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &old_limit), 0);
+  signal(SIGXFSZ, SIG_DFL);
+  EXPECT_THAT(failed.status(),
+              StatusIs(absl::StatusCode::kInternal,
+                       HasSubstr("this bite's rows were cut off again")));
+  EXPECT_EQ(FileText(dir + "/traces.csv"), traces_before);
+  EXPECT_EQ(FileText(dir + "/bites.csv"), bites_before);
+}
+
+// One process records into a directory at a time: a second open is
+// refused before it reads or repairs anything, and the directory is free
+// once the first closes. A bites.csv a spreadsheet saved with CRLF line
+// ends is still this recording.
+TEST(TraceRecordingTest, OneProcessAtATimeAndACrlfHeaderIsKept) {
+  const std::string dir = TempDir();
+  {
+    auto first = TraceRecording::Open(dir);
+    ASSERT_THAT(first.status(), IsOk());
+    EXPECT_THAT(TraceRecording::Open(dir).status(),
+                StatusIs(absl::StatusCode::kFailedPrecondition,
+                         HasSubstr("is open in another process")));
+    ASSERT_THAT((*first)->Record(Bite("e1", true), Trace(20, 1)).status(),
+                IsOk());
+  }
+  std::string bites = FileText(dir + "/bites.csv");
+  std::string crlf;
+  for (char c : bites) {
+    if (c == '\n') crlf += '\r';
+    crlf += c;
+  }
+  std::ofstream(dir + "/bites.csv", std::ios::trunc) << crlf;
+  auto again = TraceRecording::Open(dir);
+  ASSERT_THAT(again.status(), IsOk());
+  absl::StatusOr<std::string> id =
+      (*again)->Record(Bite("e2", true), Trace(20, 1));
+  ASSERT_THAT(id.status(), IsOk());
+  EXPECT_EQ(*id, "1");
 }
 
 // A lab's directory from the release before the familiarity columns: the
