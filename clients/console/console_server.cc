@@ -366,10 +366,14 @@ void ConsoleServer::Route() {
                          if (subscription->closed()) return false;
                          std::optional<std::string> frame =
                              subscription->Next(absl::Seconds(2));
-                         // A comment every 2 s keeps an idle stream open and finds a page
-                         // that has gone (its write fails), freeing its place.
+                         // A ping every 2 s keeps an idle stream open, tells
+                         // the page it still hears the console (it says the
+                         // connection is lost after 6 s without a word), and
+                         // finds a page that has gone (its write fails),
+                         // freeing its place.
                          const std::string data =
-                             frame.has_value() ? *frame : ":\n\n";
+                             frame.has_value() ? *frame
+                                               : "event: ping\ndata: {}\n\n";
                          if (subscription->closed() && !frame.has_value()) {
                            return false;
                          }

@@ -384,7 +384,7 @@ TEST_F(ConsoleServerTest, StopFindsAThreadWhilePagesHoldConnections) {
   EXPECT_EQ(stopped->status, 200);
   // A stream closed frees its place.
   held.erase(held.begin());
-  // (The server sees the close at its next keep-alive comment, within 4 s.)
+  // (The server sees the close at its next ping, within 4 s.)
   for (int attempt = 0; attempt < 150; ++attempt) {
     HeldConnection again(server_->port(), stream_request);
     ASSERT_TRUE(again.connected());

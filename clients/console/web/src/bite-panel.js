@@ -110,7 +110,9 @@ export function createBitePanel() {
       return;
     }
     const tMax = Math.max(fs[fs.length - 1].t, 1e-3);
-    const peak = fs.reduce((m, p) => Math.max(m, p.f), 0);
+    // The robot's own peak once the bite is over; the reports' (10 a second)
+    // can miss it.
+    const peak = live.peak > 0 ? live.peak : fs.reduce((m, p) => Math.max(m, p.f), 0);
     const fMax = Math.max(peak, 5); // keep a calm line calm: at least 5 N tall
     const points = fs
       .map((p) => `${((p.t / tMax) * SPARK_W).toFixed(1)},${(SPARK_H - 2 - (p.f / fMax) * (SPARK_H - 4)).toFixed(1)}`)
@@ -123,7 +125,7 @@ export function createBitePanel() {
   function progress(event) {
     if (event.bite !== live.number) {
       if (event.bite < live.number) return; // late report of an earlier bite
-      live = { number: event.bite, phase: '', force: NaN, forces: [], outcome: 'pending' };
+      live = { number: event.bite, phase: '', force: NaN, forces: [], outcome: 'pending', peak: 0 };
     }
     if (event.phase && event.phase !== 'ACQUIRE_PHASE_UNSPECIFIED') live.phase = event.phase;
     live.force = Number(event.force_n);
@@ -140,8 +142,12 @@ export function createBitePanel() {
     show(root, number > 0);
     if (number === 0) return;
     setText(heading, `Bite ${number}`);
-    const item = `Item ${bite.item_index + 1}${bite.robots_choice ? " (the robot's choice)" : ''}`;
-    setText(what, bite.food ? `${item}: ${bite.food}` : item);
+    // The plate is numbered afresh when it is looked at again after a bite:
+    // the number is shown only while it is the plate's.
+    const chosen = bite.robots_choice ? " (the robot's choice)" : '';
+    const numbered = bite.outcome === 'pending' || !bite.food;
+    const item = `Item ${bite.item_index + 1}${chosen}`;
+    setText(what, !bite.food ? item : numbered ? `${item}: ${bite.food}` : `${bite.food}${chosen}`);
 
     const act = bite.action || {};
     show(action, Boolean(act.name || act.title));
@@ -158,6 +164,7 @@ export function createBitePanel() {
       force: fresher ? live.force : Number(bite.force_n),
       forces: fresher ? live.forces : forces,
       outcome: bite.outcome,
+      peak: bite.outcome && bite.outcome !== 'pending' ? Number(bite.peak_force_n) || 0 : 0,
     };
     paintMotion();
     paintForce();

@@ -1,8 +1,15 @@
 // The live meal: Server-Sent Events from /api/meal/stream. `state` carries the
 // whole MealState (sent at once on every connection, so a reconnect repaints
-// everything); `progress` carries one Acquire report (BiteEvent).
+// everything); `progress` carries one Acquire report (BiteEvent); `ping`
+// comes every 2 s when nothing else does. The page is 'live' only while it
+// hears from the console: after STALE_MS of silence it says the connection
+// is lost and opens a new stream.
 
 const RETRY_MS = 2000;
+// The console sends a `ping` every 2 s when nothing else happens. A stream
+// silent this long has died without an error (Wi-Fi gone, a NAT that forgot
+// it, a hung console): what the page shows is no longer the meal.
+export const STALE_MS = 6000;
 const MAX_LATENCIES = 10000;
 
 // Paint latencies of progress events, in seconds: the page's wall clock when
@@ -39,15 +46,36 @@ export function openMealStream({ onState, onProgress, onConnection }) {
     }
   }
 
+  let lastHeard = 0; // performance.now() of the newest event
+  let status = '';
+  function say(next) {
+    if (next === status) return;
+    status = next;
+    onConnection(next);
+  }
+  function heard() {
+    lastHeard = performance.now();
+    say('live');
+  }
+  const watchdog = setInterval(() => {
+    if (status !== 'live' || performance.now() - lastHeard < STALE_MS) return;
+    // 'lost' stays until the new stream is heard.
+    say('lost');
+    source?.close();
+    connect(); // a new stream starts with the whole state
+  }, 1000);
+
   function connect() {
-    onConnection('connecting');
+    if (status === '') say('connecting');
     source = new EventSource('/api/meal/stream');
-    source.addEventListener('open', () => onConnection('live'));
+    source.addEventListener('ping', heard);
     source.addEventListener('state', (event) => {
+      heard();
       const state = parse(event);
       if (state) onState(state);
     });
     source.addEventListener('progress', (event) => {
+      heard();
       const progress = parse(event);
       if (!progress) return;
       onProgress(progress);
@@ -58,10 +86,10 @@ export function openMealStream({ onState, onProgress, onConnection }) {
       // (an HTTP error, the console restarting): then it is CLOSED and we
       // retry ourselves.
       if (source.readyState === EventSource.CLOSED && !closed) {
-        onConnection('lost');
+        say('lost');
         retry = setTimeout(connect, RETRY_MS);
-      } else {
-        onConnection('connecting');
+      } else if (status !== 'lost') {
+        say('connecting');
       }
     });
   }
@@ -69,6 +97,7 @@ export function openMealStream({ onState, onProgress, onConnection }) {
   connect();
   return () => {
     closed = true;
+    clearInterval(watchdog);
     clearTimeout(retry);
     source?.close();
   };

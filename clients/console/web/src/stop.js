@@ -9,6 +9,10 @@ import { postJSON } from './api.js';
 // emergency stop (the request stays open, and its reply still shows).
 export const STOP_NO_REPLY_MS = 2000;
 
+// Dispatched on `document` by the table view when a new bite starts.
+export const BITE_STARTED = 'bitewise:bite-started';
+const IDLE_TEXT = 'Stops the arm at once.';
+
 export function initStop(button, status) {
   let pressSent = false; // this pointer press already sent its POST
   let latest = 0; // the newest press owns the status line
@@ -42,8 +46,8 @@ export function initStop(button, status) {
       status.className = 'stop-status stopped';
       status.dataset.wasMoving = String(moving);
       status.textContent =
-        `Stopped: the arm ${moving ? 'was moving and is halted' : 'was not moving'}` +
-        ` (reply in ${Math.round(ms)} ms, at ${new Date().toLocaleTimeString()}).`;
+        `Stopped: the arm ${moving ? 'was moving and was halted' : 'was not moving'}` +
+        ` at ${new Date().toLocaleTimeString()} (reply in ${Math.round(ms)} ms).`;
     } catch (err) {
       if (press !== latest) return;
       status.className = 'stop-status failed';
@@ -53,6 +57,14 @@ export function initStop(button, status) {
       if (press === latest) button.removeAttribute('aria-busy');
     }
   }
+
+  // A new bite moves the arm again: a line saying it was halted is history.
+  document.addEventListener(BITE_STARTED, () => {
+    if (status.className !== 'stop-status stopped') return;
+    status.className = 'stop-status';
+    status.textContent = IDLE_TEXT;
+    delete status.dataset.wasMoving;
+  });
 
   button.addEventListener('pointerdown', (event) => {
     if (event.button !== 0) return; // primary button, touch or pen contact

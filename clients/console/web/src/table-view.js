@@ -8,10 +8,14 @@ import { h, keyed, setAttr, setText, show } from './dom.js';
 import { count, int } from './format.js';
 import { openMealStream } from './meal-stream.js';
 import { createPlate } from './plate.js';
+import { BITE_STARTED } from './stop.js';
 
 export function createTableView() {
   let state = null;
   let busy = false; // one request from this view at a time
+  // Hearing from the console now: actions wait for a live stream, so that no
+  // one chooses from a plate or answers a question that is out of date.
+  let connected = false;
 
   // --- what is happening (polite live region) -------------------------------
   const connection = h('p', { className: 'connection', 'data-connection': 'connecting' }, 'Connecting…');
@@ -191,7 +195,7 @@ export function createTableView() {
   );
   function answer(success) {
     const bite = state?.current;
-    if (!bite?.question || busy) return;
+    if (!bite?.question || busy || !connected) return;
     request('/api/meal/answer', { event_id: bite.event_id, success });
   }
   yesButton.addEventListener('click', () => answer(true));
@@ -215,12 +219,12 @@ export function createTableView() {
     lookButton,
   );
   lookButton.addEventListener('click', () => {
-    if (state?.running && !busy) request('/api/meal/look', {});
+    if (state?.running && !busy && connected) request('/api/meal/look', {});
   });
   const bitePanel = createBitePanel();
 
   function canChoose() {
-    if (!state?.running || busy || !(state.items?.length > 0)) return false;
+    if (!state?.running || busy || !connected || !(state.items?.length > 0)) return false;
     if (state.phase === 'looking') return false;
     // The library leaves the phase at "biting" until the plate is looked at again.
     return !(state.phase === 'biting' && state.current?.outcome === 'pending');
@@ -248,7 +252,7 @@ export function createTableView() {
     endButton,
   );
   endButton.addEventListener('click', () => {
-    if (state?.running && !busy) request('/api/meal/end', {});
+    if (state?.running && !busy && connected) request('/api/meal/end', {});
   });
 
   function paintSummary() {
@@ -299,7 +303,7 @@ export function createTableView() {
         : null,
     );
     show(endButton, state.running);
-    setAttr(endButton, 'aria-disabled', busy || isBiting() ? 'true' : null);
+    setAttr(endButton, 'aria-disabled', busy || !connected || isBiting() ? 'true' : null);
   }
 
   function isBiting() {
@@ -363,7 +367,7 @@ export function createTableView() {
       plate.update(state, choose);
       setAttr(choiceButton, 'aria-disabled', choose ? null : 'true');
       show(lookButton, state.phase === 'failed');
-      setAttr(lookButton, 'aria-disabled', busy ? 'true' : null);
+      setAttr(lookButton, 'aria-disabled', busy || !connected ? 'true' : null);
 
       const cur = state.current;
       const asking = Boolean(cur?.question);
@@ -372,8 +376,8 @@ export function createTableView() {
         setText(questionText, cur.question);
         setAttr(yesButton, 'aria-pressed', cur.answer === 'yes' ? 'true' : 'false');
         setAttr(noButton, 'aria-pressed', cur.answer === 'no' ? 'true' : 'false');
-        setAttr(yesButton, 'aria-disabled', busy ? 'true' : null);
-        setAttr(noButton, 'aria-disabled', busy ? 'true' : null);
+        setAttr(yesButton, 'aria-disabled', busy || !connected ? 'true' : null);
+        setAttr(noButton, 'aria-disabled', busy || !connected ? 'true' : null);
         setText(
           answerNote,
           cur.answer
@@ -387,7 +391,11 @@ export function createTableView() {
   }
 
   let lastRunning = null;
+  let lastBiteNumber = null;
   function setState(next) {
+    const number = int(next.current?.number);
+    if (lastBiteNumber !== null && number > lastBiteNumber) document.dispatchEvent(new Event(BITE_STARTED));
+    lastBiteNumber = number;
     state = next;
     root.dataset.bite = String(int(state.bite));
     // When a meal ends, the list of people may have grown by its person.
@@ -398,7 +406,17 @@ export function createTableView() {
 
   function setConnection(status) {
     connection.dataset.connection = status;
-    setText(connection, { live: 'Live', connecting: 'Connecting…', lost: 'Connection lost: retrying…' }[status]);
+    root.dataset.connection = status;
+    setText(
+      connection,
+      {
+        live: 'Live',
+        connecting: 'Connecting…',
+        lost: 'Connection lost: retrying… What is shown may be out of date, and the arm may be moving.',
+      }[status],
+    );
+    connected = status === 'live';
+    paint();
   }
 
   let opened = false;

@@ -2,8 +2,10 @@
 // choose someone new and start by keyboard alone, bite an item by keyboard,
 // follow the bite down the page while the plate is drawn again (the page
 // stays put), tap an item, reload mid-bite, answer the operator's question
-// (when the console asks, BITEWISE_CONSOLE_OPERATOR=1), STOP during DESCEND,
-// and the meal's summary. axe-core checks every state, and each state is
+// (when the console asks, BITEWISE_CONSOLE_OPERATOR=1), a stream gone
+// silent (the page says the connection is lost and takes no bite), STOP
+// during DESCEND and its line cleared by the next bite, and the meal's
+// summary. axe-core checks every state, and each state is
 // screenshotted at 360x740 and 1024x768.
 
 import assert from 'node:assert/strict';
@@ -238,6 +240,40 @@ describe('table view', { skip: SKIP }, () => {
     await answerIfAsked(state, true);
   });
 
+  it('says the connection is lost when the stream goes silent, and takes no bite until it is back', async () => {
+    // The page's EventSource is wrapped (before its scripts run) so that the
+    // test can mute it: the connection stays open and nothing arrives, as
+    // when Wi-Fi drops without an error or the console hangs.
+    await page.evaluateOnNewDocument(() => {
+      const Real = window.EventSource;
+      window.EventSource = class extends Real {
+        addEventListener(type, listener, options) {
+          super.addEventListener(type, (event) => window.__muteStream || listener(event), options);
+        }
+      };
+    });
+    await page.reload({ waitUntil: 'domcontentloaded' });
+    await waitForPlate();
+    await page.evaluate(() => {
+      window.__muteStream = true;
+    });
+    await waitIn(page, () => document.querySelector('.connection').dataset.connection === 'lost', null, 15000);
+    const lost = await page.evaluate(() => ({
+      text: document.querySelector('.connection').textContent,
+      choice: document.querySelector('#robots-choice').getAttribute('aria-disabled'),
+      items: [...document.querySelectorAll('.plate-overlay .item')].map((e) => e.getAttribute('aria-disabled')),
+    }));
+    assert.match(lost.text, /^Connection lost: retrying… What is shown may be out of date, and the arm may be moving/);
+    assert.equal(lost.choice, 'true', "the robot's choice waits for the stream");
+    assert.ok(lost.items.every((d) => d === 'true'), 'no item takes a tap');
+    await screenshot(page, 'table-05b-connection-lost', '.plate-card');
+    await page.evaluate(() => {
+      window.__muteStream = false;
+    });
+    await waitIn(page, () => document.querySelector('.connection').dataset.connection === 'live', null, 15000);
+    await waitForPlate();
+  });
+
   it('stops the arm during DESCEND with one request and shows the reply', async () => {
     await waitForPlate();
     await press(page, '#robots-choice');
@@ -268,6 +304,16 @@ describe('table view', { skip: SKIP }, () => {
     await checkAxe(page, 'the stopped bite');
   });
 
+  it('clears the STOP line once a new bite moves the arm', async () => {
+    await waitForPlate();
+    assert.match(await page.$eval('#stop-status', (e) => e.textContent), /^Stopped: the arm was moving and was halted at /);
+    await press(page, '#robots-choice');
+    await waitForMeal((s) => s.current.number === 4, 20000, 'bite 4 to start');
+    await waitIn(page, () => document.querySelector('#stop-status').textContent === 'Stops the arm at once.');
+    const state = await waitForVerdict(4);
+    await answerIfAsked(state, true);
+  });
+
   it('ends the meal and shows its summary in words that count right', async () => {
     await waitForMeal((s) => readyForBite(s) || !s.running, 60000, 'the stopped bite to settle');
     await press(page, '#end-meal');
@@ -290,8 +336,8 @@ describe('table view', { skip: SKIP }, () => {
     assert.equal(shown.text, `${words(attempts, 'attempt')}, ${words(failures, 'failure')}`);
     assert.equal(shown.foods.reduce((n, f) => n + f.attempts, 0), attempts);
     assert.equal(shown.foods.reduce((n, f) => n + f.failures, 0), failures);
-    // Two bites were judged (the third was stopped).
-    assert.equal(attempts, 2);
+    // Three bites were judged (the third was stopped).
+    assert.equal(attempts, 3);
     await screenshot(page, 'table-07-summary', '.summary');
     await checkAxe(page, 'the summary');
   });
