@@ -899,6 +899,12 @@ absl::StatusOr<ModelExport> BanditEngine::GetModel(const std::string& user_id) {
   const LearnerModel& model = *slot->model;
   ModelExport out;
   ASSIGN_OR_RETURN(out.user, store_->GetUser(user_id));
+  // The position is the model's, not the store's now: another replica may
+  // have completed an event since Sync, and a reply pairing version v + 1
+  // with the numbers of version v would mislead an analysis.
+  out.user.model_version = model.TotalRounds();
+  out.user.pending_events = slot->record.pending_events;
+  out.user.config = slot->record.config;
   for (int a = 0; a < model.num_actions(); ++a) {
     ActionModelExport action;
     action.action = a;

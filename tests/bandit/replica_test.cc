@@ -240,6 +240,23 @@ TEST(ReplicaTest, ConcurrentReplicasKeepEveryUpdateOfTheSameUsers) {
             .ok());
   }
   std::atomic<int> failures{0};
+  std::atomic<bool> writing{true};
+  // A reader on replica 1 while both write: each GetModel's version is the
+  // position of the numbers it returns (it once came from a second read of
+  // the store, a version ahead of the numbers).
+  std::atomic<int> models_read{0};
+  std::thread reader([&] {
+    while (writing.load()) {
+      absl::StatusOr<ModelExport> model = pair.replica(1).GetModel("u0");
+      ASSERT_TRUE(model.ok()) << model.status();
+      int64_t counted = 0;
+      for (const ActionModelExport& action : model->actions) {
+        counted += action.count;
+      }
+      ASSERT_EQ(model->user.model_version, counted);
+      ++models_read;
+    }
+  });
   std::vector<std::thread> threads;
   for (size_t r = 0; r < pair.size(); ++r) {
     for (int worker = 0; worker < 2; ++worker) {
@@ -267,6 +284,9 @@ TEST(ReplicaTest, ConcurrentReplicasKeepEveryUpdateOfTheSameUsers) {
     }
   }
   for (std::thread& thread : threads) thread.join();
+  writing = false;
+  reader.join();
+  EXPECT_GT(models_read.load(), 0);
   EXPECT_EQ(failures.load(), 0);
   int64_t total = 0;
   for (int u = 0; u < kUsers; ++u) {

@@ -101,13 +101,33 @@ TestPostgres::~TestPostgres() {
   std::filesystem::remove_all(dir_, ignored);
 }
 
-absl::Status TestPostgres::Start() {
-  absl::Status started = server_.Start(
-      {bindir_ + "/postgres", "-D", dir_ + "/data", "-k", dir_, "-p",
-       absl::StrCat(port_), "-c", "listen_addresses=", "-c", "fsync=on", "-c",
-       "shared_buffers=32MB", "-c", "max_connections=60", "-c",
-       "dynamic_shared_memory_type=mmap", "-c", "max_wal_size=256MB"},
-      dir_ + "/server.log", run_as_);
+absl::Status TestPostgres::Start() { return Start({}); }
+
+absl::Status TestPostgres::Start(const std::vector<std::string>& settings) {
+  std::vector<std::string> args = {bindir_ + "/postgres",
+                                   "-D",
+                                   dir_ + "/data",
+                                   "-k",
+                                   dir_,
+                                   "-p",
+                                   absl::StrCat(port_),
+                                   "-c",
+                                   "listen_addresses=",
+                                   "-c",
+                                   "fsync=on",
+                                   "-c",
+                                   "shared_buffers=32MB",
+                                   "-c",
+                                   "max_connections=60",
+                                   "-c",
+                                   "dynamic_shared_memory_type=mmap",
+                                   "-c",
+                                   "max_wal_size=256MB"};
+  for (const std::string& setting : settings) {
+    args.push_back("-c");  // a later -c wins
+    args.push_back(setting);
+  }
+  absl::Status started = server_.Start(args, dir_ + "/server.log", run_as_);
   if (!started.ok()) return started;
   const std::string conninfo = ConnInfo("postgres");
   const absl::Time deadline = absl::Now() + absl::Seconds(60);

@@ -34,6 +34,8 @@ class TestPostgres {
   // Starts the server on the existing data directory and waits until it
   // accepts connections.
   absl::Status Start();
+  // Start with server settings over the usual ones, e.g. {"fsync=off"}.
+  absl::Status Start(const std::vector<std::string>& settings);
   // A fast shutdown (SIGINT), waiting for it to end.
   absl::Status Stop();
   bool running() const { return server_.running(); }

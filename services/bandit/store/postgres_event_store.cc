@@ -156,16 +156,20 @@ ALTER TABLE users ADD COLUMN phi_radius float8 NOT NULL DEFAULT 0.1;
 UPDATE bitewise_store SET schema_version = 3;
 )sql";
 
+// FAILED_PRECONDITION when the server's fsync setting is off.
+absl::Status RequireFsync(const Connection& conn, absl::string_view fsync) {
+  if (fsync != "off") return absl::OkStatus();
+  return absl::FailedPreconditionError(absl::StrCat(
+      "PostgreSQL ", conn.description(),
+      " runs with fsync off: acknowledged updates would not survive a "
+      "power loss. Turn fsync on (postgresql.conf)"));
+}
+
 // Creates the schema in an empty database, or checks the one there.
 absl::Status PrepareSchema(Connection& conn, bool create) {
   constexpr char kOp[] = "opening the store";
   ASSIGN_OR_RETURN(Rows fsync, conn.Exec("SHOW fsync", kOp));
-  if (fsync.Next() && fsync.Text(0) == "off") {
-    return absl::FailedPreconditionError(absl::StrCat(
-        "PostgreSQL ", conn.description(),
-        " runs with fsync off: acknowledged updates would not survive a "
-        "power loss. Turn fsync on (postgresql.conf)"));
-  }
+  if (fsync.Next()) RETURN_IF_ERROR(RequireFsync(conn, fsync.Text(0)));
   ASSIGN_OR_RETURN(Transaction txn, Transaction::Begin(conn, kOp));
   // Two processes opening a new database at once: one creates, the other
   // then finds the schema.
@@ -279,15 +283,19 @@ absl::Status PostgresEventStore::CheckHealth() {
   } else if (health_->broken()) {
     RETURN_IF_ERROR(health_->Reconnect());
   }
-  // Writable, not only reachable: a standby in recovery accepts reads.
-  ASSIGN_OR_RETURN(Rows rows,
-                   health_->Exec("SELECT pg_is_in_recovery()", "health check"));
-  if (rows.Next() && rows.Int64(0) != 0) {
+  // Writable, not only reachable: a standby in recovery accepts reads. And
+  // durable: fsync can be turned off by a reload or a restart under us.
+  ASSIGN_OR_RETURN(
+      Rows rows,
+      health_->Exec("SELECT pg_is_in_recovery(), current_setting('fsync')",
+                    "health check"));
+  if (!rows.Next()) return absl::OkStatus();
+  if (rows.Int64(0) != 0) {
     return absl::FailedPreconditionError(
         absl::StrCat("PostgreSQL ", health_->description(),
                      " is a standby in recovery: it cannot accept writes"));
   }
-  return absl::OkStatus();
+  return RequireFsync(*health_, rows.Text(1));
 }
 
 absl::Status PostgresEventStore::ProbeWrite() {

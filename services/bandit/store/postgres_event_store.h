@@ -17,8 +17,9 @@
 // first), so two completions of a user never share a model_version and a
 // reset never races a completion, even from two processes. Replicas write
 // with AppendPendingAt and CompleteEventAt: each one statement that writes
-// only if the user's row still says what the caller read (version,
-// selections, incarnation), else ABORTED with nothing written.
+// only if the user's row still says what the caller read (AppendPendingAt:
+// version, selections, incarnation; CompleteEventAt: version, incarnation),
+// else ABORTED with nothing written.
 //
 // Differences from the SQLite store:
 //  - Strings (user ids, meals, labels, action names, audit fields) must be
@@ -97,7 +98,7 @@ class PostgresEventStore final : public EventStore {
                                             double weight,
                                             absl::Time updated_at) override;
   // One statement each: a compare-and-set on the user's row (its version,
-  // selections and incarnation).
+  // selections and incarnation; a completion: its version and incarnation).
   absl::StatusOr<int64_t> AppendPendingAt(const EventRecord& event,
                                           const UserLogPosition& at) override;
   absl::StatusOr<EventRecord> CompleteEventAt(

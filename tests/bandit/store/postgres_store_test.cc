@@ -254,6 +254,41 @@ TEST_F(PostgresEventStoreTest, AStoppedServerIsUnavailableAndTheStoreRecovers) {
   EXPECT_EQ(user->model_version, 2);
 }
 
+// fsync off is refused at open, and found by the health check when a
+// reload turns it off under a running store (before, only the open looked:
+// the store went on acknowledging updates a power loss would lose).
+TEST_F(PostgresEventStoreTest, FsyncOffIsRefusedAtOpenAndDropsHealthLater) {
+  auto own = testing::TestPostgres::Create();
+  ASSERT_TRUE(own.ok()) << own.status();
+  testing::TestPostgres& server = **own;
+  auto conninfo = server.CreateDatabase("facility");
+  ASSERT_TRUE(conninfo.ok()) << conninfo.status();
+  PostgresStoreOptions options;
+  options.conninfo = *conninfo;
+  options.connections = 2;
+  auto opened = PostgresEventStore::Open(options);
+  ASSERT_TRUE(opened.ok()) << opened.status();
+  EXPECT_TRUE((*opened)->CheckHealth().ok());
+  // The server restarted with fsync off under the running store (a
+  // setting a reload can change too).
+  ASSERT_TRUE(server.Stop().ok());
+  ASSERT_TRUE(server.Start({"fsync=off"}).ok());
+  // The first check may find its connection gone with the old server (as
+  // the service's monitor, polling every 0.5 s, would); the next reconnects.
+  absl::Status health = (*opened)->CheckHealth();
+  if (absl::IsUnavailable(health)) health = (*opened)->CheckHealth();
+  EXPECT_EQ(health.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(health.message(), HasSubstr("runs with fsync off"));
+  auto refused = PostgresEventStore::Open(options);
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(refused.status().message(), HasSubstr("runs with fsync off"));
+  ASSERT_TRUE(server.Stop().ok());
+  ASSERT_TRUE(server.Start().ok());
+  health = (*opened)->CheckHealth();
+  if (absl::IsUnavailable(health)) health = (*opened)->CheckHealth();
+  EXPECT_TRUE(health.ok()) << health;
+}
+
 TEST(OpenStoreTest, LoggedLocationsHideThePassword) {
   EXPECT_EQ(DescribeStoreSpec("postgresql://bw:secret@db:5432/bitewise"),
             "postgresql://bw:***@db:5432/bitewise");
