@@ -694,6 +694,11 @@ absl::StatusOr<SelectResult> BanditEngine::Select(const SelectInput& input) {
       return absl::InvalidArgumentError(absl::StrCat(
           field, ": at most ", kMaxLabelBytes, " bytes, got ", value->size()));
     }
+    // Valid UTF-8 (proto3 checks that), but PostgreSQL's text refuses it.
+    if (const size_t nul = value->find('\0'); nul != std::string::npos) {
+      return absl::InvalidArgumentError(absl::StrCat(
+          field, ": must not contain a NUL byte (at byte ", nul, ")"));
+    }
   }
   ASSIGN_OR_RETURN(std::shared_ptr<UserSlot> slot, Slot(input.user_id, false));
   absl::MutexLock lock(&slot->mu);

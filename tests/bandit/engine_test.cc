@@ -185,6 +185,14 @@ TEST_F(EngineTest, BadInputGetsPreciseStatusAndWritesNothing) {
           .status()
           .message(),
       ::testing::HasSubstr("meal_id: at most 256 bytes, got 257"));
+  // SQLite would store it; PostgreSQL's text cannot: refused on both.
+  EXPECT_THAT(engine_
+                  ->Select({"bob", RandomVector(8, rng), "lunch",
+                            std::string("gra\0pe", 6)})
+                  .status()
+                  .message(),
+              ::testing::HasSubstr(
+                  "item_label: must not contain a NUL byte (at byte 3)"));
   BanditConfig long_names = SmallConfig();
   long_names.action_names[0] = std::string(1 << 20, 'a');  // 1 MB
   EXPECT_THAT(engine_->CreateUser("long", long_names).status().message(),

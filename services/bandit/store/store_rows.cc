@@ -109,6 +109,14 @@ absl::StatusOr<std::string> ParsePageToken(const std::string& token,
       raw[0] != kind || raw[1] != ':') {
     return absl::InvalidArgumentError("invalid page_token");
   }
+  // Keys are user ids and decimal ids: printable ASCII. Anything else is
+  // forged, and must not reach a query (PostgreSQL refuses a NUL or a byte
+  // that is not UTF-8 with a message naming the server, not the field).
+  for (size_t i = 2; i < raw.size(); ++i) {
+    if (raw[i] < 0x21 || raw[i] > 0x7e) {
+      return absl::InvalidArgumentError("invalid page_token");
+    }
+  }
   return raw.substr(2);
 }
 
