@@ -3,6 +3,9 @@
 #include <arpa/inet.h>
 #include <google/protobuf/util/json_util.h>
 #include <httplib.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <sys/socket.h>
 
 #include <functional>
 #include <utility>
@@ -164,6 +167,16 @@ absl::StatusOr<std::unique_ptr<ConsoleServer>> ConsoleServer::Start(
   server->server_->new_task_queue = [] {
     return new httplib::ThreadPool(kRequestThreads);
   };
+  // A page that vanishes without a reset (Wi-Fi gone) leaves its pings
+  // unacknowledged: after 10 s the kernel gives up on the connection (not
+  // after its default of about 15 minutes), the next ping fails, and the
+  // stream's place and thread are freed. Accepted connections inherit it.
+  server->server_->set_socket_options([](socket_t sock) {
+    httplib::default_socket_options(sock);
+    const unsigned int user_timeout_ms = 10000;
+    setsockopt(sock, IPPROTO_TCP, TCP_USER_TIMEOUT, &user_timeout_ms,
+               sizeof(user_timeout_ms));
+  });
   server->server_->set_payload_max_length(64 * 1024);
   // Small replies (STOP's above all) go out at once, not after a delayed
   // ACK.

@@ -244,21 +244,46 @@ absl::StatusOr<std::unique_ptr<TraceRecording>> TraceRecording::Open(
     close(lock_fd);
     return bites.status();
   }
+  // One process writes here, a bite at a time, its trace rows first: only
+  // the last bite can have trace rows without its bites.csv row. Anything
+  // else (a bites.csv whose last row is not a bite, as a spreadsheet may
+  // leave it) is not repaired by cutting traces off: it is refused.
+  std::string repaired;
   if (last_trace > last_bite) {
-    if (absl::Status cut = CutTracesWithoutABite(
-            *traces, absl::StrCat(dir, "/", kTracesFile), last_bite);
-        !cut.ok()) {
+    absl::Status cut =
+        last_trace == last_bite + 1
+            ? CutTracesWithoutABite(
+                  *traces, absl::StrCat(dir, "/", kTracesFile), last_bite)
+            : absl::FailedPreconditionError(absl::StrCat(
+                  dir, "/", kTracesFile, " ends with trace ", last_trace,
+                  " but the last row of ", dir, "/", kBitesFile, " is ",
+                  last_bite < 0 ? std::string("not a bite")
+                                : absl::StrCat("bite ", last_bite),
+                  ": fix ", kBitesFile,
+                  " (a spreadsheet may have added or quoted rows); nothing "
+                  "was changed"));
+    if (!cut.ok()) {
       close(*traces);
       close(*bites);
       close(lock_fd);
       return cut;
     }
+    repaired = absl::StrCat("cut off trace ", last_trace, "'s rows from ", dir,
+                            "/", kTracesFile,
+                            ": its bites.csv row was never written (the "
+                            "recording stopped between the two)");
     last_trace = last_bite;
   }
-  return std::unique_ptr<TraceRecording>(new TraceRecording(
+  std::unique_ptr<TraceRecording> recording(new TraceRecording(
       dir, lock_fd, *traces, *bites, std::max(last_trace, last_bite) + 1,
       /*records_familiarity=*/bites_header <= 1,
       /*records_force_limit=*/bites_header == 0));
+  if (!repaired.empty()) {
+    recording->note_ = recording->note_.empty()
+                           ? repaired
+                           : absl::StrCat(recording->note_, "; ", repaired);
+  }
+  return recording;
 }
 
 TraceRecording::TraceRecording(std::string dir, int lock_fd, int traces_fd,

@@ -113,7 +113,7 @@ class TraceRecording {
   const int lock_fd_;  // the directory, flock'ed while it is recorded into
   const bool records_familiarity_;
   const bool records_force_limit_;
-  const std::string note_;
+  std::string note_;  // set by Open, then only read
   mutable absl::Mutex mu_;
   int traces_fd_ ABSL_GUARDED_BY(mu_);
   int bites_fd_ ABSL_GUARDED_BY(mu_);

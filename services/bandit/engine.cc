@@ -715,6 +715,7 @@ absl::StatusOr<std::optional<SelectResult>> BanditEngine::TrySelect(
                                : Sync(input.user_id, slot));
   const LearnerModel& model = *slot.model;
   RETURN_IF_ERROR(model.ValidateContext(input.context));
+  RETURN_IF_ERROR(ValidateInputScale(model.config(), input.context, {}));
 
   SelectResult result;
   SelectProducts products;
@@ -817,6 +818,7 @@ absl::StatusOr<std::optional<UpdateResult>> BanditEngine::TryUpdate(
   LearnerModel& model = *slot.model;
   // Bad input is an error even on a retry of a completed event.
   RETURN_IF_ERROR(model.ValidateOutcome(input.loss, input.posthoc));
+  RETURN_IF_ERROR(ValidateInputScale(model.config(), {}, input.posthoc));
   UpdateResult result;
   result.user_id = found.user_id;
   // A retry carries the same outcome; another outcome is a conflict, and
@@ -850,6 +852,11 @@ absl::StatusOr<std::optional<UpdateResult>> BanditEngine::TryUpdate(
   // The stored event is validated like the request: a log written by an
   // older build must not corrupt the model.
   RETURN_IF_ERROR(model.ValidateRound(round));
+  // The context was checked at its Select; an importance weight scales it.
+  if (round.weight != 1.0) {
+    RETURN_IF_ERROR(ValidateInputScale(model.config(), round.context,
+                                       round.posthoc, round.weight));
+  }
 
   absl::StatusOr<EventRecord> completed =
       store_->shared()
@@ -908,7 +915,6 @@ absl::StatusOr<ModelExport> BanditEngine::GetModel(const std::string& user_id) {
   // have completed an event since Sync, and a reply pairing version v + 1
   // with the numbers of version v would mislead an analysis.
   out.user.model_version = model.TotalRounds();
-  out.user.pending_events = slot->record.pending_events;
   out.user.config = slot->record.config;
   for (int a = 0; a < model.num_actions(); ++a) {
     ActionModelExport action;
@@ -934,6 +940,7 @@ absl::StatusOr<EstimateResult> BanditEngine::Estimate(
   RETURN_IF_ERROR(Sync(user_id, *slot));
   const LearnerModel& model = *slot->model;
   RETURN_IF_ERROR(model.ValidateContext(context));
+  RETURN_IF_ERROR(ValidateInputScale(model.config(), context, {}));
   EstimateResult result;
   result.estimates = model.Estimate(context);
   RETURN_IF_ERROR(FiniteFor(user_id, result.estimates));

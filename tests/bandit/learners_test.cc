@@ -108,9 +108,9 @@ TEST(LearnersTest, CreateRebuildAndLoadAgreeForEveryLearner) {
 // A tiny ridge with large inputs: a Cholesky pivot lambda + |x|^2 - |l|^2
 // cancels to rounding noise when lambda / |x|^2 nears 1e-16 (with
 // lambda = 1e-6 and values of 1e6 every learner gave NaN within ten
-// rounds). Inputs beyond kMaxSquaredNormPerRidge * lambda are refused,
+// rounds). Requests beyond kMaxSquaredNormPerRidge * lambda are refused,
 // naming the ridge; at the bound, live and rebuilt, every estimate stays
-// finite and the pivots stay at least lambda.
+// finite, and so does a log beyond it replayed (the pivots' floors).
 TEST(LearnersTest, ATinyRidgeRefusesWhatItCannotKeepExact) {
   for (const LearnerSpec& spec : Learners()) {
     SCOPED_TRACE(spec.name);
@@ -121,13 +121,16 @@ TEST(LearnersTest, ATinyRidgeRefusesWhatItCannotKeepExact) {
     absl::StatusOr<std::unique_ptr<LearnerModel>> live = CreateModel(config);
     ASSERT_TRUE(live.ok()) << live.status();
     const std::vector<double> huge = {1e6, -1e6, 1e6};
-    absl::Status refused = (*live)->ValidateContext(huge);
+    // Within the magnitude bound, so the model itself takes it (a stored
+    // event is replayed under the rules of its day); a request is refused.
+    EXPECT_TRUE((*live)->ValidateContext(huge).ok());
+    absl::Status refused = ValidateInputScale(config, huge, {});
     EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument);
     EXPECT_THAT(refused.message(),
                 HasSubstr("context: squared norm 3e+12 is over 1e+10 times "
                           "lambda_c (1e-06)"));
     if (spec.uses_posthoc) {
-      refused = (*live)->ValidateOutcome(1.0, huge);
+      refused = ValidateInputScale(config, {}, huge);
       EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument);
       EXPECT_THAT(refused.message(), HasSubstr("posthoc: squared norm"));
       EXPECT_THAT(refused.message(), HasSubstr("lambda_p (1e-06)"));
@@ -153,6 +156,9 @@ TEST(LearnersTest, ATinyRidgeRefusesWhatItCannotKeepExact) {
     };
     for (size_t i = 0; i < rounds.size(); ++i) {
       ASSERT_TRUE((*live)->ValidateRound(rounds[i]).ok()) << i;
+      ASSERT_TRUE(
+          ValidateInputScale(config, rounds[i].context, rounds[i].posthoc).ok())
+          << i;
       (*live)->Update(rounds[i], nullptr);
       finite(**live, static_cast<int>(i));
       if (::testing::Test::HasFatalFailure()) return;
@@ -179,12 +185,23 @@ TEST(LearnersTest, ATinyRidgeRefusesWhatItCannotKeepExact) {
       }
       EXPECT_LT(worst, 1e-4);  // measured 1.2e-6
     }
+    // Beyond the bound, as an old log replayed: the floors keep it finite.
+    std::vector<Round> beyond = rounds;
+    for (Round& r : beyond) {
+      for (double& v : r.context) v = v > 0 ? 1e6 : -1e6;
+      for (double& v : r.posthoc) v = v > 0 ? 1e6 : -1e6;
+    }
+    absl::StatusOr<std::unique_ptr<LearnerModel>> replayed =
+        RebuildModel(config, beyond);
+    ASSERT_TRUE(replayed.ok()) << replayed.status();
+    finite(**replayed, -2);
     // An importance weight may scale a row kWeightHeadroom times over.
-    Round weighted = rounds[0];
-    weighted.weight = kWeightHeadroom;
-    EXPECT_TRUE((*live)->ValidateRound(weighted).ok());
-    weighted.weight = 2 * kWeightHeadroom;
-    refused = (*live)->ValidateRound(weighted);
+    const Round& edge_round = rounds[0];
+    EXPECT_TRUE(ValidateInputScale(config, edge_round.context,
+                                   edge_round.posthoc, kWeightHeadroom)
+                    .ok());
+    refused = ValidateInputScale(config, edge_round.context, edge_round.posthoc,
+                                 2 * kWeightHeadroom);
     EXPECT_EQ(refused.code(), absl::StatusCode::kInvalidArgument);
     EXPECT_THAT(refused.message(), HasSubstr("weighted squared norm"));
   }

@@ -11,6 +11,7 @@
 #include "absl/strings/str_cat.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/bandit/core/learners.h"
 #include "services/bandit/core/policy.h"
 #include "services/bandit/core/population_prior.h"
 #include "tests/bandit/dense_reference.h"
@@ -725,12 +726,13 @@ TEST(LinUcbTest, HugeFiniteInputsAreRefusedAndChangeNothing) {
   // ridge (lambda_p = 1 here): beyond, the model's pivots would cancel to
   // rounding noise.
   round.posthoc = {0.0, -1e6, 1.0, 0.0};
-  EXPECT_EQ(model.ValidateRound(round).message(),
+  EXPECT_TRUE(model.ValidateRound(round).ok());  // a stored event's rule
+  EXPECT_EQ(ValidateInputScale(config, round.context, round.posthoc).message(),
             "posthoc: squared norm 1e+12 is over 1e+10 times lambda_p (1), "
             "beyond what double precision keeps exact in the model; scale "
             "the values down or create the user with a larger lambda_p");
   round.posthoc = {0.0, -9e4, 1.0, 0.0};
-  EXPECT_TRUE(model.ValidateRound(round).ok());
+  EXPECT_TRUE(ValidateInputScale(config, round.context, round.posthoc).ok());
   EXPECT_EQ(model.Estimate(ok)[0].lcb, before[0].lcb);
 }
 

@@ -188,9 +188,11 @@ std::string FileText(const std::string& path) {
 
 // A crash between a bite's two writes leaves whole rows of a trace in
 // traces.csv and no row in bites.csv: no outcome, no label, and maybe half
-// the trace. The next open cuts them off (here 2,000 rows, more than one
-// 64 KiB block read backwards), and the id is used again. Before, the
-// trainer read them as a whole labelled trace.
+// the trace. The next open cuts them off (here 5,000 rows, about 150 KB:
+// three 64 KiB blocks read backwards), says so, and the id is used again.
+// Before, the trainer read them as a whole labelled trace. A bites.csv
+// whose last row is not a bite (a spreadsheet's trailing commas) is
+// refused, not repaired by cutting traces off.
 TEST(TraceRecordingTest, ATraceWithoutItsBiteRowIsCutOffAtOpen) {
   const std::string dir = TempDir();
   {
@@ -204,12 +206,22 @@ TEST(TraceRecordingTest, ATraceWithoutItsBiteRowIsCutOffAtOpen) {
   const std::string whole = FileText(dir + "/traces.csv");
   {
     std::ofstream out(dir + "/traces.csv", std::ios::app);
-    for (int i = 0; i < 2000; ++i)
+    for (int i = 0; i < 5000; ++i)
       out << "2,hard_skin," << 0.001 * i << ",1,2,3,4,5,6\n";
   }
+  ASSERT_GT(FileText(dir + "/traces.csv").size(), whole.size() + 2 * 65536);
+  const std::string bites = FileText(dir + "/bites.csv");
+  std::ofstream(dir + "/bites.csv", std::ios::app) << ",,,,,,,,,\n";
+  EXPECT_THAT(TraceRecording::Open(dir).status(),
+              StatusIs(absl::StatusCode::kFailedPrecondition,
+                       HasSubstr("traces.csv ends with trace 2 but the last "
+                                 "row of")));
+  EXPECT_GT(FileText(dir + "/traces.csv").size(), whole.size());  // untouched
+  std::ofstream(dir + "/bites.csv", std::ios::trunc) << bites;
   auto recording = TraceRecording::Open(dir);
   ASSERT_THAT(recording.status(), IsOk());
   EXPECT_EQ(FileText(dir + "/traces.csv"), whole);
+  EXPECT_THAT((*recording)->note(), HasSubstr("cut off trace 2's rows"));
   absl::StatusOr<std::string> id =
       (*recording)->Record(Bite("e3", true), Trace(20, 3));
   ASSERT_THAT(id.status(), IsOk());

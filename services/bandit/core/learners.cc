@@ -104,4 +104,36 @@ absl::StatusOr<std::unique_ptr<LearnerModel>> LoadModel(
   return spec->load(config, state, primal_threshold);
 }
 
+namespace {
+
+absl::Status RidgeScale(const char* field, absl::Span<const double> v,
+                        const char* ridge_name, double ridge, double weight) {
+  double squared = 0.0;
+  for (double x : v) squared += x * x;
+  squared *= weight;
+  const double times =
+      kMaxSquaredNormPerRidge * (weight == 1.0 ? 1.0 : kWeightHeadroom);
+  if (squared <= times * ridge) return absl::OkStatus();
+  return absl::InvalidArgumentError(absl::StrCat(
+      field, ": ", weight == 1.0 ? "" : "weighted ", "squared norm ", squared,
+      " is over ", times, " times ", ridge_name, " (", ridge,
+      "), beyond what double precision keeps exact in the model; scale the "
+      "values down or create the user with a larger ",
+      ridge_name));
+}
+
+}  // namespace
+
+absl::Status ValidateInputScale(const BanditConfig& config,
+                                absl::Span<const double> context,
+                                absl::Span<const double> posthoc,
+                                double weight) {
+  RETURN_IF_ERROR(
+      RidgeScale("context", context, "lambda_c", config.lambda_c, weight));
+  if (!UsesPosthoc(config.learner) || posthoc.empty()) {
+    return absl::OkStatus();
+  }
+  return RidgeScale("posthoc", posthoc, "lambda_p", config.lambda_p, weight);
+}
+
 }  // namespace bitewise::bandit

@@ -46,6 +46,19 @@ const LearnerSpec* FindLearnerByName(absl::string_view name);
 // "posthoc, context_only, polinucb": for messages and --help.
 std::string LearnerNames();
 
+// INVALID_ARGUMENT naming the field and the ridge when a request's input
+// is larger than a model of `config` can keep exact: w ||context||^2 over
+// kMaxSquaredNormPerRidge * lambda_c, or w ||posthoc||^2 over that times
+// lambda_p (learners with a post hoc part), with kWeightHeadroom more room
+// when the importance weight w is not 1. For requests only (Select,
+// Estimate, Update): events already stored were accepted under the rules
+// of their day, and the models' floors keep them finite, so a rebuild
+// never applies it.
+absl::Status ValidateInputScale(const BanditConfig& config,
+                                absl::Span<const double> context,
+                                absl::Span<const double> posthoc,
+                                double weight = 1.0);
+
 // The model of `config.learner` (INVALID_ARGUMENT for an unknown one, or
 // ValidateConfig's error).
 absl::StatusOr<std::unique_ptr<LearnerModel>> CreateModel(

@@ -164,9 +164,8 @@ absl::StatusOr<LinUcbModel> LinUcbModel::Create(const BanditConfig& config,
 
 absl::Status LinUcbModel::ValidateContext(
     absl::Span<const double> context) const {
-  RETURN_IF_ERROR(ValidateVector("context", context, static_cast<size_t>(d_),
-                                 kMaxInputMagnitude));
-  return ValidateRidgeScale("context", context, "lambda_c", config_.lambda_c);
+  return ValidateVector("context", context, static_cast<size_t>(d_),
+                        kMaxInputMagnitude);
 }
 
 absl::Status LinUcbModel::ValidateOutcome(
@@ -176,10 +175,9 @@ absl::Status LinUcbModel::ValidateOutcome(
         absl::StrCat("loss: must be in [0, 1], got ", loss));
   }
   if (!this->posthoc() && posthoc.empty()) return absl::OkStatus();
-  RETURN_IF_ERROR(ValidateVector("posthoc", posthoc,
-                                 static_cast<size_t>(config_.posthoc_dim),
-                                 kMaxInputMagnitude));
-  return ValidateRidgeScale("posthoc", posthoc, "lambda_p", config_.lambda_p);
+  return ValidateVector("posthoc", posthoc,
+                        static_cast<size_t>(config_.posthoc_dim),
+                        kMaxInputMagnitude);
 }
 
 absl::Status LinUcbModel::ValidateRound(const Round& round) const {
@@ -192,13 +190,7 @@ absl::Status LinUcbModel::ValidateRound(const Round& round) const {
         absl::StrCat("weight: must be finite and > 0, got ", round.weight));
   }
   RETURN_IF_ERROR(ValidateContext(round.context));
-  RETURN_IF_ERROR(ValidateOutcome(round.loss, round.posthoc));
-  if (round.weight == 1.0) return absl::OkStatus();
-  RETURN_IF_ERROR(ValidateRidgeScale("context", round.context, "lambda_c",
-                                     config_.lambda_c, round.weight));
-  if (!posthoc()) return absl::OkStatus();
-  return ValidateRidgeScale("posthoc", round.posthoc, "lambda_p",
-                            config_.lambda_p, round.weight);
+  return ValidateOutcome(round.loss, round.posthoc);
 }
 
 int LinUcbModel::ConversionStart() const {

@@ -14,7 +14,6 @@
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "absl/types/span.h"
-#include "services/bandit/core/rounds.h"
 
 namespace bitewise::bandit {
 
@@ -90,27 +89,6 @@ inline absl::Status ValidateVector(const char* field,
     }
   }
   return absl::OkStatus();
-}
-
-// INVALID_ARGUMENT naming `field` and the ridge unless weight ||v||^2 is at
-// most kMaxSquaredNormPerRidge * ridge (times kWeightHeadroom when
-// weighted). `v` has already passed ValidateVector.
-inline absl::Status ValidateRidgeScale(const char* field,
-                                       absl::Span<const double> v,
-                                       const char* ridge_name, double ridge,
-                                       double weight = 1.0) {
-  double squared = 0.0;
-  for (double x : v) squared += x * x;
-  squared *= weight;
-  const double bound =
-      kMaxSquaredNormPerRidge * ridge * (weight == 1.0 ? 1.0 : kWeightHeadroom);
-  if (squared <= bound) return absl::OkStatus();
-  return absl::InvalidArgumentError(absl::StrCat(
-      field, ": ", weight == 1.0 ? "" : "weighted ", "squared norm ", squared,
-      " is over ", bound / ridge, " times ", ridge_name, " (", ridge,
-      "), beyond what double precision keeps exact in the model; scale the "
-      "values down or create the user with a larger ",
-      ridge_name));
 }
 
 // A saved state starts with 4 magic bytes, its format number and a float64

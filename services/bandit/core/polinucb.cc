@@ -224,18 +224,14 @@ absl::Status PoLinUcbModel::ValidateContext(
 absl::Status PoLinUcbModel::ValidateOutcome(
     double loss, absl::Span<const double> posthoc) const {
   RETURN_IF_ERROR(contexts_.ValidateOutcome(loss, {}));
-  RETURN_IF_ERROR(ValidateVector("posthoc", posthoc, static_cast<size_t>(q_),
-                                 kMaxInputMagnitude));
-  return ValidateRidgeScale("posthoc", posthoc, "lambda_p", config_.lambda_p);
+  return ValidateVector("posthoc", posthoc, static_cast<size_t>(q_),
+                        kMaxInputMagnitude);
 }
 
 absl::Status PoLinUcbModel::ValidateRound(const Round& round) const {
   RETURN_IF_ERROR(
       contexts_.ValidateRound(ContextRound(round, round.action, round.weight)));
-  RETURN_IF_ERROR(ValidateOutcome(round.loss, round.posthoc));
-  if (round.weight == 1.0) return absl::OkStatus();
-  return ValidateRidgeScale("posthoc", round.posthoc, "lambda_p",
-                            config_.lambda_p, round.weight);
+  return ValidateOutcome(round.loss, round.posthoc);
 }
 
 void PoLinUcbModel::Refresh(ActionState& s) {

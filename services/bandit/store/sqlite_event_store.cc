@@ -13,6 +13,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <utility>
 
@@ -114,7 +115,15 @@ absl::StatusOr<std::unique_ptr<ContextFile>> OpenContextFile(
     sqlite3* db, const std::string& path, const std::string& files_base,
     bool check) {
   const std::string op = absl::StrCat("opening ", path);
-  const std::string contexts_path = files_base + ".contexts";
+  std::string contexts_path = files_base + ".contexts";
+  // Before 2026-12-07 the name came from --db as given: a link's store kept
+  // "<link>.contexts". It is used where it is and the real name's is not
+  // (the lock, named from the real file, keeps one process on the store).
+  std::error_code error;
+  if (files_base != path && !std::filesystem::exists(contexts_path, error) &&
+      std::filesystem::exists(path + ".contexts", error)) {
+    contexts_path = path + ".contexts";
+  }
   if (!check) {
     ASSIGN_OR_RETURN(const int64_t end, NewestContextEnd(db, op));
     return ContextFile::Open(contexts_path, end);

@@ -243,6 +243,10 @@ int CheckAndCommit(const std::string& out, size_t size, const HapticNet& net,
     return Die(absl::StrCat("the exported model disagrees with the trainer; ",
                             "nothing at ", out, " was changed"));
   }
+  // The old model's familiarity file goes first, then the model, then the
+  // new file: a run killed between two steps leaves a model without a
+  // familiarity file (served without the score, saying so), never a model
+  // with another model's score.
   const std::string familiarity_path = FamiliarityPathFor(out);
   if (familiarity.action == FamiliarityOutput::kWrite) {
     if (int failed = StageFile(familiarity_path, familiarity.text);
@@ -250,18 +254,25 @@ int CheckAndCommit(const std::string& out, size_t size, const HapticNet& net,
       std::remove(Staged(out).c_str());
       return failed;
     }
-    if (int failed = CommitFile(familiarity_path); failed != 0) return failed;
-    std::printf("wrote %s (%zu bytes)\n", familiarity_path.c_str(),
-                familiarity.text.size());
-  } else if (familiarity.action == FamiliarityOutput::kRemove) {
-    // A file left from an earlier model at this path is not this one's.
+  }
+  if (familiarity.action != FamiliarityOutput::kLeave) {
     std::error_code error;
-    if (std::filesystem::remove(familiarity_path, error)) {
+    if (std::filesystem::remove(familiarity_path, error) &&
+        familiarity.action == FamiliarityOutput::kRemove) {
       std::printf("removed %s (it belonged to the model replaced)\n",
                   familiarity_path.c_str());
     }
   }
-  return CommitFile(out);
+  if (int failed = CommitFile(out); failed != 0) {
+    std::remove(Staged(familiarity_path).c_str());
+    return failed;
+  }
+  if (familiarity.action == FamiliarityOutput::kWrite) {
+    if (int failed = CommitFile(familiarity_path); failed != 0) return failed;
+    std::printf("wrote %s (%zu bytes)\n", familiarity_path.c_str(),
+                familiarity.text.size());
+  }
+  return 0;
 }
 
 // --ensemble_of: the members' weights, one ensemble file, its score on
@@ -340,8 +351,11 @@ int AssembleEnsemble() {
         score.overconfidence[2], score.overconfidence[3],
         score.confusion.ToString().c_str());
   }
-  return CheckAndCommit(out, bytes.size(), *net, max_difference, "",
-                        FamiliarityOutput());
+  // An ensemble has no familiarity score of its own (fit one for it with
+  // --familiarity_only): an earlier model's at this path goes.
+  FamiliarityOutput no_score;
+  no_score.action = FamiliarityOutput::kRemove;
+  return CheckAndCommit(out, bytes.size(), *net, max_difference, "", no_score);
 }
 
 std::vector<FamiliarityVector> FamiliarityOf(const LabelledWindows& windows) {

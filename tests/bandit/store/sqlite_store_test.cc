@@ -105,6 +105,17 @@ TEST_F(SqliteEventStoreTest, ALinkToAnOpenStoreIsRefusedToo) {
   ASSERT_TRUE(through_link.ok()) << through_link.status();
   EXPECT_FALSE(std::filesystem::exists(link + ".lock"));
   EXPECT_FALSE(std::filesystem::exists(link + ".contexts"));
+  through_link->reset();
+  // A store an earlier build served through the link kept its contexts as
+  // "<link>.contexts": that file is used where it is.
+  const std::string real = std::filesystem::canonical(path_).string();
+  std::filesystem::rename(real + ".contexts", link + ".contexts");
+  auto upgraded = SqliteEventStore::Open(options);
+  ASSERT_TRUE(upgraded.ok()) << upgraded.status();
+  EXPECT_FALSE(std::filesystem::exists(real + ".contexts"));
+  EXPECT_TRUE(std::filesystem::exists(link + ".contexts"));
+  upgraded->reset();
+  std::filesystem::remove(link + ".contexts");
   std::filesystem::remove(link);
 }
 

@@ -57,16 +57,20 @@ export function openMealStream({ onState, onProgress, onConnection }) {
     lastHeard = performance.now();
     say('live');
   }
+  // Whatever the status: a stream (first, reconnecting or new) that says
+  // nothing for STALE_MS is closed and opened again, and the page says the
+  // connection is lost until one is heard.
   const watchdog = setInterval(() => {
-    if (status !== 'live' || performance.now() - lastHeard < STALE_MS) return;
-    // 'lost' stays until the new stream is heard.
+    if (closed || performance.now() - lastHeard < STALE_MS) return;
     say('lost');
+    clearTimeout(retry);
     source?.close();
     connect(); // a new stream starts with the whole state
   }, 1000);
 
   function connect() {
     if (status === '') say('connecting');
+    lastHeard = performance.now(); // the new stream's time starts now
     source = new EventSource('/api/meal/stream');
     source.addEventListener('ping', heard);
     source.addEventListener('state', (event) => {
