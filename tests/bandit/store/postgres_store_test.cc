@@ -1,5 +1,6 @@
 // What only the PostgreSQL store has: its schema checks, replicas' writes
 // at a position, a server that stops and returns; and store locations.
+#include "services/common/status_macros.h"
 #include "tests/bandit/store/store_test_fixture.h"
 
 namespace bitewise::bandit::store_test {
@@ -209,16 +210,27 @@ TEST_F(PostgresEventStoreTest, SchemaOneIsUpgradedAndCountsAreChecked) {
   EXPECT_THAT(damaged->findings[0], HasSubstr("\"bob\" counts 7 selections"));
 }
 
-TEST_F(PostgresEventStoreTest, AStoppedServerIsUnavailableAndTheStoreRecovers) {
-  // A server of its own, to stop.
-  auto own = testing::TestPostgres::Create();
-  ASSERT_TRUE(own.ok()) << own.status();
-  testing::TestPostgres& server = **own;
-  auto conninfo = server.CreateDatabase("facility");
-  ASSERT_TRUE(conninfo.ok()) << conninfo.status();
+// A server of the test's own (to stop or restart) with a database
+// "facility", and store options for it.
+struct OwnServer {
+  std::unique_ptr<testing::TestPostgres> server;
   PostgresStoreOptions options;
-  options.conninfo = *conninfo;
-  options.connections = 2;
+};
+
+absl::StatusOr<OwnServer> StartOwnServer() {
+  OwnServer own;
+  ASSIGN_OR_RETURN(own.server, testing::TestPostgres::Create());
+  ASSIGN_OR_RETURN(own.options.conninfo,
+                   own.server->CreateDatabase("facility"));
+  own.options.connections = 2;
+  return own;
+}
+
+TEST_F(PostgresEventStoreTest, AStoppedServerIsUnavailableAndTheStoreRecovers) {
+  absl::StatusOr<OwnServer> own = StartOwnServer();
+  ASSERT_TRUE(own.ok()) << own.status();
+  testing::TestPostgres& server = *own->server;
+  const PostgresStoreOptions& options = own->options;
   auto opened = PostgresEventStore::Open(options);
   ASSERT_TRUE(opened.ok()) << opened.status();
   PostgresEventStore& store = **opened;
@@ -254,18 +266,14 @@ TEST_F(PostgresEventStoreTest, AStoppedServerIsUnavailableAndTheStoreRecovers) {
   EXPECT_EQ(user->model_version, 2);
 }
 
-// fsync off is refused at open, and found by the health check when a
-// reload turns it off under a running store (before, only the open looked:
-// the store went on acknowledging updates a power loss would lose).
+// fsync off is refused at open, and found by the health check when the
+// server comes back with it under a running store (before, only the open
+// looked: the store went on acknowledging updates a power loss would lose).
 TEST_F(PostgresEventStoreTest, FsyncOffIsRefusedAtOpenAndDropsHealthLater) {
-  auto own = testing::TestPostgres::Create();
+  absl::StatusOr<OwnServer> own = StartOwnServer();
   ASSERT_TRUE(own.ok()) << own.status();
-  testing::TestPostgres& server = **own;
-  auto conninfo = server.CreateDatabase("facility");
-  ASSERT_TRUE(conninfo.ok()) << conninfo.status();
-  PostgresStoreOptions options;
-  options.conninfo = *conninfo;
-  options.connections = 2;
+  testing::TestPostgres& server = *own->server;
+  const PostgresStoreOptions& options = own->options;
   auto opened = PostgresEventStore::Open(options);
   ASSERT_TRUE(opened.ok()) << opened.status();
   EXPECT_TRUE((*opened)->CheckHealth().ok());
