@@ -46,9 +46,10 @@ std::string Errno(const std::string& what, const std::string& path) {
   return absl::StrCat(what, " ", path, ": ", std::strerror(errno));
 }
 
-// Reads up to the last 64 KiB of `fd` (an open file of `size` bytes).
-std::string Tail(int fd, off_t size) {
-  const off_t start = size > 65536 ? size - 65536 : 0;
+// Reads up to the last 64 KiB of `fd` (an open file of `size` bytes), or
+// all of it.
+std::string Tail(int fd, off_t size, bool whole = false) {
+  const off_t start = !whole && size > 65536 ? size - 65536 : 0;
   std::string text(static_cast<size_t>(size - start), '\0');
   const ssize_t n = pread(fd, text.data(), text.size(), start);
   text.resize(n > 0 ? static_cast<size_t>(n) : 0);
@@ -62,7 +63,8 @@ std::string Tail(int fd, off_t size) {
 // short is cut off.
 absl::StatusOr<int> OpenCsv(const std::string& path,
                             absl::Span<const absl::string_view> headers,
-                            int* header, int64_t* last_id) {
+                            bool largest_id_anywhere, int* header,
+                            int64_t* last_id) {
   const int fd =
       open(path.c_str(), O_RDWR | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
   if (fd < 0) return absl::InternalError(Errno("cannot open", path));
@@ -110,21 +112,47 @@ absl::StatusOr<int> OpenCsv(const std::string& path,
   *header = static_cast<int>(found - headers.begin());
   std::string tail = Tail(fd, st.st_size);
   if (!tail.empty() && tail.back() != '\n') {
-    // A row cut short (a power loss between write and fsync): drop it.
     const size_t keep = tail.rfind('\n') + 1;
-    if (ftruncate(fd, st.st_size - static_cast<off_t>(tail.size() - keep)) !=
-        0) {
-      close(fd);
-      return absl::InternalError(Errno("cannot repair", path));
+    const absl::string_view last = absl::string_view(tail).substr(keep);
+    const absl::string_view columns = headers[*header];
+    if (std::count(last.begin(), last.end(), ',') ==
+        std::count(columns.begin(), columns.end(), ',')) {
+      // A whole row without its newline (a spreadsheet may save so): it is
+      // ended, not dropped.
+      if (write(fd, "\n", 1) != 1 || fsync(fd) != 0) {
+        close(fd);
+        return absl::InternalError(Errno("cannot repair", path));
+      }
+      tail.push_back('\n');
+    } else {
+      // A row cut short (a power loss between write and fsync): dropped.
+      if (ftruncate(fd, st.st_size - static_cast<off_t>(tail.size() - keep)) !=
+          0) {
+        close(fd);
+        return absl::InternalError(Errno("cannot repair", path));
+      }
+      tail.erase(keep);
     }
-    tail.erase(keep);
   }
-  const std::vector<absl::string_view> lines =
-      absl::StrSplit(tail, '\n', absl::SkipEmpty());
-  if (!lines.empty()) {
-    const absl::string_view last = lines.back();
+  // traces.csv is in id order: its last row has the largest. bites.csv may
+  // have been sorted or extended in a spreadsheet: all of it is read.
+  std::string text;
+  if (largest_id_anywhere) {
+    if (fstat(fd, &st) != 0) {
+      close(fd);
+      return absl::InternalError(Errno("cannot stat", path));
+    }
+    text = Tail(fd, st.st_size, /*whole=*/true);
+  } else {
+    const size_t last_row =
+        tail.size() < 2 ? std::string::npos : tail.rfind('\n', tail.size() - 2);
+    text = tail.substr(last_row == std::string::npos ? 0 : last_row + 1);
+  }
+  for (absl::string_view line : absl::StrSplit(text, '\n', absl::SkipEmpty())) {
     int64_t id;
-    if (absl::SimpleAtoi(last.substr(0, last.find(',')), &id)) *last_id = id;
+    if (absl::SimpleAtoi(line.substr(0, line.find(',')), &id) && id >= 0) {
+      *last_id = std::max(*last_id, id);
+    }
   }
   return fd;
 }
@@ -229,7 +257,7 @@ absl::StatusOr<std::unique_ptr<TraceRecording>> TraceRecording::Open(
   const absl::string_view trace_headers[] = {domain::kTraceCsvHeader};
   absl::StatusOr<int> traces =
       OpenCsv(absl::StrCat(dir, "/", kTracesFile), trace_headers,
-              &traces_header, &last_trace);
+              /*largest_id_anywhere=*/false, &traces_header, &last_trace);
   if (!traces.ok()) {
     close(lock_fd);
     return traces.status();
@@ -237,17 +265,19 @@ absl::StatusOr<std::unique_ptr<TraceRecording>> TraceRecording::Open(
   const absl::string_view bite_headers[] = {kBitesHeader,
                                             kBitesHeaderBeforeForceLimit,
                                             kBitesHeaderBeforeFamiliarity};
-  absl::StatusOr<int> bites = OpenCsv(absl::StrCat(dir, "/", kBitesFile),
-                                      bite_headers, &bites_header, &last_bite);
+  absl::StatusOr<int> bites =
+      OpenCsv(absl::StrCat(dir, "/", kBitesFile), bite_headers,
+              /*largest_id_anywhere=*/true, &bites_header, &last_bite);
   if (!bites.ok()) {
     close(*traces);
     close(lock_fd);
     return bites.status();
   }
   // One process writes here, a bite at a time, its trace rows first: only
-  // the last bite can have trace rows without its bites.csv row. Anything
-  // else (a bites.csv whose last row is not a bite, as a spreadsheet may
-  // leave it) is not repaired by cutting traces off: it is refused.
+  // the newest bite, the one after the largest id in bites.csv, can have
+  // trace rows without its bites.csv row. Anything else (bites.csv edited
+  // so that bites are missing) is not repaired by cutting traces off: it
+  // is refused.
   std::string repaired;
   if (last_trace > last_bite) {
     absl::Status cut =
@@ -256,12 +286,12 @@ absl::StatusOr<std::unique_ptr<TraceRecording>> TraceRecording::Open(
                   *traces, absl::StrCat(dir, "/", kTracesFile), last_bite)
             : absl::FailedPreconditionError(absl::StrCat(
                   dir, "/", kTracesFile, " ends with trace ", last_trace,
-                  " but the last row of ", dir, "/", kBitesFile, " is ",
-                  last_bite < 0 ? std::string("not a bite")
-                                : absl::StrCat("bite ", last_bite),
+                  " but ", dir, "/", kBitesFile, " has ",
+                  last_bite < 0 ? std::string("no bite")
+                                : absl::StrCat("bites up to ", last_bite),
                   ": fix ", kBitesFile,
-                  " (a spreadsheet may have added or quoted rows); nothing "
-                  "was changed"));
+                  " (a spreadsheet may have dropped or changed rows); ",
+                  kTracesFile, " was left as it is"));
     if (!cut.ok()) {
       close(*traces);
       close(*bites);

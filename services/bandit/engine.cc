@@ -536,9 +536,10 @@ absl::StatusOr<UserRecord> BanditEngine::CreateUser(
     const std::string& user_id, const BanditConfig& requested,
     double prior_rounds) {
   RETURN_IF_ERROR(CheckConfigFits(requested));
-  if (!std::isfinite(prior_rounds) || prior_rounds < 0.0) {
+  if (!std::isfinite(prior_rounds) || prior_rounds < 0.0 ||
+      prior_rounds > 1e6) {
     return absl::InvalidArgumentError(absl::StrCat(
-        "prior_rounds: must be finite and >= 0, got ", prior_rounds));
+        "config.prior_rounds: must be in [0, 1e6], got ", prior_rounds));
   }
   BanditConfig config = requested;
   if (prior_rounds > 0.0) {
@@ -818,7 +819,6 @@ absl::StatusOr<std::optional<UpdateResult>> BanditEngine::TryUpdate(
   LearnerModel& model = *slot.model;
   // Bad input is an error even on a retry of a completed event.
   RETURN_IF_ERROR(model.ValidateOutcome(input.loss, input.posthoc));
-  RETURN_IF_ERROR(ValidateInputScale(model.config(), {}, input.posthoc));
   UpdateResult result;
   result.user_id = found.user_id;
   // A retry carries the same outcome; another outcome is a conflict, and
@@ -840,6 +840,9 @@ absl::StatusOr<std::optional<UpdateResult>> BanditEngine::TryUpdate(
     return result;
   };
   if (found.completed) return answer_retry(found);
+  // A new outcome's post hoc context, as a request (a retry of one applied
+  // before this check existed is answered above).
+  RETURN_IF_ERROR(ValidateInputScale(model.config(), {}, input.posthoc));
 
   // The selection (read before the user's lock, or remembered from this
   // process's Select) is what was stored, and never changes; whether the
@@ -852,11 +855,6 @@ absl::StatusOr<std::optional<UpdateResult>> BanditEngine::TryUpdate(
   // The stored event is validated like the request: a log written by an
   // older build must not corrupt the model.
   RETURN_IF_ERROR(model.ValidateRound(round));
-  // The context was checked at its Select; an importance weight scales it.
-  if (round.weight != 1.0) {
-    RETURN_IF_ERROR(ValidateInputScale(model.config(), round.context,
-                                       round.posthoc, round.weight));
-  }
 
   absl::StatusOr<EventRecord> completed =
       store_->shared()

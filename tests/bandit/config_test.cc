@@ -117,6 +117,9 @@ TEST(ConfigTest, EachOutOfRangeFieldIsRefusedNamingIt) {
        [](BanditConfig& c) { c.prior.pool_version = -1; }},
       {"prior.rounds", [](BanditConfig& c) { c.prior.rounds = -1.0; }},
       {"prior.rounds", [](BanditConfig& c) { c.prior.rounds = kNan; }},
+      // Its ridge rounds x msn would overflow to an infinite model.
+      {"prior.rounds: must be in [0, 1e+06], got 1e+300",
+       [](BanditConfig& c) { c.prior.rounds = 1e300; }},
   };
   for (const BadField& bad : cases) {
     BanditConfig config;

@@ -190,9 +190,10 @@ std::string FileText(const std::string& path) {
 // traces.csv and no row in bites.csv: no outcome, no label, and maybe half
 // the trace. The next open cuts them off (here 5,000 rows, about 150 KB:
 // three 64 KiB blocks read backwards), says so, and the id is used again.
-// Before, the trainer read them as a whole labelled trace. A bites.csv
-// whose last row is not a bite (a spreadsheet's trailing commas) is
-// refused, not repaired by cutting traces off.
+// Before, the trainer read them as a whole labelled trace. bites.csv is
+// read whole (a spreadsheet may sort it, add empty rows, or save it without
+// the last newline); one missing bites is refused, not repaired by
+// cutting traces off.
 TEST(TraceRecordingTest, ATraceWithoutItsBiteRowIsCutOffAtOpen) {
   const std::string dir = TempDir();
   {
@@ -210,18 +211,31 @@ TEST(TraceRecordingTest, ATraceWithoutItsBiteRowIsCutOffAtOpen) {
       out << "2,hard_skin," << 0.001 * i << ",1,2,3,4,5,6\n";
   }
   ASSERT_GT(FileText(dir + "/traces.csv").size(), whole.size() + 2 * 65536);
+  // bites.csv as a spreadsheet may leave it: bite 1's row dropped. Not
+  // repaired by cutting traces off (trace 1 has its rows): refused.
   const std::string bites = FileText(dir + "/bites.csv");
-  std::ofstream(dir + "/bites.csv", std::ios::app) << ",,,,,,,,,\n";
+  const size_t last_row = bites.rfind('\n', bites.size() - 2) + 1;
+  std::ofstream(dir + "/bites.csv", std::ios::trunc)
+      << bites.substr(0, last_row);
   EXPECT_THAT(TraceRecording::Open(dir).status(),
               StatusIs(absl::StatusCode::kFailedPrecondition,
-                       HasSubstr("traces.csv ends with trace 2 but the last "
-                                 "row of")));
+                       HasSubstr("traces.csv ends with trace 2 but")));
   EXPECT_GT(FileText(dir + "/traces.csv").size(), whole.size());  // untouched
-  std::ofstream(dir + "/bites.csv", std::ios::trunc) << bites;
+  // Sorted with bite 1 first, a row of empty cells added, and saved without
+  // the last newline: still bites 0 and 1, so only trace 2 is cut.
+  const std::string header = bites.substr(0, bites.find('\n') + 1);
+  const std::string row0 =
+      bites.substr(header.size(), last_row - header.size());
+  const std::string row1 = bites.substr(last_row);
+  std::ofstream(dir + "/bites.csv", std::ios::trunc)
+      << header << row1 << ",,,,,,,,,\n"
+      << row0.substr(0, row0.size() - 1);
   auto recording = TraceRecording::Open(dir);
   ASSERT_THAT(recording.status(), IsOk());
   EXPECT_EQ(FileText(dir + "/traces.csv"), whole);
   EXPECT_THAT((*recording)->note(), HasSubstr("cut off trace 2's rows"));
+  // The row saved without its newline was ended, not dropped.
+  EXPECT_THAT(FileText(dir + "/bites.csv"), HasSubstr(row0));
   absl::StatusOr<std::string> id =
       (*recording)->Record(Bite("e3", true), Trace(20, 3));
   ASSERT_THAT(id.status(), IsOk());

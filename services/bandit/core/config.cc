@@ -103,17 +103,26 @@ absl::Status ValidateConfig(const BanditConfig& config) {
   if (prior.pool_version < 0) {
     return bad("prior.pool_version: must be >= 0, got ", prior.pool_version);
   }
-  if (!std::isfinite(prior.rounds) || prior.rounds < 0) {
-    return bad("prior.rounds: must be finite and >= 0, got ", prior.rounds);
+  // A prior worth more rounds than any person eats in years; far beyond it
+  // the ridge rounds * msn overflows (1e300 rounds: an infinite ridge and a
+  // model of NaN, which every Select then refuses).
+  constexpr double kMaxPriorRounds = 1e6;
+  if (!std::isfinite(prior.rounds) || prior.rounds < 0 ||
+      prior.rounds > kMaxPriorRounds) {
+    return bad("prior.rounds: must be in [0, ", kMaxPriorRounds, "], got ",
+               prior.rounds);
   }
   if (prior.enabled()) {
     const bool posthoc = UsesPosthoc(config.learner);
     if (!std::isfinite(prior.context_msn) || prior.context_msn <= 0 ||
         (posthoc &&
-         (!std::isfinite(prior.posthoc_msn) || prior.posthoc_msn <= 0))) {
+         (!std::isfinite(prior.posthoc_msn) || prior.posthoc_msn <= 0)) ||
+        !std::isfinite(prior.rounds * prior.context_msn) ||
+        (posthoc && !std::isfinite(prior.rounds * prior.posthoc_msn))) {
       return bad(
           "prior: context_msn (and posthoc_msn for the post hoc "
-          "learner) must be finite and > 0");
+          "learner) must be finite and > 0, and so must the ridges rounds "
+          "x msn");
     }
     auto check = [&](const char* field,
                      const std::vector<std::vector<double>>& rows,

@@ -107,16 +107,13 @@ absl::StatusOr<std::unique_ptr<LearnerModel>> LoadModel(
 namespace {
 
 absl::Status RidgeScale(const char* field, absl::Span<const double> v,
-                        const char* ridge_name, double ridge, double weight) {
+                        const char* ridge_name, double ridge) {
   double squared = 0.0;
   for (double x : v) squared += x * x;
-  squared *= weight;
-  const double times =
-      kMaxSquaredNormPerRidge * (weight == 1.0 ? 1.0 : kWeightHeadroom);
-  if (squared <= times * ridge) return absl::OkStatus();
+  if (squared <= kMaxSquaredNormPerRidge * ridge) return absl::OkStatus();
   return absl::InvalidArgumentError(absl::StrCat(
-      field, ": ", weight == 1.0 ? "" : "weighted ", "squared norm ", squared,
-      " is over ", times, " times ", ridge_name, " (", ridge,
+      field, ": squared norm ", squared, " is over ", kMaxSquaredNormPerRidge,
+      " times ", ridge_name, " (", ridge,
       "), beyond what double precision keeps exact in the model; scale the "
       "values down or create the user with a larger ",
       ridge_name));
@@ -126,14 +123,12 @@ absl::Status RidgeScale(const char* field, absl::Span<const double> v,
 
 absl::Status ValidateInputScale(const BanditConfig& config,
                                 absl::Span<const double> context,
-                                absl::Span<const double> posthoc,
-                                double weight) {
-  RETURN_IF_ERROR(
-      RidgeScale("context", context, "lambda_c", config.lambda_c, weight));
+                                absl::Span<const double> posthoc) {
+  RETURN_IF_ERROR(RidgeScale("context", context, "lambda_c", config.lambda_c));
   if (!UsesPosthoc(config.learner) || posthoc.empty()) {
     return absl::OkStatus();
   }
-  return RidgeScale("posthoc", posthoc, "lambda_p", config.lambda_p, weight);
+  return RidgeScale("posthoc", posthoc, "lambda_p", config.lambda_p);
 }
 
 }  // namespace bitewise::bandit

@@ -47,17 +47,18 @@ const LearnerSpec* FindLearnerByName(absl::string_view name);
 std::string LearnerNames();
 
 // INVALID_ARGUMENT naming the field and the ridge when a request's input
-// is larger than a model of `config` can keep exact: w ||context||^2 over
-// kMaxSquaredNormPerRidge * lambda_c, or w ||posthoc||^2 over that times
-// lambda_p (learners with a post hoc part), with kWeightHeadroom more room
-// when the importance weight w is not 1. For requests only (Select,
-// Estimate, Update): events already stored were accepted under the rules
-// of their day, and the models' floors keep them finite, so a rebuild
-// never applies it.
+// is larger than a model of `config` can keep exact: ||context||^2 over
+// kMaxSquaredNormPerRidge * lambda_c, or ||posthoc||^2 over that times
+// lambda_p (learners with a post hoc part). For requests only (Select's
+// and Estimate's context, a new Update's post hoc context): events already
+// stored were accepted under the rules of their day, and the models'
+// floors keep them finite, so a rebuild never applies it. An importance
+// weight (1/propensity, up to a few thousand) is not held to it: an
+// Update refused for the weight of a Select already answered would leave
+// its event pending for good, and the floors keep the model finite.
 absl::Status ValidateInputScale(const BanditConfig& config,
                                 absl::Span<const double> context,
-                                absl::Span<const double> posthoc,
-                                double weight = 1.0);
+                                absl::Span<const double> posthoc);
 
 // The model of `config.learner` (INVALID_ARGUMENT for an unknown one, or
 // ValidateConfig's error).

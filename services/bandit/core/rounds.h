@@ -52,9 +52,6 @@ inline constexpr double kMaxInputMagnitude = 1e6;
 // rounds. 1e10 keeps about six digits of every pivot. Defaults: lambda_c
 // 1000, lambda_p 1, and features of order 1 to 100, far inside.
 inline constexpr double kMaxSquaredNormPerRidge = 1e10;
-// An Update's importance weight w scales the row to w ||x||^2; it may take
-// the bound this many times over before the Update is refused.
-inline constexpr double kWeightHeadroom = 100;
 
 // A vector of doubles (a context, a post hoc context) seen as an Eigen
 // vector, without a copy.

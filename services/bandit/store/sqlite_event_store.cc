@@ -118,11 +118,21 @@ absl::StatusOr<std::unique_ptr<ContextFile>> OpenContextFile(
   std::string contexts_path = files_base + ".contexts";
   // Before 2026-12-07 the name came from --db as given: a link's store kept
   // "<link>.contexts". It is used where it is and the real name's is not
-  // (the lock, named from the real file, keeps one process on the store).
+  // (the lock, named from the real file, keeps one process on the store);
+  // with both there, which holds the contexts is not guessed.
   std::error_code error;
-  if (files_base != path && !std::filesystem::exists(contexts_path, error) &&
-      std::filesystem::exists(path + ".contexts", error)) {
-    contexts_path = path + ".contexts";
+  const std::string old_path = path + ".contexts";
+  if (files_base != path && std::filesystem::exists(old_path, error) &&
+      !std::filesystem::equivalent(old_path, contexts_path, error)) {
+    if (std::filesystem::exists(contexts_path, error)) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          path, " is a link to ", files_base, ", and both ", old_path, " and ",
+          contexts_path,
+          " exist: keep the one this database's contexts are in (the larger, "
+          "as a rule; CheckStore tells) under the second name, and move the "
+          "other away"));
+    }
+    contexts_path = old_path;
   }
   if (!check) {
     ASSIGN_OR_RETURN(const int64_t end, NewestContextEnd(db, op));

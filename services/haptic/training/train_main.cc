@@ -243,35 +243,52 @@ int CheckAndCommit(const std::string& out, size_t size, const HapticNet& net,
     return Die(absl::StrCat("the exported model disagrees with the trainer; ",
                             "nothing at ", out, " was changed"));
   }
-  // The old model's familiarity file goes first, then the model, then the
-  // new file: a run killed between two steps leaves a model without a
-  // familiarity file (served without the score, saying so), never a model
-  // with another model's score.
+  // The old model's familiarity file is set aside first, then the model
+  // renamed, then the new file: a run killed between two steps leaves a
+  // model without a familiarity file (served without the score, saying
+  // so), never a model with another model's score. A failed step puts the
+  // old file back.
   const std::string familiarity_path = FamiliarityPathFor(out);
+  const std::string aside = familiarity_path + ".old";
+  auto give_up = [&](int failed) {
+    std::remove(Staged(out).c_str());
+    std::remove(Staged(familiarity_path).c_str());
+    return failed;
+  };
   if (familiarity.action == FamiliarityOutput::kWrite) {
     if (int failed = StageFile(familiarity_path, familiarity.text);
         failed != 0) {
-      std::remove(Staged(out).c_str());
-      return failed;
+      return give_up(failed);
     }
   }
-  if (familiarity.action != FamiliarityOutput::kLeave) {
-    std::error_code error;
-    if (std::filesystem::remove(familiarity_path, error) &&
-        familiarity.action == FamiliarityOutput::kRemove) {
-      std::printf("removed %s (it belonged to the model replaced)\n",
-                  familiarity_path.c_str());
+  std::error_code error;
+  bool set_aside = false;
+  if (familiarity.action != FamiliarityOutput::kLeave &&
+      std::filesystem::exists(familiarity_path, error)) {
+    std::filesystem::rename(familiarity_path, aside, error);
+    if (error) {
+      return give_up(Die(absl::StrCat("cannot move ", familiarity_path,
+                                      " aside: ", error.message(),
+                                      "; nothing at ", out, " was changed")));
     }
+    set_aside = true;
   }
   if (int failed = CommitFile(out); failed != 0) {
-    std::remove(Staged(familiarity_path).c_str());
-    return failed;
+    if (set_aside) std::filesystem::rename(aside, familiarity_path, error);
+    return give_up(failed);
   }
   if (familiarity.action == FamiliarityOutput::kWrite) {
-    if (int failed = CommitFile(familiarity_path); failed != 0) return failed;
+    if (int failed = CommitFile(familiarity_path); failed != 0) {
+      std::remove(Staged(familiarity_path).c_str());
+      return failed;  // the model is in place, without a score
+    }
     std::printf("wrote %s (%zu bytes)\n", familiarity_path.c_str(),
                 familiarity.text.size());
+  } else if (set_aside) {
+    std::printf("removed %s (it belonged to the model replaced)\n",
+                familiarity_path.c_str());
   }
+  if (set_aside) std::filesystem::remove(aside, error);
   return 0;
 }
 

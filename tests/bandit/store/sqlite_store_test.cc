@@ -115,6 +115,14 @@ TEST_F(SqliteEventStoreTest, ALinkToAnOpenStoreIsRefusedToo) {
   EXPECT_FALSE(std::filesystem::exists(real + ".contexts"));
   EXPECT_TRUE(std::filesystem::exists(link + ".contexts"));
   upgraded->reset();
+  // Both names there (a header-only file made by an open through the real
+  // name): which holds the contexts is not guessed.
+  { std::ofstream(real + ".contexts") << "x"; }
+  auto ambiguous = SqliteEventStore::Open(options);
+  EXPECT_EQ(ambiguous.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(ambiguous.status().message(),
+              HasSubstr("exist: keep the one this database's contexts are in"));
+  std::filesystem::remove(real + ".contexts");
   std::filesystem::remove(link + ".contexts");
   std::filesystem::remove(link);
 }
