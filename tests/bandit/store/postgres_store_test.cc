@@ -211,10 +211,11 @@ TEST_F(PostgresEventStoreTest, SchemaOneIsUpgradedAndCountsAreChecked) {
 }
 
 // A server of the test's own (to stop or restart) with a database
-// "facility", and store options for it.
+// "facility", the store options for it, and a store open on it.
 struct OwnServer {
   std::unique_ptr<testing::TestPostgres> server;
   PostgresStoreOptions options;
+  std::unique_ptr<PostgresEventStore> store;
 };
 
 absl::StatusOr<OwnServer> StartOwnServer() {
@@ -223,6 +224,7 @@ absl::StatusOr<OwnServer> StartOwnServer() {
   ASSIGN_OR_RETURN(own.options.conninfo,
                    own.server->CreateDatabase("facility"));
   own.options.connections = 2;
+  ASSIGN_OR_RETURN(own.store, PostgresEventStore::Open(own.options));
   return own;
 }
 
@@ -230,10 +232,7 @@ TEST_F(PostgresEventStoreTest, AStoppedServerIsUnavailableAndTheStoreRecovers) {
   absl::StatusOr<OwnServer> own = StartOwnServer();
   ASSERT_TRUE(own.ok()) << own.status();
   testing::TestPostgres& server = *own->server;
-  const PostgresStoreOptions& options = own->options;
-  auto opened = PostgresEventStore::Open(options);
-  ASSERT_TRUE(opened.ok()) << opened.status();
-  PostgresEventStore& store = **opened;
+  PostgresEventStore& store = *own->store;
   ASSERT_TRUE(store.CreateUser(MakeUser("alice")).ok());
   auto first = store.AppendPending(MakeEvent("alice", "m"));
   ASSERT_TRUE(first.ok());
@@ -274,17 +273,16 @@ TEST_F(PostgresEventStoreTest, FsyncOffIsRefusedAtOpenAndDropsHealthLater) {
   ASSERT_TRUE(own.ok()) << own.status();
   testing::TestPostgres& server = *own->server;
   const PostgresStoreOptions& options = own->options;
-  auto opened = PostgresEventStore::Open(options);
-  ASSERT_TRUE(opened.ok()) << opened.status();
-  EXPECT_TRUE((*opened)->CheckHealth().ok());
+  PostgresEventStore& store = *own->store;
+  EXPECT_TRUE(store.CheckHealth().ok());
   // The server restarted with fsync off under the running store (a
   // setting a reload can change too).
   ASSERT_TRUE(server.Stop().ok());
   ASSERT_TRUE(server.Start({"fsync=off"}).ok());
   // The first check may find its connection gone with the old server (as
   // the service's monitor, polling every 0.5 s, would); the next reconnects.
-  absl::Status health = (*opened)->CheckHealth();
-  if (absl::IsUnavailable(health)) health = (*opened)->CheckHealth();
+  absl::Status health = store.CheckHealth();
+  if (absl::IsUnavailable(health)) health = store.CheckHealth();
   EXPECT_EQ(health.code(), absl::StatusCode::kFailedPrecondition);
   EXPECT_THAT(health.message(), HasSubstr("runs with fsync off"));
   auto refused = PostgresEventStore::Open(options);
@@ -292,8 +290,8 @@ TEST_F(PostgresEventStoreTest, FsyncOffIsRefusedAtOpenAndDropsHealthLater) {
   EXPECT_THAT(refused.status().message(), HasSubstr("runs with fsync off"));
   ASSERT_TRUE(server.Stop().ok());
   ASSERT_TRUE(server.Start().ok());
-  health = (*opened)->CheckHealth();
-  if (absl::IsUnavailable(health)) health = (*opened)->CheckHealth();
+  health = store.CheckHealth();
+  if (absl::IsUnavailable(health)) health = store.CheckHealth();
   EXPECT_TRUE(health.ok()) << health;
 }
 
