@@ -29,6 +29,11 @@ ABSL_FLAG(int, db_connections, 8,
           "PostgreSQL: connections kept open for the store's work (one "
           "call holds one for its transaction), plus one for the health "
           "check.");
+ABSL_FLAG(double, db_response_timeout_s, 30,
+          "PostgreSQL: seconds a statement waits for the server's next bytes "
+          "before the call fails UNAVAILABLE, health turns NOT_SERVING and "
+          "the connection is closed (a stopped or unreachable server). The "
+          "health check waits at most 5 s.");
 ABSL_FLAG(bool, sqlite_fsync, true,
           "fsync every commit (synchronous=FULL). false still survives a "
           "crash of the process, but not a power loss.");
@@ -152,6 +157,15 @@ int main(int argc, char** argv) {
   store_options.create_if_missing = absl::GetFlag(FLAGS_create);
   store_options.sqlite_fsync = absl::GetFlag(FLAGS_sqlite_fsync);
   store_options.postgres_connections = absl::GetFlag(FLAGS_db_connections);
+  const double response_timeout_s = absl::GetFlag(FLAGS_db_response_timeout_s);
+  if (!(response_timeout_s >= 0.1 && response_timeout_s <= 3600)) {
+    return bitewise::ReportFatal(
+        kProgram, "bad flags",
+        absl::InvalidArgumentError(absl::StrCat(
+            "--db_response_timeout_s must be between 0.1 and 3600, not ",
+            response_timeout_s)));
+  }
+  store_options.postgres_response_timeout = absl::Seconds(response_timeout_s);
   // SERVING does not wait for SQLite's integrity check (it reads the whole
   // file); the first write does.
   store_options.defer_full_check = true;

@@ -146,6 +146,52 @@ absl::Status TestPostgres::Start(const std::vector<std::string>& settings) {
   return absl::OkStatus();
 }
 
+TestPostgres::Frozen::~Frozen() {
+  for (const int pid : pids_) kill(pid, SIGCONT);
+}
+
+absl::StatusOr<std::unique_ptr<TestPostgres::Frozen>> TestPostgres::Freeze() {
+  if (!server_.running()) {
+    return absl::FailedPreconditionError("the test server is not running");
+  }
+  const int postmaster = server_.pid();
+  // The postmaster first, so that it starts no process meanwhile.
+  if (kill(postmaster, SIGSTOP) != 0) {
+    return absl::InternalError(
+        absl::StrCat("cannot stop the server: ", std::strerror(errno)));
+  }
+  std::vector<int> pids = {postmaster};
+  std::error_code error;
+  for (const auto& entry :
+       std::filesystem::directory_iterator("/proc", error)) {
+    const std::string name = entry.path().filename().string();
+    if (name.empty() || !absl::ascii_isdigit(name[0])) continue;
+    FILE* file = std::fopen((entry.path() / "stat").c_str(), "r");
+    if (file == nullptr) continue;
+    char buffer[1024] = {0};
+    const size_t n = std::fread(buffer, 1, sizeof(buffer) - 1, file);
+    std::fclose(file);
+    // pid (comm) state ppid ...: comm may hold spaces and parentheses.
+    const std::string stat(buffer, n);
+    const size_t close = stat.rfind(')');
+    if (close == std::string::npos) continue;
+    int ppid = 0;
+    char state = 0;
+    if (std::sscanf(stat.c_str() + close + 1, " %c %d", &state, &ppid) != 2) {
+      continue;
+    }
+    if (ppid != postmaster) continue;
+    const int pid = std::atoi(name.c_str());
+    if (kill(pid, SIGSTOP) == 0) pids.push_back(pid);
+  }
+  auto frozen = std::make_unique<Frozen>(std::move(pids));
+  if (error) {
+    return absl::InternalError(  // thawed as `frozen` goes
+        absl::StrCat("cannot list /proc: ", error.message()));
+  }
+  return frozen;
+}
+
 absl::Status TestPostgres::Stop() {
   absl::StatusOr<int> status = server_.SignalAndWait(SIGINT, absl::Seconds(60));
   return status.status();

@@ -55,6 +55,22 @@ class TestPostgres {
   absl::StatusOr<std::string> Query(const std::string& database,
                                     const std::string& sql);
 
+  // The server and every process it started, stopped (SIGSTOP) as a hung
+  // host or a debugger would leave them: their sockets stay open and the
+  // kernel still takes bytes, but nothing answers. They go on (SIGCONT)
+  // when the object goes.
+  class Frozen {
+   public:
+    explicit Frozen(std::vector<int> pids) : pids_(std::move(pids)) {}
+    Frozen(const Frozen&) = delete;
+    Frozen& operator=(const Frozen&) = delete;
+    ~Frozen();
+
+   private:
+    std::vector<int> pids_;
+  };
+  absl::StatusOr<std::unique_ptr<Frozen>> Freeze();
+
   const std::string& dir() const { return dir_; }
   std::string log() const { return server_.log(); }
 

@@ -25,6 +25,7 @@ absl::StatusOr<std::unique_ptr<EventStore>> OpenEventStore(
     PostgresStoreOptions pg;
     pg.conninfo = spec;
     pg.connections = options.postgres_connections;
+    pg.response_timeout = options.postgres_response_timeout;
     pg.create_if_missing = options.create_if_missing;
     auto store = PostgresEventStore::Open(pg);
     if (!store.ok()) return store.status();

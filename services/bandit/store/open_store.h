@@ -10,6 +10,7 @@
 #include <string>
 
 #include "absl/status/statusor.h"
+#include "absl/time/time.h"
 #include "services/bandit/store/event_store.h"
 
 namespace bitewise::bandit {
@@ -22,6 +23,9 @@ struct OpenStoreOptions {
   bool sqlite_fsync = true;
   // PostgreSQL: connections kept open.
   int postgres_connections = 8;
+  // PostgreSQL: how long a statement waits for the server's next bytes
+  // (PostgresStoreOptions::response_timeout).
+  absl::Duration postgres_response_timeout = absl::Seconds(30);
   // SQLite: open without reading the whole file, and run its integrity
   // check (and the contexts file's clean-up) in the background, writes
   // waiting for it (FaultWatchStore::StartDeferredChecks), so the time to

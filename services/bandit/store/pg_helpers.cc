@@ -202,7 +202,7 @@ absl::string_view Rows::Blob(int col) const {
 // Connection
 
 absl::StatusOr<std::unique_ptr<Connection>> Connection::Open(
-    const std::string& conninfo) {
+    const std::string& conninfo, absl::Duration response_timeout) {
   // Defaults first: the connection string, expanded in dbname's place,
   // overrides them.
   // TCP keepalives and a user timeout: a server host that dies or a
@@ -223,7 +223,8 @@ absl::StatusOr<std::unique_ptr<Connection>> Connection::Open(
   if (raw == nullptr) {
     return absl::ResourceExhaustedError("libpq could not allocate");
   }
-  std::unique_ptr<Connection> conn(new Connection(raw, conninfo));
+  std::unique_ptr<Connection> conn(
+      new Connection(raw, conninfo, response_timeout));
   if (PQstatus(raw) != CONNECTION_OK) {
     return StorageFault(
         absl::StatusCode::kUnavailable,
@@ -235,8 +236,11 @@ absl::StatusOr<std::unique_ptr<Connection>> Connection::Open(
   return conn;
 }
 
-Connection::Connection(pg_conn* conn, std::string conninfo)
-    : conn_(conn), conninfo_(std::move(conninfo)) {
+Connection::Connection(pg_conn* conn, std::string conninfo,
+                       absl::Duration response_timeout)
+    : conn_(conn),
+      conninfo_(std::move(conninfo)),
+      response_timeout_(response_timeout) {
   Describe();
 }
 
@@ -256,7 +260,6 @@ bool Connection::broken() const {
 }
 
 void Connection::Probe() {
-  DrainSent();
   if (broken()) return;
   // What the server sent meanwhile (a FATAL at its shutdown) is consumed;
   // then an end of file on the socket means the server has closed it.
@@ -289,8 +292,8 @@ bool Connection::transaction_failed() const {
 absl::Status Connection::Reconnect() {
   PQreset(conn_);
   prepared_.clear();
-  sent_ = false;
   closed_ = false;
+  timed_out_ = false;
   if (PQstatus(conn_) != CONNECTION_OK) {
     return StorageFault(
         absl::StatusCode::kUnavailable,
@@ -301,6 +304,13 @@ absl::Status Connection::Reconnect() {
 }
 
 absl::Status Connection::Error(pg_result* result, absl::string_view op) const {
+  if (timed_out_) {
+    return StorageFault(
+        absl::StatusCode::kUnavailable,
+        absl::StrCat("PostgreSQL ", description_, " did not answer within ",
+                     absl::FormatDuration(response_timeout_), " (", op,
+                     "); the connection was closed"));
+  }
   if (result == nullptr || PQstatus(conn_) != CONNECTION_OK) {
     // libpq's message may run over several lines ("server closed the
     // connection unexpectedly\n\tThis probably means..."): one line here.
@@ -352,42 +362,68 @@ absl::StatusOr<std::string> Connection::Prepared(absl::string_view sql,
   auto found = prepared_.find(sql);
   if (found != prepared_.end()) return found->second;
   std::string name = absl::StrCat("bw", prepared_.size());
-  Rows prepared(PQprepare(conn_, name.c_str(), std::string(sql).c_str(),
-                          params.size(), params.types()));
-  if (PQresultStatus(prepared.result_) != PGRES_COMMAND_OK) {
+  if (PQsendPrepare(conn_, name.c_str(), std::string(sql).c_str(),
+                    params.size(), params.types()) != 1) {
+    return Error(nullptr, op);
+  }
+  Rows prepared(Await());
+  if (prepared.result_ == nullptr ||
+      PQresultStatus(prepared.result_) != PGRES_COMMAND_OK) {
     return Error(prepared.result_, op);
   }
   prepared_.emplace(std::string(sql), name);
   return name;
 }
 
-void Connection::DrainSent() {
-  if (!sent_) return;
-  sent_ = false;
-  while (pg_result* result = PQgetResult(conn_)) PQclear(result);
+pg_result* Connection::Await() {
+  pg_result* kept = nullptr;
+  // The server has response_timeout_ from the last bytes it sent (or the
+  // statement's sending) to send more: a long result that keeps arriving
+  // is not cut off, a server that stopped (frozen, or a host gone while
+  // the kernel still answers) is.
+  absl::Time deadline = absl::Now() + response_timeout_;
+  for (;;) {
+    while (PQisBusy(conn_)) {
+      const int fd = PQsocket(conn_);
+      if (fd < 0) break;  // lost: PQgetResult reports it
+      const absl::Duration left = deadline - absl::Now();
+      if (left <= absl::ZeroDuration()) {
+        // Given up on: the statement may still run (or have committed) on
+        // the server, which sees its client gone once it reads again.
+        timed_out_ = true;
+        closed_ = true;
+        shutdown(fd, SHUT_RDWR);
+        PQclear(kept);
+        return nullptr;
+      }
+      pollfd readable{fd, POLLIN, 0};
+      const int ready = poll(&readable, 1,
+                             static_cast<int>(std::min<int64_t>(
+                                 absl::ToInt64Milliseconds(
+                                     absl::Ceil(left, absl::Milliseconds(1))),
+                                 1 << 30)));
+      if (ready <= 0) continue;               // the deadline is checked again
+      if (PQconsumeInput(conn_) == 0) break;  // lost: PQgetResult says so
+      deadline = absl::Now() + response_timeout_;
+    }
+    pg_result* result = PQgetResult(conn_);
+    if (result == nullptr) return kept;
+    // A script's results: the first error, else the last (as PQexec).
+    if (kept != nullptr) {
+      const ExecStatusType status = PQresultStatus(kept);
+      if (status != PGRES_TUPLES_OK && status != PGRES_COMMAND_OK) {
+        PQclear(result);
+        continue;
+      }
+      PQclear(kept);
+    }
+    kept = result;
+  }
 }
 
 absl::StatusOr<Rows> Connection::Exec(absl::string_view sql,
                                       const Params& params,
                                       absl::string_view op) {
-  DrainSent();
-  if (broken()) return Error(nullptr, op);
-  ASSIGN_OR_RETURN(const std::string name, Prepared(sql, params, op));
-  const std::vector<const char*> values = params.values();
-  Rows rows(PQexecPrepared(conn_, name.c_str(), params.size(), values.data(),
-                           params.lengths(), params.formats(),
-                           /*resultFormat=*/1));
-  const ExecStatusType status = PQresultStatus(rows.result_);
-  if (rows.result_ == nullptr ||
-      (status != PGRES_TUPLES_OK && status != PGRES_COMMAND_OK)) {
-    return Error(rows.result_, op);
-  }
-  return rows;
-}
-
-absl::Status Connection::Send(absl::string_view sql, const Params& params,
-                              absl::string_view op) {
-  DrainSent();
   if (broken()) return Error(nullptr, op);
   ASSIGN_OR_RETURN(const std::string name, Prepared(sql, params, op));
   const std::vector<const char*> values = params.values();
@@ -396,15 +432,22 @@ absl::Status Connection::Send(absl::string_view sql, const Params& params,
                           /*resultFormat=*/1) != 1) {
     return Error(nullptr, op);
   }
-  sent_ = true;
-  return absl::OkStatus();
+  Rows rows(Await());
+  const ExecStatusType status = PQresultStatus(rows.result_);
+  if (rows.result_ == nullptr ||
+      (status != PGRES_TUPLES_OK && status != PGRES_COMMAND_OK)) {
+    return Error(rows.result_, op);
+  }
+  return rows;
 }
 
 absl::Status Connection::ExecScript(absl::string_view sql,
                                     absl::string_view op) {
-  DrainSent();
   if (broken()) return Error(nullptr, op);
-  Rows rows(PQexec(conn_, std::string(sql).c_str()));
+  if (PQsendQuery(conn_, std::string(sql).c_str()) != 1) {
+    return Error(nullptr, op);
+  }
+  Rows rows(Await());
   const ExecStatusType status = PQresultStatus(rows.result_);
   if (rows.result_ == nullptr ||
       (status != PGRES_TUPLES_OK && status != PGRES_COMMAND_OK)) {
@@ -413,15 +456,26 @@ absl::Status Connection::ExecScript(absl::string_view sql,
   return absl::OkStatus();
 }
 
+absl::Status OutcomeUnknownIfLost(const Connection& conn, absl::Status status,
+                                  absl::string_view retry) {
+  if (status.ok() || !conn.broken()) return status;
+  return StorageFault(
+      absl::StatusCode::kUnavailable,
+      absl::StrCat(status.message(),
+                   "; the connection was lost before the server's answer, so "
+                   "the outcome is unknown: it may have been applied",
+                   retry.empty() ? "" : ". ", retry));
+}
+
 // ---------------------------------------------------------------------------
 // Pool
 
-absl::StatusOr<std::unique_ptr<Pool>> Pool::Open(const std::string& conninfo,
-                                                 int size) {
+absl::StatusOr<std::unique_ptr<Pool>> Pool::Open(
+    const std::string& conninfo, int size, absl::Duration response_timeout) {
   auto pool = std::make_unique<Pool>();
   for (int i = 0; i < std::max(size, 1); ++i) {
     ASSIGN_OR_RETURN(std::unique_ptr<Connection> conn,
-                     Connection::Open(conninfo));
+                     Connection::Open(conninfo, response_timeout));
     pool->description_ = conn->description();
     pool->all_.push_back(std::move(conn));
   }
@@ -489,17 +543,8 @@ absl::Status Transaction::Commit() {
     return absl::AbortedError(
         absl::StrCat(op_, ": the transaction failed and was rolled back"));
   }
-  absl::Status committed = conn->ExecScript("COMMIT", op_);
-  if (!committed.ok() && conn->broken()) {
-    return StorageFault(
-        absl::StatusCode::kUnavailable,
-        absl::StrCat(committed.message(),
-                     "; the connection was lost at COMMIT, so the outcome is "
-                     "unknown: it may have been applied. Retrying is safe: "
-                     "a retried Update that was applied answers OK with "
-                     "already_applied"));
-  }
-  return committed;
+  return OutcomeUnknownIfLost(*conn, conn->ExecScript("COMMIT", op_),
+                              kRetryAfterUnknownOutcome);
 }
 
 }  // namespace bitewise::bandit::pg

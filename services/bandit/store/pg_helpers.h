@@ -81,8 +81,16 @@ class Connection {
   // Connects (connect_timeout 5 s unless the string sets one) and sets
   // synchronous_commit on for the session, so a commit returns only once
   // it is flushed to disk whatever the database's default.
+  //
+  // Every statement then waits at most `response_timeout` for the server's
+  // next bytes (not for its whole answer): a server that stops answering
+  // (a stopped process, whose kernel still acknowledges) fails the call
+  // with UNAVAILABLE, a storage fault naming the database, the wait and the
+  // operation, and the connection is closed (the next use reconnects).
   static absl::StatusOr<std::unique_ptr<Connection>> Open(
-      const std::string& conninfo);
+      const std::string& conninfo,
+      absl::Duration response_timeout = kDefaultResponseTimeout);
+  static constexpr absl::Duration kDefaultResponseTimeout = absl::Seconds(30);
   Connection(const Connection&) = delete;
   Connection& operator=(const Connection&) = delete;
   ~Connection();
@@ -94,11 +102,6 @@ class Connection {
   absl::StatusOr<Rows> Exec(absl::string_view sql, absl::string_view op) {
     return Exec(sql, Params(), op);
   }
-  // Sends one statement (prepared as Exec would) without waiting for its
-  // result, which the connection's next Exec or ExecScript reads and
-  // discards first. For statements whose outcome nobody waits for.
-  absl::Status Send(absl::string_view sql, const Params& params,
-                    absl::string_view op);
   // Runs statements without parameters (a script), unprepared.
   absl::Status ExecScript(absl::string_view sql, absl::string_view op);
 
@@ -117,31 +120,36 @@ class Connection {
   const std::string& description() const { return description_; }
 
  private:
-  Connection(pg_conn* conn, std::string conninfo);
+  Connection(pg_conn* conn, std::string conninfo,
+             absl::Duration response_timeout);
   absl::Status Error(pg_result* result, absl::string_view op) const;
   // The name `sql` is prepared under on this connection, preparing it the
   // first time.
   absl::StatusOr<std::string> Prepared(absl::string_view sql,
                                        const Params& params,
                                        absl::string_view op);
-  // Reads and discards the results of a Send.
-  void DrainSent();
+  // The result of the statement just sent (a script's first error, else
+  // its last result), waiting for the server as Open says; nullptr when
+  // the connection was lost or the wait given up (timed_out_).
+  pg_result* Await();
   void Describe();
 
   pg_conn* conn_;
   const std::string conninfo_;
   std::string description_;
   absl::flat_hash_map<std::string, std::string> prepared_;
-  bool sent_ = false;    // a Send's results are still to be read
-  bool closed_ = false;  // Probe found the server's end closed
+  const absl::Duration response_timeout_;
+  bool closed_ = false;     // Probe found the server's end closed
+  bool timed_out_ = false;  // Await gave up on the server
 };
 
 // A fixed set of connections shared by the store's callers. A caller holds
 // one for a whole transaction.
 class Pool {
  public:
-  static absl::StatusOr<std::unique_ptr<Pool>> Open(const std::string& conninfo,
-                                                    int size);
+  static absl::StatusOr<std::unique_ptr<Pool>> Open(
+      const std::string& conninfo, int size,
+      absl::Duration response_timeout = Connection::kDefaultResponseTimeout);
 
   class Lease {
    public:
@@ -194,6 +202,17 @@ class Transaction {
   Connection* conn_;
   std::string op_;
 };
+
+// What a caller may do after a write whose outcome is unknown.
+inline constexpr char kRetryAfterUnknownOutcome[] =
+    "Retrying is safe: a retried Update that was applied answers OK with "
+    "already_applied";
+
+// `status`, or, when it failed and `conn` was lost meanwhile (a statement
+// that commits by itself, or COMMIT), a storage fault saying that the
+// outcome is unknown, then `retry` (what a retry does).
+absl::Status OutcomeUnknownIfLost(const Connection& conn, absl::Status status,
+                                  absl::string_view retry);
 
 }  // namespace bitewise::bandit::pg
 

@@ -211,7 +211,10 @@ absl::StatusOr<int64_t> PostgresEventStore::Append(const EventRecord& event,
   if (!rows.ok() && absl::IsFailedPrecondition(rows.status())) {
     return UserNotFound(event.user_id);
   }
-  RETURN_IF_ERROR(rows.status());
+  RETURN_IF_ERROR(pg::OutcomeUnknownIfLost(
+      *conn, rows.status(),
+      "Retrying is safe: a Select that was applied stays a pending "
+      "selection that no Update refers to"));
   if (!rows->Next()) {
     if (at == nullptr) return UserNotFound(event.user_id);
     ASSIGN_OR_RETURN(Rows user, conn->Exec("SELECT 1 FROM users WHERE "
@@ -293,26 +296,26 @@ absl::StatusOr<EventRecord> PostgresEventStore::CompleteEventAt(
   // user's log takes and which makes a waiting writer re-check the row)
   // only if the event is the user's and pending, and the event is
   // completed only if the version moved. No row back: nothing written.
-  ASSIGN_OR_RETURN(
-      Rows rows,
-      conn->Exec(
-          absl::StrCat(
-              "WITH u AS (UPDATE users SET model_version = $5 WHERE user_id = "
-              "$8 AND model_version = $5 - 1 AND incarnation = $9 AND EXISTS "
-              "(SELECT 1 FROM events WHERE event_id = $1 AND user_id = $8 "
-              "AND NOT completed) RETURNING 1), e AS (UPDATE events SET "
-              "completed = true, loss = $2, posthoc = $3, weight = $4, "
-              "model_version = $5, updated_at_us = $6, outcome_checksum = $7 "
-              "WHERE event_id = $1 AND user_id = $8 AND NOT completed AND "
-              "EXISTS (SELECT 1 FROM u) RETURNING *) ",
-              kCompletedEvent),
-          OutcomeParams(event_id, loss, posthoc_bytes, weight, model_version,
-                        updated_us)
-              .Text(user_id)
-              .Int64(at.incarnation),
-          kOp));
-  if (!rows.Next()) return NotCompleted(*conn, event_id, LogMoved(user_id));
-  ASSIGN_OR_RETURN(EventRecord event, store_rows::ReadEventRow(rows));
+  absl::StatusOr<Rows> rows = conn->Exec(
+      absl::StrCat(
+          "WITH u AS (UPDATE users SET model_version = $5 WHERE user_id = "
+          "$8 AND model_version = $5 - 1 AND incarnation = $9 AND EXISTS "
+          "(SELECT 1 FROM events WHERE event_id = $1 AND user_id = $8 "
+          "AND NOT completed) RETURNING 1), e AS (UPDATE events SET "
+          "completed = true, loss = $2, posthoc = $3, weight = $4, "
+          "model_version = $5, updated_at_us = $6, outcome_checksum = $7 "
+          "WHERE event_id = $1 AND user_id = $8 AND NOT completed AND "
+          "EXISTS (SELECT 1 FROM u) RETURNING *) ",
+          kCompletedEvent),
+      OutcomeParams(event_id, loss, posthoc_bytes, weight, model_version,
+                    updated_us)
+          .Text(user_id)
+          .Int64(at.incarnation),
+      kOp);
+  RETURN_IF_ERROR(pg::OutcomeUnknownIfLost(*conn, rows.status(),
+                                           pg::kRetryAfterUnknownOutcome));
+  if (!rows->Next()) return NotCompleted(*conn, event_id, LogMoved(user_id));
+  ASSIGN_OR_RETURN(EventRecord event, store_rows::ReadEventRow(*rows));
   CountWrite(/*append=*/false, start, start);
   return event;
 }

@@ -3,6 +3,7 @@
 // postgres_pools_audit.cc.
 #include "services/bandit/store/postgres_event_store.h"
 
+#include <algorithm>
 #include <cmath>
 #include <utility>
 
@@ -241,18 +242,25 @@ absl::StatusOr<std::unique_ptr<PostgresEventStore>> PostgresEventStore::Open(
     return absl::InvalidArgumentError("PostgresStoreOptions.conninfo is empty");
   }
   ASSIGN_OR_RETURN(std::unique_ptr<pg::Pool> pool,
-                   pg::Pool::Open(options.conninfo, options.connections));
+                   pg::Pool::Open(options.conninfo, options.connections,
+                                  options.response_timeout));
   {
     ASSIGN_OR_RETURN(pg::Pool::Lease conn, pool->Acquire("opening the store"));
     RETURN_IF_ERROR(PrepareSchema(*conn, options.create_if_missing));
   }
-  return std::unique_ptr<PostgresEventStore>(
-      new PostgresEventStore(std::move(pool), options.conninfo));
+  // The health check's statements are trivial: a server that takes longer
+  // than 5 s to answer them is not one to report as serving.
+  return std::unique_ptr<PostgresEventStore>(new PostgresEventStore(
+      std::move(pool), options.conninfo,
+      std::min(options.response_timeout, absl::Seconds(5))));
 }
 
 PostgresEventStore::PostgresEventStore(std::unique_ptr<pg::Pool> pool,
-                                       std::string conninfo)
-    : pool_(std::move(pool)), conninfo_(std::move(conninfo)) {}
+                                       std::string conninfo,
+                                       absl::Duration health_timeout)
+    : pool_(std::move(pool)),
+      conninfo_(std::move(conninfo)),
+      health_timeout_(health_timeout) {}
 
 absl::StatusOr<UserLogPosition> PostgresEventStore::LogPosition(
     const std::string& user_id) {
@@ -277,7 +285,7 @@ absl::Status PostgresEventStore::CheckHealth() {
   absl::MutexLock lock(&health_mu_);
   if (health_ == nullptr) {
     absl::StatusOr<std::unique_ptr<Connection>> conn =
-        Connection::Open(conninfo_);
+        Connection::Open(conninfo_, health_timeout_);
     if (!conn.ok()) return conn.status();
     health_ = *std::move(conn);
   } else if (health_->broken()) {

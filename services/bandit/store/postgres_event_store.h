@@ -28,9 +28,13 @@
 //    requires valid UTF-8.
 //  - A lost server is UNAVAILABLE naming the database; each connection is
 //    re-established at its next use, so the service recovers when the
-//    server returns, without a restart. If the connection is lost at
-//    COMMIT the outcome is unknown: UNAVAILABLE says so, and a retried
-//    Update is then either applied once or FAILED_PRECONDITION.
+//    server returns, without a restart. A server that stops answering
+//    fails the call after PostgresStoreOptions::response_timeout without
+//    its next bytes (a storage fault), and its connection is closed. If
+//    the connection is lost (or given up) at COMMIT or during a write of
+//    one statement, the outcome is unknown: UNAVAILABLE says so, and a
+//    retried Update is then either applied once or answers
+//    already_applied.
 //  - Users carry an incarnation (a sequence value set at CreateUser,
 //    ResetUser and SetLearner; the DDL's comment predates the last) so a
 //    process can tell a cached model is of an older log or learner.
@@ -69,6 +73,10 @@ struct PostgresStoreOptions {
   // Whether a database without the bitewise tables gets them. Without it,
   // Open is FAILED_PRECONDITION naming the database.
   bool create_if_missing = true;
+  // How long a statement waits for the server's next bytes before the call
+  // fails UNAVAILABLE (a storage fault: health turns NOT_SERVING) and its
+  // connection is closed; the health check waits at most 5 s of it.
+  absl::Duration response_timeout = absl::Seconds(30);
 };
 
 class PostgresEventStore final : public EventStore {
@@ -146,7 +154,8 @@ class PostgresEventStore final : public EventStore {
   static constexpr int kSchemaVersion = 3;
 
  private:
-  PostgresEventStore(std::unique_ptr<pg::Pool> pool, std::string conninfo);
+  PostgresEventStore(std::unique_ptr<pg::Pool> pool, std::string conninfo,
+                     absl::Duration health_timeout);
   void CountWrite(bool append, absl::Time start, absl::Time commit_start);
   // AppendPending, with `at` only if the user's log stands there.
   absl::StatusOr<int64_t> Append(const EventRecord& event,
@@ -154,6 +163,7 @@ class PostgresEventStore final : public EventStore {
 
   const std::unique_ptr<pg::Pool> pool_;
   const std::string conninfo_;
+  const absl::Duration health_timeout_;
   absl::Mutex health_mu_;
   std::unique_ptr<pg::Connection> health_ ABSL_GUARDED_BY(health_mu_);
   CommitObserver commit_observer_;

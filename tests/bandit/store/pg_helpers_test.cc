@@ -1,7 +1,7 @@
 // The PostgreSQL helpers (pg_helpers.h) against a real server the test
 // starts: values sent and read in binary bit for bit, SQLSTATEs as status
-// codes naming the database and the operation, transactions, Send, and a
-// pool whose lost connections are restored.
+// codes naming the database and the operation, transactions, a server that
+// stops answering, and a pool whose lost connections are restored.
 #include "services/bandit/store/pg_helpers.h"
 
 #include <cstdint>
@@ -310,20 +310,103 @@ TEST_F(PgHelpersTest, TransactionsRollBackUnlessCommittedAndFailedOnesAbort) {
   EXPECT_EQ(Int(*other, "SELECT id FROM t"), 3);
 }
 
-TEST_F(PgHelpersTest, ASentStatementsResultIsReadBeforeTheNextOne) {
-  ASSERT_THAT(conn_->Send("INSERT INTO t VALUES ($1, $2)",
-                          Params().Int64(1).Double(1), "sent"),
-              IsOk());
-  ASSERT_THAT(conn_->Send("INSERT INTO t VALUES ($1, $2)",
-                          Params().Int64(2).Double(2), "sent"),
+TEST_F(PgHelpersTest, AScriptAnswersWithItsFirstErrorAndWritesNothing) {
+  // Statements of a script run as one transaction; the first error is the
+  // answer (not a later statement's), as PQexec gave it.
+  const absl::Status failed = conn_->ExecScript(
+      "INSERT INTO t VALUES (1, 1); INSERT INTO t VALUES (2, -1); "
+      "INSERT INTO t VALUES (3, 3)",
+      "script");
+  EXPECT_THAT(failed, StatusIs(absl::StatusCode::kFailedPrecondition,
+                               AllOf(HasSubstr("script"), HasSubstr("23514"))));
+  EXPECT_EQ(Int(*conn_, "SELECT count(*) FROM t"), 0);
+  ASSERT_THAT(conn_->ExecScript("INSERT INTO t VALUES (1, 1); INSERT INTO t "
+                                "VALUES (2, 2)",
+                                "script"),
               IsOk());
   EXPECT_EQ(Int(*conn_, "SELECT count(*) FROM t"), 2);
-  ASSERT_THAT(conn_->Send("INSERT INTO t VALUES ($1, $2)",
-                          Params().Int64(3).Double(3), "sent"),
+}
+
+// A server that stops answering (a stopped process, whose kernel still
+// takes the bytes) used to hold the call, its pooled connection and the
+// health check for ever.
+TEST_F(PgHelpersTest, AServerThatStopsAnsweringFailsTheCallAndIsLetGo) {
+  absl::StatusOr<std::unique_ptr<Connection>> conn =
+      Connection::Open(conninfo_, absl::Seconds(1));
+  ASSERT_THAT(conn, IsOk());
+  ASSERT_THAT((*conn)->Exec("SELECT 1", "warm"), IsOk());
+  absl::Duration waited;
+  {
+    absl::StatusOr<std::unique_ptr<::bitewise::testing::TestPostgres::Frozen>>
+        frozen = server_->Freeze();
+    ASSERT_THAT(frozen, IsOk());
+    const absl::Time start = absl::Now();
+    const absl::StatusOr<Rows> hung = (*conn)->Exec("SELECT 2", "a read");
+    waited = absl::Now() - start;
+    EXPECT_THAT(hung, StatusIs(absl::StatusCode::kUnavailable,
+                               AllOf(HasSubstr("database \"" + database_),
+                                     HasSubstr("did not answer within 1s "
+                                               "(a read); the connection was "
+                                               "closed"))));
+    EXPECT_TRUE(IsStorageFault(hung.status()));
+    EXPECT_TRUE((*conn)->broken());
+  }
+  // A bound on a hang, not a measure of speed: one timeout and a margin.
+  EXPECT_GE(waited, absl::Seconds(1));
+  EXPECT_LT(waited, absl::Seconds(20));
+  ASSERT_THAT((*conn)->Reconnect(), IsOk());
+  EXPECT_EQ(Int(**conn, "SELECT 3"), 3);
+}
+
+TEST_F(PgHelpersTest, TheWaitIsForTheNextBytesNotForTheWholeAnswer) {
+  absl::StatusOr<std::unique_ptr<Connection>> conn =
+      Connection::Open(conninfo_, absl::Seconds(1));
+  ASSERT_THAT(conn, IsOk());
+  // A statement that runs 2 s but says something every 0.3 s is waited
+  // for; one silent for 1.5 s is not.
+  ASSERT_THAT((*conn)->ExecScript("SET client_min_messages = notice", "set"),
               IsOk());
-  ASSERT_THAT(conn_->ExecScript("DELETE FROM t WHERE id < 3", "script"),
+  EXPECT_THAT((*conn)->ExecScript(
+                  "DO $$ BEGIN FOR i IN 1..7 LOOP PERFORM pg_sleep(0.3); "
+                  "RAISE NOTICE 'still here'; END LOOP; END $$",
+                  "talking"),
               IsOk());
-  EXPECT_EQ(Int(*conn_, "SELECT id FROM t"), 3);
+  EXPECT_THAT((*conn)->Exec("SELECT pg_sleep(1.5)", "silent"),
+              StatusIs(absl::StatusCode::kUnavailable,
+                       HasSubstr("did not answer within 1s (silent)")));
+}
+
+TEST_F(PgHelpersTest, ACommitTheServerNeverAnsweredMayStillBeApplied) {
+  absl::StatusOr<std::unique_ptr<Connection>> conn =
+      Connection::Open(conninfo_, absl::Seconds(1));
+  ASSERT_THAT(conn, IsOk());
+  {
+    absl::StatusOr<Transaction> tx = Transaction::Begin(**conn, "completing");
+    ASSERT_THAT(tx, IsOk());
+    ASSERT_THAT((*conn)->Exec("INSERT INTO t VALUES ($1, $2)",
+                              Params().Int64(1).Double(1), "insert"),
+                IsOk());
+    absl::StatusOr<std::unique_ptr<::bitewise::testing::TestPostgres::Frozen>>
+        frozen = server_->Freeze();
+    ASSERT_THAT(frozen, IsOk());
+    const absl::Status committed = tx->Commit();
+    EXPECT_THAT(committed,
+                StatusIs(absl::StatusCode::kUnavailable,
+                         AllOf(HasSubstr("did not answer within 1s"),
+                               HasSubstr("the outcome is unknown: it may have "
+                                         "been applied. Retrying is safe"))));
+    EXPECT_TRUE(IsStorageFault(committed));
+  }
+  // The COMMIT was sent before the server stopped: once it goes on, it
+  // commits, which is why the error cannot say that nothing was written.
+  std::string count;
+  const absl::Time deadline = absl::Now() + absl::Seconds(20);
+  while (absl::Now() < deadline) {
+    count = server_->Query(database_, "SELECT count(*) FROM t").value_or("");
+    if (count == "1") break;
+    absl::SleepFor(absl::Milliseconds(50));
+  }
+  EXPECT_EQ(count, "1");
 }
 
 TEST_F(PgHelpersTest, NoServerIsUnavailableOnOneLineNamingWhereItLooked) {

@@ -1,5 +1,6 @@
 // What only the PostgreSQL store has: its schema checks, replicas' writes
 // at a position, a server that stops and returns; and store locations.
+#include "services/bandit/store/write_faults.h"
 #include "services/common/status_macros.h"
 #include "tests/bandit/store/store_test_fixture.h"
 
@@ -218,12 +219,14 @@ struct OwnServer {
   std::unique_ptr<PostgresEventStore> store;
 };
 
-absl::StatusOr<OwnServer> StartOwnServer() {
+absl::StatusOr<OwnServer> StartOwnServer(
+    absl::Duration response_timeout = absl::Seconds(30)) {
   OwnServer own;
   ASSIGN_OR_RETURN(own.server, testing::TestPostgres::Create());
   ASSIGN_OR_RETURN(own.options.conninfo,
                    own.server->CreateDatabase("facility"));
   own.options.connections = 2;
+  own.options.response_timeout = response_timeout;
   ASSIGN_OR_RETURN(own.store, PostgresEventStore::Open(own.options));
   return own;
 }
@@ -263,6 +266,57 @@ TEST_F(PostgresEventStoreTest, AStoppedServerIsUnavailableAndTheStoreRecovers) {
   auto user = store.GetUser("alice");
   ASSERT_TRUE(user.ok()) << user.status();
   EXPECT_EQ(user->model_version, 2);
+}
+
+// A server that stops answering (its process stopped: the kernel still
+// takes the bytes) used to hang every call and keep health SERVING.
+TEST_F(PostgresEventStoreTest, AFrozenServerFailsCallsAndHealthThenRecovers) {
+  absl::StatusOr<OwnServer> own = StartOwnServer(absl::Seconds(1));
+  ASSERT_TRUE(own.ok()) << own.status();
+  PostgresEventStore& store = *own->store;
+  ASSERT_TRUE(store.CreateUser(MakeUser("alice")).ok());
+  ASSERT_TRUE(store.AppendPending(MakeEvent("alice", "m")).ok());
+  EXPECT_TRUE(store.CheckHealth().ok());
+  {
+    auto frozen = own->server->Freeze();
+    ASSERT_TRUE(frozen.ok()) << frozen.status();
+    // A Select's one statement commits by itself: sent and not answered,
+    // it may have been applied, and the error says so.
+    const absl::Time start = absl::Now();
+    auto hung = store.AppendPending(MakeEvent("alice", "m"));
+    EXPECT_LT(absl::Now() - start, absl::Seconds(20));  // a bound, not speed
+    EXPECT_EQ(hung.status().code(), absl::StatusCode::kUnavailable);
+    EXPECT_TRUE(IsStorageFault(hung.status()));
+    EXPECT_THAT(
+        hung.status().message(),
+        ::testing::AllOf(HasSubstr("database \"facility\""),
+                         HasSubstr("did not answer within 1s (AppendPending)"),
+                         HasSubstr("the outcome is unknown: it may have been "
+                                   "applied. Retrying is safe: a Select")));
+    const absl::Status health = store.CheckHealth();
+    EXPECT_EQ(health.code(), absl::StatusCode::kUnavailable);
+    EXPECT_THAT(
+        health.message(),
+        ::testing::AllOf(HasSubstr("database \"facility\""),
+                         HasSubstr("did not answer within 1s (health check)")));
+  }
+  // Going on: the same store serves again, and the Select that was never
+  // answered was applied after all (hence "unknown").
+  absl::Status health = store.CheckHealth();
+  if (absl::IsUnavailable(health)) health = store.CheckHealth();
+  EXPECT_TRUE(health.ok()) << health;
+  auto after = store.AppendPending(MakeEvent("alice", "m"));
+  ASSERT_TRUE(after.ok()) << after.status();
+  int64_t pending = 0;
+  const absl::Time deadline = absl::Now() + absl::Seconds(20);
+  while (absl::Now() < deadline) {
+    auto user = store.GetUser("alice");
+    ASSERT_TRUE(user.ok()) << user.status();
+    pending = user->pending_events;
+    if (pending == 3) break;
+    absl::SleepFor(absl::Milliseconds(50));
+  }
+  EXPECT_EQ(pending, 3);
 }
 
 // fsync off is refused at open, and found by the health check when the
