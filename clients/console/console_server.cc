@@ -437,7 +437,11 @@ void ConsoleServer::Route() {
                     }
                     std::optional<int> item;
                     if (request.item_index() != -1) item = request.item_index();
-                    reply_state(res, host_->Bite(item), 202);
+                    std::optional<int> version;
+                    if (request.has_plate_version()) {
+                      version = request.plate_version();
+                    }
+                    reply_state(res, host_->Bite(item, version), 202);
                   }));
 
   http.Post("/api/meal/look",

@@ -214,13 +214,27 @@ absl::Status MealHost::Look() {
   return Enqueue([meal] { (void)meal->LookAtPlate(); });
 }
 
-absl::Status MealHost::Bite(std::optional<int> item_index) {
+absl::Status MealHost::Bite(std::optional<int> item_index,
+                            std::optional<int> plate_version) {
   absl::MutexLock lock(&mu_);
   if (meal_ == nullptr || !meal_->state().running()) {
     return absl::FailedPreconditionError(
         "no meal is running: choose a person and start one");
   }
   const mealpb::MealState state = meal_->state();
+  if (plate_version.has_value() && *plate_version != state.plate_version()) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("the plate was looked at again since this choice (look ",
+                     *plate_version, ", now ", state.plate_version(),
+                     "): its items may be numbered differently; choose again"));
+  }
+  if (!state.plate_fresh()) {
+    return absl::FailedPreconditionError(
+        state.items_size() == 0
+            ? "the last look at the plate failed: look at the plate again"
+            : "the plate has not been looked at since the last bite: look "
+              "at the plate again");
+  }
   if (item_index.has_value() &&
       (*item_index < 0 || *item_index >= state.items_size())) {
     return absl::InvalidArgumentError(

@@ -79,7 +79,11 @@ class MealHost : public meals::MealListener {
   absl::Status Look();
   // Starts a bite on `item_index` (the robot's choice when absent); it
   // runs on the worker, then the plate is looked at again.
-  absl::Status Bite(std::optional<int> item_index);
+  // FAILED_PRECONDITION when `plate_version` is given and is not the
+  // plate's now, or when the plate has no look a bite may use
+  // (MealState.plate_fresh).
+  absl::Status Bite(std::optional<int> item_index,
+                    std::optional<int> plate_version = std::nullopt);
   absl::Status Answer(const std::string& event_id, bool success);
   absl::Status EndMeal();
   // RobotService.Stop, with or without a meal.

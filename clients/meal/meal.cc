@@ -139,6 +139,11 @@ mealpb::MealState Meal::state() const {
   return state_;
 }
 
+void Meal::ForgetPlate() {
+  absl::MutexLock lock(&mu_);
+  state_.clear_items();
+}
+
 std::optional<v1::Frame> Meal::plate_frame() const {
   absl::MutexLock lock(&mu_);
   return frame_;
@@ -300,11 +305,13 @@ absl::Status Meal::LookAtPlate() {
     }
     state_.set_phase("looking");
     state_.clear_error();
+    state_.set_plate_fresh(false);
   }
   Emit(mealpb::STEP_CAPTURE, mealpb::STEP_STATE_STARTED,
        "Looking at the plate.");
   absl::StatusOr<v1::Frame> frame = clients_->robot.CaptureFrame();
   if (!frame.ok()) {
+    ForgetPlate();
     return Fail(mealpb::STEP_CAPTURE, frame.status(), "", "no bite was tried");
   }
   Emit(mealpb::STEP_CAPTURE, mealpb::STEP_STATE_DONE,
@@ -313,6 +320,7 @@ absl::Status Meal::LookAtPlate() {
   absl::StatusOr<v1::DetectFoodResponse> detected =
       clients_->perception.DetectFood(*frame);
   if (!detected.ok()) {
+    ForgetPlate();
     return Fail(mealpb::STEP_DETECT, detected.status(), "",
                 "no bite was tried");
   }
@@ -330,6 +338,7 @@ absl::Status Meal::LookAtPlate() {
       text = absl::StrCat("The plate is empty. ", state_.summary().text(), ".");
     } else {
       state_.set_phase("choosing");
+      state_.set_plate_fresh(true);
       text = absl::StrCat(
           Count(detected->items_size(), "item", "items"),
           " on the plate: choose the next bite, or let the robot choose.");
@@ -387,6 +396,22 @@ absl::Status Meal::Bite(std::optional<int> item_index,
     return absl::FailedPreconditionError(
         "look at the plate before the first bite");
   }
+  {
+    // The items of a look are aimed at by one bite: that bite may have taken
+    // or moved them, and a failed look leaves none.
+    absl::MutexLock lock(&mu_);
+    if (!state_.plate_fresh()) {
+      return absl::FailedPreconditionError(
+          state_.items_size() == 0
+              ? std::string("the last look at the plate failed: look at the "
+                            "plate again before a bite")
+              : absl::StrCat("look at the plate again before a bite: the "
+                             "items shown were seen before bite ",
+                             state_.bite(),
+                             ", which may have taken or moved "
+                             "them"));
+    }
+  }
   absl::StatusOr<int> chosen_index = ChooseItem(item_index);
   if (!chosen_index.ok()) return chosen_index.status();
   // The previous bite's answer is final now.
@@ -405,6 +430,7 @@ absl::Status Meal::Bite(std::optional<int> item_index,
     item = state_.items(*chosen_index);
     state_.set_bite(state_.bite() + 1);
     state_.set_phase("biting");
+    state_.set_plate_fresh(false);
     state_.clear_error();
     update_.reset();
     // Earlier bites keep their outcome, not their force samples and steps,

@@ -150,8 +150,10 @@ class Meal {
 
   // Runs one bite on item `item_index` of the plate last looked at, or the
   // robot's choice when it is absent. INVALID_ARGUMENT for an index not on
-  // the plate; FAILED_PRECONDITION before LookAtPlate, on an empty plate,
-  // after Finish or while another bite runs. Other errors name the service
+  // the plate; FAILED_PRECONDITION before LookAtPlate, when the last look
+  // failed or a bite has used it already (state().plate_fresh() is false:
+  // every bite needs a look of its own), on an empty plate, after Finish or
+  // while another bite runs. Other errors name the service
   // and call that failed; the bite then says what was kept (above).
   // `stops_when_asked`: stops() when the bite was asked for (a console
   // queues it); a STOP after that ends it before the arm moves. Without it,
@@ -182,12 +184,14 @@ class Meal {
   mealpb::MealState state() const;
 
   // The frame of the plate last looked at (absent before the first look);
-  // its items are state().items().
+  // its items are state().items(), none after a failed look.
   std::optional<v1::Frame> plate_frame() const;
 
  private:
   // The bite's steps, in order; each reports its events.
   absl::StatusOr<int> ChooseItem(std::optional<int> item_index);
+  // A look failed: no items are kept to aim a bite at.
+  void ForgetPlate();
   absl::StatusOr<v1::FeaturizeResponse> Featurize(const v1::Frame& frame,
                                                   const v1::FoodItem& item);
   absl::Status EnsureUser(int context_dim, double context_msn);

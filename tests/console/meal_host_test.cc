@@ -186,9 +186,19 @@ TEST_F(MealHostTest, AMealRunsOnTheHostAndEverySubscriberSeesIt) {
   ASSERT_TRUE(now.has_value());
   EXPECT_THAT(*now, HasSubstr("\"phase\":\"choosing\""));
 
-  ASSERT_THAT(host_->Bite(std::nullopt), IsOk());
+  ASSERT_THAT(host_->Bite(std::nullopt, plate.plate_version()), IsOk());
   const mealpb::MealState after = WaitForPhase("choosing", 1);
   ASSERT_EQ(after.bites_size(), 1);
+  // A choice made on the look before (its numbers may name other items
+  // now) is refused, naming both looks; nothing starts.
+  EXPECT_THAT(
+      host_->Bite(0, plate.plate_version()),
+      StatusIs(absl::StatusCode::kFailedPrecondition,
+               HasSubstr(absl::StrCat("the plate was looked at again since "
+                                      "this choice (look ",
+                                      plate.plate_version(), ", now ",
+                                      after.plate_version(), ")"))));
+  EXPECT_EQ(host_->State().bites_size(), 1);
   // The robot judged the bite: there is nothing to answer.
   EXPECT_THAT(host_->Answer(after.bites(0).event_id(), true),
               StatusIs(absl::StatusCode::kFailedPrecondition,

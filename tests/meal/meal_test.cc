@@ -316,17 +316,23 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
   ASSERT_OK(recording.status());
   RecordingListener listener;
   Meal meal(&clients, &journal, options, &listener);
-  ASSERT_OK(meal.LookAtPlate());
-  ASSERT_EQ(meal.state().items_size(), 1);
-  const auto answer_if_asked = [&](bool success) {
-    const mealpb::Bite bite = meal.state().current();
+  // A second console's look at the plate, taken now: by the time it is
+  // bitten at, the strawberry is gone (each bite needs a look of its own,
+  // so a gone item is reached only through a look taken before).
+  Meal late(&clients, &journal, options, &listener);
+  ASSERT_OK(late.LookAtPlate());
+  ASSERT_EQ(late.state().items_size(), 1);
+  const auto answer_if_asked = [&](Meal& asked, bool success) {
+    const mealpb::Bite bite = asked.state().current();
     if (options.confirm == ConfirmBy::kOperator) {
-      ASSERT_OK(meal.Answer(bite.event_id(), success));
+      ASSERT_OK(asked.Answer(bite.event_id(), success));
     }
   };
   // Bite until the strawberry comes up (the operator tells the truth).
   int bites = 0;
   for (; bites < 12; ++bites) {
+    ASSERT_OK(meal.LookAtPlate());
+    ASSERT_EQ(meal.state().items_size(), 1);
     ASSERT_OK(meal.Bite(0));
     const bool felt = meal.state().current().haptic().probabilities_size() > 0;
     ASSERT_TRUE(felt) << meal.state().current().text();
@@ -340,16 +346,17 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
       // The robot's verdict is not shown; the world's is.
       came_up = services->ItemsLeft() == 0;
     }
-    answer_if_asked(came_up);
+    answer_if_asked(meal, came_up);
     if (came_up) break;
   }
   ASSERT_LT(bites, 12) << "the strawberry never came up";
   ASSERT_EQ(services->ItemsLeft(), 0);
+  ASSERT_OK(meal.Finish());
 
-  // The same item again: it is gone.
-  ASSERT_OK(meal.Bite(0));
-  answer_if_asked(false);
-  const mealpb::MealState state = meal.state();
+  // The same item from the earlier look: it is gone.
+  ASSERT_OK(late.Bite(0));
+  answer_if_asked(late, false);
+  const mealpb::MealState state = late.state();
   EXPECT_NE(state.phase(), "failed") << state.error();
   const mealpb::Bite& missed = state.current();
   EXPECT_EQ(missed.outcome(), "failure");
@@ -376,7 +383,7 @@ TEST_P(NoContactMealTest, IsLearnedFromVisionWithNoPosthocContext) {
     EXPECT_EQ(saved->back().loss, 1.0);
     ASSERT_EQ(saved->back().posthoc.size(), 4u);
     saved_posthoc = saved->back().posthoc;
-    ASSERT_OK(meal.Bite(0));
+    ASSERT_OK(late.Finish());
   } else {
     EXPECT_EQ(missed.learned(), "learned");
   }
@@ -702,6 +709,7 @@ TEST_F(MealTest, AChosenLearnerIsTheNewUsers) {
   auto meal = NewMeal();
   ASSERT_OK(meal->LookAtPlate());
   ASSERT_OK(meal->Bite(std::nullopt));
+  ASSERT_OK(meal->LookAtPlate());
   ASSERT_OK(meal->Bite(std::nullopt));
   absl::StatusOr<v1::User> user = clients_->bandit.GetUser(options_.user_id);
   ASSERT_TRUE(user.ok()) << user.status();
@@ -766,6 +774,39 @@ TEST_F(MealTest, ThePersonChoosesTheItem) {
   EXPECT_EQ(bite.item_label(),
             absl::StrFormat("item@%.0f,%.0f", looked.items(2).center_px().u(),
                             looked.items(2).center_px().v()));
+}
+
+// Each bite aims at a look of its own: a bite may have taken or moved the
+// items of the look before it, and a failed look leaves nothing to aim at
+// (the items of the look before used to stay, and be bitten at).
+TEST_F(MealTest, EveryBiteNeedsALookOfItsOwn) {
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  EXPECT_TRUE(meal->state().plate_fresh());
+  ASSERT_OK(meal->Bite(std::nullopt));
+  EXPECT_FALSE(meal->state().plate_fresh());
+  EXPECT_THAT(meal->Bite(0),
+              StatusIs(absl::StatusCode::kFailedPrecondition,
+                       HasSubstr("look at the plate again before a bite: the "
+                                 "items shown were seen before bite 1")));
+  EXPECT_EQ(meal->state().bites_size(), 1);
+  EXPECT_EQ(Events().size(), 1u);
+
+  // A look that fails forgets the plate.
+  services_->faults().Fail("/bitewise.v1.PerceptionService/DetectFood",
+                           absl::UnavailableError("the service is down"));
+  EXPECT_FALSE(meal->LookAtPlate().ok());
+  EXPECT_EQ(meal->state().items_size(), 0);
+  EXPECT_FALSE(meal->state().plate_fresh());
+  EXPECT_THAT(meal->Bite(std::nullopt),
+              StatusIs(absl::StatusCode::kFailedPrecondition,
+                       HasSubstr("the last look at the plate failed")));
+  EXPECT_EQ(Events().size(), 1u);
+
+  services_->faults().Clear();
+  ASSERT_OK(meal->LookAtPlate());
+  ASSERT_OK(meal->Bite(std::nullopt));
+  EXPECT_EQ(Events().size(), 2u);
 }
 
 TEST_F(MealTest, AnItemNotOnThePlateChangesNothing) {

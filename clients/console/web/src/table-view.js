@@ -223,16 +223,17 @@ export function createTableView() {
   });
   const bitePanel = createBitePanel();
 
+  // Only a look that no bite has used yet: a bite may have taken or moved
+  // the items, and a failed look leaves none.
   function canChoose() {
     if (!state?.running || busy || !connected || !(state.items?.length > 0)) return false;
-    if (state.phase === 'looking') return false;
-    // The library leaves the phase at "biting" until the plate is looked at again.
-    return !(state.phase === 'biting' && state.current?.outcome === 'pending');
+    return state.plate_fresh === true && state.phase === 'choosing';
   }
 
   function bite(itemIndex) {
     if (!canChoose()) return;
-    request('/api/meal/bite', { item_index: itemIndex });
+    // The look the choice was made on: the console refuses it on another.
+    request('/api/meal/bite', { item_index: itemIndex, plate_version: state.plate_version });
   }
   choiceButton.addEventListener('click', () => bite(-1));
 
