@@ -131,6 +131,14 @@ absl::StatusOr<Features> DefaultFeaturizer::Featurize(
     const DecodedFrame& frame, const PixelBox& box,
     FoodLocation location) const {
   RETURN_IF_ERROR(ValidateBox(box, frame.width(), frame.height()));
+  if (!frame.has_depth()) {
+    // Without depth, the size and height features would come out at their
+    // floor and look like any other context to the bandit.
+    return absl::InvalidArgumentError(
+        "frame.depth_mm is empty: the default featurizer measures the "
+        "item's size and height from the aligned depth image (features "
+        "48-63); send the frame with its depth");
+  }
   const cv::Rect inner(box.x, box.y, box.width, box.height);
   const cv::Rect outer =
       cv::Rect(box.x - kRingPx, box.y - kRingPx, box.width + 2 * kRingPx,

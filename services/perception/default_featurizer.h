@@ -20,10 +20,13 @@
 //            box pixels
 //   [56, 60) height above the surrounding plate: 90th percentile / 0.05 m,
 //            median / 0.05 m, standard deviation / 0.05 m, and the fraction
-//            of item pixels that have depth (all 0 without depth)
+//            of item pixels that have depth
 //   [60, 63) location one-hot (isolated, wall, lettuce), as SPANet's
 //   63       constant 1, so linear models get an intercept
-// Lengths need depth; without it they are 0.
+// Lengths and heights need depth: a frame without it is INVALID_ARGUMENT
+// (its features would sit at their floor and pass for an item's). An item
+// in a hole of the depth image is measured at the plate's distance around
+// it, with no height (0 when nothing around it has depth either).
 //
 // Standardised (the default): features [0, 60) are centred and scaled with
 // fixed per-feature means and standard deviations measured on the

@@ -4,6 +4,8 @@
 #include <vector>
 
 #include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
 #include "opencv2/core.hpp"
 #include "opencv2/imgproc.hpp"
 #include "services/perception/food_detector_stages.h"
@@ -29,11 +31,24 @@ absl::StatusOr<std::vector<DetectedFood>> FoodDetector::Detect(
         "the plate and needs the aligned depth image");
   }
   using namespace detection;  // NOLINT: the stages, in order
+  // No plate is not an empty plate: a dead depth stream, a camera that
+  // does not see the plate, or a covered lens must not end a meal as "the
+  // plate is empty".
+  const auto no_plate = [&frame](absl::string_view what) {
+    const int pixels = frame.depth_mm.rows * frame.depth_mm.cols;
+    return absl::FailedPreconditionError(absl::StrCat(
+        "no plate found: ", what, " (", cv::countNonZero(frame.depth_mm),
+        " of ", pixels,
+        " pixels have depth); is the plate in view and the depth stream "
+        "working?"));
+  };
   const std::optional<HeightMap> heights =
       MeasureHeight(frame.depth_mm, frame.intrinsics, options_);
-  if (!heights) return std::vector<DetectedFood>();
+  if (!heights) return no_plate("no flat surface in the depth image");
   const std::optional<PlateRegion> plate = FindPlate(*heights, options_);
-  if (!plate) return std::vector<DetectedFood>();
+  if (!plate) {
+    return no_plate("no flat region covers a tenth of the frame");
+  }
   // Everything below looks only at the plate's bounding box (about half
   // the frame); pixel coordinates are shifted back at the end.
   const cv::Rect& roi = plate->roi;

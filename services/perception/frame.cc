@@ -137,7 +137,10 @@ absl::StatusOr<cv::Mat> DecodeRgb(const FrameBytes& bytes, int width,
   try {
     const cv::Mat buffer(1, static_cast<int>(bytes.rgb.size()), CV_8UC1,
                          const_cast<char*>(bytes.rgb.data()));
-    bgr = cv::imdecode(buffer, cv::IMREAD_COLOR);
+    // The sensor's grid as sent: an EXIF orientation would turn the colour
+    // image against its depth.
+    bgr =
+        cv::imdecode(buffer, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
   } catch (const cv::Exception& e) {
     return Invalid(
         absl::StrCat("frame.rgb: corrupt ", name, " data: ", e.what()));

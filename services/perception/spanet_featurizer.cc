@@ -122,6 +122,15 @@ absl::StatusOr<std::unique_ptr<SpanetFeaturizer>> SpanetFeaturizer::Load(
                      "\" gives outputs that are not finite numbers on a black "
                      "image (weights that are NaN or infinite?)"));
   }
+  if (!cv::checkRange(scores, /*quiet=*/true, nullptr, 0.0, 1.0 + 1e-6)) {
+    double lo = 0, hi = 0;
+    cv::minMaxLoc(scores, &lo, &hi);
+    return absl::FailedPreconditionError(absl::StrCat(
+        "SPANet model file \"", model_path, "\" gives \"", kScoresOutput,
+        "\" outside [0, 1] on a black image (", lo, " to ", hi,
+        "): SPANet's head ends in a sigmoid (skewer points in the crop's "
+        "unit square, action success rates); was it exported without it?"));
+  }
   return featurizer;
 }
 
@@ -169,6 +178,11 @@ absl::Status SpanetFeaturizer::RunFinite(const cv::Mat& canvas,
     return absl::InternalError(
         "SPANet gave outputs that are not finite numbers for this crop; the "
         "model is at fault");
+  }
+  if (!cv::checkRange(*scores, /*quiet=*/true, nullptr, 0.0, 1.0 + 1e-6)) {
+    return absl::InternalError(
+        absl::StrCat("SPANet gave \"", kScoresOutput,
+                     "\" outside [0, 1] for this crop; the model is at fault"));
   }
   return absl::OkStatus();
 }

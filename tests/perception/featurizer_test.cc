@@ -270,6 +270,36 @@ TEST(SpanetLoadTest, NonFiniteWeightsAreRefusedAtLoad) {
               HasSubstr("nan.onnx\" gives outputs that are not finite"));
 }
 
+// SPANet's head ends in a sigmoid: skewer points in the crop's unit square,
+// action success rates. A model exported without it (raw logits) used to
+// load and report points and rates well outside [0, 1].
+TEST(SpanetLoadTest, ScoresOutsideZeroToOneAreRefusedAtLoad) {
+  onnx::ModelProto model;
+  {
+    std::ifstream in(BITEWISE_SPANET_MODEL, std::ios::binary);
+    ASSERT_TRUE(model.ParseFromIstream(&in));
+  }
+  int replaced = 0;
+  for (onnx::NodeProto& node : *model.mutable_graph()->mutable_node()) {
+    // exp(logit): finite, positive, and above 1 wherever the logit is.
+    if (node.op_type() == "Sigmoid") {
+      node.set_op_type("Exp");
+      ++replaced;
+    }
+  }
+  ASSERT_EQ(replaced, 1);
+  const std::string path = TempPath("raw_scores.onnx");
+  {
+    std::ofstream out(path, std::ios::binary | std::ios::trunc);
+    ASSERT_TRUE(model.SerializeToOstream(&out));
+  }
+  const absl::Status raw = SpanetFeaturizer::Load(path).status();
+  std::remove(path.c_str());
+  EXPECT_EQ(raw.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(raw.message()),
+              HasSubstr("raw_scores.onnx\" gives \"scores\" outside [0, 1]"));
+}
+
 TEST(SpanetLoadTest, GraphExportedInTrainingModeIsRefusedNamingTheNode) {
   // A BatchNormalization that outputs its batch statistics (opset < 14).
   absl::Status five_outputs = LoadEdited("train5.onnx", [](auto* m) {

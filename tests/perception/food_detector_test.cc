@@ -247,16 +247,28 @@ TEST(FoodDetectorTest, EmptyPlateHasNoItems) {
   EXPECT_TRUE(detected->empty());
 }
 
-TEST(FoodDetectorTest, FrameWithoutPlateHasNoItems) {
-  // A flat wall of depth with no dominant flat region: all holes.
+// No plate is not an empty plate (the meal ends on an empty one): a dead
+// depth stream or a scene with no flat surface is FAILED_PRECONDITION
+// naming what was missing (both used to answer "no items").
+TEST(FoodDetectorTest, AFrameWithoutAPlateIsFailedPrecondition) {
   DecodedFrame frame;
   frame.rgb = cv::Mat(480, 640, CV_8UC3, cv::Scalar(90, 120, 200));
-  frame.depth_mm = cv::Mat(480, 640, CV_16UC1, cv::Scalar(0));
+  frame.depth_mm = cv::Mat(480, 640, CV_16UC1, cv::Scalar(0));  // all holes
   frame.intrinsics = CameraIntrinsics();  // the D415's at 640x480
-  absl::StatusOr<std::vector<DetectedFood>> detected =
+  absl::StatusOr<std::vector<DetectedFood>> dead = FoodDetector().Detect(frame);
+  EXPECT_EQ(dead.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(dead.status().message()),
+              ::testing::AllOf(::testing::HasSubstr("no plate found"),
+                               ::testing::HasSubstr("(0 of 307200 pixels have "
+                                                    "depth)")));
+  // Depth everywhere, but nothing flat: a jumble of distances.
+  cv::randu(frame.depth_mm, cv::Scalar(300), cv::Scalar(2000));
+  absl::StatusOr<std::vector<DetectedFood>> jumble =
       FoodDetector().Detect(frame);
-  ASSERT_TRUE(detected.ok()) << detected.status();
-  EXPECT_TRUE(detected->empty());
+  EXPECT_EQ(jumble.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(jumble.status().message()),
+              ::testing::AllOf(::testing::HasSubstr("no plate found"),
+                               ::testing::HasSubstr("(307200 of 307200")));
 }
 
 TEST(FoodDetectorTest, FrameWithoutDepthIsInvalidArgument) {

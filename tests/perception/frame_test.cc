@@ -56,6 +56,40 @@ TEST_F(FrameTest, JpegDecodesCloseToTheRenderedPixels) {
             3 * 4.0);
 }
 
+// `jpeg` with an EXIF block (APP1, right after the start-of-image marker)
+// whose orientation tag is `orientation` (1-8).
+std::string WithExifOrientation(const std::string& jpeg, int orientation) {
+  std::string tiff("MM\0\x2a\0\0\0\x08", 8);           // big-endian, IFD at 8
+  tiff += std::string("\0\x01", 2);                    // one entry:
+  tiff += std::string("\x01\x12\0\x03\0\0\0\x01", 8);  // Orientation, SHORT x1
+  tiff += std::string("\0", 1) + static_cast<char>(orientation);
+  tiff += std::string("\0\0", 2);      // value padding
+  tiff += std::string("\0\0\0\0", 4);  // no next IFD
+  const std::string payload = std::string("Exif\0\0", 6) + tiff;
+  const size_t length = payload.size() + 2;
+  std::string app1("\xff\xe1", 2);
+  app1 += static_cast<char>(length >> 8);
+  app1 += static_cast<char>(length & 0xff);
+  return jpeg.substr(0, 2) + app1 + payload + jpeg.substr(2);
+}
+
+// A camera's frame is its sensor's grid, aligned with its depth: an EXIF
+// orientation tag must not turn the colour image against the depth (it
+// did: OpenCV applies it by default, and DetectFood found other items).
+TEST_F(FrameTest, AJpegsExifOrientationIsIgnored) {
+  const v1::Frame plain = Proto(v1::IMAGE_ENCODING_JPEG);
+  absl::StatusOr<DecodedFrame> expected = Decode(plain);
+  ASSERT_TRUE(expected.ok()) << expected.status();
+  for (const int orientation : {2, 3, 6}) {
+    v1::Frame tagged = plain;
+    tagged.set_rgb(WithExifOrientation(plain.rgb(), orientation));
+    absl::StatusOr<DecodedFrame> frame = Decode(tagged);
+    ASSERT_TRUE(frame.ok()) << orientation << ": " << frame.status();
+    EXPECT_EQ(cv::norm(frame->rgb, expected->rgb, cv::NORM_INF), 0)
+        << "orientation " << orientation;
+  }
+}
+
 TEST_F(FrameTest, DepthMayBeAbsent) {
   v1::Frame proto = Proto(v1::IMAGE_ENCODING_RGB8);
   proto.clear_depth_mm();

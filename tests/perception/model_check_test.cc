@@ -136,29 +136,20 @@ Features FeaturizeCrop(const Featurizer& featurizer, const cv::Mat& rgb,
   return features.ok() ? *features : Features();
 }
 
-TEST(RunModelCheckTest, WritesWhatTheDefaultFeaturizerComputesForEachCrop) {
+// A PNG crop has no depth, which the default featurizer measures size and
+// height from: refused, naming it (its features used to sit at their floor
+// and pass for an item's).
+TEST(RunModelCheckTest, TheDefaultFeaturizerRefusesCropsWithoutDepth) {
   const testing::TestScene scene = testing::RenderTestScene(3, 2, false);
   const std::string dir = MakeTempDir();
-  const cv::Mat crop0 = WriteCrop(scene, 0, dir + "/in0.png");
-  const cv::Mat crop1 = WriteCrop(scene, 1, dir + "/in1.png");
-  DefaultFeaturizerOptions options;
-  options.standardize = false;
-  const DefaultFeaturizer featurizer(options);
-
-  ASSERT_TRUE(RunModelCheck(featurizer,
-                            {{dir + "/in0.png", FoodLocation::kIsolated},
-                             {dir + "/in1.png", FoodLocation::kLettuce}},
-                            dir)
-                  .ok());
-  const Features f0 = FeaturizeCrop(featurizer, crop0, FoodLocation::kIsolated);
-  const Features f1 = FeaturizeCrop(featurizer, crop1, FoodLocation::kLettuce);
-  ExpectWritten(ReadLine(dir + "/crop0.txt", "context"), f0.context);
-  ExpectWritten(ReadLine(dir + "/crop1.txt", "context"), f1.context);
-  EXPECT_EQ(ReadLine(dir + "/crop1.txt", "context")[62], 1.0);  // lettuce
-  // The default featurizer predicts neither, and draws no canvas.
-  EXPECT_THAT(ReadLine(dir + "/crop0.txt", "action_scores"), ElementsAre());
-  EXPECT_THAT(ReadLine(dir + "/crop0.txt", "skewer_points"), ElementsAre());
-  EXPECT_NE(access((dir + "/crop0.canvas.png").c_str(), F_OK), 0);
+  WriteCrop(scene, 0, dir + "/in0.png");
+  const DefaultFeaturizer featurizer{DefaultFeaturizerOptions()};
+  const absl::Status status = RunModelCheck(
+      featurizer, {{dir + "/in0.png", FoodLocation::kIsolated}}, dir);
+  EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(std::string(status.message()),
+              ::testing::HasSubstr("frame.depth_mm is empty: the default "
+                                   "featurizer measures the item's size"));
 }
 
 TEST(RunModelCheckTest, WritesSpanetsOutputsAndItsInputCanvas) {
@@ -216,12 +207,12 @@ TEST(RunModelCheckTest, AnUnwritableDirectoryIsFailedPreconditionNamingIt) {
   const testing::TestScene scene = testing::RenderTestScene(3, 1, false);
   const std::string dir = MakeTempDir();
   WriteCrop(scene, 0, dir + "/in.png");
-  DefaultFeaturizerOptions options;
-  options.standardize = false;
-  const DefaultFeaturizer featurizer(options);
+  absl::StatusOr<std::unique_ptr<SpanetFeaturizer>> spanet =
+      SpanetFeaturizer::Load(BITEWISE_SPANET_MODEL);
+  ASSERT_TRUE(spanet.ok()) << spanet.status();
   const std::string out = dir + "/no/such/dir";
   const absl::Status status = RunModelCheck(
-      featurizer, {{dir + "/in.png", FoodLocation::kIsolated}}, out);
+      **spanet, {{dir + "/in.png", FoodLocation::kIsolated}}, out);
   EXPECT_EQ(status.code(), absl::StatusCode::kFailedPrecondition);
   EXPECT_THAT(status.message(), HasSubstr(out + "/crop0.txt"));
 }

@@ -152,6 +152,12 @@ TEST_F(PerceptionServiceTest, FeaturizeWithDefaultReturns64Context) {
   EXPECT_EQ(response.context(61), 1.0);
   EXPECT_EQ(response.featurizer(), "default");
   EXPECT_EQ(response.action_scores_size(), 0);
+  // It measures size and height from depth: a frame without is refused.
+  request.mutable_frame()->clear_depth_mm();
+  status = stub_->Featurize(Ctx().get(), request, &response);
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_THAT(status.error_message(),
+              HasSubstr("frame.depth_mm is empty: the default featurizer"));
 }
 
 TEST_F(PerceptionServiceTest, BadRequestsAreInvalidArgument) {
