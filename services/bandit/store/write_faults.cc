@@ -90,24 +90,48 @@ absl::Status FaultWatchStore::RunDeferredChecks() {
   return damage_;
 }
 
-absl::Status FaultWatchStore::Writable() {
+namespace {
+
+// A write refused because of an earlier fault: named as this write, with
+// the fault (whose message names the write that met it) and its payloads.
+absl::Status Refused(absl::string_view op, const absl::Status& fault) {
+  absl::Status refused(
+      fault.code(),
+      absl::StrCat(op,
+                   " refused: the store's storage failed a write and has not "
+                   "taken one since (",
+                   fault.message(),
+                   "); writes resume once a probe write "
+                   "succeeds"));
+  fault.ForEachPayload([&refused](absl::string_view url, const absl::Cord& p) {
+    refused.SetPayload(url, p);
+  });
+  return refused;
+}
+
+}  // namespace
+
+absl::Status FaultWatchStore::Writable(absl::string_view op) {
+  // The health check (no op) is told the fault as it is, and is no write:
+  // only writes count as refused.
+  const bool write = !op.empty();
+  const auto refuse = [&](const absl::Status& fault)
+                          ABSL_EXCLUSIVE_LOCKS_REQUIRED(mu_) {
+                            if (!write) return fault;
+                            ++faults_;
+                            return Refused(op, fault);
+                          };
   {
     absl::MutexLock lock(&mu_);
     mu_.Await(absl::Condition(&checked_));
-    if (!damage_.ok()) {
-      ++faults_;
-      return damage_;
-    }
+    if (!damage_.ok()) return refuse(damage_);
     if (fault_.ok()) return absl::OkStatus();
   }
   absl::MutexLock probing(&probe_mu_);
   {
     absl::MutexLock lock(&mu_);
     if (fault_.ok()) return absl::OkStatus();  // another caller's probe
-    if (absl::Now() - last_probe_ < probe_period_) {
-      ++faults_;
-      return fault_;
-    }
+    if (absl::Now() - last_probe_ < probe_period_) return refuse(fault_);
   }
   const absl::Status probed = store_->ProbeWrite();
   absl::MutexLock lock(&mu_);
@@ -120,8 +144,7 @@ absl::Status FaultWatchStore::Writable() {
   if (IsStorageFault(probed) && probed.code() != fault_.code()) {
     fault_ = probed;
   }
-  ++faults_;
-  return fault_;
+  return refuse(fault_);
 }
 
 absl::Status FaultWatchStore::Note(absl::Status status) {
@@ -149,7 +172,7 @@ absl::Status FaultWatchStore::CheckHealth() {
     if (!damage_.ok()) return damage_;
     if (!checked_) return absl::OkStatus();
   }
-  return Writable();
+  return Writable(/*op=*/"");
 }
 
 StoreWriteStats FaultWatchStore::write_stats() const {
@@ -160,55 +183,55 @@ StoreWriteStats FaultWatchStore::write_stats() const {
 }
 
 absl::Status FaultWatchStore::CreateUser(const UserRecord& user) {
-  RETURN_IF_ERROR(Writable());
+  RETURN_IF_ERROR(Writable("CreateUser"));
   return Note(store_->CreateUser(user));
 }
 
 absl::Status FaultWatchStore::DeleteUser(const std::string& user_id) {
-  RETURN_IF_ERROR(Writable());
+  RETURN_IF_ERROR(Writable("DeleteUser"));
   return Note(store_->DeleteUser(user_id));
 }
 
 absl::Status FaultWatchStore::ResetUser(const std::string& user_id) {
-  RETURN_IF_ERROR(Writable());
+  RETURN_IF_ERROR(Writable("ResetUser"));
   return Note(store_->ResetUser(user_id));
 }
 
 absl::Status FaultWatchStore::SetLearner(const std::string& user_id,
                                          Learner learner,
                                          int64_t model_version) {
-  RETURN_IF_ERROR(Writable());
+  RETURN_IF_ERROR(Writable("SetLearner"));
   return Note(store_->SetLearner(user_id, learner, model_version));
 }
 
 absl::StatusOr<int64_t> FaultWatchStore::AppendPending(
     const EventRecord& event) {
-  RETURN_IF_ERROR(Writable());
+  RETURN_IF_ERROR(Writable("AppendPending"));
   return Note(store_->AppendPending(event));
 }
 
 absl::StatusOr<EventRecord> FaultWatchStore::CompleteEvent(
     int64_t event_id, double loss, const std::vector<double>& posthoc,
     double weight, absl::Time updated_at) {
-  RETURN_IF_ERROR(Writable());
+  RETURN_IF_ERROR(Writable("CompleteEvent"));
   return Note(
       store_->CompleteEvent(event_id, loss, posthoc, weight, updated_at));
 }
 
 absl::Status FaultWatchStore::PutCheckpoint(const std::string& user_id,
                                             const ModelCheckpoint& checkpoint) {
-  RETURN_IF_ERROR(Writable());
+  RETURN_IF_ERROR(Writable("PutCheckpoint"));
   return Note(store_->PutCheckpoint(user_id, checkpoint));
 }
 
 absl::Status FaultWatchStore::DeleteCheckpoint(const std::string& user_id) {
-  RETURN_IF_ERROR(Writable());
+  RETURN_IF_ERROR(Writable("DeleteCheckpoint"));
   return Note(store_->DeleteCheckpoint(user_id));
 }
 
 absl::StatusOr<int64_t> FaultWatchStore::AppendPendingAt(
     const EventRecord& event, const UserLogPosition& at) {
-  RETURN_IF_ERROR(Writable());
+  RETURN_IF_ERROR(Writable("AppendPendingAt"));
   return Note(store_->AppendPendingAt(event, at));
 }
 
@@ -216,18 +239,18 @@ absl::StatusOr<EventRecord> FaultWatchStore::CompleteEventAt(
     const std::string& user_id, int64_t event_id, double loss,
     const std::vector<double>& posthoc, double weight, absl::Time updated_at,
     const UserLogPosition& at) {
-  RETURN_IF_ERROR(Writable());
+  RETURN_IF_ERROR(Writable("CompleteEventAt"));
   return Note(store_->CompleteEventAt(user_id, event_id, loss, posthoc, weight,
                                       updated_at, at));
 }
 
 absl::StatusOr<int64_t> FaultWatchStore::AddPool(const PoolRecord& pool) {
-  RETURN_IF_ERROR(Writable());
+  RETURN_IF_ERROR(Writable("AddPool"));
   return Note(store_->AddPool(pool));
 }
 
 absl::StatusOr<int64_t> FaultWatchStore::AppendAudit(const AuditEntry& entry) {
-  RETURN_IF_ERROR(Writable());
+  RETURN_IF_ERROR(Writable("AppendAudit"));
   return Note(store_->AppendAudit(entry));
 }
 

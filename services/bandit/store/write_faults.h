@@ -149,8 +149,10 @@ class FaultWatchStore : public EventStore {
   }
 
  private:
-  // OK, or the remembered fault when writes are still refused.
-  absl::Status Writable() ABSL_LOCKS_EXCLUDED(mu_);
+  // OK, or, while writes are still refused, the write `op` refused naming
+  // the remembered fault (counted in write_faults); with an empty `op` (the
+  // health check) the fault itself, not counted.
+  absl::Status Writable(absl::string_view op) ABSL_LOCKS_EXCLUDED(mu_);
   // `status`, remembered when it is a storage fault.
   absl::Status Note(absl::Status status) ABSL_LOCKS_EXCLUDED(mu_);
   template <typename T>
