@@ -80,6 +80,22 @@ absl::Status SqliteError(sqlite3* db, int rc, absl::string_view op) {
                      error != 0 ? std::strerror(error) : message,
                      "; sqlite code ", rc, ")"));
   }
+  if (primary == SQLITE_BUSY) {
+    // The service alone writes its file (a lock of its own keeps other
+    // services out); a lock held past the busy timeout is another program's
+    // (a sqlite3 shell with a transaction open), and no write gets through
+    // while it lasts: a storage fault, so health says so.
+    const char* file = db != nullptr ? sqlite3_db_filename(db, "main") : "";
+    return StorageFault(
+        absl::StatusCode::kUnavailable,
+        absl::StrCat(
+            op, ": cannot write ",
+            file != nullptr && *file != '\0' ? file : "the database",
+            ": the database is locked by another connection past the "
+            "busy timeout (a sqlite3 shell or another program with a "
+            "transaction open? only bitewise-bandit should write it) (",
+            message, "; sqlite code ", rc, ")"));
+  }
   return absl::Status(
       CodeForSqlite(rc),
       absl::StrCat(op, ": ", message, " (sqlite code ", rc, ")"));

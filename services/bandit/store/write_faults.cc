@@ -124,7 +124,11 @@ absl::Status FaultWatchStore::Writable(absl::string_view op) {
   {
     absl::MutexLock lock(&mu_);
     mu_.Await(absl::Condition(&checked_));
-    if (!damage_.ok()) return refuse(damage_);
+    if (!damage_.ok()) {
+      // Said as it is: no probe clears it (a restored file and a restart).
+      if (write) ++faults_;
+      return damage_;
+    }
     if (fault_.ok()) return absl::OkStatus();
   }
   absl::MutexLock probing(&probe_mu_);

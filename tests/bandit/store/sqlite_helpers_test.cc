@@ -128,8 +128,15 @@ TEST_F(SqliteHelpersTest, RefusedWritesAreStorageFaultsNamingTheFile) {
   EXPECT_THAT(io, StatusIs(absl::StatusCode::kUnavailable,
                            AllOf(HasSubstr("cannot write the database"),
                                  HasSubstr("an I/O error"))));
+  // A lock held past the busy timeout by another connection: the storage
+  // takes no writes while it lasts.
+  const absl::Status busy = SqliteError(db_.get(), SQLITE_BUSY, "x");
+  EXPECT_TRUE(IsStorageFault(busy));
+  EXPECT_THAT(busy, StatusIs(absl::StatusCode::kUnavailable,
+                             AllOf(HasSubstr("x: cannot write "),
+                                   HasSubstr("locked by another connection"))));
   // Anything else is no storage fault.
-  EXPECT_FALSE(IsStorageFault(SqliteError(db_.get(), SQLITE_BUSY, "x")));
+  EXPECT_FALSE(IsStorageFault(SqliteError(db_.get(), SQLITE_CONSTRAINT, "x")));
 
   // A real refusal: a write on a read-only connection.
   Db readonly = MustOpen(SQLITE_OPEN_READONLY);

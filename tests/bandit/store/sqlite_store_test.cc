@@ -1,5 +1,6 @@
 // What only the SQLite store has: its file, its lock, its migrations, its
 // contexts file.
+#include "services/bandit/store/write_faults.h"
 #include "tests/bandit/store/store_test_fixture.h"
 
 namespace bitewise::bandit::store_test {
@@ -632,6 +633,9 @@ TEST_F(SqliteEventStoreTest, AReplacedContextsFileFailsHealth) {
             absl::StatusCode::kFailedPrecondition);
 }
 
+// A write lock held by another program past the busy timeout (a sqlite3
+// shell with a transaction open) is a storage fault: health says so, named
+// (it stayed SERVING while every write failed), and clears once it goes.
 TEST_F(SqliteEventStoreTest, LockHeldElsewhereIsUnavailable) {
   ASSERT_TRUE(store_->CreateUser(MakeUser("alice")).ok());
   const int64_t id = MustAppend(MakeEvent("alice", "m"));
@@ -641,18 +645,31 @@ TEST_F(SqliteEventStoreTest, LockHeldElsewhereIsUnavailable) {
   options.busy_timeout = absl::Milliseconds(50);
   auto store = SqliteEventStore::Open(options);
   ASSERT_TRUE(store.ok()) << store.status();
-  store_ = std::move(store).value();
+  FaultWatchStore watched(std::move(store).value(), absl::Milliseconds(20));
 
   RawDb raw(path_);
   raw.Exec("BEGIN IMMEDIATE");
   auto completed =
-      store_->CompleteEvent(id, 1.0, {}, 1.0, absl::FromUnixMicros(1));
+      watched.CompleteEvent(id, 1.0, {}, 1.0, absl::FromUnixMicros(1));
   EXPECT_EQ(completed.status().code(), absl::StatusCode::kUnavailable)
       << completed.status();
+  EXPECT_TRUE(IsStorageFault(completed.status()));
+  EXPECT_THAT(completed.status().message(),
+              HasSubstr("cannot write " + path_ +
+                        ": the database is locked by another connection"));
+  const absl::Status health = watched.CheckHealth();
+  EXPECT_EQ(health.code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(health.message(), HasSubstr("locked by another connection"));
   // Readers are not blocked by a writer in WAL mode.
-  EXPECT_FALSE(MustGetEvent(id).completed);
+  auto event = watched.GetEvent(id);
+  ASSERT_TRUE(event.ok()) << event.status();
+  EXPECT_FALSE(event->completed);
   raw.Exec("ROLLBACK");
-  EXPECT_EQ(MustComplete(id).model_version, 1);
+  absl::SleepFor(absl::Milliseconds(30));
+  EXPECT_TRUE(watched.CheckHealth().ok()) << watched.CheckHealth();
+  auto done = watched.CompleteEvent(id, 1.0, {}, 1.0, absl::FromUnixMicros(1));
+  ASSERT_TRUE(done.ok()) << done.status();
+  EXPECT_EQ(done->model_version, 1);
 }
 
 }  // namespace
