@@ -340,26 +340,12 @@ int main(int argc, char** argv) {
   // still the one opened; PostgreSQL: the server answers and is no standby).
   // Both run on the monitor's thread; each change is logged with its
   // reason, the first (SERVING at start) by the line below.
-  auto why_not = std::make_shared<std::string>();
-  bitewise::ReadinessMonitor readiness(
-      [s = store->get(), why_not] {
-        const absl::Status health = s->CheckHealth();
-        *why_not = std::string(health.message());
-        return health.ok();
-      },
-      [srv = server->get(), why_not, first = true](bool serving) mutable {
-        srv->SetServing(serving);
-        // The first state is logged below when SERVING (the serving line),
-        // here when not.
-        if (!first || !serving) {
-          std::fprintf(
-              stderr, "bitewise-bandit: health %s%s%s\n",
-              serving ? "SERVING: the store takes writes again" : "NOT_SERVING",
-              serving ? "" : ": ", serving ? "" : why_not->c_str());
-        }
-        first = false;
-      },
-      /*period_s=*/0.5);
+  bitewise::LoggedReadiness logged = bitewise::LogReadiness(
+      kProgram, [s = store->get()] { return s->CheckHealth(); },
+      [srv = server->get()](bool serving) { srv->SetServing(serving); },
+      ": the store takes writes again");
+  bitewise::ReadinessMonitor readiness(logged.live, logged.set_serving,
+                                       /*period_s=*/0.5);
   // A write the storage refused turns health NOT_SERVING at once (the
   // monitor polls now, and logs it); its polls then probe and turn it
   // back once writes succeed.

@@ -10,6 +10,7 @@
 #include "absl/flags/flag.h"
 #include "absl/flags/usage.h"
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
 #include "services/camera/camera_service.h"
 #include "services/camera/frame_publisher.h"
@@ -134,12 +135,24 @@ int main(int argc, char** argv) {
                                  server.status());
   }
   const double stale_after_s = absl::GetFlag(FLAGS_stale_after_s);
-  bitewise::ReadinessMonitor readiness(
-      [&publisher, stale_after_s] {
+  // Each change is logged with its reason.
+  bitewise::LoggedReadiness logged = bitewise::LogReadiness(
+      kProgram,
+      [&publisher, stale_after_s]() -> absl::Status {
         const auto c = publisher.Counters();
-        return c.newest_age_s >= 0.0 && c.newest_age_s <= stale_after_s;
+        if (c.newest_age_s < 0.0) {
+          return absl::UnavailableError(
+              absl::StrCat("no frame yet from ", publisher.source_name()));
+        }
+        if (c.newest_age_s > stale_after_s) {
+          return absl::UnavailableError(absl::StrFormat(
+              "the newest frame from %s is %.1f s old (--stale_after_s %.1f)",
+              publisher.source_name(), c.newest_age_s, stale_after_s));
+        }
+        return absl::OkStatus();
       },
       [s = server->get()](bool serving) { s->SetServing(serving); });
+  bitewise::ReadinessMonitor readiness(logged.live, logged.set_serving);
   std::fprintf(stderr, "bitewise-camera: serving on %s (source %s)\n",
                (*server)->description().c_str(),
                publisher.source_name().c_str());

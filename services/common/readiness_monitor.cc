@@ -1,5 +1,6 @@
 #include "services/common/readiness_monitor.h"
 
+#include <cstdio>
 #include <utility>
 
 #include "absl/time/time.h"
@@ -33,6 +34,38 @@ bool ReadinessMonitor::WakeUp(ReadinessMonitor* monitor) {
 void ReadinessMonitor::Recheck() {
   absl::MutexLock lock(&mu_);
   recheck_ = true;
+}
+
+LoggedReadiness LogReadiness(std::string program,
+                             std::function<absl::Status()> check,
+                             std::function<void(bool)> set_serving,
+                             std::string again) {
+  // live() and set_serving() run one after the other on the monitor's
+  // thread: the reason is passed between them here.
+  auto why_not = std::make_shared<std::string>();
+  LoggedReadiness out;
+  out.live = [check = std::move(check), why_not] {
+    const absl::Status status = check();
+    *why_not = std::string(status.message());
+    return status.ok();
+  };
+  out.set_serving =
+      [program = std::move(program), set_serving = std::move(set_serving),
+       why_not, again = std::move(again), first = true](bool serving) mutable {
+        set_serving(serving);
+        if (!first || !serving) {
+          if (serving) {
+            std::fprintf(stderr, "%s: health SERVING%s\n", program.c_str(),
+                         again.c_str());
+          } else {
+            std::fprintf(stderr, "%s: health NOT_SERVING: %s\n",
+                         program.c_str(), why_not->c_str());
+          }
+          std::fflush(stderr);
+        }
+        first = false;
+      };
+  return out;
 }
 
 ReadinessMonitor::~ReadinessMonitor() {

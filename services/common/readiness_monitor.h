@@ -6,9 +6,12 @@
 #define BITEWISE_SERVICES_COMMON_READINESS_MONITOR_H_
 
 #include <functional>
+#include <memory>
+#include <string>
 #include <thread>
 
 #include "absl/base/thread_annotations.h"
+#include "absl/status/status.h"
 #include "absl/synchronization/mutex.h"
 
 namespace bitewise {
@@ -35,6 +38,21 @@ class ReadinessMonitor {
   bool recheck_ ABSL_GUARDED_BY(mu_) = false;
   std::thread thread_;
 };
+
+// A ReadinessMonitor's two functions from a check that says why a service
+// is not ready: the state is `check` being OK, and every change of it is
+// logged to stderr for the engineer on call ("<program>: health
+// NOT_SERVING: <why>", "<program>: health SERVING<again>"), except a first
+// SERVING (the service's own start line says it). `check` and
+// `set_serving` run on the monitor's thread.
+struct LoggedReadiness {
+  std::function<bool()> live;
+  std::function<void(bool)> set_serving;
+};
+LoggedReadiness LogReadiness(std::string program,
+                             std::function<absl::Status()> check,
+                             std::function<void(bool)> set_serving,
+                             std::string again = "");
 
 }  // namespace bitewise
 

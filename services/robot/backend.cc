@@ -160,4 +160,11 @@ absl::StatusOr<domain::RgbdFrame> RobotBackend::CaptureFrame() {
 
 bool RobotBackend::FtLive() const { return ft_ && ft_->CheckLive().ok(); }
 
+absl::Status RobotBackend::Readiness() {
+  if (!ft_) return absl::FailedPreconditionError("no F/T sensor");
+  RETURN_IF_ERROR(ft_->CheckLive());
+  return robot_ ? robot_->ArmReadiness()
+                : absl::FailedPreconditionError("the robot has not started");
+}
+
 }  // namespace bitewise::robot

@@ -116,8 +116,12 @@ class RobotBackend {
   // FAILED_PRECONDITION when no camera was configured.
   absl::StatusOr<domain::RgbdFrame> CaptureFrame();
 
-  // True while the F/T stream is live (the health status follows this).
+  // True while the F/T stream is live.
   bool FtLive() const;
+  // What the health status follows: OK while the F/T stream is live and
+  // the arm answers (Robot::ArmReadiness), else why not, naming the sensor
+  // or the arm.
+  absl::Status Readiness();
 
  private:
   RobotBackend() = default;

@@ -342,7 +342,9 @@ int main(int argc, char** argv) {
     bitewise::robot::RobotBackend* b = backend->get();
     auto status_value = [b](auto field) {
       return [b, field]() -> std::vector<ScrapeValue> {
-        return {{{}, field(b->robot().Status())}};
+        // Not the arm's pose: a scrape must not compete with the control
+        // loop for the JACO2's USB link.
+        return {{{}, field(b->robot().Status(/*ask_arm=*/false))}};
       };
     };
     using Info = bitewise::robot::RobotStatusInfo;
@@ -360,9 +362,24 @@ int main(int argc, char** argv) {
           return {{{}, b->FtLive() ? 1.0 : 0.0}};
         });
     metrics.AddScrapeValues(
-        "bitewise_robot_ft_packets_lost_total", "RDT packets lost",
+        "bitewise_robot_ft_packets_skipped_total",
+        "RDT sequence numbers skipped (counted when skipped, even if the "
+        "packet arrives late)",
         ScrapeType::kCounter, status_value([](const Info& i) {
-          return static_cast<double>(i.ft_stats.packets_lost);
+          return static_cast<double>(i.ft_stats.packets_skipped);
+        }));
+    metrics.AddScrapeValues(
+        "bitewise_robot_ft_packets_late_total",
+        "RDT packets that arrived after a later one", ScrapeType::kCounter,
+        status_value([](const Info& i) {
+          return static_cast<double>(i.ft_stats.out_of_order);
+        }));
+    metrics.AddScrapeValues(
+        "bitewise_robot_ft_stream_restarts_total",
+        "Start requests re-sent to a silent box (the packets of a silence "
+        "are not counted as skipped: its sequence starts again)",
+        ScrapeType::kCounter, status_value([](const Info& i) {
+          return static_cast<double>(i.ft_stats.restarts);
         }));
     metrics.AddScrapeValues("bitewise_robot_acquisitions_total",
                             "Acquisitions run", ScrapeType::kCounter,
@@ -388,10 +405,12 @@ int main(int argc, char** argv) {
                               return static_cast<double>(i.force_limit_trips);
                             }));
   }
-  // Ready exactly while the F/T stream is live.
-  bitewise::ReadinessMonitor readiness(
-      [b = backend->get()] { return b->FtLive(); },
+  // Ready while the F/T stream is live and the arm answers; each change is
+  // logged with its reason.
+  bitewise::LoggedReadiness logged = bitewise::LogReadiness(
+      kProgram, [b = backend->get()] { return b->Readiness(); },
       [s = server->get()](bool serving) { s->SetServing(serving); });
+  bitewise::ReadinessMonitor readiness(logged.live, logged.set_serving);
   std::fprintf(stderr, "bitewise-robot: serving on %s (backend %s, %s)\n",
                (*server)->description().c_str(),
                absl::GetFlag(FLAGS_backend).c_str(),

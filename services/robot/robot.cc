@@ -457,10 +457,29 @@ absl::Status Robot::Tare() {
   return ft_->Bias();
 }
 
-RobotStatusInfo Robot::Status() {
+absl::Status Robot::ArmReadiness() {
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    const double now_s = SteadyNowS();
+    if (busy_ || now_s - arm_checked_s_ < 1.0) return arm_readiness_;
+    arm_checked_s_ = now_s;
+  }
+  const absl::Status pose = arm_->MeasuredPose().status();
+  absl::Status readiness =
+      pose.ok()
+          ? absl::OkStatus()
+          : absl::Status(pose.code(),
+                         absl::StrCat("arm ", arm_->name(),
+                                      " does not answer: ", pose.message()));
+  std::lock_guard<std::mutex> lock(mu_);
+  arm_readiness_ = readiness;
+  return readiness;
+}
+
+RobotStatusInfo Robot::Status(bool ask_arm) {
   RobotStatusInfo info;
   info.arm_name = arm_->name();
-  info.arm_ready = arm_->MeasuredPose().ok();
+  info.arm_ready = ask_arm && arm_->MeasuredPose().ok();
   info.ft_health = ft_->Health();
   info.ft_stats = ft_->stats();
   info.ft_name = ft_->name();

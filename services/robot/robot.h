@@ -166,7 +166,15 @@ class Robot {
   // acquisition (the baseline would jump mid-trace).
   absl::Status Tare();
 
-  RobotStatusInfo Status();
+  // With `ask_arm` false, arm_ready is not measured (no call to the arm: a
+  // USB round trip on the JACO2, under the lock its control loop takes
+  // every period): for metrics scraped while the arm works.
+  RobotStatusInfo Status(bool ask_arm = true);
+
+  // OK while the arm answers: asked at most once a second, and not while
+  // an acquisition runs (which watches the arm itself); else the arm's
+  // error, naming it.
+  absl::Status ArmReadiness();
 
   const AcquisitionConfig& config() const { return config_; }
 
@@ -189,6 +197,9 @@ class Robot {
   int64_t acquisitions_failed_ = 0;
   int64_t force_limit_trips_ = 0;
   std::atomic<int64_t> control_overruns_{0};
+  // ArmReadiness's last answer and when it was asked.
+  absl::Status arm_readiness_;
+  double arm_checked_s_ = -1e9;
 };
 
 }  // namespace bitewise::robot

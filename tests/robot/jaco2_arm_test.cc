@@ -252,5 +252,36 @@ TEST(Jaco2BackendTest, TheArmIsSentHomeOnceTheSensorIsFit) {
   EXPECT_THAT(sdk.Calls(), HasSubstr("MoveHome"));
 }
 
+// Health follows the arm as well as the sensor: an arm that stops
+// answering (off its USB link) turned no health NOT_SERVING while every
+// Acquire failed. Asked at most once a second.
+TEST(Jaco2BackendTest, ReadinessFollowsTheArm) {
+  FakeSdk sdk(BITEWISE_FAKE_KINOVA_USB);
+  ASSERT_TRUE(sdk.ok());
+  sdk.Reset();
+  auto box = sim::SimNetFtBox::Start(sim::SimNetFtBoxOptions(), nullptr);
+  ASSERT_TRUE(box.ok()) << box.status();
+  robot::RobotBackendOptions options = HardwareOptions();
+  options.ft.port = (*box)->port();
+  options.ft_start_timeout_s = 10.0;
+  auto backend = robot::RobotBackend::Create(options);
+  ASSERT_TRUE(backend.ok()) << backend.status();
+  EXPECT_TRUE((*backend)->Readiness().ok()) << (*backend)->Readiness();
+  sdk.Reset("GetCartesianPosition");
+  absl::SleepFor(absl::Seconds(1.1));
+  const absl::Status gone = (*backend)->Readiness();
+  EXPECT_FALSE(gone.ok());
+  EXPECT_THAT(std::string(gone.message()),
+              HasSubstr("does not answer: Kinova JACO2 SDK "));
+  EXPECT_THAT(std::string(gone.message()), HasSubstr("GetCartesianPosition"));
+  // Metrics read the counters without asking the arm.
+  const std::string before = sdk.Calls();
+  (void)(*backend)->robot().Status(/*ask_arm=*/false);
+  EXPECT_EQ(sdk.Calls(), before);
+  sdk.Reset();
+  absl::SleepFor(absl::Seconds(1.1));
+  EXPECT_TRUE((*backend)->Readiness().ok()) << (*backend)->Readiness();
+}
+
 }  // namespace
 }  // namespace bitewise::jaco2

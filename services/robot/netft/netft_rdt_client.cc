@@ -217,6 +217,7 @@ void NetFtRdtClient::HandleDatagram(const uint8_t* data, size_t size,
       return;
     }
     stats_.packets_lost += static_cast<uint64_t>(ahead - 1);
+    stats_.packets_skipped += static_cast<uint64_t>(ahead - 1);
     seen_mask_ = ahead >= kWindow ? 0 : seen_mask_ << ahead;
     seen_mask_ |= 1;
     last_rdt_sequence_ = record->rdt_sequence;

@@ -97,6 +97,9 @@ struct RdtStats {
   // Sequence numbers skipped and not (yet) seen. A packet that arrives late
   // is taken off again: it was reordered, not lost.
   uint64_t packets_lost = 0;
+  // Sequence numbers skipped, each counted once when skipped and never
+  // taken off (a counter: packets_lost can go down).
+  uint64_t packets_skipped = 0;
   uint64_t out_of_order = 0;   // arrived after a later one
   uint64_t duplicates = 0;     // the same rdt_sequence twice
   uint64_t stale_dropped = 0;  // not newer than the latest: never delivered
