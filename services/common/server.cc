@@ -81,17 +81,33 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
   }
   ASSIGN_OR_RETURN(std::shared_ptr<grpc::ServerCredentials> credentials,
                    MakeCredentials(options));
-  const std::string host =
-      options.listen_address.substr(0, options.listen_address.rfind(':'));
-  const bool loopback =
-      absl::StartsWith(host, "127.") || host == "[::1]" || host == "localhost";
+  const auto host_of = [](const std::string& address) {
+    return address.substr(0, address.rfind(':'));
+  };
+  const auto loopback = [](const std::string& host) {
+    return absl::StartsWith(host, "127.") || host == "[::1]" ||
+           host == "localhost";
+  };
+  const std::string host = host_of(options.listen_address);
   const bool tls = !options.tls_cert_file.empty();
-  if (!loopback && !tls && !options.allow_plaintext_remote) {
+  if (!loopback(host) && !tls && !options.allow_plaintext_remote) {
     return absl::FailedPreconditionError(absl::StrCat(
         "refusing to listen on \"", options.listen_address,
         "\" in plaintext: a non-loopback address needs --tls_cert and "
         "--tls_key (and --tls_client_ca for mutual TLS), or "
         "--allow_plaintext_remote on a network you trust"));
+  }
+  // The metrics endpoint is plain HTTP with no authentication, whatever the
+  // gRPC port's TLS: off the machine only where plaintext is allowed.
+  if (!options.metrics_listen.empty() &&
+      !loopback(host_of(options.metrics_listen)) &&
+      !options.allow_plaintext_remote) {
+    return absl::FailedPreconditionError(absl::StrCat(
+        "refusing to serve metrics on \"", options.metrics_listen,
+        "\": the metrics endpoint is plain HTTP without authentication; give "
+        "it a loopback address (127.0.0.1:PORT, scraped on the machine or "
+        "through a tunnel), or --allow_plaintext_remote on a network you "
+        "trust"));
   }
 
   std::unique_ptr<Authorizer> authorizer;
@@ -170,13 +186,14 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
     }
     metrics = *std::move(started);
   }
-  std::string description =
-      absl::StrCat(host, ":", port, " (", mode, ", ",
-                   authorizer ? absl::StrCat("roles from ", options.authz_file)
-                              : std::string("authorization off"),
-                   metrics ? absl::StrCat(", metrics on port ", metrics->port())
-                           : std::string(),
-                   ")");
+  std::string description = absl::StrCat(
+      host, ":", port, " (", mode, ", ",
+      authorizer ? absl::StrCat("roles from ", options.authz_file)
+                 : std::string("authorization off"),
+      metrics ? absl::StrCat(", metrics on ", host_of(options.metrics_listen),
+                             ":", metrics->port())
+              : std::string(),
+      ")");
   auto result = std::unique_ptr<ServiceServer>(new ServiceServer(
       std::move(server), std::move(health_names), port,
       DialableAddress(options.listen_address, port), std::move(description),

@@ -791,9 +791,9 @@ TEST(MetricsTest, RpcCountsLatencyAndScrapeValuesAreServed) {
                                      {"bitewise.v1.HapticService"});
   ASSERT_TRUE(server.ok()) << server.status();
   ASSERT_GT((*server)->metrics_port(), 0);
-  EXPECT_THAT(
-      (*server)->description(),
-      HasSubstr(absl::StrCat("metrics on port ", (*server)->metrics_port())));
+  EXPECT_THAT((*server)->description(),
+              HasSubstr(absl::StrCat("metrics on 127.0.0.1:",
+                                     (*server)->metrics_port())));
   int scrapes = 0;
   env.metrics().AddScrapeValues(
       "bitewise_test_value", "A value read at scrape time", ScrapeType::kGauge,
@@ -822,8 +822,21 @@ TEST(MetricsTest, RpcCountsLatencyAndScrapeValuesAreServed) {
   (*server)->Shutdown();
   server->reset();  // frees the environment for the next server
 
+  // Plain HTTP off the machine only where plaintext is allowed.
+  ServerOptions remote;
+  remote.metrics_listen = "0.0.0.0:0";
+  const absl::Status refused =
+      ServiceServer::Start(remote, &env, {&probe},
+                           {"bitewise.v1.HapticService"})
+          .status();
+  EXPECT_EQ(refused.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(refused.message()),
+              HasSubstr("refusing to serve metrics on \"0.0.0.0:0\": the "
+                        "metrics endpoint is plain HTTP"));
+
   ServerOptions taken;
   taken.metrics_listen = "256.0.0.1:1";
+  taken.allow_plaintext_remote = true;
   EXPECT_EQ(
       ServiceServer::Start(taken, &env, {&probe}, {"bitewise.v1.HapticService"})
           .status()
