@@ -11,7 +11,9 @@
 #define BITEWISE_SERVICES_COMMON_RPC_ENVIRONMENT_H_
 
 #include <atomic>
+#include <cstdint>
 #include <memory>
+#include <vector>
 
 #include "services/common/audit.h"
 #include "services/common/metrics.h"
@@ -23,7 +25,15 @@ class ServiceServer;
 
 class RpcEnvironment {
  public:
-  RpcEnvironment() : metrics_(std::make_unique<Metrics>()) {}
+  RpcEnvironment() : metrics_(std::make_unique<Metrics>()) {
+    metrics_->AddScrapeValues(
+        "bitewise_audit_records_lost_total",
+        "Audited calls whose record the audit sink (the store) did not keep; "
+        "the call itself stood and its line is in the log",
+        ScrapeType::kCounter, [this]() -> std::vector<ScrapeValue> {
+          return {{{}, static_cast<double>(audit_records_lost())}};
+        });
+  }
   RpcEnvironment(const RpcEnvironment&) = delete;
   RpcEnvironment& operator=(const RpcEnvironment&) = delete;
 
@@ -49,6 +59,14 @@ class RpcEnvironment {
   void set_audit_sink(AuditSink* sink) {
     audit_sink_.store(sink, std::memory_order_release);
   }
+  // Audited calls whose record the sink refused (RunRpc counts them; the
+  // metric bitewise_audit_records_lost_total).
+  int64_t audit_records_lost() const {
+    return audit_records_lost_.load(std::memory_order_relaxed);
+  }
+  void CountLostAuditRecord() const {
+    audit_records_lost_.fetch_add(1, std::memory_order_relaxed);
+  }
 
  private:
   // ServiceServer claims the environment (one server at a time, so that no
@@ -60,6 +78,7 @@ class RpcEnvironment {
   std::atomic<bool> served_{false};
   std::atomic<const Authorizer*> authorizer_{nullptr};
   std::atomic<AuditSink*> audit_sink_{nullptr};
+  mutable std::atomic<int64_t> audit_records_lost_{0};
 };
 
 }  // namespace bitewise

@@ -103,6 +103,9 @@ grpc::Status RunRpc(const RpcEnvironment& env, const char* method,
     if (AuditSink* sink = env.audit_sink(); sink != nullptr) {
       absl::Status kept = sink->Record(event);
       if (!kept.ok()) {
+        // The call stands (it has happened); its record is in the log
+        // above, and the loss is counted for the engineer on call.
+        env.CountLostAuditRecord();
         std::fprintf(stderr, "audit record of %s not kept: %s\n", method,
                      kept.ToString().c_str());
       }

@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <memory>
 #include <random>
 #include <string>
@@ -98,6 +99,31 @@ class BanditServiceTest : public ::testing::Test {
   std::unique_ptr<ServiceServer> server_;
   std::unique_ptr<v1::BanditService::Stub> stub_;
 };
+
+// An audited call whose record the audit store refuses stands (it has
+// happened), and the lost record is counted for the engineer on call (it
+// was only printed). The audit store here: another SQLite store whose file
+// was removed under it.
+TEST_F(BanditServiceTest, ALostAuditRecordIsCounted) {
+  std::string dir = ::testing::TempDir() + "/audit_XXXXXX";
+  ASSERT_NE(mkdtemp(dir.data()), nullptr);
+  SqliteStoreOptions options;
+  options.path = dir + "/audit.db";
+  options.create_if_missing = true;
+  auto audit_store = SqliteEventStore::Open(options);
+  ASSERT_TRUE(audit_store.ok()) << audit_store.status();
+  ASSERT_TRUE(std::filesystem::remove(options.path));
+  StoreAuditSink sink(audit_store->get());
+  env_.set_audit_sink(&sink);
+  EXPECT_EQ(env_.audit_records_lost(), 0);
+  CreateUser("alice");  // OK, though its record is refused
+  env_.set_audit_sink(nullptr);
+  EXPECT_EQ(env_.audit_records_lost(), 1);
+  v1::GetUserRequest get;
+  get.set_user_id("alice");
+  v1::User user;
+  EXPECT_TRUE(stub_->GetUser(Ctx().get(), get, &user).ok());
+}
 
 // Administrative calls land in the store's audit log with what they
 // concerned; ListAudit reads them; CheckStore reports on the whole store.
