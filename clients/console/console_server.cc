@@ -505,6 +505,11 @@ void ConsoleServer::Route() {
                     service.channel, service.name, absl::Seconds(2));
                 if (status.ok()) {
                   health->set_status(ServingStatusName(*status));
+                } else if (absl::IsNotFound(status.status())) {
+                  // The server answered: it hosts no service of that name
+                  // (an address pointing at another service).
+                  health->set_status("SERVICE_UNKNOWN");
+                  health->set_detail(std::string(status.status().message()));
                 } else {
                   health->set_status("UNREACHABLE");
                   health->set_detail(std::string(status.status().message()));

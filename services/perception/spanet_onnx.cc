@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <random>
 #include <string>
@@ -270,8 +271,17 @@ absl::Status CheckSpanetOnnxGraph(const std::string& path) {
     return absl::FailedPreconditionError(
         absl::StrCat("SPANet model file \"", path, "\" ", what));
   };
+  std::error_code error;
+  if (std::filesystem::is_directory(path, error)) {
+    return fail("is a directory, not an ONNX file");
+  }
   std::ifstream in(path, std::ios::binary);
   if (!in) return fail("cannot be opened");
+  // An empty file parses as an empty model, which would be said to lack
+  // SPANet's inputs.
+  if (in.peek() == std::ifstream::traits_type::eof()) {
+    return fail("is empty (0 bytes): not an ONNX model");
+  }
   onnx::ModelProto model;
   if (!model.ParseFromIstream(&in))
     return fail("is not a loadable ONNX model: it does not parse as ONNX");

@@ -27,6 +27,7 @@
 #include "clients/console/research.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/common/channel.h"
 #include "tests/meal/four_services.h"
 
 namespace bitewise::console {
@@ -36,6 +37,7 @@ using ::bitewise::testing::FourServices;
 using ::bitewise::testing::FourServicesOptions;
 using ::bitewise::testing::SharedFourServicesTest;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 const httplib::Headers kPost = {{"X-Bitewise-Request", "1"}};
 
@@ -475,6 +477,23 @@ TEST_F(ConsoleServerTest, ResearchersNumbersAreListEvents) {
   auto health = client.Get("/api/health");
   ASSERT_TRUE(health);
   EXPECT_EQ(health->status, 200);
+}
+
+// A service's address that reaches a server of another service: the server
+// answered, so it is SERVICE_UNKNOWN, not UNREACHABLE (it was).
+TEST_F(ConsoleServerTest, HealthTellsAnotherServiceFromNoneAtAll) {
+  ConsoleServerOptions options;
+  auto channel = MakeChannel(services_->haptic_address(), ChannelOptions());
+  ASSERT_TRUE(channel.ok()) << channel.status();
+  options.services.push_back(
+      {"bitewise.v1.BanditService", services_->haptic_address(), *channel});
+  StartServer(options);
+  httplib::Client client = Client();
+  auto health = client.Get("/api/health");
+  ASSERT_TRUE(health);
+  ASSERT_EQ(health->status, 200) << health->body;
+  EXPECT_THAT(health->body, HasSubstr("\"status\":\"SERVICE_UNKNOWN\""));
+  EXPECT_THAT(health->body, Not(HasSubstr("UNREACHABLE")));
 }
 
 TEST_F(ConsoleServerTest, WithAnAccessFileEverythingNeedsCredentials) {

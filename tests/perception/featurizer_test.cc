@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <limits>
@@ -206,6 +207,21 @@ TEST(SpanetLoadTest, GarbageFileIsFailedPrecondition) {
   auto loaded = SpanetFeaturizer::Load(path);
   EXPECT_EQ(loaded.status().code(), absl::StatusCode::kFailedPrecondition);
   EXPECT_THAT(loaded.status().message(), HasSubstr("garbage.onnx"));
+}
+
+TEST(SpanetLoadTest, AnEmptyFileOrADirectoryIsSaidToBeOne) {
+  const std::string empty = TempPath("empty.onnx");
+  std::ofstream(empty).close();
+  auto loaded = SpanetFeaturizer::Load(empty);
+  EXPECT_EQ(loaded.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(loaded.status().message()),
+              HasSubstr("empty.onnx\" is empty (0 bytes)"));
+  const std::string dir = TempPath("a_directory.onnx");
+  std::filesystem::create_directories(dir);
+  loaded = SpanetFeaturizer::Load(dir);
+  EXPECT_EQ(loaded.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(std::string(loaded.status().message()),
+              HasSubstr("a_directory.onnx\" is a directory"));
 }
 
 TEST(SpanetLoadTest, TruncatedModelIsFailedPrecondition) {
