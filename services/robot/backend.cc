@@ -131,7 +131,9 @@ absl::Status RobotBackend::StartRobot(Arm* arm, SuccessJudge* judge,
                                       const AcquisitionConfig& acquisition) {
   RETURN_IF_ERROR(arm->MoveHome());
   robot_ = std::make_unique<Robot>(arm, ft_.get(), judge, acquisition);
-  return absl::OkStatus();
+  // Home is where the camera's view is calibrated (X_TaskCamera: on
+  // hardware, --camera_height_m above the plate, looking down).
+  return robot_->RecordViewPose();
 }
 
 RobotBackend::~RobotBackend() = default;
@@ -148,7 +150,7 @@ absl::StatusOr<domain::RgbdFrame> RobotBackend::CaptureFrame() {
           "bitewise-camera on the camera computer and give its address with "
           "--camera_address");
     }
-    return camera_->Capture();
+    return CaptureAtView();
   }
   // Each frame its own noise, reproducibly.
   const uint64_t sequence = frames_++;
@@ -156,6 +158,33 @@ absl::StatusOr<domain::RgbdFrame> RobotBackend::CaptureFrame() {
       sim::RenderPlate(world_->scene(), sim::D415Intrinsics(),
                        render_seed_ * 1000003ULL + sequence),
       sequence, SteadyNowS());
+}
+
+absl::StatusOr<domain::RgbdFrame> RobotBackend::CaptureAtView() {
+  // The camera rides on the wrist: its view is known only at the viewing
+  // pose, where the last bite did not leave the arm.
+  ASSIGN_OR_RETURN(const bool moved, robot_->MoveToView());
+  if (!moved) return camera_->Capture();
+  // A frame taken once the arm has settled there, not on the way.
+  const double settled_s = SteadyNowS() + kViewSettleS;
+  const double deadline_s = settled_s + kFreshFrameWaitS;
+  absl::Status last = absl::OkStatus();
+  while (SteadyNowS() <= deadline_s) {
+    absl::SleepFor(absl::Milliseconds(30));
+    absl::StatusOr<domain::RgbdFrame> frame = camera_->Capture();
+    if (frame.ok() && frame->capture_s >= settled_s) return frame;
+    // An earlier frame, or the same one again: wait for the next.
+    if (!frame.ok() && !absl::IsFailedPrecondition(frame.status())) {
+      return frame.status();
+    }
+    if (!frame.ok()) last = frame.status();
+  }
+  return absl::UnavailableError(absl::StrCat(
+      camera_->name(),
+      ": no frame taken after the arm settled at its viewing "
+      "pose within ",
+      kFreshFrameWaitS, " s",
+      last.ok() ? "" : absl::StrCat(" (last: ", last.message(), ")")));
 }
 
 bool RobotBackend::FtLive() const { return ft_ && ft_->CheckLive().ok(); }

@@ -111,9 +111,12 @@ class RobotBackend {
   sim::SimArm* sim_arm() { return sim_arm_.get(); }
   netft::NetFtRdtClient* ft() { return ft_.get(); }
 
-  // One RGB-D frame of the plate: rendered in simulation; on hardware the
-  // camera's (its errors, e.g. FAILED_PRECONDITION for a stale frame), or
-  // FAILED_PRECONDITION when no camera was configured.
+  // One RGB-D frame of the plate: rendered in simulation (the simulated
+  // camera is fixed above the plate); on hardware the wrist camera's, taken
+  // at the arm's viewing pose: an arm a bite left elsewhere is first moved
+  // back (Robot::MoveToView, its errors) and the frame is one taken 0.3 s
+  // after it arrived. The camera's errors (e.g. FAILED_PRECONDITION for a
+  // stale frame); FAILED_PRECONDITION when no camera was configured.
   absl::StatusOr<domain::RgbdFrame> CaptureFrame();
 
   // True while the F/T stream is live.
@@ -125,6 +128,9 @@ class RobotBackend {
 
  private:
   RobotBackend() = default;
+  absl::StatusOr<domain::RgbdFrame> CaptureAtView();
+  static constexpr double kViewSettleS = 0.3;
+  static constexpr double kFreshFrameWaitS = 3.0;
 
   // Until the simulated box streams and its counter has a verdict;
   // UNAVAILABLE after `timeout_s`.

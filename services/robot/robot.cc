@@ -125,6 +125,24 @@ class Robot::Run {
 
   AcquireOutcome TakeOutcome() { return std::move(outcome_); }
 
+  // Back to `goal` (the viewing pose) at the approach speed, guarded by
+  // action_'s limit as a collision anywhere on the way.
+  absl::Status ReturnTo(ForkPose goal) {
+    start_s_ = SteadyNowS();
+    MeasureBaseline();
+    ASSIGN_OR_RETURN(setpoint_, robot_->arm_->MeasuredPose());
+    lowest_z_ = setpoint_.p_TaskTip_m.z();
+    next_tick_ = Clock::now();
+    // The shortest way round: the same yaw modulo 2 pi.
+    goal.yaw_rad = setpoint_.yaw_rad +
+                   std::remainder(goal.yaw_rad - setpoint_.yaw_rad, 2 * M_PI);
+    bool force_stop = false;
+    RETURN_IF_ERROR(MoveTo(AcquirePhase::kApproach, goal,
+                           config_.approach_speed_mps, &force_stop));
+    // Held there while the arm's position control takes up what it lags.
+    return Hold(AcquirePhase::kApproach, config_.settle_s);
+  }
+
  private:
   static AcquisitionConfig DryRunConfig(const AcquisitionConfig& c) {
     AcquisitionConfig slow = c;
@@ -430,6 +448,91 @@ absl::StatusOr<AcquireOutcome> Robot::Acquire(
     ++force_limit_trips_;
   }
   return result;
+}
+
+absl::Status Robot::RecordViewPose() {
+  ASSIGN_OR_RETURN(const ForkPose pose, arm_->MeasuredPose());
+  std::lock_guard<std::mutex> lock(mu_);
+  view_pose_ = pose;
+  return absl::OkStatus();
+}
+
+namespace {
+
+// How far `pose` is from `goal`: metres and the larger angle.
+std::pair<double, double> Distance(const ForkPose& pose, const ForkPose& goal) {
+  return {
+      (pose.p_TaskTip_m - goal.p_TaskTip_m).norm(),
+      std::max(std::abs(std::remainder(pose.yaw_rad - goal.yaw_rad, 2 * M_PI)),
+               std::abs(pose.pitch_rad - goal.pitch_rad))};
+}
+
+constexpr double kViewToleranceM = 0.01;
+constexpr double kViewToleranceRad = 0.05;
+
+}  // namespace
+
+absl::StatusOr<bool> Robot::MoveToView() {
+  ForkPose view;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (!view_pose_.has_value()) {
+      return absl::FailedPreconditionError(
+          "the arm's viewing pose was never recorded");
+    }
+    view = *view_pose_;
+  }
+  ASSIGN_OR_RETURN(const ForkPose now, arm_->MeasuredPose());
+  {
+    const auto [metres, radians] = Distance(now, view);
+    if (metres <= kViewToleranceM && radians <= kViewToleranceRad) {
+      return false;
+    }
+  }
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (busy_) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "an Acquire is running (phase ", AcquirePhaseName(phase_),
+          "); the arm goes back to its viewing pose after it"));
+    }
+    busy_ = true;
+    stop_requested_ = false;
+    phase_ = AcquirePhase::kApproach;
+  }
+  absl::Status status = ft_->CheckLive();
+  if (status.ok()) {
+    // Nothing should be touched on the way: the gentlest action's force is
+    // the collision limit.
+    ActionSpec guard;
+    guard.name = "return-to-view";
+    guard.max_force_n = std::numeric_limits<double>::infinity();
+    for (const ActionSpec& a : SkeweringActions()) {
+      guard.max_force_n = std::min(guard.max_force_n, a.max_force_n);
+    }
+    static const AcquireProgressCallback kNoProgress;
+    Run run(this, guard, TaskTarget{}, kNoProgress, /*dry_run=*/false);
+    status = run.ReturnTo(view);
+  }
+  if (status.ok()) {
+    absl::StatusOr<ForkPose> reached = arm_->MeasuredPose();
+    status = reached.status();
+    if (reached.ok()) {
+      const auto [metres, radians] = Distance(*reached, view);
+      if (metres > kViewToleranceM || radians > kViewToleranceRad) {
+        status = absl::FailedPreconditionError(absl::StrFormat(
+            "the arm ended %.1f cm and %.2f rad from its viewing pose; the "
+            "camera's view is known only there",
+            100 * metres, radians));
+      }
+    }
+  }
+  std::lock_guard<std::mutex> lock(mu_);
+  if (!status.ok()) arm_->Halt().IgnoreError();  // the error says more
+  busy_ = false;
+  phase_ = AcquirePhase::kIdle;
+  if (!status.ok()) return status;
+  return true;
 }
 
 absl::StatusOr<bool> Robot::Stop() {

@@ -17,6 +17,7 @@
 #include <condition_variable>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -157,6 +158,20 @@ class Robot {
       const AcquireProgressCallback& on_progress,
       const AcquireOptions& options = {});
 
+  // The pose the arm is in now becomes its viewing pose: where a camera on
+  // the wrist sees the plate as X_TaskCamera says (the backend records it
+  // once the arm is home). The arm's errors.
+  absl::Status RecordViewPose();
+
+  // Moves the arm back to its viewing pose in a straight line at the
+  // approach speed, under the protection of an acquisition (a live F/T
+  // stream, its watchdog, a collision limit of the gentlest action's
+  // force, Stop); returns whether it had to move (false: it is there, within
+  // 1 cm and 0.05 rad). FAILED_PRECONDITION before RecordViewPose, while an
+  // acquisition runs, or when the arm ends more than that away; the errors
+  // of Acquire otherwise, the arm halted.
+  absl::StatusOr<bool> MoveToView();
+
   // Halts the arm now (within the control period in which it is called: no
   // further command is sent after it returns) and ends a running
   // acquisition with ABORTED. Returns whether an acquisition was running.
@@ -197,6 +212,7 @@ class Robot {
   int64_t acquisitions_failed_ = 0;
   int64_t force_limit_trips_ = 0;
   std::atomic<int64_t> control_overruns_{0};
+  std::optional<ForkPose> view_pose_;  // RecordViewPose's
   // ArmReadiness's last answer and when it was asked.
   absl::Status arm_readiness_;
   double arm_checked_s_ = -1e9;

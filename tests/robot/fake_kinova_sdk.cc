@@ -106,6 +106,17 @@ __attribute__((visibility("default"))) void FakeKinova_Reset(const char* fail) {
   points = 0;
   last_point = {};
 }
+// Moves the end effector by (dx, dy, dz) metres and tilts it by dthetax
+// radians, as an arm left elsewhere (by a bite, or by hand).
+__attribute__((visibility("default"))) void FakeKinova_Move(float dx, float dy,
+                                                            float dz,
+                                                            float dthetax) {
+  std::lock_guard<std::mutex> lock(mu);
+  pose.X += dx;
+  pose.Y += dy;
+  pose.Z += dz;
+  pose.ThetaX += dthetax;
+}
 __attribute__((visibility("default"))) int FakeKinova_LastPoint(
     kinova::TrajectoryPoint* out) {
   std::lock_guard<std::mutex> lock(mu);

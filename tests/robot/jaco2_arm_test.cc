@@ -13,7 +13,13 @@
 
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
+#include "services/camera/camera_service.h"
+#include "services/camera/frame_publisher.h"
+#include "services/camera/sim_source.h"
+#include "services/common/server.h"
+#include "services/domain/steady_time.h"
 #include "services/robot/backend.h"
+#include "services/robot/camera_client.h"
 #include "services/robot/sim/sim_netft_box.h"
 
 namespace bitewise::jaco2 {
@@ -36,11 +42,16 @@ class FakeSdk {
         dlsym(handle_, "FakeKinova_Reset"));
     last_point_ = reinterpret_cast<int (*)(kinova::TrajectoryPoint*)>(
         dlsym(handle_, "FakeKinova_LastPoint"));
+    move_ = reinterpret_cast<void (*)(float, float, float, float)>(
+        dlsym(handle_, "FakeKinova_Move"));
   }
   ~FakeSdk() {
     if (handle_ != nullptr) dlclose(handle_);
   }
-  bool ok() const { return calls_ && reset_ && last_point_; }
+  bool ok() const { return calls_ && reset_ && last_point_ && move_; }
+  void Move(float dx, float dy, float dz, float dthetax) {
+    move_(dx, dy, dz, dthetax);
+  }
   std::string Calls() {
     char buffer[8192];
     calls_(buffer, sizeof(buffer));
@@ -54,6 +65,7 @@ class FakeSdk {
   void (*calls_)(char*, int) = nullptr;
   void (*reset_)(const char*) = nullptr;
   int (*last_point_)(kinova::TrajectoryPoint*) = nullptr;
+  void (*move_)(float, float, float, float) = nullptr;
 };
 
 Jaco2Options UsbOptions() {
@@ -281,6 +293,56 @@ TEST(Jaco2BackendTest, ReadinessFollowsTheArm) {
   sdk.Reset();
   absl::SleepFor(absl::Seconds(1.1));
   EXPECT_TRUE((*backend)->Readiness().ok()) << (*backend)->Readiness();
+}
+
+// The wrist camera's view is known only at the viewing pose (home): a frame
+// asked for where a bite left the arm is taken after the arm is back and
+// has settled there (it used to be taken from wherever the arm was, and
+// aimed at as if from home). Through the real link: the camera publisher's
+// gRPC service with its simulated source, the RobotService's client.
+TEST(Jaco2BackendTest, AFrameIsTakenAtTheViewingPose) {
+  FakeSdk sdk(BITEWISE_FAKE_KINOVA_USB);
+  ASSERT_TRUE(sdk.ok());
+  sdk.Reset();
+  auto box = sim::SimNetFtBox::Start(sim::SimNetFtBoxOptions(), nullptr);
+  ASSERT_TRUE(box.ok()) << box.status();
+  camera::SimSourceOptions sim;
+  sim.rate_hz = 30;
+  auto source = camera::SimSource::Create(sim);
+  ASSERT_TRUE(source.ok()) << source.status();
+  RpcEnvironment env;
+  camera::FramePublisher publisher(*std::move(source));
+  camera::CameraServiceImpl service(&env, &publisher);
+  auto server = ServiceServer::Start(ServerOptions(), &env, {&service},
+                                     {"bitewise.v1.CameraService"});
+  ASSERT_TRUE(server.ok()) << server.status();
+  robot::CameraClientOptions camera_options;
+  camera_options.address = (*server)->address();
+  camera_options.channel.max_message_bytes = 64 << 20;
+  auto camera = robot::CameraClient::Create(camera_options);
+  ASSERT_TRUE(camera.ok()) << camera.status();
+
+  robot::RobotBackendOptions options = HardwareOptions();
+  options.ft.port = (*box)->port();
+  options.ft_start_timeout_s = 10.0;
+  options.hardware.camera = camera->get();
+  auto backend = robot::RobotBackend::Create(options);
+  ASSERT_TRUE(backend.ok()) << backend.status();
+  // Where a bite ends: 6 cm lower and 4 cm aside, tilted.
+  sdk.Move(0.04f, 0.0f, -0.06f, 0.3f);
+
+  const double asked_s = SteadyNowS();
+  absl::StatusOr<domain::RgbdFrame> frame = (*backend)->CaptureFrame();
+  ASSERT_TRUE(frame.ok()) << frame.status();
+  // Taken after the way back and the settling time, not before.
+  EXPECT_GT(frame->capture_s, asked_s + 0.3);
+  const std::string calls = sdk.Calls();
+  EXPECT_THAT(calls, HasSubstr("SendBasicTrajectory"));
+  // Home again (the viewing pose recorded at start), within 1 cm.
+  absl::StatusOr<bool> there = (*backend)->robot().MoveToView();
+  ASSERT_TRUE(there.ok()) << there.status();
+  EXPECT_FALSE(*there);
+  (*server)->Shutdown();
 }
 
 }  // namespace

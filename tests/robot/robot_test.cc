@@ -269,6 +269,50 @@ TEST_F(RobotTest, ForceLimitStopsTheDescent) {
   EXPECT_LT(outcome->lowest_tip_z_m, item_top_m);
 }
 
+// A camera on the wrist sees the plate as X_TaskCamera says only from the
+// viewing pose (home); a bite leaves the arm above the item. MoveToView
+// brings it back under an acquisition's protection (the hardware backend
+// does before each frame: a frame from where the bite ended was aimed at as
+// if taken from home).
+TEST_F(RobotTest, TheArmGoesBackToItsViewingPoseUnderProtection) {
+  Start({"banana", "carrot"});  // one is left after the first bite
+  const ForkPose home = *backend_->sim_arm()->MeasuredPose();
+  absl::StatusOr<bool> there = backend_->robot().MoveToView();
+  ASSERT_TRUE(there.ok()) << there.status();
+  EXPECT_FALSE(*there);  // already home: nothing moves
+  ASSERT_TRUE(backend_->robot().Acquire(TargetOfItem(0), "TA0", nullptr).ok());
+  const ForkPose after_bite = *backend_->sim_arm()->MeasuredPose();
+  EXPECT_GT((after_bite.p_TaskTip_m - home.p_TaskTip_m).norm(), 0.02);
+  absl::StatusOr<bool> moved = backend_->robot().MoveToView();
+  ASSERT_TRUE(moved.ok()) << moved.status();
+  EXPECT_TRUE(*moved);
+  const ForkPose back = *backend_->sim_arm()->MeasuredPose();
+  EXPECT_LT((back.p_TaskTip_m - home.p_TaskTip_m).norm(), 0.01);
+  EXPECT_NEAR(back.pitch_rad, home.pitch_rad, 0.05);
+  EXPECT_EQ(backend_->robot().Status().busy_with, AcquirePhase::kIdle);
+
+  // Stop halts the way back like any motion, and says so.
+  ASSERT_TRUE(backend_->robot().Acquire(TargetOfItem(0), "VS0", nullptr).ok());
+  auto returning = std::async(std::launch::async,
+                              [&] { return backend_->robot().MoveToView(); });
+  ASSERT_TRUE(WaitFor([&] {
+    return backend_->robot().Status().busy_with == AcquirePhase::kApproach;
+  }));
+  ASSERT_TRUE(backend_->robot().Stop().ok());
+  const absl::StatusOr<bool> stopped = returning.get();
+  EXPECT_EQ(stopped.status().code(), absl::StatusCode::kAborted);
+  EXPECT_THAT(stopped.status().message(), HasSubstr("Stop request"));
+  EXPECT_TRUE(ArmFrozen());
+
+  // A silent sensor: the arm does not move at all.
+  SetFault([](sim::SimNetFtFaults* f) { f->silent = true; });
+  ASSERT_TRUE(WaitFor([&] { return !backend_->FtLive(); }));
+  const int commands = backend_->sim_arm()->commands();
+  const absl::StatusOr<bool> refused = backend_->robot().MoveToView();
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_EQ(backend_->sim_arm()->commands(), commands);
+}
+
 TEST_F(RobotTest, StopHaltsWithinOneControlPeriod) {
   Start({"banana"});
   std::atomic<bool> descending{false};
