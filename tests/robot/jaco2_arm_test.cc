@@ -17,6 +17,7 @@
 #include "services/camera/frame_publisher.h"
 #include "services/camera/sim_source.h"
 #include "services/common/server.h"
+#include "services/common/status_macros.h"
 #include "services/domain/steady_time.h"
 #include "services/robot/backend.h"
 #include "services/robot/camera_client.h"
@@ -231,6 +232,25 @@ robot::RobotBackendOptions HardwareOptions() {
   return options;
 }
 
+// A hardware backend on the fake SDK with a simulated F/T box that streams
+// sane readings (so the arm is sent home); `camera` may be null.
+struct FitHardware {
+  std::unique_ptr<sim::SimNetFtBox> box;
+  std::unique_ptr<robot::RobotBackend> backend;  // goes before the box
+};
+absl::StatusOr<FitHardware> StartFitHardware(
+    robot::FrameProvider* camera = nullptr) {
+  FitHardware out;
+  ASSIGN_OR_RETURN(out.box,
+                   sim::SimNetFtBox::Start(sim::SimNetFtBoxOptions(), nullptr));
+  robot::RobotBackendOptions options = HardwareOptions();
+  options.ft.port = out.box->port();
+  options.ft_start_timeout_s = 10.0;
+  options.hardware.camera = camera;
+  ASSIGN_OR_RETURN(out.backend, robot::RobotBackend::Create(options));
+  return out;
+}
+
 // Homing is the SDK's own motion, watched by no force limit of ours: with a
 // sensor that sends nothing, the start stops naming it, and the arm has not
 // been sent home.
@@ -254,13 +274,8 @@ TEST(Jaco2BackendTest, TheArmIsSentHomeOnceTheSensorIsFit) {
   FakeSdk sdk(BITEWISE_FAKE_KINOVA_USB);
   ASSERT_TRUE(sdk.ok());
   sdk.Reset();
-  auto box = sim::SimNetFtBox::Start(sim::SimNetFtBoxOptions(), nullptr);
-  ASSERT_TRUE(box.ok()) << box.status();
-  robot::RobotBackendOptions options = HardwareOptions();
-  options.ft.port = (*box)->port();
-  options.ft_start_timeout_s = 10.0;
-  auto backend = robot::RobotBackend::Create(options);
-  ASSERT_TRUE(backend.ok()) << backend.status();
+  absl::StatusOr<FitHardware> hardware = StartFitHardware();
+  ASSERT_TRUE(hardware.ok()) << hardware.status();
   EXPECT_THAT(sdk.Calls(), HasSubstr("MoveHome"));
 }
 
@@ -271,28 +286,24 @@ TEST(Jaco2BackendTest, ReadinessFollowsTheArm) {
   FakeSdk sdk(BITEWISE_FAKE_KINOVA_USB);
   ASSERT_TRUE(sdk.ok());
   sdk.Reset();
-  auto box = sim::SimNetFtBox::Start(sim::SimNetFtBoxOptions(), nullptr);
-  ASSERT_TRUE(box.ok()) << box.status();
-  robot::RobotBackendOptions options = HardwareOptions();
-  options.ft.port = (*box)->port();
-  options.ft_start_timeout_s = 10.0;
-  auto backend = robot::RobotBackend::Create(options);
-  ASSERT_TRUE(backend.ok()) << backend.status();
-  EXPECT_TRUE((*backend)->Readiness().ok()) << (*backend)->Readiness();
+  absl::StatusOr<FitHardware> hardware = StartFitHardware();
+  ASSERT_TRUE(hardware.ok()) << hardware.status();
+  robot::RobotBackend* backend = hardware->backend.get();
+  EXPECT_TRUE(backend->Readiness().ok()) << backend->Readiness();
   sdk.Reset("GetCartesianPosition");
   absl::SleepFor(absl::Seconds(1.1));
-  const absl::Status gone = (*backend)->Readiness();
+  const absl::Status gone = backend->Readiness();
   EXPECT_FALSE(gone.ok());
   EXPECT_THAT(std::string(gone.message()),
               HasSubstr("does not answer: Kinova JACO2 SDK "));
   EXPECT_THAT(std::string(gone.message()), HasSubstr("GetCartesianPosition"));
   // Metrics read the counters without asking the arm.
   const std::string before = sdk.Calls();
-  (void)(*backend)->robot().Status(/*ask_arm=*/false);
+  (void)backend->robot().Status(/*ask_arm=*/false);
   EXPECT_EQ(sdk.Calls(), before);
   sdk.Reset();
   absl::SleepFor(absl::Seconds(1.1));
-  EXPECT_TRUE((*backend)->Readiness().ok()) << (*backend)->Readiness();
+  EXPECT_TRUE(backend->Readiness().ok()) << backend->Readiness();
 }
 
 // The wrist camera's view is known only at the viewing pose (home): a frame
@@ -304,8 +315,6 @@ TEST(Jaco2BackendTest, AFrameIsTakenAtTheViewingPose) {
   FakeSdk sdk(BITEWISE_FAKE_KINOVA_USB);
   ASSERT_TRUE(sdk.ok());
   sdk.Reset();
-  auto box = sim::SimNetFtBox::Start(sim::SimNetFtBoxOptions(), nullptr);
-  ASSERT_TRUE(box.ok()) << box.status();
   camera::SimSourceOptions sim;
   sim.rate_hz = 30;
   auto source = camera::SimSource::Create(sim);
@@ -322,24 +331,21 @@ TEST(Jaco2BackendTest, AFrameIsTakenAtTheViewingPose) {
   auto camera = robot::CameraClient::Create(camera_options);
   ASSERT_TRUE(camera.ok()) << camera.status();
 
-  robot::RobotBackendOptions options = HardwareOptions();
-  options.ft.port = (*box)->port();
-  options.ft_start_timeout_s = 10.0;
-  options.hardware.camera = camera->get();
-  auto backend = robot::RobotBackend::Create(options);
-  ASSERT_TRUE(backend.ok()) << backend.status();
+  absl::StatusOr<FitHardware> hardware = StartFitHardware(camera->get());
+  ASSERT_TRUE(hardware.ok()) << hardware.status();
+  robot::RobotBackend* backend = hardware->backend.get();
   // Where a bite ends: 6 cm lower and 4 cm aside, tilted.
   sdk.Move(0.04f, 0.0f, -0.06f, 0.3f);
 
   const double asked_s = SteadyNowS();
-  absl::StatusOr<domain::RgbdFrame> frame = (*backend)->CaptureFrame();
+  absl::StatusOr<domain::RgbdFrame> frame = backend->CaptureFrame();
   ASSERT_TRUE(frame.ok()) << frame.status();
   // Taken after the way back and the settling time, not before.
   EXPECT_GT(frame->capture_s, asked_s + 0.3);
   const std::string calls = sdk.Calls();
   EXPECT_THAT(calls, HasSubstr("SendBasicTrajectory"));
   // Home again (the viewing pose recorded at start), within 1 cm.
-  absl::StatusOr<bool> there = (*backend)->robot().MoveToView();
+  absl::StatusOr<bool> there = backend->robot().MoveToView();
   ASSERT_TRUE(there.ok()) << there.status();
   EXPECT_FALSE(*there);
   (*server)->Shutdown();
