@@ -256,6 +256,13 @@ int main(int argc, char** argv) {
     latency_ms.push_back(std::chrono::duration<double, std::milli>(
                              std::chrono::steady_clock::now() - start)
                              .count());
+    if (!detected.ok() && absl::IsFailedPrecondition(detected.status())) {
+      // No plate found: every item on it is missed (as when Detect returned
+      // no items for it, before it said why), and the plate is named.
+      std::fprintf(stderr, "plate %d: %s (its items count as missed)\n", p,
+                   std::string(detected.status().message()).c_str());
+      detected = std::vector<bitewise::perception::DetectedFood>();
+    }
     if (!detected.ok()) {
       std::fprintf(stderr, "plate %d: %s\n", p,
                    detected.status().ToString().c_str());

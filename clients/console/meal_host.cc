@@ -211,7 +211,10 @@ absl::Status MealHost::Look() {
     return absl::FailedPreconditionError("no meal is running");
   }
   std::shared_ptr<meals::Meal> meal = meal_;
-  return Enqueue([meal] { (void)meal->LookAtPlate(); });
+  // A STOP from now on, while the look waits in the queue, cancels it: the
+  // look may move the arm.
+  const uint64_t stops = meal->stops();
+  return Enqueue([meal, stops] { (void)meal->LookAtPlate(stops); });
 }
 
 absl::Status MealHost::Bite(std::optional<int> item_index,
@@ -246,8 +249,14 @@ absl::Status MealHost::Bite(std::optional<int> item_index,
   // the arm moves.
   const uint64_t stops = meal->stops();
   return Enqueue([meal, item_index, stops] {
-    (void)meal->Bite(item_index, stops);  // a failure is in the meal's state
-    if (meal->state().running()) (void)meal->LookAtPlate();
+    // A failure is in the meal's state. Only a bite that went well is
+    // followed by a look: the look may move the arm back to its viewing
+    // pose, which must not follow a STOP, a collision or a sensor fault by
+    // itself ("Look at the plate again" asks for it).
+    const absl::Status bitten = meal->Bite(item_index, stops);
+    if (bitten.ok() && meal->state().running()) {
+      (void)meal->LookAtPlate(stops);
+    }
   });
 }
 

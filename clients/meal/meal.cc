@@ -291,7 +291,7 @@ absl::Status Meal::Fail(mealpb::Step step, const absl::Status& status,
   return status;
 }
 
-absl::Status Meal::LookAtPlate() {
+absl::Status Meal::LookAtPlate(std::optional<uint64_t> stops_when_asked) {
   if (!busy_mu_.TryLock()) {
     return absl::FailedPreconditionError(
         "a bite or a look at the plate is already running");
@@ -303,12 +303,20 @@ absl::Status Meal::LookAtPlate() {
       return absl::FailedPreconditionError(
           absl::StrCat("meal ", state_.meal_id(), " is over"));
     }
+    if (stops_when_asked.has_value() && stops_ > *stops_when_asked) {
+      // The look may move the arm (back to its viewing pose): not after a
+      // STOP the person pressed since asking.
+      return absl::FailedPreconditionError(
+          "STOP was pressed after this look at the plate was asked for; "
+          "nothing was moved: look again when ready");
+    }
     state_.set_phase("looking");
     state_.clear_error();
     state_.set_plate_fresh(false);
   }
   Emit(mealpb::STEP_CAPTURE, mealpb::STEP_STATE_STARTED,
-       "Looking at the plate.");
+       "Looking at the plate (the arm first goes back to where it looks "
+       "from, if a bite left it elsewhere).");
   absl::StatusOr<v1::Frame> frame = clients_->robot.CaptureFrame();
   if (!frame.ok()) {
     ForgetPlate();

@@ -145,8 +145,13 @@ class Meal {
   absl::StatusOr<int> DeliverJournal(std::string* why_not = nullptr);
 
   // Captures the plate and detects the food on it. An empty plate ends the
-  // meal (phase "ended"). Errors name the service and call.
-  absl::Status LookAtPlate();
+  // meal (phase "ended"). Errors name the service and call. On the JACO2
+  // the RobotService first moves the arm back to its viewing pose if a bite
+  // left it elsewhere. `stops_when_asked`: stops() when the look was asked
+  // for (a console queues it); a STOP since then refuses it before the
+  // robot is asked (FAILED_PRECONDITION), as for Bite.
+  absl::Status LookAtPlate(
+      std::optional<uint64_t> stops_when_asked = std::nullopt);
 
   // Runs one bite on item `item_index` of the plate last looked at, or the
   // robot's choice when it is absent. INVALID_ARGUMENT for an index not on

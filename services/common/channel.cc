@@ -137,8 +137,11 @@ absl::StatusOr<ServingStatus> DecodeHealthCheckResponse(
 
 // The channel's service config: round robin over the resolved addresses
 // when `balanced`, and, with retries, a policy that retries every method on
-// UNAVAILABLE (an empty name matches all services and methods). Empty when
-// there is nothing to say.
+// UNAVAILABLE (an empty name matches all services and methods) but the
+// robot's motions: an Acquire or a CaptureFrame (which may move the arm to
+// its viewing pose) that failed UNAVAILABLE has halted the arm, and is never
+// sent again without the person (a method's own entry, with no policy,
+// takes precedence over the default). Empty when there is nothing to say.
 std::string ServiceConfig(const ChannelOptions& options, bool balanced) {
   std::vector<std::string> parts;
   if (balanced)
@@ -150,7 +153,10 @@ std::string ServiceConfig(const ChannelOptions& options, bool balanced) {
         absl::StrFormat("%.3f", absl::ToDoubleSeconds(options.initial_backoff)),
         R"(s", "maxBackoff": ")",
         absl::StrFormat("%.3f", absl::ToDoubleSeconds(options.max_backoff)),
-        R"(s", "backoffMultiplier": 2, "retryableStatusCodes": ["UNAVAILABLE"]}}])"));
+        R"(s", "backoffMultiplier": 2, "retryableStatusCodes": ["UNAVAILABLE"]}}, )",
+        R"({"name": [{"service": "bitewise.v1.RobotService", "method": )",
+        R"("Acquire"}, {"service": "bitewise.v1.RobotService", "method": )",
+        R"("CaptureFrame"}]}])"));
   }
   if (parts.empty()) return "";
   return absl::StrCat("{", absl::StrJoin(parts, ", "), "}");

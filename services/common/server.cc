@@ -81,8 +81,11 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
   }
   ASSIGN_OR_RETURN(std::shared_ptr<grpc::ServerCredentials> credentials,
                    MakeCredentials(options));
+  // "" for a bare port (every interface).
   const auto host_of = [](const std::string& address) {
-    return address.substr(0, address.rfind(':'));
+    const size_t colon = address.rfind(':');
+    return colon == std::string::npos ? std::string()
+                                      : address.substr(0, colon);
   };
   const auto loopback = [](const std::string& host) {
     return absl::StartsWith(host, "127.") || host == "[::1]" ||
@@ -190,8 +193,11 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
       host, ":", port, " (", mode, ", ",
       authorizer ? absl::StrCat("roles from ", options.authz_file)
                  : std::string("authorization off"),
-      metrics ? absl::StrCat(", metrics on ", host_of(options.metrics_listen),
-                             ":", metrics->port())
+      metrics ? absl::StrCat(", metrics on ",
+                             host_of(options.metrics_listen).empty()
+                                 ? "every interface, port "
+                                 : host_of(options.metrics_listen) + ":",
+                             metrics->port())
               : std::string(),
       ")");
   auto result = std::unique_ptr<ServiceServer>(new ServiceServer(

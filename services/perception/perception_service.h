@@ -21,12 +21,16 @@ class PerceptionServiceImpl final : public v1::PerceptionService::Service {
                         const Featurizer* featurizer);
 
   // INVALID_ARGUMENT for a missing or malformed frame (see DecodeFrame) or
-  // a frame without depth.
+  // a frame without depth; FAILED_PRECONDITION when no plate is found (no
+  // flat surface in the depth image: a dead depth stream, a plate out of
+  // view), which is not an empty plate.
   grpc::Status DetectFood(grpc::ServerContext* context,
                           const v1::DetectFoodRequest* request,
                           v1::DetectFoodResponse* response) override;
   // INVALID_ARGUMENT for a missing or malformed frame, a missing, empty or
-  // out-of-frame bbox, or an unknown location.
+  // out-of-frame bbox, an unknown location, or (the default featurizer) a
+  // frame without depth; INTERNAL when SPANet gives outputs that are not
+  // finite or scores outside [0, 1].
   grpc::Status Featurize(grpc::ServerContext* context,
                          const v1::FeaturizeRequest* request,
                          v1::FeaturizeResponse* response) override;

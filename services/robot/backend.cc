@@ -1,5 +1,6 @@
 #include "services/robot/backend.h"
 
+#include <cstdio>
 #include <random>
 #include <utility>
 
@@ -133,7 +134,13 @@ absl::Status RobotBackend::StartRobot(Arm* arm, SuccessJudge* judge,
   robot_ = std::make_unique<Robot>(arm, ft_.get(), judge, acquisition);
   // Home is where the camera's view is calibrated (X_TaskCamera: on
   // hardware, --camera_height_m above the plate, looking down).
-  return robot_->RecordViewPose();
+  ASSIGN_OR_RETURN(const ForkPose view, robot_->RecordViewPose());
+  std::fprintf(stderr,
+               "bitewise-robot: viewing pose: fork tip at (%.3f, %.3f, %.3f) m "
+               "in the task frame, pitch %.3f rad, yaw %.3f rad\n",
+               view.p_TaskTip_m.x(), view.p_TaskTip_m.y(), view.p_TaskTip_m.z(),
+               view.pitch_rad, view.yaw_rad);
+  return absl::OkStatus();
 }
 
 RobotBackend::~RobotBackend() = default;
@@ -164,7 +171,11 @@ absl::StatusOr<domain::RgbdFrame> RobotBackend::CaptureAtView() {
   // The camera rides on the wrist: its view is known only at the viewing
   // pose, where the last bite did not leave the arm.
   ASSIGN_OR_RETURN(const bool moved, robot_->MoveToView());
-  if (!moved) return camera_->Capture();
+  if (!moved) {
+    ASSIGN_OR_RETURN(domain::RgbdFrame frame, camera_->Capture());
+    RETURN_IF_ERROR(robot_->CheckAtView());
+    return frame;
+  }
   // A frame taken once the arm has settled there, not on the way.
   const double settled_s = SteadyNowS() + kViewSettleS;
   const double deadline_s = settled_s + kFreshFrameWaitS;
@@ -172,7 +183,10 @@ absl::StatusOr<domain::RgbdFrame> RobotBackend::CaptureAtView() {
   while (SteadyNowS() <= deadline_s) {
     absl::SleepFor(absl::Milliseconds(30));
     absl::StatusOr<domain::RgbdFrame> frame = camera_->Capture();
-    if (frame.ok() && frame->capture_s >= settled_s) return frame;
+    if (frame.ok() && frame->capture_s >= settled_s) {
+      RETURN_IF_ERROR(robot_->CheckAtView());
+      return frame;
+    }
     // An earlier frame, or the same one again: wait for the next.
     if (!frame.ok() && !absl::IsFailedPrecondition(frame.status())) {
       return frame.status();

@@ -128,6 +128,7 @@ class Robot::Run {
   // Back to `goal` (the viewing pose) at the approach speed, guarded by
   // action_'s limit as a collision anywhere on the way.
   absl::Status ReturnTo(ForkPose goal) {
+    what_ = "The return to the viewing pose";
     start_s_ = SteadyNowS();
     MeasureBaseline();
     ASSIGN_OR_RETURN(setpoint_, robot_->arm_->MeasuredPose());
@@ -329,7 +330,7 @@ class Robot::Run {
 
   absl::Status StoppedError() const {
     return absl::AbortedError(absl::StrFormat(
-        "Acquire stopped by a Stop request during %s, %.2f s in; arm halted",
+        "%s stopped by a Stop request during %s, %.2f s in; arm halted", what_,
         AcquirePhaseName(phase_), SteadyNowS() - start_s_));
   }
 
@@ -384,6 +385,7 @@ class Robot::Run {
   const AcquireProgressCallback& on_progress_;
   const bool dry_run_;
 
+  const char* what_ = "Acquire";  // the motion, for messages
   AcquireOutcome outcome_;
   AcquirePhase phase_ = AcquirePhase::kIdle;
   ForkPose setpoint_;
@@ -409,10 +411,11 @@ absl::StatusOr<AcquireOutcome> Robot::Acquire(
     std::lock_guard<std::mutex> lock(mu_);
     if (busy_) {
       return absl::FailedPreconditionError(
-          absl::StrCat("another Acquire is running (phase ",
+          absl::StrCat("the arm is moving (", motion_, ", phase ",
                        AcquirePhaseName(phase_), "); Stop it or wait"));
     }
     busy_ = true;
+    motion_ = "an Acquire";
     // A Stop sent while idle must not cancel the next acquisition.
     stop_requested_ = false;
     phase_ = AcquirePhase::kApproach;
@@ -450,13 +453,6 @@ absl::StatusOr<AcquireOutcome> Robot::Acquire(
   return result;
 }
 
-absl::Status Robot::RecordViewPose() {
-  ASSIGN_OR_RETURN(const ForkPose pose, arm_->MeasuredPose());
-  std::lock_guard<std::mutex> lock(mu_);
-  view_pose_ = pose;
-  return absl::OkStatus();
-}
-
 namespace {
 
 // How far `pose` is from `goal`: metres and the larger angle.
@@ -472,35 +468,69 @@ constexpr double kViewToleranceRad = 0.05;
 
 }  // namespace
 
+absl::StatusOr<ForkPose> Robot::RecordViewPose(double settle_timeout_s) {
+  // The pose once the arm has come to rest (homing may still be ending):
+  // two readings 0.1 s apart within 1 mm and 0.01 rad.
+  const double deadline_s = SteadyNowS() + settle_timeout_s;
+  absl::StatusOr<ForkPose> last = arm_->MeasuredPose();
+  while (true) {
+    if (!last.ok()) {
+      return absl::Status(last.status().code(),
+                          absl::StrCat("recording the viewing pose: ",
+                                       last.status().message()));
+    }
+    absl::SleepFor(absl::Milliseconds(100));
+    absl::StatusOr<ForkPose> next = arm_->MeasuredPose();
+    if (next.ok()) {
+      const auto [metres, radians] = Distance(*next, *last);
+      if (metres <= 0.001 && radians <= 0.01) {
+        std::lock_guard<std::mutex> lock(mu_);
+        view_pose_ = *next;
+        return *next;
+      }
+      if (SteadyNowS() > deadline_s) {
+        return absl::UnavailableError(absl::StrFormat(
+            "recording the viewing pose: the arm did not come to rest within "
+            "%.0f s of homing (it moved %.1f mm in 0.1 s)",
+            settle_timeout_s, 1000 * metres));
+      }
+    }
+    last = next;
+  }
+}
+
 absl::StatusOr<bool> Robot::MoveToView() {
   ForkPose view;
   {
+    // Busy first: while another motion runs the arm is no place to take a
+    // picture from, even where it passes home.
     std::lock_guard<std::mutex> lock(mu_);
     if (!view_pose_.has_value()) {
       return absl::FailedPreconditionError(
           "the arm's viewing pose was never recorded");
     }
-    view = *view_pose_;
-  }
-  ASSIGN_OR_RETURN(const ForkPose now, arm_->MeasuredPose());
-  {
-    const auto [metres, radians] = Distance(now, view);
-    if (metres <= kViewToleranceM && radians <= kViewToleranceRad) {
-      return false;
-    }
-  }
-  {
-    std::lock_guard<std::mutex> lock(mu_);
     if (busy_) {
       return absl::FailedPreconditionError(absl::StrCat(
-          "an Acquire is running (phase ", AcquirePhaseName(phase_),
-          "); the arm goes back to its viewing pose after it"));
+          "the arm is moving (", motion_, ", phase ", AcquirePhaseName(phase_),
+          "); no picture is taken from a moving arm"));
     }
+    view = *view_pose_;
     busy_ = true;
+    motion_ = "the return to the viewing pose";
     stop_requested_ = false;
+  }
+  absl::StatusOr<ForkPose> now = arm_->MeasuredPose();
+  if (now.ok()) {
+    const auto [metres, radians] = Distance(*now, view);
+    if (metres <= kViewToleranceM && radians <= kViewToleranceRad) {
+      std::lock_guard<std::mutex> lock(mu_);
+      busy_ = false;
+      return false;
+    }
+    std::lock_guard<std::mutex> lock(mu_);
     phase_ = AcquirePhase::kApproach;
   }
-  absl::Status status = ft_->CheckLive();
+  absl::Status status = now.ok() ? ft_->CheckLive() : now.status();
   if (status.ok()) {
     // Nothing should be touched on the way: the gentlest action's force is
     // the collision limit.
@@ -528,11 +558,41 @@ absl::StatusOr<bool> Robot::MoveToView() {
     }
   }
   std::lock_guard<std::mutex> lock(mu_);
-  if (!status.ok()) arm_->Halt().IgnoreError();  // the error says more
+  if (!status.ok() && now.ok()) {
+    arm_->Halt().IgnoreError();  // the error says more
+  }
   busy_ = false;
   phase_ = AcquirePhase::kIdle;
+  if (status.GetPayload(kForceLimitTripPayload).has_value()) {
+    ++force_limit_trips_;
+  }
   if (!status.ok()) return status;
   return true;
+}
+
+absl::Status Robot::CheckAtView() {
+  ForkPose view;
+  {
+    std::lock_guard<std::mutex> lock(mu_);
+    if (busy_) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "the arm moved while the picture was taken (", motion_, ")"));
+    }
+    if (!view_pose_.has_value()) {
+      return absl::FailedPreconditionError(
+          "the arm's viewing pose was never recorded");
+    }
+    view = *view_pose_;
+  }
+  ASSIGN_OR_RETURN(const ForkPose now, arm_->MeasuredPose());
+  const auto [metres, radians] = Distance(now, view);
+  if (metres > kViewToleranceM || radians > kViewToleranceRad) {
+    return absl::FailedPreconditionError(absl::StrFormat(
+        "the arm was %.1f cm and %.2f rad from its viewing pose when the "
+        "picture was taken; look again",
+        100 * metres, radians));
+  }
+  return absl::OkStatus();
 }
 
 absl::StatusOr<bool> Robot::Stop() {
@@ -554,7 +614,8 @@ absl::Status Robot::Tare() {
     std::lock_guard<std::mutex> lock(mu_);
     if (busy_) {
       return absl::FailedPreconditionError(
-          "cannot tare during an Acquire: the baseline would jump mid-trace");
+          absl::StrCat("cannot tare while the arm moves (", motion_,
+                       "): the baseline would jump mid-trace"));
     }
   }
   return ft_->Bias();

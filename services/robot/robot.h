@@ -158,10 +158,12 @@ class Robot {
       const AcquireProgressCallback& on_progress,
       const AcquireOptions& options = {});
 
-  // The pose the arm is in now becomes its viewing pose: where a camera on
-  // the wrist sees the plate as X_TaskCamera says (the backend records it
-  // once the arm is home). The arm's errors.
-  absl::Status RecordViewPose();
+  // The pose the arm comes to rest in (two readings 0.1 s apart within 1 mm
+  // and 0.01 rad; UNAVAILABLE if it does not within `settle_timeout_s`)
+  // becomes its viewing pose: where a camera on the wrist sees the plate as
+  // X_TaskCamera says (the backend records it once the arm is home), and is
+  // returned. The arm's errors, prefixed "recording the viewing pose".
+  absl::StatusOr<ForkPose> RecordViewPose(double settle_timeout_s = 10.0);
 
   // Moves the arm back to its viewing pose in a straight line at the
   // approach speed, under the protection of an acquisition (a live F/T
@@ -171,6 +173,11 @@ class Robot {
   // acquisition runs, or when the arm ends more than that away; the errors
   // of Acquire otherwise, the arm halted.
   absl::StatusOr<bool> MoveToView();
+
+  // OK while no motion runs and the arm is at its viewing pose (as
+  // MoveToView measures it); FAILED_PRECONDITION saying where it is
+  // otherwise. For a picture taken there: asked after it was taken.
+  absl::Status CheckAtView();
 
   // Halts the arm now (within the control period in which it is called: no
   // further command is sent after it returns) and ends a running
@@ -213,6 +220,7 @@ class Robot {
   int64_t force_limit_trips_ = 0;
   std::atomic<int64_t> control_overruns_{0};
   std::optional<ForkPose> view_pose_;  // RecordViewPose's
+  const char* motion_ = "";            // what busy_ is for, for messages
   // ArmReadiness's last answer and when it was asked.
   absl::Status arm_readiness_;
   double arm_checked_s_ = -1e9;

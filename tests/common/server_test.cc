@@ -38,7 +38,7 @@
 #include "bitewise/v1/camera.pb.h"
 #include "bitewise/v1/haptic.grpc.pb.h"
 #include "bitewise/v1/perception.pb.h"
-#include "bitewise/v1/robot.pb.h"
+#include "bitewise/v1/robot.grpc.pb.h"
 #include "gmock/gmock.h"
 #include "google/protobuf/descriptor.h"
 #include "gtest/gtest.h"
@@ -93,6 +93,19 @@ class FakeHapticService final : public v1::HapticService::Service {
   std::atomic<int> calls{0};
   std::atomic<int> unavailable_left{0};  // answer UNAVAILABLE this often first
   RpcEnvironment env;
+};
+
+// A RobotService whose CaptureFrame always fails UNAVAILABLE (as one whose
+// arm was halted on its way back to the viewing pose), counting calls.
+class HaltingRobotService final : public v1::RobotService::Service {
+ public:
+  grpc::Status CaptureFrame(grpc::ServerContext*,
+                            const v1::CaptureFrameRequest*,
+                            v1::Frame*) override {
+    ++calls;
+    return ToGrpcStatus(absl::UnavailableError("F/T silent; arm stopped"));
+  }
+  std::atomic<int> calls{0};
 };
 
 std::shared_ptr<grpc::Channel> Connect(const std::string& address,
@@ -300,6 +313,24 @@ TEST(ChannelRetryTest, UnavailableIsRetriedUpToMaxAttemptsAndNothingElse) {
   EXPECT_EQ(CallClassify(Connect((*server)->address(), retrying), 0).code(),
             absl::StatusCode::kInvalidArgument);
   EXPECT_EQ(service.calls, 1);
+
+  // The robot's motions are never sent again: the arm was halted.
+  HaltingRobotService robot;
+  RpcEnvironment robot_env;
+  auto robot_server = ServiceServer::Start(
+      ServerOptions(), &robot_env, {&robot}, {"bitewise.v1.RobotService"});
+  ASSERT_TRUE(robot_server.ok()) << robot_server.status();
+  auto stub =
+      v1::RobotService::NewStub(Connect((*robot_server)->address(), retrying));
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() +
+                       std::chrono::seconds(10));
+  v1::Frame frame;
+  EXPECT_EQ(stub->CaptureFrame(&context, v1::CaptureFrameRequest(), &frame)
+                .error_code(),
+            grpc::StatusCode::UNAVAILABLE);
+  EXPECT_EQ(robot.calls.load(), 1);
+  (*robot_server)->Shutdown();
 
   for (int bad : {0, 6}) {
     retrying.max_attempts = bad;

@@ -301,7 +301,9 @@ TEST_F(RobotTest, TheArmGoesBackToItsViewingPoseUnderProtection) {
   ASSERT_TRUE(backend_->robot().Stop().ok());
   const absl::StatusOr<bool> stopped = returning.get();
   EXPECT_EQ(stopped.status().code(), absl::StatusCode::kAborted);
-  EXPECT_THAT(stopped.status().message(), HasSubstr("Stop request"));
+  EXPECT_THAT(stopped.status().message(),
+              HasSubstr("The return to the viewing pose stopped by a Stop "
+                        "request"));
   EXPECT_TRUE(ArmFrozen());
 
   // A silent sensor: the arm does not move at all.
@@ -599,9 +601,19 @@ TEST_F(RobotTest, OneAcquisitionAtATime) {
   absl::Status second =
       backend_->robot().Acquire(TargetOfItem(0), "TA0", nullptr).status();
   EXPECT_EQ(second.code(), absl::StatusCode::kFailedPrecondition);
-  EXPECT_THAT(second.message(), HasSubstr("another Acquire is running"));
+  EXPECT_THAT(second.message(),
+              HasSubstr("the arm is moving (an Acquire, phase approach)"));
   absl::Status tare = backend_->robot().Tare();
   EXPECT_EQ(tare.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(tare.message(), HasSubstr("while the arm moves (an Acquire)"));
+  // Nor is the arm sent to its viewing pose, nor a picture taken, while it
+  // moves (it may pass home).
+  const absl::StatusOr<bool> view = backend_->robot().MoveToView();
+  EXPECT_EQ(view.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(view.status().message(),
+              HasSubstr("no picture is taken from a moving arm"));
+  EXPECT_EQ(backend_->robot().CheckAtView().code(),
+            absl::StatusCode::kFailedPrecondition);
   EXPECT_TRUE(running.get().ok());
   EXPECT_EQ(backend_->box()->counters().bias_commands, 0u);
   EXPECT_TRUE(backend_->robot().Tare().ok());

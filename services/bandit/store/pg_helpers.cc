@@ -31,11 +31,17 @@ constexpr unsigned int kTextOid = 25;
 constexpr unsigned int kFloat8Oid = 701;
 
 // Every session: commits wait for the WAL flush whatever the database's
-// default, and a transaction left idle (a stalled client) is ended by the
-// server rather than holding its row locks.
-constexpr char kSessionSetup[] =
-    "SET synchronous_commit = on; SET client_min_messages = warning; "
-    "SET idle_in_transaction_session_timeout = '60s'";
+// default, a transaction left idle (a stalled client) is ended by the
+// server rather than holding its row locks, and a lock waited for longer
+// than half the response timeout ends the statement (55P03: contention,
+// UNAVAILABLE, no storage fault) before the client gives up on a server
+// that says nothing while it waits.
+std::string SessionSetup(absl::Duration response_timeout) {
+  return absl::StrCat(
+      "SET synchronous_commit = on; SET client_min_messages = warning; "
+      "SET idle_in_transaction_session_timeout = '60s'; SET lock_timeout = ",
+      std::max<int64_t>(1, absl::ToInt64Milliseconds(response_timeout / 2)));
+}
 
 std::string BigEndian(uint64_t bits) {
   std::string out(8, '\0');
@@ -232,7 +238,8 @@ absl::StatusOr<std::unique_ptr<Connection>> Connection::Open(
                      " is unavailable: ", OneLine(PQerrorMessage(raw))));
   }
   conn->Describe();
-  RETURN_IF_ERROR(conn->ExecScript(kSessionSetup, "connecting"));
+  RETURN_IF_ERROR(
+      conn->ExecScript(SessionSetup(response_timeout), "connecting"));
   return conn;
 }
 
@@ -300,7 +307,7 @@ absl::Status Connection::Reconnect() {
         absl::StrCat("PostgreSQL ", description_,
                      " is unavailable: ", OneLine(PQerrorMessage(conn_))));
   }
-  return ExecScript(kSessionSetup, "reconnecting");
+  return ExecScript(SessionSetup(response_timeout_), "reconnecting");
 }
 
 absl::Status Connection::Error(pg_result* result, absl::string_view op) const {
@@ -383,7 +390,11 @@ pg_result* Connection::Await() {
   // the kernel still answers) is.
   absl::Time deadline = absl::Now() + response_timeout_;
   for (;;) {
-    while (PQisBusy(conn_)) {
+    while (true) {
+      // What has arrived (or TLS has decrypted already, which poll cannot
+      // see) first.
+      if (PQconsumeInput(conn_) == 0) break;  // lost: PQgetResult says so
+      if (!PQisBusy(conn_)) break;
       const int fd = PQsocket(conn_);
       if (fd < 0) break;  // lost: PQgetResult reports it
       const absl::Duration left = deadline - absl::Now();
@@ -402,9 +413,8 @@ pg_result* Connection::Await() {
                                  absl::ToInt64Milliseconds(
                                      absl::Ceil(left, absl::Milliseconds(1))),
                                  1 << 30)));
-      if (ready <= 0) continue;               // the deadline is checked again
-      if (PQconsumeInput(conn_) == 0) break;  // lost: PQgetResult says so
-      deadline = absl::Now() + response_timeout_;
+      if (ready <= 0) continue;  // the deadline is checked again
+      deadline = absl::Now() + response_timeout_;  // bytes came
     }
     pg_result* result = PQgetResult(conn_);
     if (result == nullptr) return kept;

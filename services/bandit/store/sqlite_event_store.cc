@@ -219,10 +219,12 @@ absl::StatusOr<std::unique_ptr<SqliteEventStore>> SqliteEventStore::Open(
     if (lock_fd >= 0) close(lock_fd);
     return ready;
   }
-  return std::unique_ptr<SqliteEventStore>(new SqliteEventStore(
+  std::unique_ptr<SqliteEventStore> store(new SqliteEventStore(
       db.release(), lock_fd, options.path, static_cast<uint64_t>(file.st_dev),
       static_cast<uint64_t>(file.st_ino), std::move(contexts),
       options.context_file_min_bytes, options.synchronous_full, !check_now));
+  store->busy_timeout_ms_ = static_cast<int>(timeout_ms);
+  return store;
 }
 
 SqliteEventStore::SqliteEventStore(sqlite3* db, int lock_fd, std::string path,
@@ -270,9 +272,13 @@ absl::Status SqliteEventStore::ProbeWrite() {
   RETURN_IF_ERROR(CheckHealth());
   absl::MutexLock lock(&mu_);
   if (contexts_ != nullptr) RETURN_IF_ERROR(contexts_->Probe());
-  ASSIGN_OR_RETURN(
-      Transaction txn,
-      Transaction::Begin(db_, Transaction::Kind::kWrite, "write probe"));
+  // A lock another program holds is not waited for here: the probe runs
+  // under mu_, which every read takes too.
+  sqlite3_busy_timeout(db_, 0);
+  absl::StatusOr<Transaction> begun =
+      Transaction::Begin(db_, Transaction::Kind::kWrite, "write probe");
+  sqlite3_busy_timeout(db_, busy_timeout_ms_);
+  ASSIGN_OR_RETURN(Transaction txn, std::move(begun));
   RETURN_IF_ERROR(Exec(
       db_,
       absl::StrCat("PRAGMA user_version = ", sqlite::kSchemaVersion).c_str(),

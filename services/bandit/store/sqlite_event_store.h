@@ -14,8 +14,9 @@
 // transaction, each in its own savepoint (a write that fails leaves no
 // trace and fails alone), commits once (one fsync for all), and each caller
 // returns its own result only after that commit. Their statements are
-// prepared once. Several processes may
-// open the same file; they wait for each other up to busy_timeout.
+// prepared once. One process serves a file (a lock of its own keeps a
+// second store out); a program that writes it anyway (a sqlite3 shell) is
+// waited for up to busy_timeout.
 //
 // Behaviour beyond the EventStore contract:
 //  - Timestamps are stored in whole microseconds since the Unix epoch.
@@ -30,11 +31,12 @@
 //    than an empty list; an empty meal_id lists every meal.
 //  - Event ids are never reused, even after ResetUser or DeleteUser, so a
 //    stale id held by a client can only ever be NOT_FOUND.
-//  - Lock timeouts surface as UNAVAILABLE, unreadable stored data as
-//    DATA_LOSS, and storage that refuses a write as a storage fault naming
-//    the cause and the file (write_faults.h): RESOURCE_EXHAUSTED for a full
-//    disk or a file-size limit, UNAVAILABLE for a read-only file or an I/O
-//    error.
+//  - Unreadable stored data is DATA_LOSS, and storage that refuses a write
+//    a storage fault naming the cause and the file (write_faults.h):
+//    RESOURCE_EXHAUSTED for a full disk or a file-size limit, UNAVAILABLE
+//    for a read-only file, an I/O error, or a lock another program held
+//    past busy_timeout. The write probe does not wait for such a lock (it
+//    would hold the store's mutex, and every read, that long).
 #ifndef BITEWISE_SERVICES_BANDIT_STORE_SQLITE_EVENT_STORE_H_
 #define BITEWISE_SERVICES_BANDIT_STORE_SQLITE_EVENT_STORE_H_
 
@@ -183,6 +185,8 @@ class SqliteEventStore final : public EventStore {
 
   absl::Mutex mu_;
   sqlite3* const db_ ABSL_PT_GUARDED_BY(mu_);
+  // SqliteStoreOptions::busy_timeout, restored after the write probe's 0.
+  int busy_timeout_ms_ = 5000;
   std::unique_ptr<sqlite::StatementCache> statements_ ABSL_PT_GUARDED_BY(mu_);
   CommitObserver commit_observer_;
   mutable absl::Mutex stats_mu_;

@@ -1,5 +1,6 @@
 // What only the PostgreSQL store has: its schema checks, replicas' writes
 // at a position, a server that stops and returns; and store locations.
+#include "services/bandit/store/pg_helpers.h"
 #include "services/bandit/store/write_faults.h"
 #include "services/common/status_macros.h"
 #include "tests/bandit/store/store_test_fixture.h"
@@ -317,6 +318,35 @@ TEST_F(PostgresEventStoreTest, AFrozenServerFailsCallsAndHealthThenRecovers) {
     absl::SleepFor(absl::Milliseconds(50));
   }
   EXPECT_EQ(pending, 3);
+}
+
+// A lock another connection holds (another replica's transaction, a
+// person's psql) is waited for up to half the response timeout, then the
+// call fails as contention: UNAVAILABLE, no storage fault, health still
+// SERVING (before, the wait ran into the response timeout and was taken for
+// a server that stopped answering).
+TEST_F(PostgresEventStoreTest, ALockHeldElsewhereIsContentionNotAFault) {
+  absl::StatusOr<OwnServer> own = StartOwnServer(absl::Seconds(2));
+  ASSERT_TRUE(own.ok()) << own.status();
+  PostgresEventStore& store = *own->store;
+  ASSERT_TRUE(store.CreateUser(MakeUser("alice")).ok());
+  auto holder = pg::Connection::Open(own->options.conninfo);
+  ASSERT_TRUE(holder.ok()) << holder.status();
+  ASSERT_TRUE((*holder)
+                  ->ExecScript("BEGIN; SELECT 1 FROM users WHERE user_id = "
+                               "'alice' FOR UPDATE",
+                               "holding alice's row")
+                  .ok());
+  const absl::Time start = absl::Now();
+  auto waited = store.AppendPending(MakeEvent("alice", "m"));
+  EXPECT_LT(absl::Now() - start, absl::Seconds(20));  // a bound, not speed
+  EXPECT_EQ(waited.status().code(), absl::StatusCode::kUnavailable)
+      << waited.status();
+  EXPECT_FALSE(IsStorageFault(waited.status())) << waited.status();
+  EXPECT_THAT(waited.status().message(), HasSubstr("55P03"));
+  EXPECT_TRUE(store.CheckHealth().ok()) << store.CheckHealth();
+  ASSERT_TRUE((*holder)->ExecScript("ROLLBACK", "letting go").ok());
+  EXPECT_TRUE(store.AppendPending(MakeEvent("alice", "m")).ok());
 }
 
 // fsync off is refused at open, and found by the health check when the

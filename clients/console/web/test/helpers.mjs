@@ -244,7 +244,7 @@ export async function waitForMeal(done, timeout = 60000, what = 'the meal') {
  * the CLI orchestrator does before each bite; after a failed or stopped bite
  * the phase may stay "failed".
  */
-export const readyForBite = (s) => s.running && (s.phase === 'choosing' || s.phase === 'failed');
+export const readyForBite = (s) => s.running && s.phase === 'choosing' && s.plate_fresh === true;
 
 /** The bite `number` has come to its verdict, or to the operator's question. */
 export const biteJudged = (number) => (s) =>

@@ -305,6 +305,10 @@ describe('table view', { skip: SKIP }, () => {
   });
 
   it('clears the STOP line once a new bite moves the arm', async () => {
+    // A stopped bite is not followed by a look (it may move the arm back to
+    // its viewing pose): the person asks for it.
+    await waitForMeal((s) => s.phase === 'failed' && !s.plate_fresh, 20000, 'the stopped bite to settle');
+    await press(page, '#look-again');
     await waitForPlate();
     assert.match(await page.$eval('#stop-status', (e) => e.textContent), /^Stopped: the arm was moving and was halted at /);
     await press(page, '#robots-choice');
