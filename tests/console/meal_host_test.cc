@@ -148,6 +148,34 @@ TEST_F(MealHostTest, BadIdsAreRefusedAndStartNothing) {
   EXPECT_EQ(host_->PlateJpeg().status().code(), absl::StatusCode::kNotFound);
 }
 
+// A look may move the arm back to its viewing pose (on the JACO2), so a
+// bite that failed (a STOP, a collision, a sensor fault, a service down) is
+// not followed by one by itself: the person asks ("Look at the plate
+// again"). Before, every bite was.
+TEST_F(MealHostTest, AFailedBiteIsNotFollowedByALookOfItsOwn) {
+  ASSERT_THAT(host_->StartMeal("ines", "tea"), IsOk());
+  const mealpb::MealState plate = WaitForPhase("choosing");
+  services_->faults().Fail("/bitewise.v1.RobotService/Acquire",
+                           absl::UnavailableError("the arm was halted"));
+  ASSERT_THAT(host_->Bite(std::nullopt), IsOk());
+  mealpb::MealState failed = WaitForPhase("failed", 1);
+  services_->faults().Clear();
+  absl::SleepFor(absl::Milliseconds(500));  // time for a look, were one due
+  failed = host_->State();
+  EXPECT_EQ(failed.phase(), "failed");
+  EXPECT_EQ(failed.plate_version(), plate.plate_version());
+  EXPECT_FALSE(failed.plate_fresh());
+  EXPECT_THAT(host_->Bite(std::nullopt),
+              StatusIs(absl::StatusCode::kFailedPrecondition,
+                       HasSubstr("not been looked at since the last bite")));
+  ASSERT_THAT(host_->Look(), IsOk());
+  const mealpb::MealState again = WaitForPhase("choosing", 1);
+  EXPECT_TRUE(again.plate_fresh());
+  EXPECT_GT(again.plate_version(), plate.plate_version());
+  ASSERT_THAT(host_->EndMeal(), IsOk());
+  WaitForPhase("ended", 1);
+}
+
 TEST_F(MealHostTest, AMealRunsOnTheHostAndEverySubscriberSeesIt) {
   std::shared_ptr<Subscription> early = host_->Subscribe();
   std::optional<std::string> first = early->Next(absl::Seconds(1));

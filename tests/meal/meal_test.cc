@@ -809,6 +809,21 @@ TEST_F(MealTest, EveryBiteNeedsALookOfItsOwn) {
   EXPECT_EQ(Events().size(), 2u);
 }
 
+// A look may move the arm (back to its viewing pose, on the JACO2): one
+// asked for before a STOP is not run after it.
+TEST_F(MealTest, ALookAskedForBeforeAStopIsNotRun) {
+  auto meal = NewMeal();
+  const uint64_t asked = meal->stops();
+  ASSERT_OK(meal->Stop().status());
+  EXPECT_THAT(meal->LookAtPlate(asked),
+              StatusIs(absl::StatusCode::kFailedPrecondition,
+                       HasSubstr("STOP was pressed after this look at the "
+                                 "plate was asked for; nothing was moved")));
+  EXPECT_EQ(meal->state().plate_version(), 0);
+  ASSERT_OK(meal->LookAtPlate(meal->stops()));
+  EXPECT_TRUE(meal->state().plate_fresh());
+}
+
 TEST_F(MealTest, AnItemNotOnThePlateChangesNothing) {
   auto meal = NewMeal();
   EXPECT_THAT(meal->Bite(0), StatusIs(absl::StatusCode::kFailedPrecondition,
