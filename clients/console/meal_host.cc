@@ -195,7 +195,9 @@ absl::StatusOr<mealpb::MealState> MealHost::StartMeal(
         OnNote(absl::StrCat("journal: delivered ", *delivered,
                             " update(s) left from before"));
       }
-      (void)meal->LookAtPlate();  // a failure is in the meal's state
+      // A failure is in the meal's state. A STOP from the meal's start on
+      // (its count starts at 0) cancels this first look.
+      (void)meal->LookAtPlate(uint64_t{0});
     });
     if (!queued.ok()) return queued;
     meal_ = meal;

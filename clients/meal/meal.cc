@@ -297,19 +297,27 @@ absl::Status Meal::LookAtPlate(std::optional<uint64_t> stops_when_asked) {
         "a bite or a look at the plate is already running");
   }
   BusyGuard busy(&busy_mu_);
+  bool stopped_since = false;
   {
     absl::MutexLock lock(&mu_);
     if (!state_.running()) {
       return absl::FailedPreconditionError(
           absl::StrCat("meal ", state_.meal_id(), " is over"));
     }
-    if (stops_when_asked.has_value() && stops_ > *stops_when_asked) {
-      // The look may move the arm (back to its viewing pose): not after a
-      // STOP the person pressed since asking.
-      return absl::FailedPreconditionError(
-          "STOP was pressed after this look at the plate was asked for; "
-          "nothing was moved: look again when ready");
-    }
+    stopped_since = stops_when_asked.has_value() && stops_ > *stops_when_asked;
+  }
+  if (stopped_since) {
+    // The look may move the arm (back to its viewing pose): not after a
+    // STOP the person pressed since asking. Said as a failed look, so the
+    // page offers to look again.
+    return Fail(mealpb::STEP_CAPTURE,
+                absl::FailedPreconditionError(
+                    "STOP was pressed after this look at the plate was asked "
+                    "for; nothing was moved: look again when ready"),
+                "", "nothing was moved");
+  }
+  {
+    absl::MutexLock lock(&mu_);
     state_.set_phase("looking");
     state_.clear_error();
     state_.set_plate_fresh(false);

@@ -465,6 +465,8 @@ std::pair<double, double> Distance(const ForkPose& pose, const ForkPose& goal) {
 
 constexpr double kViewToleranceM = 0.01;
 constexpr double kViewToleranceRad = 0.05;
+// How long a Stop keeps MoveToView from moving the arm.
+constexpr double kStopHoldsS = 1.0;
 
 }  // namespace
 
@@ -514,6 +516,16 @@ absl::StatusOr<bool> Robot::MoveToView() {
           "the arm is moving (", motion_, ", phase ", AcquirePhaseName(phase_),
           "); no picture is taken from a moving arm"));
     }
+    // A Stop that reached an idle robot just before this call (the person
+    // pressed STOP as the look was being asked for) is not overridden by a
+    // motion nobody asked for since.
+    const double since_stop_s = SteadyNowS() - last_stop_s_;
+    if (since_stop_s < kStopHoldsS) {
+      return absl::FailedPreconditionError(absl::StrFormat(
+          "a Stop came %.0f ms ago: the arm is not moved back to its viewing "
+          "pose within %.0f s of one; look again",
+          1e3 * since_stop_s, kStopHoldsS));
+    }
     view = *view_pose_;
     busy_ = true;
     motion_ = "the return to the viewing pose";
@@ -521,8 +533,10 @@ absl::StatusOr<bool> Robot::MoveToView() {
   }
   absl::StatusOr<ForkPose> now = arm_->MeasuredPose();
   if (now.ok()) {
+    // Half the tolerance CheckAtView allows: an arm left at its edge is
+    // moved, not refused after the picture.
     const auto [metres, radians] = Distance(*now, view);
-    if (metres <= kViewToleranceM && radians <= kViewToleranceRad) {
+    if (metres <= kViewToleranceM / 2 && radians <= kViewToleranceRad / 2) {
       std::lock_guard<std::mutex> lock(mu_);
       busy_ = false;
       return false;
@@ -602,6 +616,7 @@ absl::StatusOr<bool> Robot::Stop() {
     std::lock_guard<std::mutex> lock(mu_);
     was_running = busy_;
     if (busy_) stop_requested_ = true;
+    last_stop_s_ = SteadyNowS();
     halted = arm_->Halt();
   }
   stop_cv_.notify_all();

@@ -221,6 +221,7 @@ class Robot {
   std::atomic<int64_t> control_overruns_{0};
   std::optional<ForkPose> view_pose_;  // RecordViewPose's
   const char* motion_ = "";            // what busy_ is for, for messages
+  double last_stop_s_ = -1e9;          // when Stop was last called (SteadyNowS)
   // ArmReadiness's last answer and when it was asked.
   absl::Status arm_readiness_;
   double arm_checked_s_ = -1e9;

@@ -305,6 +305,13 @@ TEST_F(RobotTest, TheArmGoesBackToItsViewingPoseUnderProtection) {
               HasSubstr("The return to the viewing pose stopped by a Stop "
                         "request"));
   EXPECT_TRUE(ArmFrozen());
+  // Nor does it go back by itself right after a Stop (one that reached an
+  // idle robot just before a look was sent would otherwise be overridden).
+  const absl::StatusOr<bool> held = backend_->robot().MoveToView();
+  EXPECT_EQ(held.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(held.status().message(), HasSubstr("a Stop came"));
+  EXPECT_TRUE(ArmFrozen());
+  absl::SleepFor(absl::Seconds(1.1));
 
   // A silent sensor: the arm does not move at all.
   SetFault([](sim::SimNetFtFaults* f) { f->silent = true; });

@@ -149,6 +149,12 @@ async function stops(page, count) {
     if (state.current?.outcome !== 'stopped') {
       console.error(`note: bite ${number} ended "${state.current?.outcome}" after STOP: ${state.current?.text}`);
     }
+    // A stopped bite is not followed by a look of the console's own (a look
+    // may move the arm): ask for it, as the person would.
+    if (state.running && !state.plate_fresh) {
+      await waitForMeal((s) => s.phase === 'failed' || !s.running, 30000, `bite ${number} to settle`);
+      await postWhenFree('/api/meal/look', {});
+    }
   }
   await postWhenFree('/api/meal/end', {});
   await waitForMeal((s) => !s.running, 10000, 'the meal to end');

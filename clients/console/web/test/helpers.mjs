@@ -239,10 +239,10 @@ export async function waitForMeal(done, timeout = 60000, what = 'the meal') {
 }
 
 /**
- * The plate is on show and a tap would start a bite. This assumes the
- * console looks at the plate again after each bite (phase "choosing"), as
- * the CLI orchestrator does before each bite; after a failed or stopped bite
- * the phase may stay "failed".
+ * The plate is on show and a tap would start a bite: a look no bite has
+ * used. The console looks again after each bite that went well; after a
+ * failed or stopped bite the phase stays "failed" until "Look at the plate
+ * again".
  */
 export const readyForBite = (s) => s.running && s.phase === 'choosing' && s.plate_fresh === true;
 
