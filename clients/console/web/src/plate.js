@@ -112,7 +112,10 @@ export function createPlate({ onChoose }) {
           ? 'No food detected.'
           : canChoose
             ? `${count(items.length, 'item')} on the plate. Tap one to eat it next, or let the robot choose.`
-            : `${count(items.length, 'item')} on the plate.`,
+            : state.running && !state.plate_fresh && state.phase === 'failed'
+              ? // A bite since may have taken or moved them.
+                `${count(items.length, 'item')} seen before bite ${state.bite}; look at the plate again to choose.`
+              : `${count(items.length, 'item')} on the plate.`,
     );
   }
 

@@ -308,6 +308,8 @@ describe('table view', { skip: SKIP }, () => {
     // A stopped bite is not followed by a look (it may move the arm back to
     // its viewing pose): the person asks for it.
     await waitForMeal((s) => s.phase === 'failed' && !s.plate_fresh, 20000, 'the stopped bite to settle');
+    // The plate says its items are from before the bite, and takes no tap.
+    await waitIn(page, () => /seen before bite 3; look at the plate again/.test(document.querySelector('.plate-caption').textContent));
     await press(page, '#look-again');
     await waitForPlate();
     assert.match(await page.$eval('#stop-status', (e) => e.textContent), /^Stopped: the arm was moving and was halted at /);
