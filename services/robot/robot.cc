@@ -9,6 +9,7 @@
 #include "absl/strings/cord.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/strings/string_view.h"
 #include "services/common/status_macros.h"
 #include "services/domain/steady_time.h"
 
@@ -465,6 +466,20 @@ std::pair<double, double> Distance(const ForkPose& pose, const ForkPose& goal) {
 
 constexpr double kViewToleranceM = 0.01;
 constexpr double kViewToleranceRad = 0.05;
+
+// OK when `pose` is within `share` of the viewing tolerance (1 cm, 0.05
+// rad) of `view`; else FAILED_PRECONDITION saying how far it is, then `what`.
+absl::Status NearView(const ForkPose& pose, const ForkPose& view, double share,
+                      absl::string_view what) {
+  const auto [metres, radians] = Distance(pose, view);
+  if (metres <= share * kViewToleranceM &&
+      radians <= share * kViewToleranceRad) {
+    return absl::OkStatus();
+  }
+  return absl::FailedPreconditionError(absl::StrFormat(
+      "the arm was %.1f cm and %.2f rad from its viewing pose %s", 100 * metres,
+      radians, what));
+}
 // How long a Stop keeps MoveToView from moving the arm.
 constexpr double kStopHoldsS = 1.0;
 
@@ -535,8 +550,7 @@ absl::StatusOr<bool> Robot::MoveToView() {
   if (now.ok()) {
     // Half the tolerance CheckAtView allows: an arm left at its edge is
     // moved, not refused after the picture.
-    const auto [metres, radians] = Distance(*now, view);
-    if (metres <= kViewToleranceM / 2 && radians <= kViewToleranceRad / 2) {
+    if (NearView(*now, view, 0.5, "").ok()) {
       std::lock_guard<std::mutex> lock(mu_);
       busy_ = false;
       return false;
@@ -562,13 +576,9 @@ absl::StatusOr<bool> Robot::MoveToView() {
     absl::StatusOr<ForkPose> reached = arm_->MeasuredPose();
     status = reached.status();
     if (reached.ok()) {
-      const auto [metres, radians] = Distance(*reached, view);
-      if (metres > kViewToleranceM || radians > kViewToleranceRad) {
-        status = absl::FailedPreconditionError(absl::StrFormat(
-            "the arm ended %.1f cm and %.2f rad from its viewing pose; the "
-            "camera's view is known only there",
-            100 * metres, radians));
-      }
+      status = NearView(*reached, view, 1.0,
+                        "after going back; the camera's view is known only "
+                        "there");
     }
   }
   std::lock_guard<std::mutex> lock(mu_);
@@ -599,14 +609,7 @@ absl::Status Robot::CheckAtView() {
     view = *view_pose_;
   }
   ASSIGN_OR_RETURN(const ForkPose now, arm_->MeasuredPose());
-  const auto [metres, radians] = Distance(now, view);
-  if (metres > kViewToleranceM || radians > kViewToleranceRad) {
-    return absl::FailedPreconditionError(absl::StrFormat(
-        "the arm was %.1f cm and %.2f rad from its viewing pose when the "
-        "picture was taken; look again",
-        100 * metres, radians));
-  }
-  return absl::OkStatus();
+  return NearView(now, view, 1.0, "when the picture was taken; look again");
 }
 
 absl::StatusOr<bool> Robot::Stop() {
