@@ -10,6 +10,7 @@
 #include <sstream>
 #include <string>
 
+#include "absl/strings/match.h"
 #include "gmock/gmock.h"
 #include "gtest/gtest.h"
 #include "onnx/onnx_pb.h"
@@ -315,6 +316,53 @@ TEST(HapticNetTest, RejectsAModelThatBreaksTheGraphContract) {
       HapticNet::FromOnnxBytes(model.SerializeAsString(), "renamed.onnx");
   ASSERT_EQ(net.status().code(), absl::StatusCode::kInvalidArgument);
   EXPECT_THAT(net.status().message(), HasSubstr("graph contract"));
+}
+
+// An export in the style of the original research code, normalising
+// outside the graph, runs (OpenCV takes it) but would answer nonsense on
+// raw windows: refused at load, naming the contract. Without the Sub and
+// Div, fc1 reads the input directly; and with a Sub by another tensor.
+TEST(HapticNetTest, RejectsAModelThatDoesNotNormaliseItsInput) {
+  onnx::ModelProto model;
+  ASSERT_TRUE(model.ParseFromString(HapticNetToOnnx(RandomWeights(5), {})));
+  onnx::ModelProto bare = model;
+  onnx::GraphProto* graph = bare.mutable_graph();
+  std::string normalised;
+  for (int i = graph->node_size() - 1; i >= 0; --i) {
+    const std::string op = graph->node(i).op_type();
+    if (op == "Div") normalised = graph->node(i).output(0);
+    if (op == "Sub" || op == "Div") graph->mutable_node()->DeleteSubrange(i, 1);
+  }
+  ASSERT_FALSE(normalised.empty());
+  for (auto& node : *graph->mutable_node()) {
+    for (auto& input : *node.mutable_input()) {
+      if (input == normalised) input = kHapticNetInputName;
+    }
+  }
+  absl::StatusOr<std::unique_ptr<HapticNet>> net =
+      HapticNet::FromOnnxBytes(bare.SerializeAsString(), "bare.onnx");
+  ASSERT_EQ(net.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(net.status().message(),
+              HasSubstr("bare.onnx does not normalise its input in the graph"));
+  EXPECT_THAT(net.status().message(), HasSubstr("Gemm"));
+
+  onnx::ModelProto other = model;
+  for (auto& node : *other.mutable_graph()->mutable_node()) {
+    if (node.op_type() == "Sub") {
+      // Subtract the stddev instead: the wrong statistic.
+      for (const auto& t : other.graph().initializer()) {
+        if (absl::EndsWith(t.name(), "input_stddev")) {
+          node.set_input(1, t.name());
+        }
+      }
+    }
+  }
+  net = HapticNet::FromOnnxBytes(other.SerializeAsString(), "other.onnx");
+  ASSERT_EQ(net.status().code(), absl::StatusCode::kInvalidArgument);
+  EXPECT_THAT(net.status().message(), HasSubstr("goes into a Sub node"));
+  // The model as written loads.
+  EXPECT_TRUE(
+      HapticNet::FromOnnxBytes(model.SerializeAsString(), "ok.onnx").ok());
 }
 
 // The shipped model's bytes with its "bitewise.window_s" entry set to

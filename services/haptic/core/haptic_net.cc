@@ -1,12 +1,15 @@
 #include "services/haptic/core/haptic_net.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <utility>
 #include <vector>
 
+#include "absl/strings/match.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
@@ -76,13 +79,80 @@ absl::StatusOr<HapticNetOutput> Forward(
   return out;
 }
 
-// The model's "bitewise.window_s" metadata entry, if any.
+// The graph contract's normalisation: the raw window goes only into
+// Sub(<...>input_mean) and on into Div(<...>input_stddev), both [1, 384]
+// initializers (an ensemble's members each have their own). A model
+// exported without them (the original research code normalised outside
+// the graph) would run on raw windows and answer nonsense with confidence.
+absl::Status CheckNormalisation(const onnx::ModelProto& model,
+                                const std::string& source) {
+  const onnx::GraphProto& graph = model.graph();
+  std::map<std::string, int64_t> initializer_size;
+  for (const onnx::TensorProto& t : graph.initializer()) {
+    int64_t size = 1;
+    for (int64_t d : t.dims()) size *= d;
+    initializer_size[t.name()] = size;
+  }
+  const auto is_statistic = [&](const std::string& name,
+                                absl::string_view suffix) {
+    const auto it = initializer_size.find(name);
+    return absl::EndsWith(name, suffix) && it != initializer_size.end() &&
+           it->second == kHapticInputs;
+  };
+  const auto refuse = [&](const std::string& why) {
+    return absl::InvalidArgumentError(
+        absl::StrCat("HapticNet model ", source,
+                     " does not normalise its input in the "
+                     "graph (docs/haptic.md, graph contract: \"",
+                     kHapticNetInputName,
+                     "\" -> Sub(input_mean) -> Div(input_stddev), both [1, ",
+                     kHapticInputs, "] initializers): ", why));
+  };
+  int users = 0;
+  for (const onnx::NodeProto& node : graph.node()) {
+    if (std::find(node.input().begin(), node.input().end(),
+                  kHapticNetInputName) == node.input().end()) {
+      continue;
+    }
+    ++users;
+    if (node.op_type() != "Sub" || node.input_size() != 2 ||
+        node.input(0) != kHapticNetInputName ||
+        !is_statistic(node.input(1), "input_mean") || node.output_size() != 1) {
+      return refuse(absl::StrCat("the input goes into a ", node.op_type(),
+                                 " node \"", node.name(), "\""));
+    }
+    bool divided = false;
+    for (const onnx::NodeProto& next : graph.node()) {
+      if (std::find(next.input().begin(), next.input().end(), node.output(0)) ==
+          next.input().end()) {
+        continue;
+      }
+      if (next.op_type() != "Div" || next.input_size() != 2 ||
+          next.input(0) != node.output(0) ||
+          !is_statistic(next.input(1), "input_stddev")) {
+        return refuse(absl::StrCat("after input_mean comes a ", next.op_type(),
+                                   " node \"", next.name(), "\""));
+      }
+      divided = true;
+    }
+    if (!divided) return refuse("nothing divides by input_stddev");
+  }
+  if (users == 0) return refuse("no node reads the input");
+  return absl::OkStatus();
+}
+
+// The model's "bitewise.window_s" metadata entry, if any, after the
+// normalisation check.
 absl::StatusOr<std::optional<double>> DeclaredWindow(
     absl::string_view bytes, const std::string& source) {
   onnx::ModelProto model;
   if (!model.ParseFromArray(bytes.data(), static_cast<int>(bytes.size()))) {
     return absl::InvalidArgumentError(absl::StrCat(
         "HapticNet model ", source, " is not a parsable ONNX ModelProto"));
+  }
+  if (absl::Status normalised = CheckNormalisation(model, source);
+      !normalised.ok()) {
+    return normalised;
   }
   for (const onnx::StringStringEntryProto& entry : model.metadata_props()) {
     if (entry.key() != kHapticNetWindowKey) continue;

@@ -498,6 +498,17 @@ absl::StatusOr<std::vector<RecordedTrace>> ReadCsv(const std::string& path,
       return absl::InvalidArgumentError(
           absl::StrCat(path, ":", line_number, ": malformed number"));
     }
+    // SimpleAtod takes "nan", "inf" and "1e999": no sensor sends them.
+    bool finite = std::isfinite(sample.t_s);
+    for (int c = 0; c < kWrenchChannels && finite; ++c) {
+      finite = std::isfinite(Channel(sample.wrench, c));
+    }
+    if (!finite) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(path, ":", line_number,
+                       ": a time or a reading is not a finite "
+                       "number"));
+    }
     if (traces.empty() || fields[0] != traces.back().id) {
       if (fields[0].empty()) {
         return absl::InvalidArgumentError(

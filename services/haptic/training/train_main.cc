@@ -17,6 +17,7 @@
 #include <numeric>
 #include <optional>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -596,23 +597,55 @@ int main(int argc, char** argv) {
       absl::StatusOr<std::map<std::string, std::optional<HapticClass>>> labels =
           ReadTraceLabels(absl::GetFlag(FLAGS_labels));
       if (!labels.ok()) return Die(labels.status().ToString());
+      int without_row = 0;
+      std::set<std::string> matched;
       for (RecordedTrace& trace : *read) {
         const auto it = labels->find(trace.id);
-        if (it != labels->end()) trace.label = it->second;
+        if (it != labels->end()) {
+          trace.label = it->second;
+          matched.insert(trace.id);
+        } else {
+          ++without_row;
+        }
       }
+      std::printf(
+          "--labels %s: %zu of its %zu rows match a trace; %d traces have "
+          "no row there and keep their own label\n",
+          absl::GetFlag(FLAGS_labels).c_str(), matched.size(), labels->size(),
+          without_row);
     }
-    int unlabelled = 0;
+    // A recorded trace is trained on only if the HapticService would
+    // classify it as it stands: its checks (finite values, time order, a
+    // rate of 90 Hz-7.7 kHz) and its contact rules, the free stretch
+    // before contact that the sensor's offset is taken from included.
+    HapticPipelineOptions service_rules;
+    service_rules.window.window_s = absl::GetFlag(FLAGS_window_s);
+    service_rules.contact.require_free_tare = true;
+    int unlabelled = 0, refused = 0;
+    std::string first_refusal;
     for (RecordedTrace& trace : *read) {
       if (!trace.label.has_value()) {
         ++unlabelled;
         continue;
       }
+      if (absl::StatusOr<HapticFeatures> usable =
+              ExtractHapticFeatures(trace.samples, service_rules);
+          !usable.ok()) {
+        if (refused++ == 0) {
+          first_refusal =
+              absl::StrCat("trace ", trace.id, ": ", usable.status().message());
+        }
+        continue;
+      }
       recorded.push_back(
           {*trace.label, std::move(trace.samples), kRecordedSource});
     }
-    std::printf("recorded traces: %zu labelled, %d unknown (skipped) in %s\n",
-                recorded.size(), unlabelled,
-                absl::GetFlag(FLAGS_traces).c_str());
+    std::printf(
+        "recorded traces: %zu labelled, %d unknown (skipped) in %s; %d of "
+        "the labelled the HapticService would refuse (skipped%s%s)\n",
+        recorded.size() + refused, unlabelled,
+        absl::GetFlag(FLAGS_traces).c_str(), refused,
+        refused > 0 ? "; the first, " : "", first_refusal.c_str());
     if (recorded.empty()) return Die("no labelled recorded traces to train on");
     absl::StrAppend(&source, source.empty() ? "" : " + ", "recorded ",
                     absl::GetFlag(FLAGS_traces), " (", recorded.size(),
@@ -750,6 +783,26 @@ int main(int argc, char** argv) {
   if (absl::GetFlag(FLAGS_familiarity) ||
       absl::GetFlag(FLAGS_familiarity_only)) {
     const std::string path = FamiliarityPathFor(absl::GetFlag(FLAGS_out));
+    // A score for the model already at --out is fitted on that model's
+    // windows: the service computes it on them.
+    if (absl::GetFlag(FLAGS_familiarity_only) &&
+        std::filesystem::exists(absl::GetFlag(FLAGS_out))) {
+      absl::StatusOr<std::unique_ptr<HapticNet>> net =
+          HapticNet::FromOnnxFile(absl::GetFlag(FLAGS_out));
+      if (!net.ok()) return Die(net.status().ToString());
+      const std::optional<double> declared = (*net)->window_s();
+      const double window_s = absl::GetFlag(FLAGS_window_s);
+      if (std::abs(declared.value_or(WindowOptions().window_s) - window_s) >
+          1e-9) {
+        return Die(absl::StrCat(
+            absl::GetFlag(FLAGS_out), " was trained on a ",
+            declared.value_or(WindowOptions().window_s),
+            " s window, but --window_s=", window_s,
+            ": its familiarity score must be fitted on the windows the "
+            "service computes it on; give --window_s=",
+            declared.value_or(WindowOptions().window_s)));
+      }
+    }
     if (int failed =
             FitFamiliarity(train_windows, validation_windows, test_windows,
                            held_out, seed + 1000, pipeline,
