@@ -16,10 +16,30 @@ bool IsPostgresSpec(const std::string& spec) {
          absl::StartsWith(spec, "postgres://");
 }
 
+// libpq's other form, "host=db dbname=bitewise password=...": taken for a
+// file name it would be echoed in messages (password and all) and, with
+// --create, made as a file.
+bool LooksLikeLibpqKeyValue(const std::string& spec) {
+  for (const char* key : {"host=", "hostaddr=", "dbname=", "user=", "password=",
+                          "port=", "sslmode=", "service="}) {
+    if (absl::StartsWith(spec, key) ||
+        absl::StrContains(spec, absl::StrCat(" ", key))) {
+      return true;
+    }
+  }
+  return false;
+}
+
 absl::StatusOr<std::unique_ptr<EventStore>> OpenEventStore(
     const std::string& spec, const OpenStoreOptions& options) {
   if (spec.empty()) {
     return absl::InvalidArgumentError("the store location is empty");
+  }
+  if (!IsPostgresSpec(spec) && LooksLikeLibpqKeyValue(spec)) {
+    return absl::InvalidArgumentError(
+        "the store location looks like libpq's key=value form (not echoed "
+        "here: it may hold a password); give a PostgreSQL database as a URI, "
+        "postgresql://USER@HOST:PORT/DB?sslmode=..., or a SQLite file name");
   }
   if (IsPostgresSpec(spec)) {
     PostgresStoreOptions pg;
@@ -45,6 +65,7 @@ absl::StatusOr<std::unique_ptr<EventStore>> OpenEventStore(
 }
 
 std::string DescribeStoreSpec(const std::string& spec) {
+  if (LooksLikeLibpqKeyValue(spec)) return "(a libpq key=value string)";
   if (!IsPostgresSpec(spec)) return spec;
   std::string out = spec;
   // postgresql://user:password@host/...: the password goes.
@@ -57,14 +78,17 @@ std::string DescribeStoreSpec(const std::string& spec) {
       out = absl::StrCat(out.substr(0, colon), ":***", out.substr(at));
     }
   }
-  // ...?password=secret&...: so does this one.
-  for (size_t key = out.find("password="); key != std::string::npos;
-       key = out.find("password=", key + 1)) {
-    if (key > 0 && out[key - 1] != '?' && out[key - 1] != '&') continue;
-    const size_t value = key + 9;
-    const size_t end = out.find('&', value);
-    out = absl::StrCat(out.substr(0, value), "***",
-                       end == std::string::npos ? "" : out.substr(end));
+  // ...?password=secret&... and the client key's passphrase,
+  // ...?sslpassword=secret&...: so do these.
+  for (const std::string name : {"password=", "sslpassword="}) {
+    for (size_t key = out.find(name); key != std::string::npos;
+         key = out.find(name, key + 1)) {
+      if (key > 0 && out[key - 1] != '?' && out[key - 1] != '&') continue;
+      const size_t value = key + name.size();
+      const size_t end = out.find('&', value);
+      out = absl::StrCat(out.substr(0, value), "***",
+                         end == std::string::npos ? "" : out.substr(end));
+    }
   }
   return out;
 }

@@ -37,6 +37,10 @@ struct OpenStoreOptions {
 // Whether `spec` names a PostgreSQL store.
 bool IsPostgresSpec(const std::string& spec);
 
+// Whether `spec` looks like libpq's key=value form ("host=db dbname=x"),
+// which OpenEventStore refuses without echoing it (it may hold a password).
+bool LooksLikeLibpqKeyValue(const std::string& spec);
+
 // The store at `spec`, opened (Open's errors of the store it names), and
 // watched for write faults (FaultWatchStore: health reports a storage that
 // refuses writes until a probe write succeeds).
@@ -44,7 +48,8 @@ bool IsPostgresSpec(const std::string& spec);
 absl::StatusOr<std::unique_ptr<EventStore>> OpenEventStore(
     const std::string& spec, const OpenStoreOptions& options);
 
-// `spec` as it may be logged: a PostgreSQL URI without its password.
+// `spec` as it may be logged: a PostgreSQL URI without its password (and
+// its client key's passphrase); nothing of a key=value string.
 std::string DescribeStoreSpec(const std::string& spec);
 
 }  // namespace bitewise::bandit

@@ -45,8 +45,28 @@ absl::StatusOr<std::vector<EventRecord>> PendingEvents(
   }
 }
 
+absl::StatusOr<std::vector<AuditEntry>> AllAudit(EventStore& store) {
+  std::vector<AuditEntry> entries;
+  Page page;
+  page.page_size = 1000;
+  while (true) {
+    ASSIGN_OR_RETURN(PageResult<AuditEntry> result, store.ListAudit(page));
+    for (AuditEntry& entry : result.items) entries.push_back(std::move(entry));
+    if (result.next_page_token.empty()) return entries;
+    page.page_token = result.next_page_token;
+  }
+}
+
+bool SameAudit(const AuditEntry& a, const AuditEntry& b) {
+  return a.time == b.time && a.method == b.method && a.target == b.target &&
+         a.identity == b.identity && a.role == b.role && a.peer == b.peer &&
+         a.result == b.result;
+}
+
 absl::Status CopyUser(EventStore& from, EventStore& to,
-                      const std::string& user_id, CopyReport& report) {
+                      const std::string& user_id,
+                      const std::function<bool()>& interrupted,
+                      CopyReport& report) {
   ASSIGN_OR_RETURN(UserRecord user, from.GetUser(user_id));
   ASSIGN_OR_RETURN(std::vector<EventRecord> completed,
                    from.CompletedEvents(user_id));
@@ -67,7 +87,14 @@ absl::Status CopyUser(EventStore& from, EventStore& to,
                                                  "user failed too: ",
                                                  removed.message())));
   };
+  const auto stop = [&](int64_t event_id) {
+    return undo(absl::CancelledError(
+                    absl::StrCat("interrupted; ", report.users,
+                                 " users before it were copied whole")),
+                event_id);
+  };
   for (const EventRecord& event : completed) {
+    if (interrupted && interrupted()) return stop(event.event_id);
     absl::StatusOr<int64_t> id = to.AppendPending(event);
     if (!id.ok()) return undo(id.status(), event.event_id);
     absl::StatusOr<EventRecord> done = to.CompleteEvent(
@@ -81,6 +108,7 @@ absl::Status CopyUser(EventStore& from, EventStore& to,
     }
   }
   for (const EventRecord& event : pending) {
+    if (interrupted && interrupted()) return stop(event.event_id);
     absl::StatusOr<int64_t> id = to.AppendPending(event);
     if (!id.ok()) return undo(id.status(), event.event_id);
   }
@@ -248,7 +276,8 @@ absl::Status VerifyUser(EventStore& a, EventStore& b,
 }  // namespace
 
 absl::StatusOr<CopyReport> CopyUsers(EventStore& from, EventStore& to,
-                                     const std::string& user_id) {
+                                     const std::string& user_id,
+                                     const std::function<bool()>& interrupted) {
   std::vector<std::string> ids;
   if (user_id.empty()) {
     ASSIGN_OR_RETURN(ids, AllUserIds(from));
@@ -257,7 +286,33 @@ absl::StatusOr<CopyReport> CopyUsers(EventStore& from, EventStore& to,
   }
   CopyReport report;
   for (const std::string& id : ids) {
-    RETURN_IF_ERROR(CopyUser(from, to, id, report));
+    if (interrupted && interrupted()) {
+      return absl::CancelledError(
+          absl::StrCat("interrupted before user \"", id, "\"; ", report.users,
+                       " users before it were copied whole"));
+    }
+    RETURN_IF_ERROR(CopyUser(from, to, id, interrupted, report));
+  }
+  if (!user_id.empty()) return report;
+  // The administrative history goes with everyone: who reset, deleted or
+  // changed whom, and when.
+  ASSIGN_OR_RETURN(const std::vector<AuditEntry> audit, AllAudit(from));
+  for (const AuditEntry& entry : audit) {
+    if (interrupted && interrupted()) {
+      return absl::CancelledError(absl::StrCat(
+          "interrupted while copying the audit log (", report.audit_entries,
+          " of ", audit.size(), " entries copied; every user was copied)"));
+    }
+    absl::StatusOr<int64_t> id = to.AppendAudit(entry);
+    if (!id.ok()) {
+      return absl::Status(
+          id.status().code(),
+          absl::StrCat("copying audit entry ", entry.audit_id, " (",
+                       report.audit_entries,
+                       " copied before it; every user was copied): ",
+                       id.status().message()));
+    }
+    ++report.audit_entries;
   }
   return report;
 }
@@ -280,6 +335,26 @@ absl::StatusOr<VerifyReport> VerifyCopy(EventStore& a, EventStore& b,
         report.differences.size() < kMaxDifferences) {
       report.differences.push_back(
           absl::StrCat("user \"", id, "\": only in the copy"));
+    }
+  }
+  // The audit log: a's entries, in order, at the end of b's.
+  ASSIGN_OR_RETURN(const std::vector<AuditEntry> audit_a, AllAudit(a));
+  ASSIGN_OR_RETURN(const std::vector<AuditEntry> audit_b, AllAudit(b));
+  report.audit_entries = static_cast<int64_t>(audit_a.size());
+  if (report.differences.size() >= kMaxDifferences) {
+    // already full
+  } else if (audit_b.size() < audit_a.size()) {
+    report.differences.push_back(absl::StrCat(
+        "audit log: ", audit_a.size(), " entries against ", audit_b.size()));
+  } else {
+    const size_t offset = audit_b.size() - audit_a.size();
+    for (size_t i = 0; i < audit_a.size(); ++i) {
+      if (!SameAudit(audit_a[i], audit_b[offset + i])) {
+        report.differences.push_back(absl::StrCat(
+            "audit log: entry ", audit_a[i].audit_id, " differs in the copy (",
+            audit_b[offset + i].audit_id, ")"));
+        break;
+      }
     }
   }
   return report;

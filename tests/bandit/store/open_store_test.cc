@@ -22,6 +22,7 @@ namespace {
 using ::bitewise::testing::IsOk;
 using ::bitewise::testing::StatusIs;
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 class OpenEventStoreTest : public ::testing::Test {
  protected:
@@ -115,6 +116,25 @@ TEST_F(OpenEventStoreTest, APostgresUriOpensThePostgresStore) {
   server->Query("postgres", "DROP DATABASE open_store_test").IgnoreError();
 }
 
+// libpq's key=value form is not taken for a SQLite file: refused, not
+// echoed (it may hold a password), and no file is made even with create.
+TEST(OpenStoreLocationTest, LibpqKeyValueFormIsRefusedWithoutEchoingIt) {
+  OpenStoreOptions options;
+  options.create_if_missing = true;
+  for (const std::string spec :
+       {"host=db dbname=bitewise password=s3cret", "dbname=x",
+        "port=5432 user=bw password=s3cret"}) {
+    absl::StatusOr<std::unique_ptr<EventStore>> store =
+        OpenEventStore(spec, options);
+    EXPECT_EQ(store.status().code(), absl::StatusCode::kInvalidArgument)
+        << spec;
+    EXPECT_THAT(store.status().message(), HasSubstr("key=value form"));
+    EXPECT_THAT(store.status().message(), Not(HasSubstr("s3cret")));
+    EXPECT_FALSE(std::filesystem::exists(spec)) << spec;  // relative
+    std::filesystem::remove(spec);
+  }
+}
+
 TEST(DescribeStoreSpecTest, EveryPasswordIsHiddenAndNothingElse) {
   EXPECT_EQ(
       DescribeStoreSpec("postgresql://bw:s3cret@db:5432/bitewise?password=x&"
@@ -122,9 +142,12 @@ TEST(DescribeStoreSpecTest, EveryPasswordIsHiddenAndNothingElse) {
       "postgresql://bw:***@db:5432/bitewise?password=***&sslmode=require&"
       "password=***");
   EXPECT_EQ(DescribeStoreSpec("postgres://:pw@db"), "postgres://:***@db");
-  // Not a password: another key ending in it, a colon after the host.
-  EXPECT_EQ(DescribeStoreSpec("postgresql://db:5432/x?sslpassword=keep"),
-            "postgresql://db:5432/x?sslpassword=keep");
+  // The client key's passphrase is one too; not a password: another key
+  // ending in it, a colon after the host.
+  EXPECT_EQ(DescribeStoreSpec("postgresql://db:5432/x?sslpassword=pp"),
+            "postgresql://db:5432/x?sslpassword=***");
+  EXPECT_EQ(DescribeStoreSpec("postgresql://db/x?oldpassword=keep"),
+            "postgresql://db/x?oldpassword=keep");
   EXPECT_EQ(DescribeStoreSpec("postgresql://db/x?user=a@b"),
             "postgresql://db/x?user=a@b");
   EXPECT_EQ(DescribeStoreSpec("bandit.db"), "bandit.db");

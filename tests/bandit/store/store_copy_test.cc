@@ -224,6 +224,77 @@ TEST_F(StoreCopyTest, DamagedCopyIsFoundAndNamed) {
   EXPECT_THAT(verified->differences[0], HasSubstr("pending events"));
 }
 
+// A workstation replaced keeps its administrative history: the audit log
+// goes with a copy of everyone (after the target's own entries), verify
+// compares it, and a one-user export leaves it alone.
+TEST_F(StoreCopyTest, TheAuditLogGoesWithEveryone) {
+  std::unique_ptr<SqliteEventStore> original = Open("original");
+  ASSERT_NE(original, nullptr);
+  Fill(*original, 3);
+  for (int i = 0; i < 5; ++i) {
+    AuditEntry entry;
+    entry.time = absl::FromUnixMicros(1700000300000000 + i);
+    entry.method =
+        i % 2 ? "BanditService/ResetUser" : "BanditService/SetLearner";
+    entry.target = absl::StrCat("user-", i % 3);
+    entry.identity = "ops";
+    entry.role = "admin";
+    entry.peer = "ipv4:10.0.0.9:5555";
+    entry.result = i == 4 ? "NOT_FOUND" : "OK";
+    ASSERT_TRUE(original->AppendAudit(entry).ok());
+  }
+  std::unique_ptr<SqliteEventStore> copy = Open("copy");
+  AuditEntry own;
+  own.time = absl::FromUnixMicros(1600000000000000);
+  own.method = "BanditService/CheckStore";
+  own.result = "OK";
+  ASSERT_TRUE(copy->AppendAudit(own).ok());
+  absl::StatusOr<CopyReport> copied = CopyUsers(*original, *copy);
+  ASSERT_TRUE(copied.ok()) << copied.status();
+  EXPECT_EQ(copied->audit_entries, 5);
+  absl::StatusOr<VerifyReport> verified = VerifyCopy(*original, *copy);
+  ASSERT_TRUE(verified.ok()) << verified.status();
+  EXPECT_THAT(verified->differences, IsEmpty());
+  EXPECT_EQ(verified->audit_entries, 5);
+
+  // An export of one person carries no one's audit.
+  std::unique_ptr<SqliteEventStore> one = Open("one");
+  absl::StatusOr<CopyReport> exported = CopyUsers(*original, *one, "user-1");
+  ASSERT_TRUE(exported.ok()) << exported.status();
+  EXPECT_EQ(exported->audit_entries, 0);
+  // Compared as a whole, the export lacks the audit log (and two users).
+  absl::StatusOr<VerifyReport> partial = VerifyCopy(*original, *one);
+  ASSERT_TRUE(partial.ok()) << partial.status();
+  EXPECT_THAT(partial->differences,
+              ::testing::Contains("audit log: 5 entries against 0"));
+}
+
+// Ctrl-C or a stop during a copy: the user being copied is taken out of
+// the target again, those before it stay whole, and verify names only the
+// users not copied.
+TEST_F(StoreCopyTest, AnInterruptedCopyLeavesNoHalfCopiedUser) {
+  std::unique_ptr<SqliteEventStore> original = Open("original");
+  ASSERT_NE(original, nullptr);
+  Fill(*original, 4);
+  std::unique_ptr<SqliteEventStore> copy = Open("copy");
+  // user-0 has 5 events, user-1 6 (Fill): stop within user-1.
+  int asked = 0;
+  absl::StatusOr<CopyReport> copied =
+      CopyUsers(*original, *copy, "", [&] { return ++asked > 8; });
+  EXPECT_EQ(copied.status().code(), absl::StatusCode::kCancelled);
+  EXPECT_THAT(copied.status().message(), HasSubstr("copying user \"user-1\""));
+  EXPECT_THAT(copied.status().message(),
+              HasSubstr("interrupted; 1 users before it were copied whole; "
+                        "the user was removed from the copy"));
+  EXPECT_TRUE(copy->GetUser("user-0").ok());
+  EXPECT_EQ(copy->GetUser("user-1").status().code(),
+            absl::StatusCode::kNotFound);
+  absl::StatusOr<VerifyReport> verified =
+      VerifyCopy(*original, *copy, "user-0");
+  ASSERT_TRUE(verified.ok()) << verified.status();
+  EXPECT_THAT(verified->differences, IsEmpty());
+}
+
 // The binary, as an operator runs it: copy, verify (exit 0), then verify
 // against a store that differs (exit 1), and a store that is not there
 // (exit 2, naming it).
@@ -262,7 +333,17 @@ TEST_F(StoreCopyTest, AdminBinaryCopiesAndVerifies) {
                 &log),
             2)
       << log;
-  EXPECT_THAT(log, HasSubstr(Path("nothere")));
+  EXPECT_THAT(log,
+              HasSubstr(absl::StrCat("--from: no store at \"", Path("nothere"),
+                                     "\" (nothing to compare)")));
+  // One file named twice (once through a sqlite: prefix): refused, not
+  // "already open in another process".
+  EXPECT_EQ(run({"copy", "--from=" + Path("copy"),
+                 "--to=sqlite:" + dir_ + "/./copy.db"},
+                &log),
+            2)
+      << log;
+  EXPECT_THAT(log, HasSubstr("--from and --to are the same store"));
 }
 
 // The binary with a PostgreSQL URI on either side.
