@@ -8,9 +8,22 @@
 #include "absl/time/clock.h"
 #include "absl/time/time.h"
 #include "services/common/status_macros.h"
+#include "services/domain/random.h"
 #include "services/domain/steady_time.h"
 
 namespace bitewise::robot {
+
+SimStreamSeeds StreamSeeds(uint64_t seed) {
+  return {seed, random::MixSeed(seed, 1), random::MixSeed(seed, 2)};
+}
+
+sim::SimNetFtBoxOptions SimBoxOptions(const RobotBackendOptions& options) {
+  sim::SimNetFtBoxOptions box = options.sim.box;
+  box.seed = StreamSeeds(options.sim.seed).box;
+  box.counts_per_force = options.ft.counts_per_force;
+  box.counts_per_torque = options.ft.counts_per_torque;
+  return box;
+}
 
 absl::StatusOr<std::unique_ptr<RobotBackend>> RobotBackend::Create(
     const RobotBackendOptions& options) {
@@ -36,21 +49,19 @@ absl::StatusOr<std::unique_ptr<RobotBackend>> RobotBackend::MakeSimBackend(
     }
   }
   AcquisitionConfig acquisition = options.acquisition;
-  std::mt19937_64 plate_rng(sim_options.seed);
+  const SimStreamSeeds seeds = StreamSeeds(sim_options.seed);
+  std::mt19937_64 plate_rng(seeds.plate);
   const sim::PlateScene scene =
       sim::RandomPlate(foods, sim_options.allow_touching, plate_rng);
   sim::SimArmOptions arm_options = sim_options.arm;
   arm_options.control_period_s = acquisition.control_period_s;
   backend->sim_arm_ = std::make_unique<sim::SimArm>(arm_options);
   sim::SimWorldOptions world_options = sim_options.world;
-  world_options.seed = sim_options.seed;
+  world_options.seed = seeds.world;
   backend->world_ = std::make_unique<sim::SimWorld>(
       scene, backend->sim_arm_.get(), world_options);
   netft::NetFtRdtClientOptions ft_options = options.ft;
-  sim::SimNetFtBoxOptions box_options = sim_options.box;
-  box_options.seed = sim_options.seed;
-  box_options.counts_per_force = ft_options.counts_per_force;
-  box_options.counts_per_torque = ft_options.counts_per_torque;
+  const sim::SimNetFtBoxOptions box_options = SimBoxOptions(options);
   ASSIGN_OR_RETURN(backend->box_,
                    sim::SimNetFtBox::Start(box_options, backend->world_.get()));
   ft_options.host = box_options.host;

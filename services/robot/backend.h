@@ -46,7 +46,8 @@ class FrameProvider {
 };
 
 struct SimBackendOptions {
-  // Seeds the plate, the world's outcomes, the box's noise and faults.
+  // Seeds the plate, the world's outcomes and items' force profiles, the
+  // box's noise and faults, each from its own stream (SimStreamSeeds).
   uint64_t seed = 1;
   // Food names from sim::FoodCatalog(), one item each; empty means the paper's
   // eight unseen foods.
@@ -56,6 +57,18 @@ struct SimBackendOptions {
   sim::SimWorldOptions world;   // seed is overwritten with `seed`
   sim::SimArmOptions arm;
 };
+
+// The simulated world's random streams from its one seed. The plate is
+// drawn from the seed itself (as the simulated camera of bitewise-camera
+// --source=sim draws it); outcomes and the box's noise from streams mixed
+// from it (random::MixSeed), so that no outcome can be read off an item's
+// drawn size or the sensor's bias.
+struct SimStreamSeeds {
+  uint64_t plate = 0;
+  uint64_t world = 0;  // outcomes and items' force profiles
+  uint64_t box = 0;    // the simulated box's noise and faults
+};
+SimStreamSeeds StreamSeeds(uint64_t seed);
 
 struct HardwareBackendOptions {
   jaco2::Jaco2Options arm;
@@ -79,6 +92,10 @@ struct RobotBackendOptions {
   // (NetFtRdtClient::CheckLive OK) before the JACO2 is sent home.
   double ft_start_timeout_s = 10.0;
 };
+
+// The simulated Net F/T box's options for these backend options: its
+// seed's stream and the client's counts per unit.
+sim::SimNetFtBoxOptions SimBoxOptions(const RobotBackendOptions& options);
 
 class RobotBackend {
  public:

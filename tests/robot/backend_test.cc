@@ -59,6 +59,30 @@ TEST(RobotBackendTest, TheSimulatedPlateIsTheSeededOneRenderedFrameByFrame) {
   }
 }
 
+// The plate, the outcomes and the box's noise were once three generators
+// of one seed: attempt k succeeded exactly when the k-th number that had
+// drawn the first item's size was below p, and the F/T bias showed it.
+TEST(RobotBackendTest, OutcomesAndNoiseAreNotThePlatesStream) {
+  for (uint64_t seed = 0; seed < 1000; ++seed) {
+    const SimStreamSeeds s = StreamSeeds(seed);
+    EXPECT_EQ(s.plate, seed);  // the simulated camera's plate too
+    EXPECT_NE(s.world, s.plate) << seed;
+    EXPECT_NE(s.box, s.plate) << seed;
+    EXPECT_NE(s.box, s.world) << seed;
+  }
+  RobotBackendOptions options = SimOptions({"carrot"}, 7);
+  options.ft.counts_per_force = 2e6;
+  options.ft.counts_per_torque = 3e6;
+  const sim::SimNetFtBoxOptions box = SimBoxOptions(options);
+  EXPECT_EQ(box.seed, StreamSeeds(7).box);
+  EXPECT_EQ(box.counts_per_force, 2e6);
+  EXPECT_EQ(box.counts_per_torque, 3e6);
+  absl::StatusOr<std::unique_ptr<RobotBackend>> backend =
+      RobotBackend::Create(options);
+  ASSERT_TRUE(backend.ok()) << backend.status();
+  EXPECT_EQ((*backend)->world()->options().seed, StreamSeeds(7).world);
+}
+
 TEST(RobotBackendTest, TheArmStartsHomeAndMovesAtTheAcquisitionsPeriod) {
   RobotBackendOptions options = SimOptions({"carrot"}, 2);
   options.acquisition.control_period_s = 0.02;

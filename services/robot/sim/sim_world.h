@@ -54,6 +54,7 @@ class SimWorld final : public WrenchSource, public robot::SuccessJudge {
   void AbortAttempt() override;
 
   PlateScene scene() const;
+  const SimWorldOptions& options() const { return options_; }
   int items_left() const;
   // Camera pose in the task frame implied by the scene's camera height.
   robot::RigidTransform X_TaskCamera() const;
