@@ -53,12 +53,6 @@ absl::StatusOr<domain::RgbdFrame> FrameFromProto(const v1::Frame& proto) {
                      " bytes (expected ", pixels * 2, ")"));
   }
   const v1::CameraIntrinsics& k = proto.intrinsics();
-  if (!(std::isfinite(k.fx()) && k.fx() > 0 && std::isfinite(k.fy()) &&
-        k.fy() > 0 && std::isfinite(k.cx()) && std::isfinite(k.cy()))) {
-    return absl::InvalidArgumentError(
-        "frame.intrinsics: focal lengths must be finite and > 0, the "
-        "principal point finite");
-  }
   domain::RgbdFrame frame;
   frame.intrinsics = {static_cast<int>(proto.width()),
                       static_cast<int>(proto.height()),
@@ -66,6 +60,13 @@ absl::StatusOr<domain::RgbdFrame> FrameFromProto(const v1::Frame& proto) {
                       k.fy(),
                       k.cx(),
                       k.cy()};
+  // Perception's own rule: a frame it would refuse is refused here, at
+  // the camera link, naming the camera's values.
+  if (absl::Status valid =
+          domain::ValidateIntrinsics(frame.intrinsics, "frame.intrinsics");
+      !valid.ok()) {
+    return valid;
+  }
   frame.rgb.assign(proto.rgb().begin(), proto.rgb().end());
   frame.depth_mm.resize(pixels);
   const std::string& depth = proto.depth_mm();

@@ -8,6 +8,11 @@
 #include "absl/time/time.h"
 
 namespace bitewise::camera {
+namespace {
+
+constexpr absl::Duration kRetryInterval = absl::Milliseconds(100);
+
+}  // namespace
 
 FramePublisher::FramePublisher(std::unique_ptr<FrameSource> source)
     : source_(std::move(source)), name_(source_->name()) {
@@ -26,6 +31,7 @@ void FramePublisher::Run() {
       absl::SleepFor(absl::Milliseconds(20));
       continue;
     }
+    const absl::Time asked = absl::Now();
     absl::StatusOr<domain::RgbdFrame> frame = source_->Next();
     if (!frame.ok()) {
       {
@@ -33,9 +39,11 @@ void FramePublisher::Run() {
         last_error_ = frame.status().ToString();
       }
       ended = absl::IsOutOfRange(frame.status());
-      // A device that fails fast must not spin the core.
-      if (!ended && !absl::IsUnavailable(frame.status())) {
-        absl::SleepFor(absl::Milliseconds(100));
+      // A device that fails fast (a camera unplugged, whatever the error's
+      // code) must not spin the core: at most ten tries a second.
+      const absl::Duration spent = absl::Now() - asked;
+      if (!ended && spent < kRetryInterval) {
+        absl::SleepFor(kRetryInterval - spent);
       }
       continue;
     }

@@ -84,20 +84,18 @@ absl::StatusOr<std::unique_ptr<bitewise::camera::FrameSource>> MakeSource() {
 // pixel, and a few hundred bytes more. At a size whose frame is over
 // --max_message_bytes the publisher would start and report SERVING, and
 // every GetFrame would fail with gRPC's "Sent message larger than max"; so
-// it does not start. (The replay and sim sources' sizes are their
-// recording's and the simulated camera's, 640x480 as shipped.)
-absl::Status FrameFitsAMessage() {
-  if (absl::GetFlag(FLAGS_source) != "realsense") return absl::OkStatus();
-  const int64_t width = absl::GetFlag(FLAGS_width);
-  const int64_t height = absl::GetFlag(FLAGS_height);
+// it does not start. (The RealSense's size is its flags', checked before
+// the camera is opened; a replay's is its recording's, checked once the
+// recording is open; the simulated camera's is 640x480.)
+absl::Status FrameFitsAMessage(int64_t width, int64_t height,
+                               const std::string& what) {
   constexpr int64_t kFrameOverheadBytes = 1024;
   const int64_t bytes = width * height * 5 + kFrameOverheadBytes;
   const int64_t limit = absl::GetFlag(FLAGS_max_message_bytes);
   if (width <= 0 || height <= 0 || bytes <= limit) return absl::OkStatus();
   return absl::InvalidArgumentError(absl::StrCat(
-      "--width=", width, " --height=", height, ": a frame is about ", bytes,
-      " bytes, over --max_message_bytes (", limit,
-      "); give --max_message_bytes of at least ", bytes,
+      what, ": a frame is about ", bytes, " bytes, over --max_message_bytes (",
+      limit, "); give --max_message_bytes of at least ", bytes,
       " here, to bitewise-robot (which sends the frame on) and to "
       "bitewise-perception (which receives it)"));
 }
@@ -111,18 +109,48 @@ int main(int argc, char** argv) {
   bitewise::ShowOwnFlagsInHelp();
   bitewise::ParseFlagsOnly(argc, argv);
 
-  if (absl::Status fits = FrameFitsAMessage(); !fits.ok()) {
-    return bitewise::ReportFatal(kProgram, "cannot serve frames of that size",
-                                 fits);
+  if (absl::GetFlag(FLAGS_source) == "realsense") {
+    if (absl::Status fits = FrameFitsAMessage(
+            absl::GetFlag(FLAGS_width), absl::GetFlag(FLAGS_height),
+            absl::StrCat("--width=", absl::GetFlag(FLAGS_width),
+                         " --height=", absl::GetFlag(FLAGS_height)));
+        !fits.ok()) {
+      return bitewise::ReportFatal(kProgram, "cannot serve frames of that size",
+                                   fits);
+    }
   }
   auto source = MakeSource();
   if (!source.ok()) {
     return bitewise::ReportFatal(kProgram, "cannot open the camera",
                                  source.status());
   }
+  if (const auto* replay =
+          dynamic_cast<const bitewise::camera::ReplaySource*>(source->get())) {
+    const bitewise::domain::CameraIntrinsics& k = replay->intrinsics();
+    if (absl::Status fits = FrameFitsAMessage(
+            k.width, k.height,
+            absl::StrCat("the recording's ", k.width, "x", k.height,
+                         " frames (", replay->name(), ")"));
+        !fits.ok()) {
+      return bitewise::ReportFatal(kProgram,
+                                   "cannot serve the recording's frames", fits);
+    }
+  }
   if (const std::string dir = absl::GetFlag(FLAGS_record); !dir.empty()) {
-    *source = std::make_unique<bitewise::camera::RecordingSource>(
-        *std::move(source), dir, absl::GetFlag(FLAGS_fps));
+    // Recording is a side line of feeding: a directory that already holds
+    // one (a restart after a crash, a reused name) is left alone, and the
+    // camera serves without recording, saying so.
+    if (absl::Status fresh =
+            bitewise::camera::RecordingSource::CheckNewRecording(dir);
+        !fresh.ok()) {
+      std::fprintf(stderr,
+                   "bitewise-camera: --record: %s; serving without "
+                   "recording\n",
+                   std::string(fresh.message()).c_str());
+    } else {
+      *source = std::make_unique<bitewise::camera::RecordingSource>(
+          *std::move(source), dir, absl::GetFlag(FLAGS_fps));
+    }
   }
   bitewise::camera::FramePublisher publisher(*std::move(source));
   bitewise::RpcEnvironment env;  // what every call runs with
@@ -141,13 +169,16 @@ int main(int argc, char** argv) {
       [&publisher, stale_after_s]() -> absl::Status {
         const auto c = publisher.Counters();
         if (c.newest_age_s < 0.0) {
-          return absl::UnavailableError(
-              absl::StrCat("no frame yet from ", publisher.source_name()));
+          return absl::UnavailableError(absl::StrCat(
+              "no frame yet from ", publisher.source_name(),
+              c.last_error.empty() ? "" : "; last error: ", c.last_error));
         }
         if (c.newest_age_s > stale_after_s) {
           return absl::UnavailableError(absl::StrFormat(
-              "the newest frame from %s is %.1f s old (--stale_after_s %.1f)",
-              publisher.source_name(), c.newest_age_s, stale_after_s));
+              "the newest frame from %s is %.1f s old (--stale_after_s "
+              "%.1f)%s",
+              publisher.source_name(), c.newest_age_s, stale_after_s,
+              c.last_error.empty() ? "" : "; last error: " + c.last_error));
         }
         return absl::OkStatus();
       },

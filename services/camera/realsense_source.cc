@@ -258,13 +258,54 @@ std::string RealSenseSource::name() const {
   return absl::StrCat("realsense:", library_);
 }
 
+absl::Status RealSenseSource::Restart() {
+  const Api& api = *api_;
+  rs2_error* e = nullptr;
+  if (handles_->profile != nullptr) {
+    // The SDK may have stopped the pipeline itself (a failed reconnect);
+    // stopping it again is then an error of no consequence.
+    api.pipeline_stop(handles_->pipeline, &e);
+    if (e != nullptr) api.free_error(e);
+    e = nullptr;
+    api.delete_pipeline_profile(handles_->profile);
+    handles_->profile = nullptr;
+  }
+  handles_->profile =
+      api.pipeline_start_with_config(handles_->pipeline, handles_->config, &e);
+  if (absl::Status s = api.Check(e, "rs2_pipeline_start_with_config",
+                                 absl::StatusCode::kUnavailable);
+      !s.ok()) {
+    handles_->profile = nullptr;
+    return absl::UnavailableError(
+        absl::StrCat("restarting the streams after \"", restart_reason_,
+                     "\": ", s.message()));
+  }
+  // The device may count its frames from 1 again, or go on: the first
+  // frame after the restart is published as the one after the last.
+  rebase_ = true;
+  ++restarts_;
+  return absl::OkStatus();
+}
+
 absl::StatusOr<domain::RgbdFrame> RealSenseSource::Next() {
   const Api& api = *api_;
+  if (!restart_reason_.empty()) {
+    RETURN_IF_ERROR(Restart());
+    restart_reason_.clear();
+  }
   rs2_error* e = nullptr;
   rs2_frame* frames = api.pipeline_wait_for_frames(
       handles_->pipeline, static_cast<unsigned>(options_.timeout_ms), &e);
-  RETURN_IF_ERROR(api.Check(e, "rs2_pipeline_wait_for_frames",
-                            absl::StatusCode::kUnavailable));
+  if (absl::Status s = api.Check(e, "rs2_pipeline_wait_for_frames",
+                                 absl::StatusCode::kUnavailable);
+      !s.ok()) {
+    // A timeout or a lost device. After a failed reconnect the SDK leaves
+    // the pipeline stopped and fails every later wait at once, so the next
+    // call starts the streams again (and keeps trying until the camera is
+    // back).
+    restart_reason_ = std::string(s.message());
+    return s;
+  }
   const double capture_s = SteadyNowS();
   // The align block takes ownership of the frameset.
   api.process_frame(handles_->align, frames, &e);
@@ -311,8 +352,13 @@ absl::StatusOr<domain::RgbdFrame> RealSenseSource::Next() {
       api.get_video_stream_intrinsics(profile, &k, &e);
       RETURN_IF_ERROR(api.Check(e, "rs2_get_video_stream_intrinsics"));
       out.intrinsics = {width, height, k.fx, k.fy, k.ppx, k.ppy};
-      out.sequence = api.get_frame_number(frame.get(), &e);
+      const uint64_t number = api.get_frame_number(frame.get(), &e);
       RETURN_IF_ERROR(api.Check(e, "rs2_get_frame_number"));
+      if (rebase_) {  // unsigned: wraps as it must
+        sequence_offset_ = last_sequence_ + 1 - number;
+        rebase_ = false;
+      }
+      out.sequence = sequence_offset_ + number;
       out.rgb.resize(static_cast<size_t>(width) * height * 3);
       for (int row = 0; row < height; ++row) {
         std::memcpy(&out.rgb[static_cast<size_t>(row) * width * 3],
@@ -350,6 +396,7 @@ absl::StatusOr<domain::RgbdFrame> RealSenseSource::Next() {
                      have_depth ? "" : "a Z16 depth frame"));
   }
   out.capture_s = capture_s;
+  last_sequence_ = out.sequence;
   return out;
 }
 

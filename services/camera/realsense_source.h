@@ -10,6 +10,8 @@
 #ifndef BITEWISE_SERVICES_CAMERA_REALSENSE_SOURCE_H_
 #define BITEWISE_SERVICES_CAMERA_REALSENSE_SOURCE_H_
 
+#include <atomic>
+#include <cstdint>
 #include <memory>
 #include <string>
 
@@ -41,10 +43,17 @@ class RealSenseSource final : public FrameSource {
   ~RealSenseSource() override;
 
   // Errors: UNAVAILABLE when no frameset arrives in timeout_ms (the SDK's
-  // message); FAILED_PRECONDITION when a frameset lacks the colour or the
-  // aligned depth frame, or they are not the configured size.
+  // message), or when the streams cannot be started again after such a
+  // failure (a camera unplugged: the SDK's message, after the failure's);
+  // FAILED_PRECONDITION when a frameset lacks the colour or the aligned
+  // depth frame, or they are not the configured size. After an
+  // UNAVAILABLE the next call stops and starts the streams first, so a
+  // camera plugged back in is found again.
   absl::StatusOr<domain::RgbdFrame> Next() override;
   std::string name() const override;
+
+  // How many times the streams were started again after a failure.
+  int restarts() const { return restarts_; }
 
   struct Api;  // the resolved functions (realsense_source.cc)
   struct Handles;
@@ -53,10 +62,17 @@ class RealSenseSource final : public FrameSource {
   RealSenseSource(std::unique_ptr<Api> api, std::unique_ptr<Handles> handles,
                   const RealSenseOptions& options, std::string library);
 
+  absl::Status Restart();
+
   std::unique_ptr<Api> api_;
   std::unique_ptr<Handles> handles_;
   const RealSenseOptions options_;
   const std::string library_;
+  std::string restart_reason_;  // non-empty: start the streams again first
+  uint64_t sequence_offset_ = 0;
+  bool rebase_ = false;  // the next frame continues after last_sequence_
+  uint64_t last_sequence_ = 0;
+  std::atomic<int> restarts_{0};
 };
 
 }  // namespace bitewise::camera

@@ -1,6 +1,7 @@
 #include "services/camera/recording.h"
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -109,6 +110,15 @@ absl::StatusOr<std::unique_ptr<ReplaySource>> ReplaySource::Open(
           absl::StrCat(header, ": no \"", key, "\" line"));
     }
   }
+  const double rate = options.rate_hz > 0 ? options.rate_hz : values["rate_hz"];
+  for (const char* side : {"width", "height"}) {
+    const double v = values[side];
+    if (!(v >= 1 && v <= domain::kMaxFrameSide && v == std::floor(v))) {
+      return absl::InvalidArgumentError(
+          absl::StrCat(header, ": ", side, " ", v, " is not a whole number of ",
+                       "pixels in [1, ", domain::kMaxFrameSide, "]"));
+    }
+  }
   domain::CameraIntrinsics k;
   k.width = static_cast<int>(values["width"]);
   k.height = static_cast<int>(values["height"]);
@@ -116,11 +126,14 @@ absl::StatusOr<std::unique_ptr<ReplaySource>> ReplaySource::Open(
   k.fy = values["fy"];
   k.cx = values["cx"];
   k.cy = values["cy"];
-  const double rate = options.rate_hz > 0 ? options.rate_hz : values["rate_hz"];
-  if (values["version"] != 1 || k.width <= 0 || k.height <= 0 || k.fx <= 0 ||
-      k.fy <= 0 || rate <= 0) {
-    return absl::InvalidArgumentError(absl::StrCat(
-        header, ": version must be 1, sizes, focal lengths and rate_hz > 0"));
+  if (values["version"] != 1 || !(rate > 0)) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(header, ": version must be 1 and rate_hz > 0"));
+  }
+  if (absl::Status valid =
+          domain::ValidateIntrinsics(k, absl::StrCat(header, ": intrinsics"));
+      !valid.ok()) {
+    return valid;
   }
   int64_t count = 0;
   while (std::filesystem::exists(FramePath(dir, count, "rgb"))) ++count;
@@ -138,7 +151,10 @@ absl::StatusOr<domain::RgbdFrame> ReplaySource::Next() {
         "recording \"", dir_, "\" ended after ", count_, " frames"));
   }
   pacer_.Wait();
-  const int64_t index = static_cast<int64_t>(sequence_ % count_);
+  // Counted before it is read: a damaged frame is skipped (named once a
+  // pass), not read again forever, and shows as a dropped frame.
+  const uint64_t sequence = sequence_++;
+  const int64_t index = static_cast<int64_t>(sequence % count_);
   const std::string rgb_path = FramePath(dir_, index, "rgb");
   const std::string depth_path = FramePath(dir_, index, "depth");
   const cv::Mat bgr = cv::imread(rgb_path, cv::IMREAD_COLOR);
@@ -160,23 +176,61 @@ absl::StatusOr<domain::RgbdFrame> ReplaySource::Next() {
   cv::Mat rgb(size, CV_8UC3, frame.rgb.data());
   cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
   frame.depth_mm.assign(depth.begin<uint16_t>(), depth.end<uint16_t>());
-  frame.sequence = sequence_++;
+  frame.sequence = sequence;
   frame.capture_s = SteadyNowS();
   return frame;
 }
 
+absl::Status RecordingSource::CheckNewRecording(const std::string& dir) {
+  for (const std::string& path :
+       {dir + "/camera.txt", FramePath(dir, 0, "rgb")}) {
+    std::error_code error;
+    if (std::filesystem::exists(path, error)) {
+      return absl::FailedPreconditionError(absl::StrCat(
+          "\"", dir, "\" already holds a recording (", path,
+          "); record into a new directory (a second session written over "
+          "the first would replay the first's tail after it)"));
+    }
+  }
+  return absl::OkStatus();
+}
+
+void RecordingSource::Stop(absl::Status why) {
+  error_ = std::move(why);
+  std::fprintf(stderr,
+               "bitewise-camera: recording to %s stopped after %lld frames "
+               "(the recording is whole up to there; the camera goes on "
+               "serving frames): %s\n",
+               dir_.c_str(), static_cast<long long>(written_),
+               error_.ToString().c_str());
+  std::fflush(stderr);
+}
+
 absl::StatusOr<domain::RgbdFrame> RecordingSource::Next() {
   absl::StatusOr<domain::RgbdFrame> frame = inner_->Next();
-  if (!frame.ok()) return frame;
+  if (!frame.ok() || !error_.ok()) return frame;
   if (written_ == 0) {
+    if (absl::Status fresh = CheckNewRecording(dir_); !fresh.ok()) {
+      Stop(fresh);
+      return frame;
+    }
     std::error_code error;
     std::filesystem::create_directories(dir_, error);
     absl::Status header =
         WriteRecordingHeader(dir_, frame->intrinsics, rate_hz_);
-    if (!header.ok()) return header;
+    if (!header.ok()) {
+      Stop(header);
+      return frame;
+    }
   }
   absl::Status written = WriteRecordedFrame(dir_, written_, *frame);
-  if (!written.ok()) return written;
+  if (!written.ok()) {
+    // A colour image without its depth would replay as a damaged frame.
+    std::error_code ignored;
+    std::filesystem::remove(FramePath(dir_, written_, "rgb"), ignored);
+    Stop(written);
+    return frame;
+  }
   ++written_;
   return frame;
 }

@@ -55,6 +55,7 @@ class ReplaySource final : public FrameSource {
   // of the wrong size or type.
   absl::StatusOr<domain::RgbdFrame> Next() override;
   std::string name() const override { return "replay:" + dir_; }
+  const domain::CameraIntrinsics& intrinsics() const { return intrinsics_; }
 
  private:
   ReplaySource(std::string dir, domain::CameraIntrinsics intrinsics,
@@ -70,25 +71,37 @@ class ReplaySource final : public FrameSource {
 
 // Passes another source's frames on and writes each into a recording (the
 // camera.txt header with the first frame's intrinsics and `rate_hz`), so
-// that a session at the table can be replayed. A frame that cannot be
-// written is an error of Next (FAILED_PRECONDITION naming the file): a
-// recording with holes would replay as dropped frames.
+// that a session at the table can be replayed. Recording is a side line
+// of feeding: a frame that cannot be written (a full disk) ends the
+// recording there, whole up to the frame before (no holes, which would
+// replay as dropped frames), says so on stderr once, and the camera goes
+// on serving frames.
 class RecordingSource final : public FrameSource {
  public:
   RecordingSource(std::unique_ptr<FrameSource> inner, std::string dir,
                   double rate_hz)
       : inner_(std::move(inner)), dir_(std::move(dir)), rate_hz_(rate_hz) {}
 
+  // FAILED_PRECONDITION naming `dir` when it already holds a recording (a
+  // second session written over the first would replay the first's tail).
+  static absl::Status CheckNewRecording(const std::string& dir);
+
   absl::StatusOr<domain::RgbdFrame> Next() override;
   std::string name() const override {
     return inner_->name() + " (recording to " + dir_ + ")";
   }
+  // Why the recording ended early; OK while it goes on.
+  absl::Status recording_error() const { return error_; }
+  int64_t frames_written() const { return written_; }
 
  private:
+  void Stop(absl::Status why);
+
   const std::unique_ptr<FrameSource> inner_;
   const std::string dir_;
   const double rate_hz_;
   int64_t written_ = 0;
+  absl::Status error_;
 };
 
 }  // namespace bitewise::camera

@@ -8,8 +8,14 @@
 #ifndef BITEWISE_SERVICES_DOMAIN_RGBD_FRAME_H_
 #define BITEWISE_SERVICES_DOMAIN_RGBD_FRAME_H_
 
+#include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <vector>
+
+#include "absl/status/status.h"
+#include "absl/strings/str_cat.h"
+#include "absl/strings/string_view.h"
 
 namespace bitewise::domain {
 
@@ -27,6 +33,40 @@ struct CameraIntrinsics {
 // Largest accepted frame side in pixels, far above any depth camera's, so a
 // corrupt size cannot make a service allocate gigabytes.
 constexpr int kMaxFrameSide = 8192;
+
+// Intrinsics a frame can be used with: each side in [1, kMaxFrameSide];
+// focal lengths of 1 to 10^6 pixels (a D415 has about 615 at 640x480; any
+// lens is inside it, and outside it a featurizer's metres per pixel
+// overflow); the principal point within a frame's width and height of the
+// image's centre. INVALID_ARGUMENT naming `what` (as "what.fx and fy
+// must be ...") and the values otherwise.
+// One rule for the camera, its recordings, the robot's link and perception.
+inline absl::Status ValidateIntrinsics(const CameraIntrinsics& k,
+                                       absl::string_view what) {
+  if (k.width < 1 || k.height < 1 || k.width > kMaxFrameSide ||
+      k.height > kMaxFrameSide) {
+    return absl::InvalidArgumentError(
+        absl::StrCat(what, ".width and .height: ", k.width, "x", k.height,
+                     ": each side must be in [1, ", kMaxFrameSide, "]"));
+  }
+  constexpr double kMinFocalPx = 1.0;
+  constexpr double kMaxFocalPx = 1e6;
+  if (!(k.fx >= kMinFocalPx && k.fx <= kMaxFocalPx && k.fy >= kMinFocalPx &&
+        k.fy <= kMaxFocalPx)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        what, ".fx and fy must be focal lengths of ", kMinFocalPx, " to ",
+        kMaxFocalPx, " pixels (got fx=", k.fx, ", fy=", k.fy, ")"));
+  }
+  if (!(std::abs(k.cx - k.width / 2.0) <= k.width &&
+        std::abs(k.cy - k.height / 2.0) <= k.height)) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        what,
+        ".cx and cy must be finite and within a frame's width and height "
+        "of its centre (got cx=",
+        k.cx, ", cy=", k.cy, " for ", k.width, "x", k.height, ")"));
+  }
+  return absl::OkStatus();
+}
 
 struct RgbdFrame {
   CameraIntrinsics intrinsics;

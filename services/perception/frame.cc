@@ -186,24 +186,13 @@ absl::StatusOr<DecodedFrame> DecodeFrame(const FrameBytes& bytes) {
   const int width = static_cast<int>(bytes.width);
   const int height = static_cast<int>(bytes.height);
   const CameraIntrinsics& k = bytes.intrinsics;
-  // Focal lengths in pixels: a D415 has about 615 at 640x480; 1 to 10^6
-  // covers any lens. Outside it the featurizer's metres per pixel
-  // overflow (1e-200 squared is 0) and a context would hold NaN.
-  constexpr double kMinFocalPx = 1.0;
-  constexpr double kMaxFocalPx = 1e6;
-  if (!(k.fx >= kMinFocalPx && k.fx <= kMaxFocalPx && k.fy >= kMinFocalPx &&
-        k.fy <= kMaxFocalPx)) {
-    return Invalid(absl::StrCat(
-        "frame.intrinsics.fx and fy must be focal lengths of ", kMinFocalPx,
-        " to ", kMaxFocalPx, " pixels (got fx=", k.fx, ", fy=", k.fy, ")"));
-  }
-  // The principal point lies on the image, or near it.
-  if (!(std::abs(k.cx - width / 2.0) <= width &&
-        std::abs(k.cy - height / 2.0) <= height)) {
-    return Invalid(absl::StrCat(
-        "frame.intrinsics.cx and cy must be finite and within a frame's "
-        "width and height of its centre (got cx=",
-        k.cx, ", cy=", k.cy, " for ", width, "x", height, ")"));
+  CameraIntrinsics sized = k;
+  sized.width = width;
+  sized.height = height;
+  if (absl::Status valid =
+          domain::ValidateIntrinsics(sized, "frame.intrinsics");
+      !valid.ok()) {
+    return valid;
   }
 
   DecodedFrame frame;

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
 #include <vector>
@@ -129,6 +130,33 @@ TEST(CameraBinaryTest, AFrameOverTheMessageLimitStopsTheStart) {
                         "bytes, over --max_message_bytes (4194304); give "
                         "--max_message_bytes of at least 4609024 here, to "
                         "bitewise-robot"));
+}
+
+// A replay's frames are its recording's size: one over the limit stops the
+// start too (it served, and every GetFrame failed).
+TEST(CameraBinaryTest, AReplayOverTheMessageLimitStopsTheStart) {
+  const std::string dir = ::testing::TempDir() + "/replay_1280x720";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  domain::CameraIntrinsics k;
+  k.width = 1280;
+  k.height = 720;
+  k.cx = 640;
+  k.cy = 360;
+  ASSERT_TRUE(WriteRecordingHeader(dir, k, 15).ok());
+  std::ofstream(dir + "/000000.rgb.png") << "the size is in camera.txt";
+  ChildProcess child;
+  ASSERT_NO_FATAL_FAILURE(Spawn(
+      child,
+      {"--source=replay", "--replay_dir=" + dir, "--listen=127.0.0.1:0"}));
+  const absl::StatusOr<int> status = child.Wait(absl::Seconds(30));
+  ASSERT_TRUE(status.ok()) << status.status();
+  ASSERT_TRUE(WIFEXITED(*status)) << DescribeWaitStatus(*status);
+  EXPECT_EQ(WEXITSTATUS(*status), 1);
+  EXPECT_THAT(child.log(),
+              HasSubstr("the recording's 1280x720 frames (replay:" + dir +
+                        "): a frame is about 4609024 bytes, over "
+                        "--max_message_bytes (4194304)"));
 }
 
 // With the limit raised as that message says, the frame is served whole.

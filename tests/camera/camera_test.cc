@@ -12,6 +12,8 @@
 #include <fstream>
 #include <memory>
 #include <string>
+#include <tuple>
+#include <vector>
 
 #include "absl/strings/match.h"
 #include "absl/time/clock.h"
@@ -25,6 +27,7 @@
 #include "services/camera/sim_source.h"
 #include "services/common/server.h"
 #include "services/robot/camera_client.h"
+#include "tests/common/test_certs.h"
 
 namespace bitewise::camera {
 namespace {
@@ -46,6 +49,8 @@ struct Fake {
   void Units(float u) {
     Get<void (*)(float)>("FakeRealSense_SetDepthUnits")(u);
   }
+  int WaitCalls() { return Get<int (*)()>("FakeRealSense_WaitCalls")(); }
+  int StartCalls() { return Get<int (*)()>("FakeRealSense_StartCalls")(); }
   int LiveFrames() { return Get<int (*)()>("FakeRealSense_LiveFrames")(); }
   int LiveErrors() { return Get<int (*)()>("FakeRealSense_LiveErrors")(); }
   std::string Calls() {
@@ -147,6 +152,49 @@ TEST_F(RealSenseTest, AStalledCameraIsUnavailableAndThePublisherGoesStale) {
   EXPECT_TRUE(publisher.Newest(0.5).ok());
 }
 
+// A USB cable that drops out: the SDK fails its reconnect and leaves the
+// pipeline stopped, failing every later wait at once. The publisher must
+// neither spin on that nor give up: the camera plugged back in is found.
+TEST_F(RealSenseTest, ACameraUnpluggedIsFoundAgainWithoutSpinning) {
+  auto opened = RealSenseSource::Open(FakeOptions());
+  ASSERT_TRUE(opened.ok()) << opened.status();
+  RealSenseSource* source = opened->get();
+  FramePublisher publisher(*std::move(opened));
+  while (publisher.Counters().frames_captured < 3) {
+    absl::SleepFor(absl::Milliseconds(5));
+  }
+  TheFake().NoDevice(true);
+  absl::SleepFor(absl::Milliseconds(300));  // the timeout passes
+  const int waits_before = TheFake().WaitCalls();
+  const int starts_before = TheFake().StartCalls();
+  absl::SleepFor(absl::Seconds(1));
+  // Ten tries a second at most: each a restart that fails (no wait), and
+  // at least a few of them (it keeps trying).
+  EXPECT_LE(TheFake().StartCalls() - starts_before, 12);
+  EXPECT_GE(TheFake().StartCalls() - starts_before, 3);
+  EXPECT_LE(TheFake().WaitCalls() - waits_before, 1);
+  absl::StatusOr<PublishedFrame> gone = publisher.Newest(0.5);
+  EXPECT_EQ(gone.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(gone.status().message(),
+              HasSubstr("restarting the streams after \"RealSense "
+                        "rs2_pipeline_wait_for_frames: Device disconnected"));
+  EXPECT_THAT(gone.status().message(),
+              HasSubstr("rs2_pipeline_start_with_config: No device connected"));
+  const uint64_t last_sequence =
+      publisher.Newest(0).ok() ? publisher.Newest(0)->frame.sequence : 0;
+  ASSERT_GT(last_sequence, 0u);
+
+  TheFake().NoDevice(false);  // plugged back in
+  absl::StatusOr<PublishedFrame> back;
+  for (int i = 0; i < 200 && !(back = publisher.Newest(0.5)).ok(); ++i) {
+    absl::SleepFor(absl::Milliseconds(20));
+  }
+  ASSERT_TRUE(back.ok()) << back.status();
+  // The device counts from 1 again; the published sequence keeps rising.
+  EXPECT_GT(back->frame.sequence, last_sequence);
+  EXPECT_GE(source->restarts(), 1);
+}
+
 TEST_F(RealSenseTest, ThePublisherCountsFramesTheCameraDropped) {
   auto source = RealSenseSource::Open(FakeOptions());
   ASSERT_TRUE(source.ok()) << source.status();
@@ -216,23 +264,120 @@ TEST(RecordingTest, BrokenRecordingsAreNamed) {
   EXPECT_THAT(frame.status().message(), HasSubstr("000000.rgb.png"));
 }
 
+// A second session into the same directory would replay the first's tail
+// after it: refused, and recording is a side line of feeding, so the
+// camera goes on serving frames when it cannot record (here, or after a
+// full disk), the recording whole up to the frame before.
+TEST(RecordingTest, ARecordingThatCannotGoOnStopsAndFramesFlow) {
+  SimSourceOptions sim;
+  sim.rate_hz = 1000;
+  const std::string dir = TempDir("twice");
+  {
+    RecordingSource first(*SimSource::Create(sim), dir, 30.0);
+    for (int i = 0; i < 3; ++i) ASSERT_TRUE(first.Next().ok());
+    EXPECT_TRUE(first.recording_error().ok());
+  }
+  const absl::Status again = RecordingSource::CheckNewRecording(dir);
+  EXPECT_EQ(again.code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(again.message(), HasSubstr("already holds a recording"));
+  RecordingSource second(*SimSource::Create(sim), dir, 30.0);
+  ASSERT_TRUE(second.Next().ok());  // a frame, not recorded
+  EXPECT_EQ(second.recording_error().code(),
+            absl::StatusCode::kFailedPrecondition);
+  EXPECT_EQ(second.frames_written(), 0);
+  auto replay = ReplaySource::Open(dir, {});
+  ASSERT_TRUE(replay.ok());
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE((*replay)->Next().ok());
+  EXPECT_EQ((*replay)->Next().status().code(), absl::StatusCode::kOutOfRange);
+
+  // The directory gone and a file in its place (as good as a full disk).
+  const std::string lost = TempDir("lost");
+  RecordingSource recorder(*SimSource::Create(sim), lost, 30.0);
+  ASSERT_TRUE(recorder.Next().ok());
+  std::filesystem::remove_all(lost);
+  std::ofstream(lost) << "not a directory";
+  for (int i = 0; i < 3; ++i) {
+    absl::StatusOr<domain::RgbdFrame> frame = recorder.Next();
+    EXPECT_TRUE(frame.ok()) << frame.status();
+  }
+  EXPECT_EQ(recorder.frames_written(), 1);
+  EXPECT_THAT(recorder.recording_error().message(), HasSubstr("cannot write"));
+  std::filesystem::remove(lost);
+}
+
+// A frame cut short by a power loss is named and skipped, not read again
+// forever: the replay goes on, and ends.
+TEST(RecordingTest, ADamagedFrameIsSkippedAndTheReplayGoesOn) {
+  SimSourceOptions sim;
+  sim.rate_hz = 1000;
+  const std::string dir = TempDir("damaged");
+  {
+    RecordingSource recorder(*SimSource::Create(sim), dir, 30.0);
+    for (int i = 0; i < 3; ++i) ASSERT_TRUE(recorder.Next().ok());
+  }
+  std::filesystem::resize_file(dir + "/000001.depth.png", 40);
+  ReplayOptions options;
+  options.rate_hz = 500;
+  auto replay = ReplaySource::Open(dir, options);
+  ASSERT_TRUE(replay.ok());
+  EXPECT_EQ((*replay)->Next()->sequence, 0u);
+  absl::StatusOr<domain::RgbdFrame> damaged = (*replay)->Next();
+  EXPECT_EQ(damaged.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_THAT(damaged.status().message(), HasSubstr("000001.depth.png"));
+  EXPECT_EQ((*replay)->Next()->sequence, 2u);
+  EXPECT_EQ((*replay)->Next().status().code(), absl::StatusCode::kOutOfRange);
+}
+
+// A recording's header is held to the rule every frame is: whole sides up
+// to 8192 pixels, focal lengths of 1 to 10^6, the principal point near the
+// image.
+TEST(RecordingTest, AHeaderPerceptionWouldRefuseIsRefused) {
+  const std::string dir = TempDir("header");
+  std::ofstream(dir + "/000000.rgb.png") << "exists";
+  const auto open_with = [&](const std::string& width, const std::string& fx,
+                             const std::string& cx) {
+    std::ofstream(dir + "/camera.txt", std::ios::trunc)
+        << "version 1\nwidth " << width << "\nheight 480\nfx " << fx
+        << "\nfy 600\ncx " << cx << "\ncy 240\nrate_hz 30\n";
+    return ReplaySource::Open(dir, {}).status();
+  };
+  EXPECT_TRUE(open_with("640", "600", "320").ok());
+  for (const auto& [width, fx, cx, message] : std::vector<
+           std::tuple<std::string, std::string, std::string, std::string>>{
+           {"1e10", "600", "320", "width 1e+10 is not a whole number"},
+           {"640.5", "600", "320", "width 640.5 is not a whole number"},
+           {"640", "1e-200", "320", "fx and fy must be focal lengths"},
+           {"640", "600", "5000", "cx and cy must be finite and within"}}) {
+    const absl::Status status = open_with(width, fx, cx);
+    EXPECT_EQ(status.code(), absl::StatusCode::kInvalidArgument) << message;
+    EXPECT_THAT(status.message(), HasSubstr(message));
+  }
+}
+
 // The CameraService with a publisher, and the RobotService's client.
 class CameraLinkTest : public ::testing::Test {
  protected:
-  void Start(std::unique_ptr<FrameSource> source, double max_age_s = 0.5) {
+  void Start(std::unique_ptr<FrameSource> source, double max_age_s = 0.5,
+             const ServerOptions& server_options = ServerOptions(),
+             const ChannelOptions& channel = ChannelOptions()) {
     publisher_ = std::make_unique<FramePublisher>(std::move(source));
     service_ = std::make_unique<CameraServiceImpl>(&env_, publisher_.get());
-    auto server = ServiceServer::Start(ServerOptions(), &env_, {service_.get()},
+    auto server = ServiceServer::Start(server_options, &env_, {service_.get()},
                                        {"bitewise.v1.CameraService"});
     ASSERT_TRUE(server.ok()) << server.status();
     server_ = *std::move(server);
+    client_ = Client(channel, max_age_s);
+  }
+  std::unique_ptr<robot::CameraClient> Client(const ChannelOptions& channel,
+                                              double max_age_s = 2.0) {
     robot::CameraClientOptions options;
     options.address = server_->address();
     options.max_frame_age_s = max_age_s;
+    options.channel = channel;
     options.channel.max_message_bytes = 64 << 20;
     auto client = robot::CameraClient::Create(options);
-    ASSERT_TRUE(client.ok()) << client.status();
-    client_ = *std::move(client);
+    EXPECT_TRUE(client.ok()) << client.status();
+    return client.ok() ? *std::move(client) : nullptr;
   }
   void TearDown() override {
     if (server_) server_->Shutdown();
@@ -256,6 +401,40 @@ absl::StatusOr<domain::RgbdFrame> CaptureNew(robot::CameraClient& client) {
     frame = client.Capture();
   }
   return frame;
+}
+
+// The camera computer is on the lab's (wireless) network: its frames, a
+// person's plate, go only to a client certificate with the robot role
+// (deploy/config/robot-computer.env; bitewise-robot --camera_tls_cert).
+TEST_F(CameraLinkTest, OnlyTheRobotsCertificateGetsFramesOverMutualTls) {
+  SimSourceOptions sim;
+  sim.rate_hz = 20;
+  auto source = SimSource::Create(sim);
+  ASSERT_TRUE(source.ok());
+  ASSERT_TRUE(testing::Certs().error.empty()) << testing::Certs().error;
+  ServerOptions server_options = testing::TlsServerOptions(/*mutual=*/true);
+  server_options.authz_file = testing::WriteRoles("bitewise-client robot\n");
+  ChannelOptions robot = testing::TlsChannelOptions(/*with_client_cert=*/true);
+  robot.tls_server_name_override = "localhost";
+  Start(*std::move(source), 2.0, server_options, robot);
+  absl::StatusOr<domain::RgbdFrame> frame = CaptureNew(*client_);
+  ASSERT_TRUE(frame.ok()) << frame.status();
+
+  // Only the CA (the deployment before this session): no frame.
+  ChannelOptions anyone = testing::TlsChannelOptions(false);
+  anyone.tls_server_name_override = "localhost";
+  std::unique_ptr<robot::CameraClient> stranger = Client(anyone);
+  ASSERT_NE(stranger, nullptr);
+  EXPECT_FALSE(stranger->Capture().ok());
+
+  // A lab certificate without the robot role: refused by role.
+  testing::WriteRoles("bitewise-client researcher\n");
+  ASSERT_TRUE(server_->ReloadAuthorization().ok());
+  std::unique_ptr<robot::CameraClient> researcher = Client(robot);
+  ASSERT_NE(researcher, nullptr);
+  absl::StatusOr<domain::RgbdFrame> refused = researcher->Capture();
+  EXPECT_EQ(refused.status().code(), absl::StatusCode::kPermissionDenied)
+      << refused.status();
 }
 
 TEST_F(CameraLinkTest, TheRobotGetsTheNewestFrameIntact) {

@@ -72,6 +72,8 @@ std::mutex mu;
 std::string calls;
 bool no_device = false;
 bool stalled = false;
+int wait_calls = 0;
+int start_calls = 0;
 unsigned long long next_number = 1;  // NOLINT
 float depth_units = 0.001f;
 std::atomic<int> live_frames{0};
@@ -176,7 +178,13 @@ EXPORT rs2_pipeline_profile* rs2_pipeline_start_with_config(rs2_pipeline* p,
                                                             rs2_config* c,
                                                             rs2_error** error) {
   Record("rs2_pipeline_start_with_config");
-  if (no_device) {
+  bool unplugged;
+  {
+    std::lock_guard<std::mutex> lock(mu);
+    ++start_calls;
+    unplugged = no_device;
+  }
+  if (unplugged) {
     Fail(error, "No device connected");
     return nullptr;
   }
@@ -186,6 +194,10 @@ EXPORT rs2_pipeline_profile* rs2_pipeline_start_with_config(rs2_pipeline* p,
   }
   p->config = *c;
   p->started = true;
+  {
+    std::lock_guard<std::mutex> lock(mu);
+    next_number = 1;  // a device started again counts from 1 again
+  }
   return new rs2_pipeline_profile;
 }
 EXPORT void rs2_pipeline_stop(rs2_pipeline* p, rs2_error**) {
@@ -196,15 +208,32 @@ EXPORT void rs2_delete_pipeline_profile(rs2_pipeline_profile* p) { delete p; }
 EXPORT rs2_frame* rs2_pipeline_wait_for_frames(rs2_pipeline* p,
                                                unsigned int timeout_ms,
                                                rs2_error** error) {
-  bool stall;
+  bool stall, unplugged;
   unsigned long long number;  // NOLINT
   {
     std::lock_guard<std::mutex> lock(mu);
+    ++wait_calls;
     stall = stalled;
+    unplugged = no_device;
     number = next_number++;
   }
-  if (stall || !p->started) {
+  // As librealsense's pipeline::wait_for_frames: a stopped pipeline fails
+  // at once; a device gone is found after the timeout, and a failed
+  // reconnect leaves the pipeline stopped.
+  if (!p->started) {
+    Fail(error, "wait_for_frames cannot be called before start()");
+    return nullptr;
+  }
+  if (stall || unplugged) {
     std::this_thread::sleep_for(std::chrono::milliseconds(timeout_ms));
+    if (unplugged) {
+      p->started = false;
+      Fail(error,
+           "Device disconnected. Failed to recconect: No device "
+           "connected" +
+               std::to_string(timeout_ms));
+      return nullptr;
+    }
     Fail(error, "Frame didn't arrive within " + std::to_string(timeout_ms));
     return nullptr;
   }
@@ -323,6 +352,8 @@ EXPORT void FakeRealSense_Reset() {
   calls.clear();
   no_device = false;
   stalled = false;
+  wait_calls = 0;
+  start_calls = 0;
   next_number = 1;
   depth_units = 0.001f;
 }
@@ -341,6 +372,14 @@ EXPORT void FakeRealSense_DropFrames(int n) {
 EXPORT void FakeRealSense_SetDepthUnits(float units) {
   std::lock_guard<std::mutex> lock(mu);
   depth_units = units;
+}
+EXPORT int FakeRealSense_WaitCalls() {
+  std::lock_guard<std::mutex> lock(mu);
+  return wait_calls;
+}
+EXPORT int FakeRealSense_StartCalls() {
+  std::lock_guard<std::mutex> lock(mu);
+  return start_calls;
 }
 EXPORT int FakeRealSense_LiveFrames() { return live_frames; }
 EXPORT int FakeRealSense_LiveErrors() { return live_errors; }

@@ -128,7 +128,11 @@ TEST(FrameFromProtoTest, BadFocalLengthsOrPrincipalPointAreRefusedNamingThem) {
   for (const Bad& bad :
        {Bad{0.0, 600.0, 1.0, 1.0}, Bad{-600.0, 600.0, 1, 1},
         Bad{600.0, nan, 1.0, 1.0}, Bad{inf, 600.0, 1.0, 1.0},
-        Bad{600.0, 600.0, nan, 1.0}, Bad{600.0, 600.0, 1.0, -inf}}) {
+        Bad{600.0, 600.0, nan, 1.0}, Bad{600.0, 600.0, 1.0, -inf},
+        // Perception's rule, here at the link: a focal length below a
+        // pixel, a principal point far off the 3x2 image.
+        Bad{1e-200, 600.0, 1.0, 1.0}, Bad{600.0, 2e6, 1.0, 1.0},
+        Bad{600.0, 600.0, 1000.0, 1.0}}) {
     v1::Frame proto = SmallProto();
     proto.mutable_intrinsics()->set_fx(bad.fx);
     proto.mutable_intrinsics()->set_fy(bad.fy);

@@ -70,8 +70,9 @@ bool WaitFor(Fn done) {
 }
 
 TEST(FramePublisherTest, BeforeItsFirstFrameItIsUnavailableNamingTheError) {
-  const std::string dir = Record("corrupt", 2);
-  // The first frame's colour image is not a PNG: the replay cannot start.
+  const std::string dir = Record("corrupt", 1);
+  // The only frame's colour image is not a PNG: the replay never serves
+  // one (a damaged frame among good ones is skipped).
   std::ofstream(dir + "/000000.rgb.png", std::ios::trunc) << "not a PNG";
   FramePublisher publisher(Replay(dir, /*loop=*/true));
   EXPECT_EQ(publisher.source_name(), "replay:" + dir);
