@@ -5,6 +5,7 @@
 #include <openssl/rand.h>
 #include <openssl/sha.h>
 
+#include <algorithm>
 #include <fstream>
 #include <utility>
 #include <vector>
@@ -77,7 +78,8 @@ absl::StatusOr<std::string> HashPassword(const std::string& password,
                       absl::BytesToHexString(*hash));
 }
 
-AccessList::AccessList(const AccessList& other) : entries_(other.entries_) {}
+AccessList::AccessList(const AccessList& other)
+    : entries_(other.entries_), decoy_(other.decoy_) {}
 
 absl::StatusOr<AccessList> AccessList::Load(const std::string& path) {
   std::ifstream in(path);
@@ -133,6 +135,9 @@ absl::StatusOr<AccessList> AccessList::Load(const std::string& path) {
     return absl::InvalidArgumentError(
         absl::StrCat("the access file ", path, " lists no credentials"));
   }
+  for (const auto& [name, entry] : list.entries_) {
+    list.decoy_.iterations = std::max(list.decoy_.iterations, entry.iterations);
+  }
   return list;
 }
 
@@ -141,12 +146,13 @@ absl::StatusOr<Role> AccessList::Check(const std::string& name,
   const absl::Status wrong =
       absl::UnauthenticatedError("wrong name or password");
   auto it = entries_.find(name);
-  if (it == entries_.end()) return wrong;
+  const bool listed = it != entries_.end();
+  const Entry& entry = listed ? it->second : decoy_;
   const std::string key =
       Sha256(absl::StrCat(name, std::string(1, '\0'), password));
   {
     absl::MutexLock lock(&mu_);
-    if (verified_.count(key) > 0) return it->second.role;
+    if (verified_.count(key) > 0) return entry.role;
     if (checks_running_ > 0) {
       if (checks_waiting_ >= kMaxWaitingChecks) {
         return absl::ResourceExhaustedError(
@@ -157,20 +163,22 @@ absl::StatusOr<Role> AccessList::Check(const std::string& name,
       mu_.Await(absl::Condition(this, &AccessList::NoCheckRunning));
       --checks_waiting_;
       // The check that ran may have been this password's.
-      if (verified_.count(key) > 0) return it->second.role;
+      if (verified_.count(key) > 0) return entry.role;
     }
     ++checks_running_;
   }
   absl::StatusOr<std::string> hash =
-      Pbkdf2(password, it->second.salt, it->second.iterations);
+      Pbkdf2(password, entry.salt, entry.iterations);
   absl::MutexLock lock(&mu_);
   --checks_running_;
+  ++derivations_;
   if (!hash.ok()) return hash.status();
-  if (CRYPTO_memcmp(hash->data(), it->second.hash.data(), kHashBytes) != 0) {
+  if (!listed ||
+      CRYPTO_memcmp(hash->data(), entry.hash.data(), kHashBytes) != 0) {
     return wrong;
   }
   verified_.insert(key);
-  return it->second.role;
+  return entry.role;
 }
 
 }  // namespace bitewise::console

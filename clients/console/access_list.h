@@ -19,6 +19,7 @@
 #ifndef BITEWISE_CLIENTS_CONSOLE_ACCESS_LIST_H_
 #define BITEWISE_CLIENTS_CONSOLE_ACCESS_LIST_H_
 
+#include <cstdint>
 #include <map>
 #include <set>
 #include <string>
@@ -52,13 +53,19 @@ class AccessList {
   static constexpr int kMaxWaitingChecks = 16;
 
   // The role of `name` if `password` is its password; UNAUTHENTICATED
-  // (saying only that the name or password is wrong) otherwise;
+  // (saying only that the name or password is wrong, after as much work
+  // for a name that is not listed as for one that is) otherwise;
   // RESOURCE_EXHAUSTED when the password is not yet verified and one check
   // runs with kMaxWaitingChecks already waiting.
   absl::StatusOr<Role> Check(const std::string& name,
                              const std::string& password) const;
 
   int size() const { return static_cast<int>(entries_.size()); }
+  // PBKDF2 derivations run so far (a name not listed costs one too).
+  int64_t derivations() const {
+    absl::MutexLock lock(&mu_);
+    return derivations_;
+  }
 
  private:
   struct Entry {
@@ -73,12 +80,17 @@ class AccessList {
   }
 
   std::map<std::string, Entry> entries_;
+  // What a name not in the file is checked against (and always fails):
+  // the same work as a listed name's, so the time of a wrong answer does
+  // not tell which names exist.
+  Entry decoy_{Role::kCaregiver, 0, std::string(16, '\0'), std::string()};
   mutable absl::Mutex mu_;
   // SHA-256 of "name\0password" for passwords already verified.
   mutable std::set<std::string> verified_ ABSL_GUARDED_BY(mu_);
   // PBKDF2 checks running (0 or 1) and waiting to run.
   mutable int checks_running_ ABSL_GUARDED_BY(mu_) = 0;
   mutable int checks_waiting_ ABSL_GUARDED_BY(mu_) = 0;
+  mutable int64_t derivations_ ABSL_GUARDED_BY(mu_) = 0;
 };
 
 }  // namespace bitewise::console

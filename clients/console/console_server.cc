@@ -7,7 +7,9 @@
 #include <netinet/tcp.h>
 #include <sys/socket.h>
 
+#include <cstdio>
 #include <functional>
+#include <memory>
 #include <utility>
 
 #include "absl/strings/ascii.h"
@@ -21,6 +23,8 @@
 #include "clients/console/research.h"
 #include "clients/console/web_assets.h"
 #include "services/common/channel.h"
+#include "services/common/status_macros.h"
+#include "services/common/tls_files.h"
 #include "services/domain/user_id.h"
 
 namespace bitewise::console {
@@ -149,6 +153,8 @@ absl::StatusOr<std::unique_ptr<ConsoleServer>> ConsoleServer::Start(
                           ? server->options_.research_bandit
                           : &clients->bandit;
   if (tls) {
+    RETURN_IF_ERROR(bitewise::CheckPrivateKeyMode(server->options_.tls_key_file,
+                                                  "HTTPS key"));
     auto ssl = std::make_unique<httplib::SSLServer>(
         server->options_.tls_cert_file.c_str(),
         server->options_.tls_key_file.c_str());
@@ -586,12 +592,15 @@ void ConsoleServer::Route() {
                                 httplib::Response& res,
                                 const std::string& user) {
         const std::string meal = req.get_param_value("meal_id");
-        bool withheld = false;
         const bool contexts = flag(req, "contexts");
-        absl::StatusOr<std::vector<v1::Event>> events =
-            AllEvents(*research_, user, meal, contexts, &withheld);
-        if (!events.ok()) return Error(res, events.status());
+        absl::StatusOr<std::unique_ptr<EventsCsvStream>> started =
+            EventsCsvStream::Start(*research_, user, meal, contexts);
+        if (!started.ok()) return Error(res, started.status());
+        std::shared_ptr<EventsCsvStream> stream = *std::move(started);
         res.set_header("Cache-Control", "no-store");
+        if (stream->contexts_withheld()) {
+          res.set_header("X-Bitewise-Contexts-Withheld", "true");
+        }
         // The file's name from the ids, with anything but letters,
         // digits, '.', '_' and '-' (a quote would end the name) as '_'.
         std::string name =
@@ -604,8 +613,26 @@ void ConsoleServer::Route() {
         }
         res.set_header("Content-Disposition",
                        absl::StrCat("attachment; filename=\"", name, "\""));
-        res.set_content(EventsCsv(*events, contexts && !withheld),
-                        "text/csv; charset=utf-8");
+        // A page of events at a time (chunked): a long history is never
+        // held whole. A page that fails later cuts the download off (the
+        // browser reports it failed) and is logged.
+        res.set_chunked_content_provider(
+            "text/csv; charset=utf-8",
+            [stream, user](size_t, httplib::DataSink& sink) {
+              absl::StatusOr<std::string> piece = stream->Next();
+              if (!piece.ok()) {
+                std::fprintf(stderr,
+                             "bitewise-console: events.csv of %s cut off: "
+                             "%s\n",
+                             user.c_str(), piece.status().ToString().c_str());
+                return false;
+              }
+              if (piece->empty()) {
+                sink.done();
+                return true;
+              }
+              return sink.write(piece->data(), piece->size());
+            });
       }));
 
   http.Get(person + "/model",

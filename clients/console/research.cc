@@ -148,32 +148,108 @@ consolepb::MealsReply MealsOf(const std::string& user_id,
   return reply;
 }
 
-std::string EventsCsv(const std::vector<v1::Event>& events,
-                      bool with_contexts) {
-  std::string csv =
-      "event_id,user_id,meal_id,item_label,action,propensity,completed,loss,"
-      "posthoc,model_version,selected_at,updated_at";
-  if (with_contexts) csv += ",context";
+namespace {
+
+std::string CsvHeader(bool with_contexts, bool withheld) {
+  std::string csv = absl::StrCat(
+      "event_id,user_id,meal_id,item_label,action,propensity,completed,loss,",
+      withheld ? "posthoc_withheld" : "posthoc",
+      ",model_version,selected_at,updated_at");
+  if (with_contexts && !withheld) csv += ",context";
   csv += "\r\n";
+  return csv;
+}
+
+void AppendCsvRow(const v1::Event& e, bool with_contexts, std::string* csv) {
+  absl::StrAppend(csv, Cell(e.event_id()), ",", Cell(e.user_id()), ",",
+                  Cell(e.meal_id()), ",", Cell(e.item_label()), ",", e.action(),
+                  ",", absl::StrFormat("%.17g", e.propensity()), ",",
+                  e.completed() ? "true" : "false", ",",
+                  absl::StrFormat("%.17g", e.loss()), ",", Doubles(e.posthoc()),
+                  ",", e.model_version(), ",", Time(e.selected_at()), ",",
+                  Time(e.updated_at()));
+  if (with_contexts) absl::StrAppend(csv, ",", Doubles(e.context()));
+  *csv += "\r\n";
+}
+
+}  // namespace
+
+std::string EventsCsv(const std::vector<v1::Event>& events, bool with_contexts,
+                      bool withheld) {
+  std::string csv = CsvHeader(with_contexts, withheld);
   for (const v1::Event& e : events) {
-    absl::StrAppend(&csv, Cell(e.event_id()), ",", Cell(e.user_id()), ",",
-                    Cell(e.meal_id()), ",", Cell(e.item_label()), ",",
-                    e.action(), ",", absl::StrFormat("%.17g", e.propensity()),
-                    ",", e.completed() ? "true" : "false", ",",
-                    absl::StrFormat("%.17g", e.loss()), ",",
-                    Doubles(e.posthoc()), ",", e.model_version(), ",",
-                    Time(e.selected_at()), ",", Time(e.updated_at()));
-    if (with_contexts) absl::StrAppend(&csv, ",", Doubles(e.context()));
-    csv += "\r\n";
+    AppendCsvRow(e, with_contexts && !withheld, &csv);
   }
   return csv;
+}
+
+absl::StatusOr<std::unique_ptr<EventsCsvStream>> EventsCsvStream::Start(
+    meals::BanditClient& bandit, const std::string& user_id,
+    const std::string& meal_id, bool with_contexts, int page_size) {
+  RETURN_IF_ERROR(domain::ValidateUserId(user_id));
+  v1::ListEventsRequest request;
+  request.set_user_id(user_id);
+  request.set_meal_id(meal_id);
+  request.set_page_size(page_size);
+  std::unique_ptr<EventsCsvStream> stream(
+      new EventsCsvStream(bandit, std::move(request), with_contexts));
+  absl::StatusOr<v1::ListEventsResponse> first =
+      bandit.ListEvents(stream->request_);
+  if (!first.ok()) return first.status();
+  stream->withheld_ = first->contexts_withheld();
+  stream->page_ = *std::move(first);
+  stream->pages_ = 1;
+  return stream;
+}
+
+absl::StatusOr<std::string> EventsCsvStream::Next() {
+  std::string out;
+  if (!header_sent_) {
+    out = CsvHeader(with_contexts_, withheld_);
+    header_sent_ = true;
+  }
+  // A page without events (but with a next one) gives nothing to send:
+  // read on, so that "" means the end.
+  do {
+    if (done_) return out;
+    RETURN_IF_ERROR(ReadPage(&out));
+  } while (out.empty());
+  return out;
+}
+
+absl::Status EventsCsvStream::ReadPage(std::string* out) {
+  if (!page_.has_value()) {
+    if (pages_ >= kMaxPages) {
+      return absl::ResourceExhaustedError(absl::StrCat(
+          "more events of ", request_.user_id(), " than the console lists"));
+    }
+    absl::StatusOr<v1::ListEventsResponse> next = bandit_.ListEvents(request_);
+    if (!next.ok()) return next.status();
+    page_ = *std::move(next);
+    ++pages_;
+  }
+  for (const v1::Event& e : page_->events()) {
+    AppendCsvRow(e, with_contexts_ && !withheld_, out);
+  }
+  if (page_->next_page_token().empty()) {
+    done_ = true;
+  } else {
+    request_.set_page_token(page_->next_page_token());
+  }
+  page_.reset();
+  return absl::OkStatus();
 }
 
 absl::StatusOr<consolepb::EstimatesReply> EstimatesFor(
     meals::BanditClient& bandit, const std::string& user_id,
     const std::string& event_id) {
+  // As the BanditService reads it: decimal digits, no sign, spaces or
+  // leading zeros (" 7", "+7" and "007" would never match an id).
   int64_t id = 0;
-  if (!absl::SimpleAtoi(event_id, &id) || id <= 0) {
+  const bool canonical =
+      !event_id.empty() && event_id.size() <= 19 && event_id[0] != '0' &&
+      event_id.find_first_not_of("0123456789") == std::string::npos;
+  if (!canonical || !absl::SimpleAtoi(event_id, &id) || id <= 0) {
     return absl::InvalidArgumentError(
         absl::StrCat("event_id: expected the decimal id of a bite, got \"",
                      event_id.substr(0, 64), "\""));

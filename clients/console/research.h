@@ -9,7 +9,10 @@
 #ifndef BITEWISE_CLIENTS_CONSOLE_RESEARCH_H_
 #define BITEWISE_CLIENTS_CONSOLE_RESEARCH_H_
 
+#include <memory>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "absl/status/statusor.h"
@@ -38,8 +41,46 @@ consolepb::MealsReply MealsOf(const std::string& user_id,
 
 // The events as CSV: a header, then one row per event with the fields of
 // ListEvents in its order; repeated fields are ';'-joined in one cell;
-// contexts only when `with_contexts`.
-std::string EventsCsv(const std::vector<v1::Event>& events, bool with_contexts);
+// contexts only when `with_contexts`. When the BanditService withholds
+// this identity's vectors (`withheld`), the post hoc column is headed
+// posthoc_withheld and its cells are empty, and there is no context column.
+std::string EventsCsv(const std::vector<v1::Event>& events, bool with_contexts,
+                      bool withheld = false);
+
+// The same CSV for a download, a page of ListEvents at a time, so that a
+// long history (at d = 2048, 43 KB of CSV a bite) is never held whole.
+class EventsCsvStream {
+ public:
+  // Reads the first page: its error (an unknown person, a bad id) is the
+  // download's, before anything is sent.
+  static absl::StatusOr<std::unique_ptr<EventsCsvStream>> Start(
+      meals::BanditClient& bandit, const std::string& user_id,
+      const std::string& meal_id, bool with_contexts, int page_size = 1000);
+  bool contexts_withheld() const { return withheld_; }
+  // The next piece: the header and the first page's rows, then a page's
+  // rows at a time; "" when done. An error when a later page cannot be
+  // read (the download is then cut off).
+  absl::StatusOr<std::string> Next();
+
+ private:
+  // Appends the next page's rows to `out` (reading it if need be).
+  absl::Status ReadPage(std::string* out);
+
+  EventsCsvStream(meals::BanditClient& bandit, v1::ListEventsRequest request,
+                  bool with_contexts)
+      : bandit_(bandit),
+        request_(std::move(request)),
+        with_contexts_(with_contexts) {}
+
+  meals::BanditClient& bandit_;
+  v1::ListEventsRequest request_;
+  const bool with_contexts_;
+  bool withheld_ = false;
+  bool header_sent_ = false;
+  bool done_ = false;
+  int pages_ = 0;
+  std::optional<v1::ListEventsResponse> page_;  // read, not yet sent
+};
 
 // Every action's estimate at the context of `event_id` from the person's
 // current model, as the learner computes it at Select (Estimate), with

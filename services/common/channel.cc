@@ -57,7 +57,7 @@ absl::StatusOr<std::shared_ptr<grpc::ChannelCredentials>> MakeCredentials(
     ASSIGN_OR_RETURN(ssl.pem_cert_chain,
                      ReadPemFile(options.tls_cert_file, "TLS certificate"));
     ASSIGN_OR_RETURN(ssl.pem_private_key,
-                     ReadPemFile(options.tls_key_file, "TLS key"));
+                     ReadPrivateKeyFile(options.tls_key_file, "TLS key"));
   }
   return grpc::SslCredentials(ssl);
 }

@@ -1,10 +1,12 @@
 #include "services/common/server.h"
 
+#include <arpa/inet.h>
 #include <grpc/grpc.h>
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/health_check_service_interface.h>
 #include <grpcpp/security/server_credentials.h>
 #include <grpcpp/server_builder.h>
+#include <netinet/in.h>
 #include <pthread.h>
 #include <signal.h>
 
@@ -15,7 +17,10 @@
 #include <sstream>
 #include <utility>
 
+#include "absl/algorithm/container.h"
+#include "absl/strings/ascii.h"
 #include "absl/strings/match.h"
+#include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/string_view.h"
 #include "absl/time/clock.h"
@@ -48,7 +53,7 @@ absl::StatusOr<std::shared_ptr<grpc::ServerCredentials>> MakeCredentials(
   ASSIGN_OR_RETURN(pair.cert_chain,
                    ReadPemFile(options.tls_cert_file, "TLS certificate"));
   ASSIGN_OR_RETURN(pair.private_key,
-                   ReadPemFile(options.tls_key_file, "TLS key"));
+                   ReadPrivateKeyFile(options.tls_key_file, "TLS key"));
   ssl.pem_key_cert_pairs.push_back(std::move(pair));
   if (has_client_ca) {
     ASSIGN_OR_RETURN(ssl.pem_root_certs,
@@ -87,9 +92,12 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
     return colon == std::string::npos ? std::string()
                                       : address.substr(0, colon);
   };
+  // An address, not a name that merely starts like one ("127.x.example").
   const auto loopback = [](const std::string& host) {
-    return absl::StartsWith(host, "127.") || host == "[::1]" ||
-           host == "localhost";
+    if (host == "localhost" || host == "[::1]") return true;
+    in_addr v4;
+    return inet_pton(AF_INET, host.c_str(), &v4) == 1 &&
+           (ntohl(v4.s_addr) >> 24) == 127;
   };
   const std::string host = host_of(options.listen_address);
   const bool tls = !options.tls_cert_file.empty();
@@ -99,6 +107,23 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
         "\" in plaintext: a non-loopback address needs --tls_cert and "
         "--tls_key (and --tls_client_ca for mutual TLS), or "
         "--allow_plaintext_remote on a network you trust"));
+  }
+  // CivetWeb (under prometheus-cpp's Exposer) reads a list of ports
+  // ("127.0.0.1:9101,9102" also listens on every interface) and suffixes
+  // ("9101s", "9101r"): one host:port only, so the check below holds.
+  if (!options.metrics_listen.empty()) {
+    const std::string& m = options.metrics_listen;
+    const size_t colon = m.rfind(':');
+    const std::string port =
+        colon == std::string::npos ? m : m.substr(colon + 1);
+    int port_number = 0;
+    if (m.find(',') != std::string::npos || port.empty() ||
+        !absl::c_all_of(port, [](char c) { return absl::ascii_isdigit(c); }) ||
+        !absl::SimpleAtoi(port, &port_number) || port_number > 65535) {
+      return absl::InvalidArgumentError(
+          absl::StrCat("--metrics_listen=\"", m,
+                       "\": give one HOST:PORT (for example 127.0.0.1:9101)"));
+    }
   }
   // The metrics endpoint is plain HTTP with no authentication, whatever the
   // gRPC port's TLS: off the machine only where plaintext is allowed.
@@ -167,9 +192,18 @@ absl::StatusOr<std::unique_ptr<ServiceServer>> ServiceServer::Start(
   if (server == nullptr || port == 0) {
     server.reset();
     release();
-    return absl::UnavailableError(
-        absl::StrCat("cannot listen on \"", options.listen_address,
-                     "\" (invalid address, or port already in use)"));
+    // gRPC says no more than that; with TLS, a certificate and key that
+    // do not belong together (or a key that is encrypted or not PEM) fail
+    // here too.
+    return absl::UnavailableError(absl::StrCat(
+        "cannot listen on \"", options.listen_address,
+        "\" (invalid address, or port already in use",
+        tls ? absl::StrCat("; or --tls_cert ", options.tls_cert_file,
+                           " and --tls_key ", options.tls_key_file,
+                           " do not belong together, or the key is encrypted "
+                           "or not PEM: gRPC's log above says which")
+            : "",
+        ")"));
   }
   const char* mode = !tls                                 ? "plaintext"
                      : options.tls_client_ca_file.empty() ? "TLS"
@@ -296,12 +330,18 @@ absl::Status RunUntilSignal(ServiceServer& server) {
           absl::StrCat("sigwait failed: ", std::strerror(error)));
     }
     if (signal_number != SIGHUP) break;
-    const absl::Status reloaded = server.ReloadAuthorization();
-    std::fprintf(stderr, "bitewise: SIGHUP: %s\n",
-                 reloaded.ok() ? "roles reloaded"
-                               : absl::StrCat("roles kept, reload failed: ",
-                                              reloaded.ToString())
-                                     .c_str());
+    // Certificates and keys are read once, at start; only roles reload.
+    std::string what = "no --authz_file: nothing to reload";
+    if (server.authorization_on()) {
+      const absl::Status reloaded = server.ReloadAuthorization();
+      what = reloaded.ok() ? "roles reloaded"
+                           : absl::StrCat("roles kept, reload failed: ",
+                                          reloaded.ToString());
+    }
+    std::fprintf(stderr,
+                 "bitewise: SIGHUP: %s (TLS certificates are read only at "
+                 "start: restart to use renewed ones)\n",
+                 what.c_str());
   }
   std::fprintf(stderr, "bitewise: received %s, draining (up to %s)\n",
                signal_number == SIGTERM ? "SIGTERM" : "SIGINT",

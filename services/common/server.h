@@ -107,6 +107,7 @@ class ServiceServer {
   int metrics_port() const { return metrics_ ? metrics_->port() : 0; }
   // Reloads the roles file (on SIGHUP); OK when authorization is off.
   absl::Status ReloadAuthorization();
+  bool authorization_on() const { return authorizer_ != nullptr; }
 
   absl::Duration drain_timeout() const { return drain_timeout_; }
 

@@ -1,11 +1,14 @@
 #include "services/common/tls_files.h"
 
+#include <sys/stat.h>
+
 #include <cerrno>
 #include <cstring>
 #include <fstream>
 #include <string>
 
 #include "absl/strings/str_cat.h"
+#include "absl/strings/str_format.h"
 
 namespace bitewise {
 
@@ -35,6 +38,28 @@ absl::StatusOr<std::string> ReadPemFile(const std::string& path,
         absl::StrCat(what, " file \"", path, "\" is empty"));
   }
   return contents;
+}
+
+absl::Status CheckPrivateKeyMode(const std::string& path,
+                                 absl::string_view what) {
+  struct stat st;
+  if (stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode)) {
+    return absl::OkStatus();  // ReadPemFile (or the library) names it
+  }
+  if ((st.st_mode & (S_IROTH | S_IWOTH)) == 0) return absl::OkStatus();
+  return absl::FailedPreconditionError(absl::StrFormat(
+      "%s file \"%s\" may be %s by every user of this machine (mode %04o): "
+      "chmod o-rwx it and give it to the service's user only",
+      what, path, (st.st_mode & S_IROTH) != 0 ? "read" : "overwritten",
+      st.st_mode & 07777));
+}
+
+absl::StatusOr<std::string> ReadPrivateKeyFile(const std::string& path,
+                                               absl::string_view what) {
+  if (absl::Status mode = CheckPrivateKeyMode(path, what); !mode.ok()) {
+    return mode;
+  }
+  return ReadPemFile(path, what);
 }
 
 }  // namespace bitewise

@@ -16,6 +16,15 @@ namespace bitewise {
 absl::StatusOr<std::string> ReadPemFile(const std::string& path,
                                         absl::string_view what);
 
+// A private key: as ReadPemFile, and FAILED_PRECONDITION, naming the file
+// and its mode, when every user of the machine may read or write it (ssh
+// refuses such a key too). A group may read it (Debian's ssl-cert group).
+absl::StatusOr<std::string> ReadPrivateKeyFile(const std::string& path,
+                                               absl::string_view what);
+// The mode check alone, for a library that opens the key itself.
+absl::Status CheckPrivateKeyMode(const std::string& path,
+                                 absl::string_view what);
+
 }  // namespace bitewise
 
 #endif  // BITEWISE_SERVICES_COMMON_TLS_FILES_H_

@@ -90,6 +90,12 @@ ABSL_FLAG(double, camera_max_frame_age_s, 0.5,
 ABSL_FLAG(std::string, camera_tls_ca, "",
           "jaco2: PEM CA that signed bitewise-camera's certificate (TLS on "
           "the camera link); empty: plaintext.");
+ABSL_FLAG(std::string, camera_tls_cert, "",
+          "jaco2: PEM client certificate the robot presents to "
+          "bitewise-camera (mutual TLS, for a camera started with "
+          "--tls_client_ca); with --camera_tls_key.");
+ABSL_FLAG(std::string, camera_tls_key, "",
+          "jaco2: PEM private key of --camera_tls_cert.");
 ABSL_FLAG(double, static_load_threshold_n, 0.02,
           "jaco2: success when the fork carries at least this load after "
           "extraction; 0 leaves success to the operator.");
@@ -222,13 +228,15 @@ int CheckSensor(const bitewise::robot::RobotBackendOptions& options) {
   std::unique_ptr<bitewise::sim::SimNetFtBox> box;
   netft::NetFtRdtClientOptions ft = options.ft;
   if (options.kind == bitewise::robot::BackendKind::kSim) {
-    auto started = bitewise::sim::SimNetFtBox::Start(options.sim.box, nullptr);
+    const bitewise::sim::SimNetFtBoxOptions box_options =
+        bitewise::robot::SimBoxOptions(options);
+    auto started = bitewise::sim::SimNetFtBox::Start(box_options, nullptr);
     if (!started.ok()) {
       return bitewise::ReportFatal(kProgram, "cannot start the simulated box",
                                    started.status());
     }
     box = std::move(started).value();
-    ft.host = options.sim.box.host;
+    ft.host = box_options.host;
     ft.port = box->port();
   }
   auto client = netft::NetFtRdtClient::Connect(ft);
@@ -309,6 +317,8 @@ int main(int argc, char** argv) {
     camera_options.max_frame_age_s =
         absl::GetFlag(FLAGS_camera_max_frame_age_s);
     camera_options.channel.tls_ca_file = absl::GetFlag(FLAGS_camera_tls_ca);
+    camera_options.channel.tls_cert_file = absl::GetFlag(FLAGS_camera_tls_cert);
+    camera_options.channel.tls_key_file = absl::GetFlag(FLAGS_camera_tls_key);
     // A 1280x720 RGB-D frame is 4.6 MB, more than gRPC's default 4 MiB.
     camera_options.channel.max_message_bytes = 64 << 20;
     auto created = bitewise::robot::CameraClient::Create(camera_options);

@@ -14,6 +14,7 @@
 #include <signal.h>
 #include <stdlib.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -655,6 +656,61 @@ TEST(ServiceServerTlsTest, UnreadableFilesAreNamed) {
   EXPECT_THAT(channel.status().message(), HasSubstr("missing-client.key"));
 }
 
+// A private key every user may read is refused, naming it and its mode;
+// a group may read it (Debian's ssl-cert group).
+TEST(ServiceServerTlsTest, AKeyEveryUserMayReadIsRefused) {
+  ASSERT_TRUE(Certs().error.empty()) << Certs().error;
+  FakeHapticService service;
+  for (const char* name : {"server.key", "client.key"}) {
+    const std::string from = Certs().Path(name);
+    const std::string open = Certs().Path(absl::StrCat("open-", name));
+    std::filesystem::copy_file(
+        from, open, std::filesystem::copy_options::overwrite_existing);
+    ASSERT_EQ(chmod(open.c_str(), 0644), 0);
+    absl::Status refused;
+    if (std::string(name) == "server.key") {
+      ServerOptions options = TlsServerOptions(/*mutual=*/false);
+      options.tls_key_file = open;
+      refused = StartHaptic(service, options).status();
+    } else {
+      ChannelOptions options = TlsChannelOptions(/*with_client_cert=*/true);
+      options.tls_key_file = open;
+      refused = MakeChannel("127.0.0.1:1", options).status();
+    }
+    EXPECT_EQ(refused.code(), absl::StatusCode::kFailedPrecondition) << name;
+    EXPECT_THAT(std::string(refused.message()),
+                HasSubstr(absl::StrCat("TLS key file \"", open,
+                                       "\" may be read by every user of "
+                                       "this machine (mode 0644)")));
+    ASSERT_EQ(chmod(open.c_str(), 0640), 0);
+    if (std::string(name) == "server.key") {
+      ServerOptions options = TlsServerOptions(/*mutual=*/false);
+      options.tls_key_file = open;
+      EXPECT_TRUE(StartHaptic(service, options).ok());
+    } else {
+      ChannelOptions options = TlsChannelOptions(/*with_client_cert=*/true);
+      options.tls_key_file = open;
+      EXPECT_TRUE(MakeChannel("127.0.0.1:1", options).ok());
+    }
+  }
+}
+
+// A certificate with another's key: gRPC cannot listen, and the message
+// names the two files, not only the port (operators were sent to ss).
+TEST(ServiceServerTlsTest, ACertificateWithAnothersKeyIsNamed) {
+  ASSERT_TRUE(Certs().error.empty()) << Certs().error;
+  FakeHapticService service;
+  ServerOptions options = TlsServerOptions(/*mutual=*/false);
+  options.tls_key_file = Certs().Path("client.key");
+  auto server = StartHaptic(service, options);
+  ASSERT_FALSE(server.ok());
+  EXPECT_EQ(server.status().code(), absl::StatusCode::kUnavailable);
+  EXPECT_THAT(server.status().message(),
+              HasSubstr(absl::StrCat(
+                  "--tls_cert ", Certs().Path("server.pem"), " and --tls_key ",
+                  Certs().Path("client.key"), " do not belong together")));
+}
+
 TEST(ServiceServerTlsTest, InconsistentTlsOptionsAreRejected) {
   FakeHapticService service;
   ServerOptions key_only;
@@ -864,6 +920,27 @@ TEST(MetricsTest, RpcCountsLatencyAndScrapeValuesAreServed) {
   EXPECT_THAT(std::string(refused.message()),
               HasSubstr("refusing to serve metrics on \"0.0.0.0:0\": the "
                         "metrics endpoint is plain HTTP"));
+
+  // CivetWeb's lists and suffixes would listen beyond the checked address.
+  for (const char* listed : {"127.0.0.1:0,0", "127.0.0.1:0,0.0.0.0:9",
+                             "127.0.0.1:9101s", "127.0.0.1:"}) {
+    ServerOptions list;
+    list.metrics_listen = listed;
+    const absl::Status bad = ServiceServer::Start(list, &env, {&probe},
+                                                  {"bitewise.v1.HapticService"})
+                                 .status();
+    EXPECT_EQ(bad.code(), absl::StatusCode::kInvalidArgument) << listed;
+    EXPECT_THAT(std::string(bad.message()), HasSubstr("give one HOST:PORT"))
+        << listed;
+  }
+  // A host name that starts like a loopback address is not one.
+  ServerOptions named;
+  named.metrics_listen = "127.0.0.1.example.org:0";
+  EXPECT_EQ(
+      ServiceServer::Start(named, &env, {&probe}, {"bitewise.v1.HapticService"})
+          .status()
+          .code(),
+      absl::StatusCode::kFailedPrecondition);
 
   ServerOptions taken;
   taken.metrics_listen = "256.0.0.1:1";

@@ -88,6 +88,24 @@ TEST_F(AccessFileTest, PasswordsAreCheckedAgainstPublishedPbkdf2Vectors) {
   EXPECT_FALSE(copy.Check("rex", "password").ok());
 }
 
+// A name that is not listed costs the same derivation as a listed one (at
+// the file's highest iteration count), so the time of a wrong answer does
+// not tell which names exist; it never opens anything.
+TEST_F(AccessFileTest, AnUnlistedNameCostsAsMuchAsAListedOne) {
+  Write(absl::StrCat("carol caregiver ", kPasswordSalt4096, "\n"));
+  absl::StatusOr<AccessList> access = AccessList::Load(path_);
+  ASSERT_THAT(access, IsOk());
+  EXPECT_EQ(access->derivations(), 0);
+  EXPECT_FALSE(access->Check("carol", "wrong").ok());
+  EXPECT_EQ(access->derivations(), 1);
+  EXPECT_THAT(
+      access->Check("nobody", "password"),
+      StatusIs(absl::StatusCode::kUnauthenticated, "wrong name or password"));
+  EXPECT_EQ(access->derivations(), 2);
+  EXPECT_FALSE(access->Check("nobody", "password").ok());  // never cached
+  EXPECT_EQ(access->derivations(), 3);
+}
+
 TEST_F(AccessFileTest, HashedPasswordsHaveAFreshSaltAndVerify) {
   absl::StatusOr<std::string> first = HashPassword("table-pass", 1000);
   absl::StatusOr<std::string> second = HashPassword("table-pass", 1000);

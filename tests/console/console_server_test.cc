@@ -449,6 +449,32 @@ TEST_F(ConsoleServerTest, ResearchersNumbersAreListEvents) {
       client.Get("/api/people/rita/events.csv?meal_id=lunch&contexts=1");
   ASSERT_TRUE(with_contexts);
   EXPECT_THAT(with_contexts->body, HasSubstr(",context\r\n"));
+  // The whole history, sent a page at a time, is the CSV of every event;
+  // so is the stream read one event a page.
+  absl::StatusOr<std::vector<v1::Event>> with_vectors =
+      AllEvents(clients_->bandit, "rita", "", true, nullptr);
+  ASSERT_TRUE(with_vectors.ok());
+  auto all = client.Get("/api/people/rita/events.csv?contexts=1");
+  ASSERT_TRUE(all);
+  EXPECT_EQ(all->status, 200);
+  EXPECT_EQ(all->body, EventsCsv(*with_vectors, true));
+  EXPECT_EQ(all->get_header_value("Transfer-Encoding"), "chunked");
+  absl::StatusOr<std::unique_ptr<EventsCsvStream>> one_a_page =
+      EventsCsvStream::Start(clients_->bandit, "rita", "", true,
+                             /*page_size=*/1);
+  ASSERT_TRUE(one_a_page.ok()) << one_a_page.status();
+  std::string pieces;
+  int reads = 0;
+  for (absl::StatusOr<std::string> piece = (*one_a_page)->Next();
+       piece.ok() && !piece->empty(); piece = (*one_a_page)->Next()) {
+    pieces += *piece;
+    ++reads;
+  }
+  EXPECT_EQ(pieces, EventsCsv(*with_vectors, true));
+  EXPECT_GE(reads, 4);
+  auto nobody = client.Get("/api/people/nobody/events.csv");
+  ASSERT_TRUE(nobody);
+  EXPECT_EQ(nobody->status, 404);
 
   auto page = client.Get("/api/people/rita/events?page_size=3");
   ASSERT_TRUE(page);
@@ -473,6 +499,16 @@ TEST_F(ConsoleServerTest, ResearchersNumbersAreListEvents) {
   auto bad_event = client.Get("/api/people/rita/estimates?event_id=x");
   ASSERT_TRUE(bad_event);
   EXPECT_EQ(bad_event->status, 400);
+  // An id the BanditService would never return ("+7", " 7", "07") is a
+  // bad request, not "not one of rita's".
+  for (const std::string& odd : {absl::StrCat("%2B", (*events)[0].event_id()),
+                                 absl::StrCat("%20", (*events)[0].event_id()),
+                                 absl::StrCat("0", (*events)[0].event_id())}) {
+    auto refused =
+        client.Get(absl::StrCat("/api/people/rita/estimates?event_id=", odd));
+    ASSERT_TRUE(refused);
+    EXPECT_EQ(refused->status, 400) << odd << ": " << refused->body;
+  }
 
   auto health = client.Get("/api/health");
   ASSERT_TRUE(health);

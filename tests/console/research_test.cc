@@ -98,6 +98,18 @@ TEST(EventsCsvTest, OneRowPerEventWithCellsQuotedWhereTheyMustBe) {
             header + ",context\r\n" + done_row + ",0.33333333333333331;2\r\n" +
                 pending_row + ",\r\n");
   EXPECT_EQ(EventsCsv({}, false), header + "\r\n");
+  // Vectors withheld from this identity: the column says so, not blank
+  // cells that read as pending bites (WithholdContexts clears both).
+  v1::Event hidden = done;
+  hidden.clear_posthoc();
+  hidden.clear_context();
+  const std::string hidden_row =
+      "7,rita,lunch,\"pea, \"\"sweet\"\"\",3,0.10000000000000001,true,1,"
+      ",4,2023-11-14T22:13:20Z,2023-11-14T22:13:21.500Z";
+  EXPECT_EQ(EventsCsv({hidden}, true, /*withheld=*/true),
+            "event_id,user_id,meal_id,item_label,action,propensity,completed,"
+            "loss,posthoc_withheld,model_version,selected_at,updated_at\r\n" +
+                hidden_row + "\r\n");
 
   // Text a spreadsheet would run as a formula is shown, not run.
   v1::Event formula = MakeEvent("9", "=HYPERLINK(\"http://x/\",\"open\")",
