@@ -149,7 +149,8 @@ std::optional<v1::Frame> Meal::plate_frame() const {
   return frame_;
 }
 
-absl::StatusOr<int> Meal::DeliverJournal(std::string* why_not) {
+absl::StatusOr<int> Meal::DeliverJournal(
+    std::string* why_not, std::map<std::string, absl::Status>* results) {
   return journal_->Drain([&](const JournaledUpdate& update) -> absl::Status {
     v1::UpdateRequest request;
     request.set_event_id(update.event_id);
@@ -161,6 +162,7 @@ absl::StatusOr<int> Meal::DeliverJournal(std::string* why_not) {
     if (!sent.ok() && why_not != nullptr) {
       *why_not = std::string(sent.status().message());
     }
+    if (results != nullptr) (*results)[update.event_id] = sent.status();
     if (sent.ok() || Retryable(sent.status())) return sent.status();
     if (listener_ != nullptr) {
       listener_->OnNote(absl::StrCat("journal: dropping the update of event ",
@@ -1070,25 +1072,39 @@ void Meal::ConfirmAnswer() {
     }
   }
   std::string why_not;
-  const absl::StatusOr<int> delivered = DeliverJournal(&why_not);
+  std::map<std::string, absl::Status> results;
+  const absl::StatusOr<int> delivered = DeliverJournal(&why_not, &results);
   std::string text;
   {
     absl::MutexLock lock(&mu_);
     mealpb::Bite* bite = state_.mutable_bites(state_.bites_size() - 1);
-    const bool learned = delivered.ok() && *delivered > 0;
-    bite->set_learned(learned ? "learned" : "journaled");
+    // This bite's answer, not merely something from the journal (an older
+    // entry delivered, or this one refused for good and dropped).
+    const auto result = results.find(bite->event_id());
+    const bool learned =
+        delivered.ok() && result != results.end() && result->second.ok();
+    const bool dropped = delivered.ok() && result != results.end() &&
+                         !result->second.ok() && !Retryable(result->second);
+    bite->set_learned(learned   ? "learned"
+                      : dropped ? "not learned"
+                                : "journaled");
     if (!learned) {
-      bite->set_error(
-          delivered.ok() ? why_not : std::string(delivered.status().message()));
+      bite->set_error(dropped ? std::string(result->second.message())
+                      : delivered.ok()
+                          ? why_not
+                          : std::string(delivered.status().message()));
     }
-    text = absl::StrCat(FoodOf(*bite), " with ", bite->action().name(), ": ",
-                        bite->outcome(), " (operator); ",
-                        learned ? "learned"
-                                : absl::StrCat("saved to be learned later (",
-                                               bite->error().empty()
-                                                   ? "BanditService unavailable"
-                                                   : bite->error(),
-                                               ")"));
+    text = absl::StrCat(
+        FoodOf(*bite), " with ", bite->action().name(), ": ", bite->outcome(),
+        " (operator); ",
+        learned ? "learned"
+        : dropped
+            ? absl::StrCat("not learned: the BanditService refused it (",
+                           bite->error(), ")")
+            : absl::StrCat("saved to be learned later (",
+                           bite->error().empty() ? "BanditService unavailable"
+                                                 : bite->error(),
+                           ")"));
     bite->set_text(text);
     *state_.mutable_current() = *bite;
   }

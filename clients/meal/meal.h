@@ -137,12 +137,15 @@ class Meal {
        MealListener* listener);
 
   // Delivers updates left in the journal (an earlier run, or an answer not
-  // yet learned). Returns how many were delivered; updates the
-  // BanditService refuses for good (not UNAVAILABLE, DEADLINE_EXCEEDED or
-  // RESOURCE_EXHAUSTED)
-  // are dropped with a note.
-  // `why_not`, if given, gets the last delivery's error.
-  absl::StatusOr<int> DeliverJournal(std::string* why_not = nullptr);
+  // yet learned). Returns how many left the journal (learned, or refused
+  // for good); updates the BanditService refuses for good (not
+  // UNAVAILABLE, DEADLINE_EXCEEDED or RESOURCE_EXHAUSTED) are dropped with
+  // a note. `why_not`, if given, gets the last delivery's error; `results`,
+  // if given, each delivered event's answer from the BanditService (OK:
+  // learned; a code that is not retried: dropped; a retried one: kept).
+  absl::StatusOr<int> DeliverJournal(
+      std::string* why_not = nullptr,
+      std::map<std::string, absl::Status>* results = nullptr);
 
   // Captures the plate and detects the food on it. An empty plate ends the
   // meal (phase "ended"). Errors name the service and call. On the JACO2

@@ -1,13 +1,18 @@
 // bitewise-orchestrator: runs bites for one user through the four services.
 // Flags are parsed here into MealOptions; the meal logic is the meal
 // library (clients/meal/meal.h).
+#include <poll.h>
 #include <unistd.h>
 
+#include <atomic>
+#include <csignal>
 #include <cstdio>
+#include <cstdlib>
 #include <iostream>
 #include <memory>
 #include <optional>
 #include <string>
+#include <thread>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/usage.h"
@@ -20,6 +25,7 @@
 #include "clients/meal/update_journal.h"
 #include "services/common/channel.h"
 #include "services/common/flags_usage.h"
+#include "services/common/server.h"
 
 ABSL_FLAG(std::string, user, "demo-user", "User whose model learns.");
 ABSL_FLAG(std::string, meal, "meal-1", "Meal id recorded with each event.");
@@ -166,16 +172,30 @@ void PrintBite(const mealpb::Bite& bite) {
   std::fflush(stdout);
 }
 
-// Asks at the terminal until the answer is y or n; end of input is "no".
-bool AskOperator(const std::string& question) {
-  while (true) {
+// The termination signal received (0: none); set by the signal thread.
+std::atomic<int> interrupted{0};
+
+// Asks at the terminal until the answer is y or n. No answer (end of
+// input: no terminal, a launcher's closed stdin; or a termination signal
+// while waiting) is nullopt, never "no": a "no" nobody gave would teach
+// the person's model a failure, bite after bite, while the arm goes on.
+std::optional<bool> AskOperator(const std::string& question) {
+  while (interrupted.load() == 0) {
     std::printf("%s [y/n] ", question.c_str());
     std::fflush(stdout);
+    // Wait for a line a fifth of a second at a time, so that a signal
+    // ends the wait.
+    pollfd in{STDIN_FILENO, POLLIN, 0};
+    int ready = 0;
+    while (interrupted.load() == 0 && (ready = poll(&in, 1, 200)) == 0) {
+    }
+    if (interrupted.load() != 0 || ready < 0) return std::nullopt;
     std::string answer;
-    if (!std::getline(std::cin, answer)) return false;
+    if (!std::getline(std::cin, answer)) return std::nullopt;
     if (answer == "y" || answer == "Y") return true;
     if (answer == "n" || answer == "N") return false;
   }
+  return std::nullopt;
 }
 
 void PrintSummary(const mealpb::MealState& state) {
@@ -195,6 +215,9 @@ int main(int argc, char** argv) {
       "Runs bites for one user through the bitewise services.");
   bitewise::ShowOwnFlagsInHelp();
   bitewise::ParseFlagsOnly(argc, argv);
+  // SIGINT and SIGTERM go to the signal thread below (blocked here, before
+  // any thread starts, so every thread inherits the mask).
+  bitewise::BlockTerminationSignals();
   const std::string confirm = absl::GetFlag(FLAGS_confirm);
   const std::string posthoc = absl::GetFlag(FLAGS_posthoc);
   if (confirm != "robot" && confirm != "operator") {
@@ -310,6 +333,31 @@ int main(int argc, char** argv) {
                 *delivered);
   }
 
+  // Ctrl-C or a stop (systemctl, a launcher): the arm is told to stop at
+  // once (a running Acquire ends as "stopped"), the meal ends after the
+  // call in flight, its summary is printed and the exit code is 128 + the
+  // signal. A second signal ends the program at once.
+  std::thread([&meal] {
+    sigset_t signals;
+    sigemptyset(&signals);
+    sigaddset(&signals, SIGINT);
+    sigaddset(&signals, SIGTERM);
+    int signal_number = 0;
+    if (sigwait(&signals, &signal_number) != 0) return;
+    interrupted = signal_number;
+    std::fprintf(stderr, "bitewise-orchestrator: %s: stopping the arm\n",
+                 signal_number == SIGINT ? "SIGINT" : "SIGTERM");
+    if (absl::StatusOr<bitewise::v1::StopResponse> stopped = meal.Stop();
+        !stopped.ok()) {
+      std::fprintf(stderr, "bitewise-orchestrator: Stop failed: %s\n",
+                   stopped.status().ToString().c_str());
+    }
+    if (sigwait(&signals, &signal_number) == 0) {
+      std::fprintf(stderr, "bitewise-orchestrator: second signal: exiting\n");
+      std::_Exit(128 + signal_number);
+    }
+  }).detach();
+
   int limit = absl::GetFlag(FLAGS_bites);
   if (limit <= 0) limit = 64;
   std::printf("meal %s for %s\n", options.meal_id.c_str(),
@@ -320,7 +368,19 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "stopping the meal: %s\n", why.c_str());
     exit_code = 1;
   };
+  bool reported = false;
+  const auto signalled = [&] {
+    if (interrupted.load() == 0) return false;
+    if (!reported) {
+      stop(interrupted.load() == SIGINT ? "interrupted (SIGINT)"
+                                        : "interrupted (SIGTERM)");
+      exit_code = 128 + interrupted.load();
+      reported = true;
+    }
+    return true;
+  };
   for (int bite = 1; bite <= limit; ++bite) {
+    if (signalled()) break;
     absl::Status looked = meal.LookAtPlate();
     if (!looked.ok()) {
       stop(std::string(looked.message()));
@@ -330,19 +390,30 @@ int main(int argc, char** argv) {
       std::printf("the plate is empty\n");
       break;
     }
+    if (signalled()) break;
     absl::Status bitten = meal.Bite(std::nullopt);
     mealpb::Bite current = meal.state().current();
     if (!bitten.ok()) {
       if (current.number() == bite) PrintBite(current);
-      stop(std::string(bitten.message()));
+      if (!signalled()) stop(std::string(bitten.message()));
       break;
     }
     if (!current.question().empty()) {
       // The bite's line first, so the question is read knowing which food
       // and which action it is about.
       PrintBite(current);
-      const bool success = AskOperator(current.question());
-      absl::Status answered = meal.Answer(current.event_id(), success);
+      const std::optional<bool> success = AskOperator(current.question());
+      if (!success.has_value()) {
+        std::printf("\n");
+        if (!signalled()) {
+          stop(
+              "no answer from the operator (end of input): this bite is not "
+              "learned (its event stays pending); --confirm=operator needs "
+              "someone at the terminal");
+        }
+        break;
+      }
+      absl::Status answered = meal.Answer(current.event_id(), *success);
       if (!answered.ok()) {
         stop(std::string(answered.message()));
         break;
@@ -359,6 +430,7 @@ int main(int argc, char** argv) {
       break;
     }
   }
+  signalled();  // a signal during the last bite still sets the exit code
   const absl::Status finished = meal.Finish();
   if (!finished.ok()) {
     std::fprintf(stderr, "%s\n", finished.ToString().c_str());

@@ -349,6 +349,49 @@ TEST_F(MealEndToEndTest, AFullDiskMidMealIsJournaledAndDeliveredAfterward) {
   EXPECT_EQ(events[1].loss(), 1.0);  // the operator's "no"
 }
 
+// --confirm=operator with nobody at the terminal (stdin at its end, as
+// from a launcher): the meal stops at the first question and nothing is
+// learned. It went on, learning a "no" for every bite.
+TEST_F(MealEndToEndTest, NoOperatorAtTheTerminalStopsTheMealUnlearned) {
+  std::vector<std::string> args = OrchestratorArgs("alone", "m1", 3);
+  args.push_back("--confirm=operator");
+  int status = 0;
+  const std::string out = RunOrchestrator(args, "alone.log", &status);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1)
+      << testing::DescribeWaitStatus(status) << "\n"
+      << out;
+  EXPECT_TRUE(absl::StrContains(
+      out, "stopping the meal: no answer from the operator (end of input)"))
+      << out;
+  const std::vector<v1::Event> events = Events("alone");
+  ASSERT_EQ(events.size(), 1u) << out;
+  EXPECT_FALSE(events[0].completed());
+}
+
+// Ctrl-C mid-meal: the arm is told to stop, the meal ends after the call
+// in flight with its summary, and the exit code is 128 + SIGINT.
+TEST_F(MealEndToEndTest, CtrlCStopsTheArmAndEndsTheMeal) {
+  ChildProcess orchestrator;
+  ASSERT_TRUE(orchestrator
+                  .Start(OrchestratorArgs("interrupted", "m1", 20),
+                         dir_ + "/interrupted.log")
+                  .ok());
+  ASSERT_TRUE(orchestrator.WaitForLog("bite  1", absl::Seconds(180)).ok())
+      << orchestrator.log();
+  absl::StatusOr<int> ended =
+      orchestrator.SignalAndWait(SIGINT, absl::Seconds(120));
+  ASSERT_TRUE(ended.ok()) << ended.status();
+  const std::string out = orchestrator.log();
+  EXPECT_TRUE(WIFEXITED(*ended) && WEXITSTATUS(*ended) == 130)
+      << testing::DescribeWaitStatus(*ended) << "\n"
+      << out;
+  EXPECT_TRUE(absl::StrContains(out, "SIGINT: stopping the arm")) << out;
+  EXPECT_TRUE(absl::StrContains(out, "stopping the meal: interrupted (SIGINT)"))
+      << out;
+  EXPECT_TRUE(absl::StrContains(out, "meal m1: ")) << out;  // the summary
+  EXPECT_LT(Events("interrupted").size(), 20u) << out;
+}
+
 // The lab's retraining path, end to end: meals record their traces, the
 // trainer learns from the recording (with a story), the HapticService
 // serves the new model, and it answers for a recorded trace.

@@ -902,6 +902,30 @@ TEST_F(MealTest, OperatorAnswerCanChangeAndIsLearnedWhenFinal) {
               StatusIs(absl::StatusCode::kFailedPrecondition, ::testing::_));
 }
 
+// An operator's answer the BanditService refuses for good is dropped from
+// the journal: the bite says "not learned" and why, not "learned" (it did:
+// any delivery from the journal counted as this answer's).
+TEST_F(MealTest, AnAnswerTheBanditRefusesIsNotCalledLearned) {
+  options_.confirm = ConfirmBy::kOperator;
+  auto meal = NewMeal();
+  ASSERT_OK(meal->LookAtPlate());
+  ASSERT_OK(meal->Bite(std::nullopt));
+  const mealpb::Bite bite = meal->state().current();
+  services_->faults().Fail(
+      "/bitewise.v1.BanditService/Update",
+      absl::FailedPreconditionError("the user was reset meanwhile"));
+  ASSERT_OK(meal->Answer(bite.event_id(), false));
+  meal->ConfirmAnswer();
+  const mealpb::Bite after = meal->state().current();
+  EXPECT_EQ(after.learned(), "not learned");
+  EXPECT_THAT(after.text(),
+              HasSubstr("not learned: the BanditService refused it"));
+  EXPECT_THAT(after.error(), HasSubstr("the user was reset meanwhile"));
+  EXPECT_TRUE(journal_->ReadAll()->empty());  // dropped, not kept
+  EXPECT_FALSE(Events()[0].completed());
+  services_->faults().Clear();
+}
+
 TEST_F(MealTest, StopDuringTheDescentEndsTheBiteAsStopped) {
   auto meal = NewMeal();
   ASSERT_OK(meal->LookAtPlate());
