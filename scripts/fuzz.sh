@@ -38,7 +38,7 @@ CORE_TESTS=(tests/bandit/bandit_core_test tests/bandit/bandit_split_run_test
 
 # -O1 with line tables only: sanitizer reports keep file and line, and the
 # build takes about two thirds of -O2 -g's time.
-if [ ! -f build-fuzz/CMakeCache.txt ]; then
+if [ ! -f build-fuzz/build.ninja ]; then
   CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja \
     -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O1 -gline-tables-only -DNDEBUG" \

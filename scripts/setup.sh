@@ -60,14 +60,14 @@ install_missing() {  # install_missing [apt options] -- packages...
   if ((${#missing[@]})); then
     step "Installing ${#missing[@]} missing Debian packages: ${missing[*]}"
     if ((!updated)); then $SUDO apt-get update -q; updated=1; fi
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q \
+    $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -q \
       "${options[@]}" "${missing[@]}"
   fi
 }
 JOBS="${BITEWISE_JOBS:-$(nproc)}"
 if [ "$mode" = "meal" ]; then
   install_missing --no-install-recommends -- "${MEAL_PACKAGES[@]}"
-  if [ ! -f build/CMakeCache.txt ]; then
+  if [ ! -f build/build.ninja ]; then
     step "Configuring the meal's targets (CMake, Ninja, Release)"
     cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DBITEWISE_WERROR=ON \
       -DBITEWISE_MEAL_ONLY=ON
@@ -85,7 +85,7 @@ if ! command -v npm >/dev/null || ! command -v node >/dev/null; then
 fi
 install_missing --no-install-recommends -- "${PYTHON_PACKAGES[@]}"
 
-if [ ! -f build/CMakeCache.txt ]; then
+if [ ! -f build/build.ninja ]; then
   step "Configuring (CMake, Ninja, Release)"
   cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DBITEWISE_WERROR=ON
 elif grep -q '^BITEWISE_MEAL_ONLY:BOOL=ON' build/CMakeCache.txt; then

@@ -38,7 +38,7 @@ elapsed() { printf '(%d s so far)\n' $(($(date +%s) - started)); }
 
 if [ "$mode" = "sanitize" ]; then
   scripts/setup.sh
-  if [ ! -f build-sanitize/CMakeCache.txt ]; then
+  if [ ! -f build-sanitize/build.ninja ]; then
     cmake -S . -B build-sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
       -DBITEWISE_SANITIZE=ON -DBITEWISE_WERROR=ON
   fi

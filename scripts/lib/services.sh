@@ -35,10 +35,30 @@ stop_services() {
 start_one() {
   local name="$1" service="$2" port="$3" binary="$4"
   shift 4
-  "$binary" --listen "127.0.0.1:$port" "$@" >>"$DATA_DIR/logs/$name.log" 2>&1 &
-  PIDS+=($!)
-  if ! "$BUILD_DIR"/clients/health/bitewise-health --address "127.0.0.1:$port" \
+  local log="$DATA_DIR/logs/$name.log"
+  local before
+  before=$(stat -c %s "$log" 2>/dev/null || echo 0)
+  "$binary" --listen "127.0.0.1:$port" "$@" >>"$log" 2>&1 &
+  local pid=$!
+  PIDS+=("$pid")
+  # SERVING from the process started here: another one left on the port
+  # (an earlier run killed, a console) would answer too, while this one
+  # failed to bind and exited. So this start's own log lines must say it
+  # serves (the line may follow the health status by a moment).
+  local own=0
+  if "$BUILD_DIR"/clients/health/bitewise-health --address "127.0.0.1:$port" \
     --service "bitewise.v1.$service" --timeout_s 60 >/dev/null; then
+    for _ in $(seq 50); do
+      local fresh
+      fresh=$(tail -c +"$((before + 1))" "$log")
+      if [[ $fresh == *"serving on"* ]] && kill -0 "$pid" 2>/dev/null; then
+        own=1
+        break
+      fi
+      sleep 0.1
+    done
+  fi
+  if ((!own)); then
     echo "$service did not become healthy; last lines of $DATA_DIR/logs/$name.log:" >&2
     tail -n 20 "$DATA_DIR/logs/$name.log" >&2
     exit 1

@@ -568,7 +568,10 @@ std::string ModelFileWithWindow(const std::string& name,
 }
 
 TEST(HapticBinaryTest, ServesAModelOnItsOwnWindow) {
-  const std::string path = ModelFileWithWindow("window_100ms.onnx", "0.1");
+  // Not TrainsOnAWindow's "window_100ms.onnx": tests run two at a time in
+  // one TEST_TMPDIR, and one would read the other's file half-written.
+  const std::string path =
+      ModelFileWithWindow("served_window_100ms.onnx", "0.1");
   HapticProcess process("own_window");
   ASSERT_NO_FATAL_FAILURE(process.Spawn({"--model=" + path}));
   ExpectServesAndStops(process);
