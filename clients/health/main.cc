@@ -24,6 +24,16 @@ int main(int argc, char** argv) {
       "Waits until a bitewise service reports SERVING.");
   bitewise::ShowOwnFlagsInHelp();
   bitewise::ParseFlagsOnly(argc, argv);
+  // Exit codes: 0 SERVING; 1 not SERVING within --timeout_s (or no
+  // answer); 2 a flag or TLS file it cannot use, before asking.
+  if (const double timeout = absl::GetFlag(FLAGS_timeout_s);
+      !(timeout > 0.0 && timeout <= 86400.0)) {
+    std::fprintf(stderr,
+                 "bitewise-health: --timeout_s must be above 0 and at most "
+                 "86400 s, got %g\n",
+                 timeout);
+    return 2;
+  }
   bitewise::ChannelOptions options;
   options.tls_ca_file = absl::GetFlag(FLAGS_tls_ca);
   options.tls_cert_file = absl::GetFlag(FLAGS_tls_cert);
@@ -33,7 +43,7 @@ int main(int argc, char** argv) {
   if (!channel.ok()) {
     std::fprintf(stderr, "bitewise-health: %s\n",
                  channel.status().ToString().c_str());
-    return 1;
+    return 2;
   }
   const std::string service = absl::GetFlag(FLAGS_service);
   absl::Status status = bitewise::WaitForServing(

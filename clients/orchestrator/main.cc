@@ -5,6 +5,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
@@ -13,6 +14,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <tuple>
 
 #include "absl/flags/flag.h"
 #include "absl/flags/usage.h"
@@ -225,9 +227,36 @@ int main(int argc, char** argv) {
                  confirm.c_str());
     return 2;
   }
-  if (!(absl::GetFlag(FLAGS_rho_c) > 0.0)) {
-    std::fprintf(stderr, "--rho_c must be positive, got %g\n",
-                 absl::GetFlag(FLAGS_rho_c));
+  if (const double rho_c = absl::GetFlag(FLAGS_rho_c);
+      !(rho_c > 0.0 && std::isfinite(rho_c))) {
+    std::fprintf(stderr, "--rho_c must be a positive number, got %g\n", rho_c);
+    return 2;
+  }
+  // Numbers that would otherwise fail later, in a service's words (a
+  // deadline of 0 as DEADLINE_EXCEEDED of the first call, an Acquire
+  // deadline after Select recorded a pending bite) or be dropped silently
+  // (a negative count of bites, a ridge or prior that is not a number).
+  for (const auto& [flag, value, low, high] :
+       {std::tuple<const char*, double, double, double>{
+            "--bites", absl::GetFlag(FLAGS_bites), 0, 1e6},
+        {"--deadline_ms", absl::GetFlag(FLAGS_deadline_ms), 1, 3.6e6},
+        {"--acquire_deadline_ms", absl::GetFlag(FLAGS_acquire_deadline_ms), 1,
+         3.6e6},
+        {"--retries", absl::GetFlag(FLAGS_retries), 0, 4},
+        {"--lambda_c", absl::GetFlag(FLAGS_lambda_c), 0, 1e12},
+        {"--prior_rounds", absl::GetFlag(FLAGS_prior_rounds), 0, 1e9}}) {
+    if (!(value >= low && value <= high)) {
+      std::fprintf(stderr, "%s must be from %g to %g, got %g\n", flag, low,
+                   high, value);
+      return 2;
+    }
+  }
+  if (const double alpha = absl::GetFlag(FLAGS_alpha);
+      !std::isfinite(alpha) || alpha > 1e6) {
+    std::fprintf(stderr,
+                 "--alpha must be a number (negative: the BanditService's "
+                 "default), got %g\n",
+                 alpha);
     return 2;
   }
   if (posthoc != "logprob" && posthoc != "prob" && posthoc != "none") {
