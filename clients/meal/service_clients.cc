@@ -201,6 +201,27 @@ absl::StatusOr<ServiceChannels> OpenServiceChannels(const ServiceLinks& links) {
           "robot)"));
     }
   }
+  // Flags that would be dropped silently: links named for TLS without a
+  // CA (all would stay plaintext), a name for the BanditService's
+  // certificate on a link without TLS.
+  const bool any_tls = !links.tls.tls_ca_file.empty();
+  if (!any_tls && links.tls_for != "all") {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "the TLS links \"", links.tls_for,
+        "\" are named, but no CA file is given: every link would be "
+        "plaintext"));
+  }
+  const auto tls_on = [&](const std::string& link) {
+    return any_tls && (links.tls_for == "all" ||
+                       std::find(tls_links.begin(), tls_links.end(), link) !=
+                           tls_links.end());
+  };
+  if (!links.bandit_tls_name.empty() && !tls_on("bandit")) {
+    return absl::InvalidArgumentError(absl::StrCat(
+        "a name for the BanditService's certificate (\"", links.bandit_tls_name,
+        "\") is given, but the bandit link is plaintext (no CA file, or not "
+        "among the TLS links)"));
+  }
   auto open = [&](const std::string& link, const std::string& address)
       -> absl::StatusOr<std::shared_ptr<grpc::Channel>> {
     const bool use_tls =

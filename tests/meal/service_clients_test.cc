@@ -59,6 +59,27 @@ TEST(OpenServiceChannelsTest, AnUnknownTlsLinkIsRefusedNamingIt) {
                        HasSubstr("unknown link \"\"")));
 }
 
+// TLS flags that would be dropped silently are refused: links named for
+// TLS without a CA, a BanditService certificate name on a plaintext link.
+TEST(OpenServiceChannelsTest, TlsFlagsThatWouldDoNothingAreRefused) {
+  ServiceLinks links = DistinctLinks();
+  links.tls_for = "bandit,perception";
+  EXPECT_THAT(OpenServiceChannels(links),
+              StatusIs(absl::StatusCode::kInvalidArgument,
+                       HasSubstr("no CA file is given: every link would be "
+                                 "plaintext")));
+  links.tls_for = "all";
+  links.bandit_tls_name = "bandit.facility";
+  EXPECT_THAT(OpenServiceChannels(links),
+              StatusIs(absl::StatusCode::kInvalidArgument,
+                       HasSubstr("the bandit link is plaintext")));
+  links.tls.tls_ca_file = "/nonexistent/ca.pem";
+  links.tls_for = "robot";
+  EXPECT_THAT(OpenServiceChannels(links),
+              StatusIs(absl::StatusCode::kInvalidArgument,
+                       HasSubstr("the bandit link is plaintext")));
+}
+
 // TLS whose CA file cannot be read fails exactly the links that use TLS,
 // and the error names the first such link's address.
 TEST(OpenServiceChannelsTest, TlsGoesOnlyToTheLinksNamed) {
