@@ -192,6 +192,11 @@ int main(int argc, char** argv) {
       !writable.ok()) {
     return Fail(absl::StrCat("--journal: ", writable.ToString()));
   }
+  absl::StatusOr<std::unique_ptr<meals::JournalClaim>> claim =
+      meals::JournalClaim::Take(host_options.journal_path);
+  if (!claim.ok()) {
+    return Fail(absl::StrCat("--journal: ", claim.status().ToString()));
+  }
   meals::MealOptions& defaults = host_options.defaults;
   defaults.posthoc = posthoc == "logprob"
                          ? meals::PosthocMode::kLogProbabilities

@@ -1,6 +1,7 @@
 #include "clients/meal/update_journal.h"
 
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -12,10 +13,12 @@
 #include <sstream>
 
 #include "absl/container/flat_hash_map.h"
+#include "absl/strings/ascii.h"
 #include "absl/strings/numbers.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
 #include "absl/strings/str_split.h"
+#include "absl/strings/strip.h"
 
 namespace bitewise::meals {
 namespace {
@@ -83,6 +86,36 @@ absl::Status UpdateJournal::Append(const JournaledUpdate& update) {
   ::close(fd);
   return status;
 }
+
+absl::StatusOr<std::unique_ptr<JournalClaim>> JournalClaim::Take(
+    const std::string& journal_path) {
+  const std::string lock_path = journal_path + ".lock";
+  const int fd = ::open(lock_path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0600);
+  if (fd < 0) {
+    return absl::FailedPreconditionError(
+        absl::StrCat("cannot make the journal's lock file ", lock_path, ": ",
+                     std::strerror(errno)));
+  }
+  if (::flock(fd, LOCK_EX | LOCK_NB) != 0) {
+    char holder[32] = {0};
+    const ssize_t n = ::pread(fd, holder, sizeof(holder) - 1, 0);
+    ::close(fd);
+    return absl::FailedPreconditionError(absl::StrCat(
+        "journal ", journal_path, " is in use by another process (pid ",
+        n > 0 ? absl::StripAsciiWhitespace(holder) : "unknown", ", holding ",
+        lock_path,
+        "): one process per journal, or one would lose the other's "
+        "updates; give this one a --journal of its own"));
+  }
+  const std::string pid = absl::StrCat(::getpid(), "\n");
+  if (::ftruncate(fd, 0) != 0 || ::pwrite(fd, pid.data(), pid.size(), 0) !=
+                                     static_cast<ssize_t>(pid.size())) {
+    // The lock is what matters; the pid is for the message.
+  }
+  return std::unique_ptr<JournalClaim>(new JournalClaim(fd));
+}
+
+JournalClaim::~JournalClaim() { ::close(fd_); }
 
 absl::Status UpdateJournal::CheckWritable() const {
   absl::MutexLock lock(&mu_);

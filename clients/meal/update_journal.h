@@ -9,11 +9,13 @@
 //
 // Format: one update per line, tab-separated: event_id, loss, then the post
 // hoc values, all doubles printed with 17 significant digits so they read
-// back exactly. Thread-safe; one process owns one journal file.
+// back exactly. Thread-safe; one process owns one journal file (programs
+// take a JournalClaim at start).
 #ifndef BITEWISE_CLIENTS_MEAL_UPDATE_JOURNAL_H_
 #define BITEWISE_CLIENTS_MEAL_UPDATE_JOURNAL_H_
 
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -66,6 +68,27 @@ class UpdateJournal {
 
   const std::string path_;
   mutable absl::Mutex mu_;
+};
+
+// A process's hold on a journal: an exclusive lock on "<journal>.lock"
+// (flock, released when the process ends, however it ends), with the pid
+// in the file for the message. Two processes draining and rewriting one
+// journal would lose each other's updates; the second one to start is
+// refused instead.
+class JournalClaim {
+ public:
+  // FAILED_PRECONDITION naming the journal, the lock file and the holder's
+  // pid when another process holds it, or when the lock file cannot be
+  // made.
+  static absl::StatusOr<std::unique_ptr<JournalClaim>> Take(
+      const std::string& journal_path);
+  ~JournalClaim();
+  JournalClaim(const JournalClaim&) = delete;
+  JournalClaim& operator=(const JournalClaim&) = delete;
+
+ private:
+  explicit JournalClaim(int fd) : fd_(fd) {}
+  const int fd_;
 };
 
 }  // namespace bitewise::meals

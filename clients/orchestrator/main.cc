@@ -349,6 +349,12 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "--journal: %s\n", writable.ToString().c_str());
     return 2;
   }
+  absl::StatusOr<std::unique_ptr<meals::JournalClaim>> claim =
+      meals::JournalClaim::Take(journal.path());
+  if (!claim.ok()) {
+    std::fprintf(stderr, "--journal: %s\n", claim.status().ToString().c_str());
+    return 2;
+  }
   TerminalListener listener;
   // A new user's context dimension follows the featurizer in use, so the
   // user is found or created at the first bite.

@@ -3,6 +3,7 @@
 #include <signal.h>
 #include <stdlib.h>
 #include <sys/resource.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <fstream>
@@ -11,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "absl/strings/str_cat.h"
 #include "gtest/gtest.h"
 
 namespace bitewise::meals {
@@ -27,6 +29,26 @@ TEST(UpdateJournalTest, AbsentFileIsEmpty) {
   absl::StatusOr<std::vector<JournaledUpdate>> all = journal.ReadAll();
   ASSERT_TRUE(all.ok());
   EXPECT_TRUE(all->empty());
+}
+
+// One process per journal: a second claim (another orchestrator, a
+// console on the same file) is refused naming the holder; the claim goes
+// with its holder.
+TEST(JournalClaimTest, ASecondHolderIsRefusedNamingTheFirst) {
+  const std::string path = TempPath();
+  absl::StatusOr<std::unique_ptr<JournalClaim>> first =
+      JournalClaim::Take(path);
+  ASSERT_TRUE(first.ok()) << first.status();
+  absl::StatusOr<std::unique_ptr<JournalClaim>> second =
+      JournalClaim::Take(path);
+  ASSERT_EQ(second.status().code(), absl::StatusCode::kFailedPrecondition);
+  EXPECT_NE(second.status().message().find(absl::StrCat(
+                "journal ", path, " is in use by another process (pid ",
+                getpid(), ", holding ", path, ".lock)")),
+            std::string::npos)
+      << second.status();
+  first->reset();
+  EXPECT_TRUE(JournalClaim::Take(path).ok());
 }
 
 TEST(UpdateJournalTest, RoundTripsDoublesExactly) {
