@@ -87,7 +87,8 @@ install_missing --no-install-recommends -- "${PYTHON_PACKAGES[@]}"
 
 if [ ! -f build/build.ninja ]; then
   step "Configuring (CMake, Ninja, Release)"
-  cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DBITEWISE_WERROR=ON
+  cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DBITEWISE_WERROR=ON \
+    -DBITEWISE_MEAL_ONLY=OFF
 elif grep -q '^BITEWISE_MEAL_ONLY:BOOL=ON' build/CMakeCache.txt; then
   step "Configuring the rest of the tree (tests, benchmarks, console)"
   cmake -S . -B build -DBITEWISE_MEAL_ONLY=OFF

@@ -187,15 +187,17 @@ int main(int argc, char** argv) {
 
   console::MealHostOptions host_options;
   host_options.journal_path = absl::GetFlag(FLAGS_journal);
-  if (absl::Status writable =
-          meals::UpdateJournal(host_options.journal_path).CheckWritable();
-      !writable.ok()) {
-    return Fail(absl::StrCat("--journal: ", writable.ToString()));
-  }
+  // The claim first: the writability check may create and remove the
+  // file, which must not happen under another holder's appends.
   absl::StatusOr<std::unique_ptr<meals::JournalClaim>> claim =
       meals::JournalClaim::Take(host_options.journal_path);
   if (!claim.ok()) {
     return Fail(absl::StrCat("--journal: ", claim.status().ToString()));
+  }
+  if (absl::Status writable =
+          meals::UpdateJournal(host_options.journal_path).CheckWritable();
+      !writable.ok()) {
+    return Fail(absl::StrCat("--journal: ", writable.ToString()));
   }
   meals::MealOptions& defaults = host_options.defaults;
   defaults.posthoc = posthoc == "logprob"

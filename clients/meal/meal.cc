@@ -1089,10 +1089,11 @@ void Meal::ConfirmAnswer() {
                       : dropped ? "not learned"
                                 : "journaled");
     if (!learned) {
-      bite->set_error(dropped ? std::string(result->second.message())
-                      : delivered.ok()
-                          ? why_not
-                          : std::string(delivered.status().message()));
+      // This event's own error where it was tried, else the last one's.
+      bite->set_error(
+          !delivered.ok()           ? std::string(delivered.status().message())
+          : result != results.end() ? std::string(result->second.message())
+                                    : why_not);
     }
     text = absl::StrCat(
         FoodOf(*bite), " with ", bite->action().name(), ": ", bite->outcome(),

@@ -5,11 +5,11 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
 #include <cstdlib>
-#include <iostream>
 #include <memory>
 #include <optional>
 #include <string>
@@ -21,6 +21,7 @@
 #include "absl/strings/ascii.h"
 #include "absl/strings/str_cat.h"
 #include "absl/strings/str_format.h"
+#include "absl/synchronization/mutex.h"
 #include "clients/meal/meal.h"
 #include "clients/meal/service_clients.h"
 #include "clients/meal/trace_recording.h"
@@ -177,23 +178,82 @@ void PrintBite(const mealpb::Bite& bite) {
 // The termination signal received (0: none); set by the signal thread.
 std::atomic<int> interrupted{0};
 
+// The meal a signal stops (null before it exists and after its end). The
+// Stop call runs under the lock, so main waits for one in flight before
+// the meal and its channels go.
+absl::Mutex stop_mu;
+meals::Meal* stop_target ABSL_GUARDED_BY(stop_mu) = nullptr;
+
+// SIGINT and SIGTERM, blocked in every thread, are taken here: the first
+// tells the arm to stop (a running Acquire ends as "stopped"; before the
+// meal exists there is nothing to stop, and the program exits), the meal
+// loop ends after the call in flight; a second ends the program at once.
+void StartSignalThread() {
+  std::thread([] {
+    sigset_t signals;
+    sigemptyset(&signals);
+    sigaddset(&signals, SIGINT);
+    sigaddset(&signals, SIGTERM);
+    int signal_number = 0;
+    if (sigwait(&signals, &signal_number) != 0) return;
+    interrupted = signal_number;
+    const char* name = signal_number == SIGINT ? "SIGINT" : "SIGTERM";
+    {
+      absl::MutexLock lock(&stop_mu);
+      if (stop_target == nullptr) {
+        std::fprintf(stderr, "bitewise-orchestrator: %s: exiting\n", name);
+        std::_Exit(128 + signal_number);
+      }
+    }
+    std::fprintf(stderr, "bitewise-orchestrator: %s: stopping the arm\n", name);
+    std::thread([] {
+      absl::MutexLock lock(&stop_mu);
+      if (stop_target == nullptr) return;
+      if (absl::StatusOr<bitewise::v1::StopResponse> stopped =
+              stop_target->Stop();
+          !stopped.ok()) {
+        std::fprintf(stderr, "bitewise-orchestrator: Stop failed: %s\n",
+                     stopped.status().ToString().c_str());
+      }
+    }).detach();
+    if (sigwait(&signals, &signal_number) == 0) {
+      std::fprintf(stderr, "bitewise-orchestrator: second signal: exiting\n");
+      std::_Exit(128 + signal_number);
+    }
+  }).detach();
+}
+
 // Asks at the terminal until the answer is y or n. No answer (end of
 // input: no terminal, a launcher's closed stdin; or a termination signal
 // while waiting) is nullopt, never "no": a "no" nobody gave would teach
 // the person's model a failure, bite after bite, while the arm goes on.
+// Reads stdin itself (not through std::cin's buffer, which poll cannot
+// see), a fifth of a second at a time, so that a signal ends the wait.
 std::optional<bool> AskOperator(const std::string& question) {
+  static std::string pending;  // read, not yet a whole line
   while (interrupted.load() == 0) {
     std::printf("%s [y/n] ", question.c_str());
     std::fflush(stdout);
-    // Wait for a line a fifth of a second at a time, so that a signal
-    // ends the wait.
-    pollfd in{STDIN_FILENO, POLLIN, 0};
-    int ready = 0;
-    while (interrupted.load() == 0 && (ready = poll(&in, 1, 200)) == 0) {
-    }
-    if (interrupted.load() != 0 || ready < 0) return std::nullopt;
     std::string answer;
-    if (!std::getline(std::cin, answer)) return std::nullopt;
+    while (true) {
+      if (const size_t end = pending.find('\n'); end != std::string::npos) {
+        answer = pending.substr(0, end);
+        pending.erase(0, end + 1);
+        break;
+      }
+      if (interrupted.load() != 0) return std::nullopt;
+      pollfd in{STDIN_FILENO, POLLIN, 0};
+      const int ready = poll(&in, 1, 200);
+      if (ready < 0 && errno == EINTR) continue;
+      if (ready < 0) return std::nullopt;
+      if (ready == 0) continue;
+      char buffer[256];
+      const ssize_t n = read(STDIN_FILENO, buffer, sizeof(buffer));
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) return std::nullopt;  // end of input
+      pending.append(buffer, static_cast<size_t>(n));
+    }
+    if (!answer.empty() && answer.back() == '\r') answer.pop_back();
     if (answer == "y" || answer == "Y") return true;
     if (answer == "n" || answer == "N") return false;
   }
@@ -217,9 +277,10 @@ int main(int argc, char** argv) {
       "Runs bites for one user through the bitewise services.");
   bitewise::ShowOwnFlagsInHelp();
   bitewise::ParseFlagsOnly(argc, argv);
-  // SIGINT and SIGTERM go to the signal thread below (blocked here, before
-  // any thread starts, so every thread inherits the mask).
+  // SIGINT and SIGTERM go to the signal thread (blocked here, before any
+  // other thread starts, so every thread inherits the mask).
   bitewise::BlockTerminationSignals();
+  StartSignalThread();
   const std::string confirm = absl::GetFlag(FLAGS_confirm);
   const std::string posthoc = absl::GetFlag(FLAGS_posthoc);
   if (confirm != "robot" && confirm != "operator") {
@@ -345,14 +406,16 @@ int main(int argc, char** argv) {
   }
 
   meals::UpdateJournal journal(absl::GetFlag(FLAGS_journal));
-  if (absl::Status writable = journal.CheckWritable(); !writable.ok()) {
-    std::fprintf(stderr, "--journal: %s\n", writable.ToString().c_str());
-    return 2;
-  }
+  // The claim first: the writability check may create and remove the
+  // file, which must not happen under another holder's appends.
   absl::StatusOr<std::unique_ptr<meals::JournalClaim>> claim =
       meals::JournalClaim::Take(journal.path());
   if (!claim.ok()) {
     std::fprintf(stderr, "--journal: %s\n", claim.status().ToString().c_str());
+    return 2;
+  }
+  if (absl::Status writable = journal.CheckWritable(); !writable.ok()) {
+    std::fprintf(stderr, "--journal: %s\n", writable.ToString().c_str());
     return 2;
   }
   TerminalListener listener;
@@ -368,30 +431,10 @@ int main(int argc, char** argv) {
                 *delivered);
   }
 
-  // Ctrl-C or a stop (systemctl, a launcher): the arm is told to stop at
-  // once (a running Acquire ends as "stopped"), the meal ends after the
-  // call in flight, its summary is printed and the exit code is 128 + the
-  // signal. A second signal ends the program at once.
-  std::thread([&meal] {
-    sigset_t signals;
-    sigemptyset(&signals);
-    sigaddset(&signals, SIGINT);
-    sigaddset(&signals, SIGTERM);
-    int signal_number = 0;
-    if (sigwait(&signals, &signal_number) != 0) return;
-    interrupted = signal_number;
-    std::fprintf(stderr, "bitewise-orchestrator: %s: stopping the arm\n",
-                 signal_number == SIGINT ? "SIGINT" : "SIGTERM");
-    if (absl::StatusOr<bitewise::v1::StopResponse> stopped = meal.Stop();
-        !stopped.ok()) {
-      std::fprintf(stderr, "bitewise-orchestrator: Stop failed: %s\n",
-                   stopped.status().ToString().c_str());
-    }
-    if (sigwait(&signals, &signal_number) == 0) {
-      std::fprintf(stderr, "bitewise-orchestrator: second signal: exiting\n");
-      std::_Exit(128 + signal_number);
-    }
-  }).detach();
+  {
+    absl::MutexLock lock(&stop_mu);
+    stop_target = &meal;  // from here a signal stops the meal
+  }
 
   int limit = absl::GetFlag(FLAGS_bites);
   if (limit <= 0) limit = 64;
@@ -415,18 +458,22 @@ int main(int argc, char** argv) {
     return true;
   };
   for (int bite = 1; bite <= limit; ++bite) {
+    // A signal after this count is taken (meal.stops()) refuses the look
+    // or the bite even if it lands before the call begins.
+    uint64_t stops = meal.stops();
     if (signalled()) break;
-    absl::Status looked = meal.LookAtPlate();
+    absl::Status looked = meal.LookAtPlate(stops);
     if (!looked.ok()) {
-      stop(std::string(looked.message()));
+      if (!signalled()) stop(std::string(looked.message()));
       break;
     }
     if (!meal.state().running()) {
       std::printf("the plate is empty\n");
       break;
     }
+    stops = meal.stops();
     if (signalled()) break;
-    absl::Status bitten = meal.Bite(std::nullopt);
+    absl::Status bitten = meal.Bite(std::nullopt, stops);
     mealpb::Bite current = meal.state().current();
     if (!bitten.ok()) {
       if (current.number() == bite) PrintBite(current);
@@ -476,5 +523,10 @@ int main(int argc, char** argv) {
                 static_cast<long long>(recording->recorded()),
                 recording->dir().c_str());
   }
+  {
+    absl::MutexLock lock(&stop_mu);  // waits for a Stop in flight
+    stop_target = nullptr;
+  }
+  signalled();
   return exit_code;
 }

@@ -49,8 +49,10 @@ start_one() {
   if "$BUILD_DIR"/clients/health/bitewise-health --address "127.0.0.1:$port" \
     --service "bitewise.v1.$service" --timeout_s 60 >/dev/null; then
     for _ in $(seq 50); do
-      local fresh
-      fresh=$(tail -c +"$((before + 1))" "$log")
+      local fresh from=$((before + 1))
+      # A log cut shorter meanwhile (rotated) is read from its start.
+      if (($(stat -c %s "$log" 2>/dev/null || echo 0) < before)); then from=1; fi
+      fresh=$(tail -c +"$from" "$log" 2>/dev/null || true)
       if [[ $fresh == *"serving on"* ]] && kill -0 "$pid" 2>/dev/null; then
         own=1
         break
