@@ -78,14 +78,21 @@ struct RealSenseSource::Handles {
   rs2_processing_block* align = nullptr;
   rs2_frame_queue* queue = nullptr;
 
+  // Stops the streams if they run. The SDK may have stopped them itself
+  // (a failed reconnect): stopping again is then an error of no
+  // consequence.
+  void StopStreams() {
+    if (profile == nullptr) return;
+    rs2_error* e = nullptr;
+    api->pipeline_stop(pipeline, &e);
+    if (e != nullptr) api->free_error(e);
+    api->delete_pipeline_profile(profile);
+    profile = nullptr;
+  }
+
   ~Handles() {
     if (api == nullptr) return;
-    if (profile != nullptr) {
-      rs2_error* e = nullptr;
-      api->pipeline_stop(pipeline, &e);
-      if (e != nullptr) api->free_error(e);
-      api->delete_pipeline_profile(profile);
-    }
+    StopStreams();
     if (align != nullptr) api->delete_processing_block(align);
     if (queue != nullptr) api->delete_frame_queue(queue);
     if (config != nullptr) api->delete_config(config);
@@ -260,16 +267,8 @@ std::string RealSenseSource::name() const {
 
 absl::Status RealSenseSource::Restart() {
   const Api& api = *api_;
+  handles_->StopStreams();
   rs2_error* e = nullptr;
-  if (handles_->profile != nullptr) {
-    // The SDK may have stopped the pipeline itself (a failed reconnect);
-    // stopping it again is then an error of no consequence.
-    api.pipeline_stop(handles_->pipeline, &e);
-    if (e != nullptr) api.free_error(e);
-    e = nullptr;
-    api.delete_pipeline_profile(handles_->profile);
-    handles_->profile = nullptr;
-  }
   handles_->profile =
       api.pipeline_start_with_config(handles_->pipeline, handles_->config, &e);
   if (absl::Status s = api.Check(e, "rs2_pipeline_start_with_config",
